@@ -1,0 +1,139 @@
+"""Height fields: heights in metres on a regular grid.
+
+A :class:`HeightField` is the common currency of the authoring side: every
+source (analytic primitive, image, mesh, scene) produces one, and gradient
+analysis and force mapping consume it. Arrays are indexed (rows, cols); row
+index grows with y, column index with x. Sample (r, c) sits at
+``(x0 + c*dx, y0 + r*dy)``. A 1-D profile is a single row.
+"""
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import InputError
+
+#: Largest grid accepted before allocation (samples); 16384^2 float64 = 2 GiB.
+MAX_SAMPLES = 16384 * 16384
+
+
+def check_grid_size(rows: int, cols: int, what: str) -> None:
+    """Refuse a grid that would exhaust memory, before anything is allocated."""
+    n = int(rows) * int(cols)
+    if n > MAX_SAMPLES:
+        raise InputError(
+            f"{what}: grid of {rows}x{cols} = {n} samples ({n * 8 / 2**30:.1f} GiB as float64) "
+            f"exceeds the limit of {MAX_SAMPLES} samples"
+        )
+
+
+def check_spacing(value: float, name: str) -> float:
+    """Return ``value`` as a float if it is a finite spacing > 0, else raise."""
+    v = float(value)
+    if not np.isfinite(v) or v <= 0:
+        raise InputError(f"`{name}` must be a finite length > 0 (got {value!r})")
+    return v
+
+
+@dataclass(frozen=True, eq=False)
+class HeightField:
+    """Heights on a regular grid.
+
+    Parameters
+    ----------
+    heights : ndarray of shape (rows, cols), float64, metres
+        Finite heights. ``rows == 1`` is a 1-D profile along x.
+    dx, dy : float, metres
+        Sample spacing along x (columns) and y (rows); both > 0.
+    x0, y0 : float, metres
+        Position of sample (0, 0).
+    source : str
+        Human-readable description of where the heights came from.
+    """
+
+    heights: np.ndarray
+    dx: float
+    dy: float
+    x0: float = 0.0
+    y0: float = 0.0
+    source: str = ""
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        h = np.asarray(self.heights, dtype=np.float64)
+        if h.ndim == 1:
+            h = h[None, :]
+        if h.ndim != 2:
+            raise InputError(f"`heights` must be a 2-D array (rows, cols) (got shape {h.shape})")
+        if h.size == 0:
+            raise InputError(f"`heights` is empty (got shape {h.shape})")
+        if h.size == 1:
+            raise InputError(f"`heights` has a single sample; a shape needs at least 2 (got shape {h.shape})")
+        bad = ~np.isfinite(h)
+        if bad.any():
+            r, c = np.argwhere(bad)[0]
+            raise InputError(
+                f"`heights` must be finite: {int(bad.sum())} NaN/inf samples, first at row {r}, col {c} "
+                f"(value {h[r, c]})"
+            )
+        h = np.ascontiguousarray(h)
+        h.setflags(write=False)
+        object.__setattr__(self, "heights", h)
+        object.__setattr__(self, "dx", check_spacing(self.dx, "dx"))
+        object.__setattr__(self, "dy", check_spacing(self.dy, "dy"))
+        for name in ("x0", "y0"):
+            v = float(getattr(self, name))
+            if not np.isfinite(v):
+                raise InputError(f"`{name}` must be finite (got {v})")
+            object.__setattr__(self, name, v)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.heights.shape
+
+    @property
+    def rows(self) -> int:
+        return self.heights.shape[0]
+
+    @property
+    def cols(self) -> int:
+        return self.heights.shape[1]
+
+    @property
+    def is_1d(self) -> bool:
+        """True for a single-row profile along x."""
+        return self.rows == 1
+
+    @property
+    def x(self) -> np.ndarray:
+        """Sample x positions, shape (cols,), metres."""
+        return self.x0 + self.dx * np.arange(self.cols)
+
+    @property
+    def y(self) -> np.ndarray:
+        """Sample y positions, shape (rows,), metres."""
+        return self.y0 + self.dy * np.arange(self.rows)
+
+    @property
+    def size_m(self) -> tuple[float, float]:
+        """Physical (width, height) covered by the samples, metres."""
+        return self.cols * self.dx, self.rows * self.dy
+
+    def sha256(self) -> str:
+        """Hash of heights and grid: identifies the source in compiled tables."""
+        d = hashlib.sha256()
+        d.update(np.asarray(self.shape, dtype="<i8").tobytes())
+        d.update(np.asarray([self.dx, self.dy, self.x0, self.y0], dtype="<f8").tobytes())
+        d.update(self.heights.astype("<f8", copy=False).tobytes())
+        return d.hexdigest()
+
+    def with_heights(self, heights: np.ndarray, source: str | None = None) -> "HeightField":
+        """A copy on the same grid with new heights."""
+        return HeightField(heights, self.dx, self.dy, self.x0, self.y0,
+                           self.source if source is None else source, dict(self.meta))
+
+    def __repr__(self) -> str:
+        return (f"HeightField({self.rows}x{self.cols}, dx={self.dx * 1e3:g} mm, dy={self.dy * 1e3:g} mm, "
+                f"h=[{self.heights.min() * 1e3:.4g}, {self.heights.max() * 1e3:.4g}] mm, source={self.source!r})")

@@ -1,0 +1,424 @@
+"""Friction-envelope tables: the compiled, versioned, checksummed container.
+
+This module is on the runtime side: it imports nothing from the authoring
+side, so a table file plus the runtime is all a device host needs.
+
+Container
+---------
+An ``.npz`` (a zip of ``.npy`` arrays, readable with plain numpy) holding
+
+* ``header`` — uint8 array of UTF-8 JSON (``json.loads(bytes(z["header"]))``);
+* one flat array per stored channel, named after the channel, holding the
+  quantized codes of every stored patch back to back.
+
+The header gives the canvas ``grid`` (rows, cols, spacing and origin of the
+sample centres, metres), the ``patches`` (shapes of the stored arrays), the
+``blocks`` that place patches on the canvas (``[row0, col0, patch]``; blocks
+never overlap; a patch used by several blocks is stored once), and per
+channel its unit, dtype, ``scale``/``offset`` (value = offset + scale * code),
+the worst-case quantization error and the ``background`` value used where no
+block lies. A dense table is one block covering the canvas. The header also
+carries the model and burst parameters, tick rate, velocity range, source
+hashes, compile options and report, the ``format_version`` and a
+``checksum`` (sha256 over the header without the checksum and every channel
+array's dtype and bytes, in channel-name order).
+"""
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import math
+import os
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .atomic import atomic_path
+from .errors import TableError, InputError, unknown_key
+
+FORMAT_NAME = "shapedisplay-friction-table"
+FORMAT_VERSION = 1
+
+#: Every channel the format knows: name -> (SI unit, meaning).
+CHANNELS: dict[str, tuple[str, str]] = {
+    "normal_force": ("N", "virtual normal force N"),
+    "breakaway_force": ("N", "static friction limit mu_s*N where mu_s varies over the surface"),
+    "kinetic_force": ("N", "kinetic friction mu_k*N where mu_k varies over the surface"),
+    "friction_scale": ("1", "multiplier on mu_s and mu_k (data layers)"),
+    "burst_gain": ("1", "multiplier on the burst gain B"),
+    "grad_x": ("1", "surface slope dh/dx, for direction-dependent friction"),
+    "grad_y": ("1", "surface slope dh/dy, for direction-dependent friction"),
+    "lateral_x": ("N", "lateral-force cue along x"),
+    "lateral_y": ("N", "lateral-force cue along y"),
+    "skin_stretch": ("m", "skin-stretch target at breakaway"),
+}
+
+_DTYPES = {"uint8": np.uint8, "uint16": np.uint16, "float32": np.float32, "float64": np.float64}
+
+
+@dataclass(frozen=True)
+class Grid:
+    """Canvas grid: sample (r, c) is at (x0 + c*dx, y0 + r*dy), metres."""
+
+    rows: int
+    cols: int
+    dx: float
+    dy: float
+    x0: float = 0.0
+    y0: float = 0.0
+
+    def to_json(self) -> dict:
+        return {"rows": self.rows, "cols": self.cols, "dx_m": self.dx, "dy_m": self.dy,
+                "x0_m": self.x0, "y0_m": self.y0}
+
+    @classmethod
+    def from_json(cls, d: dict) -> "Grid":
+        return cls(int(d["rows"]), int(d["cols"]), float(d["dx_m"]), float(d["dy_m"]),
+                   float(d["x0_m"]), float(d["y0_m"]))
+
+
+@dataclass(frozen=True)
+class Quantization:
+    """How a channel's values are coded: value = offset + scale * code."""
+
+    dtype: str            # "uint8" | "uint16" | "float32" | "float64"
+    scale: float = 1.0
+    offset: float = 0.0
+    max_error: float = 0.0  # worst-case |decoded - original|, channel unit
+
+    def encode(self, values: np.ndarray) -> np.ndarray:
+        values = np.asarray(values, dtype=np.float64)
+        if self.dtype in ("float32", "float64"):
+            return values.astype(_DTYPES[self.dtype])
+        top = np.iinfo(_DTYPES[self.dtype]).max
+        codes = np.rint((values - self.offset) / self.scale) if self.scale > 0 else np.zeros_like(values)
+        return np.clip(codes, 0, top).astype(_DTYPES[self.dtype])
+
+    def decode(self, codes: np.ndarray) -> np.ndarray:
+        if self.dtype in ("float32", "float64"):
+            return np.asarray(codes, dtype=np.float64)
+        return self.offset + self.scale * np.asarray(codes, dtype=np.float64)
+
+
+def choose_quantization(values: np.ndarray, dtype: str = "auto", max_error: float | None = None) -> Quantization:
+    """Pick a coding for ``values``.
+
+    ``dtype`` "uint8"/"uint16" spreads the codes over [min, max] (worst-case
+    error scale/2); "float32"/"float64" keep floats; "auto" takes the
+    smallest integer width whose worst-case error is <= ``max_error`` and
+    falls back to float32 when none is.
+    """
+    v = np.asarray(values, dtype=np.float64)
+    lo, hi = (float(v.min()), float(v.max())) if v.size else (0.0, 0.0)
+    if dtype == "auto":
+        if max_error is None or max_error <= 0:
+            raise InputError(f"`max_error` must be > 0 for automatic quantization (got {max_error!r})")
+        for cand in ("uint8", "uint16"):
+            q = choose_quantization(v, cand)
+            if q.max_error <= max_error:
+                return q
+        dtype = "float32"
+    if dtype in ("float32", "float64"):
+        eps = 0.0 if dtype == "float64" else float(np.max(np.abs(v), initial=0.0)) * 2.0 ** -24
+        return Quantization(dtype, 1.0, 0.0, eps)
+    if dtype not in _DTYPES:
+        raise unknown_key("quantization dtype", dtype, list(_DTYPES) + ["auto"])
+    top = np.iinfo(_DTYPES[dtype]).max
+    scale = (hi - lo) / top if hi > lo else 0.0
+    q = Quantization(dtype, scale, lo, 0.0)
+    err = float(np.max(np.abs(q.decode(q.encode(v)) - v), initial=0.0)) if v.size else 0.0
+    return Quantization(dtype, scale, lo, max(err, scale / 2 if scale > 0 else 0.0))
+
+
+@dataclass
+class FrictionTable:
+    """A friction-envelope table in memory.
+
+    ``patches[name]`` is a list of decoded-from-codes arrays is not kept;
+    instead ``codes[name]`` is the flat code array of channel ``name`` and
+    ``patch_shapes``/``blocks`` say where each value goes on the canvas.
+    """
+
+    grid: Grid
+    patch_shapes: list           # [(rows, cols), ...]
+    blocks: list                 # [(row0, col0, patch), ...]
+    codes: dict                  # name -> flat ndarray of codes (all patches)
+    quant: dict                  # name -> Quantization
+    background: dict             # name -> float (SI)
+    meta: dict = field(default_factory=dict)  # model, burst, tick rate, source, report...
+    _dense_cache: dict = field(default_factory=dict, repr=False, compare=False)
+
+    # -------------------------------------------------------------- building
+    @classmethod
+    def from_dense(cls, grid: Grid, channels: dict, quant: dict, meta: dict | None = None) -> "FrictionTable":
+        """One block covering the canvas. ``channels[name]`` has shape (rows, cols), SI."""
+        return cls.from_patches(grid, [((0, 0), channels)], quant, {n: 0.0 for n in channels}, meta)
+
+    @classmethod
+    def from_patches(cls, grid: Grid, placed: list, quant: dict, background: dict,
+                     meta: dict | None = None) -> "FrictionTable":
+        """Build from ``placed = [((row0, col0), {name: array}), ...]``.
+
+        Patches with identical coded contents are stored once.
+        """
+        names = sorted(quant)
+        for name in names:
+            if name not in CHANNELS:
+                raise unknown_key("channel", name, CHANNELS)
+        shapes, blocks, chunks, seen = [], [], {n: [] for n in names}, {}
+        for (r0, c0), chans in placed:
+            missing = set(names) - set(chans)
+            if missing:
+                raise InputError(f"patch at row {r0}, col {c0} lacks channels {sorted(missing)}")
+            arrs = {n: np.atleast_2d(np.asarray(chans[n], dtype=np.float64)) for n in names}
+            shape = next(iter(arrs.values())).shape
+            if r0 < 0 or c0 < 0 or r0 + shape[0] > grid.rows or c0 + shape[1] > grid.cols:
+                raise InputError(f"patch {shape} at row {r0}, col {c0} lies outside the {grid.rows}x{grid.cols} canvas")
+            coded = {n: quant[n].encode(arrs[n]).ravel() for n in names}
+            key = hashlib.sha256(repr(shape).encode() + b"".join(coded[n].tobytes() for n in names)).hexdigest()
+            if key not in seen:
+                seen[key] = len(shapes)
+                shapes.append(tuple(int(s) for s in shape))
+                for n in names:
+                    chunks[n].append(coded[n])
+            blocks.append((int(r0), int(c0), seen[key]))
+        codes = {n: (np.concatenate(chunks[n]) if chunks[n] else np.zeros(0, _DTYPES[quant[n].dtype]))
+                 for n in names}
+        t = cls(grid, shapes, blocks, codes, dict(quant), {n: float(background.get(n, 0.0)) for n in names},
+                copy.deepcopy(meta or {}))
+        t._check_layout()
+        return t
+
+    # -------------------------------------------------------------- queries
+    @property
+    def channels(self) -> list[str]:
+        return sorted(self.codes)
+
+    @property
+    def is_1d(self) -> bool:
+        return self.grid.rows == 1
+
+    def require(self, *names: str) -> None:
+        """Raise if any of ``names`` is not stored."""
+        missing = [n for n in names if n not in self.codes]
+        if missing:
+            raise TableError(f"table lacks channel(s) {missing} needed here; it holds {self.channels}")
+
+    def patch_offsets(self) -> np.ndarray:
+        sizes = [r * c for r, c in self.patch_shapes]
+        return np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+
+    def packed(self, name: str):
+        """Flat form for compiled lookups.
+
+        Returns
+        -------
+        blocks : ndarray (n_blocks, 5) int64 — row0, col0, rows, cols, offset
+        data : ndarray (n_values,) float64 — decoded values, SI
+        background : float
+        """
+        self.require(name)
+        off = self.patch_offsets()
+        blk = np.array([[r0, c0, *self.patch_shapes[p], off[p]] for r0, c0, p in self.blocks],
+                       dtype=np.int64).reshape(-1, 5)
+        return blk, self.quant[name].decode(self.codes[name]), self.background[name]
+
+    def dense(self, name: str) -> np.ndarray:
+        """Decoded channel on the whole canvas, shape (rows, cols), float64, SI."""
+        if name not in self._dense_cache:
+            blk, data, bg = self.packed(name)
+            out = np.full((self.grid.rows, self.grid.cols), bg, dtype=np.float64)
+            for r0, c0, nr, nc, off in blk:
+                out[r0:r0 + nr, c0:c0 + nc] = data[off:off + nr * nc].reshape(nr, nc)
+            out.setflags(write=False)
+            self._dense_cache[name] = out
+        return self._dense_cache[name]
+
+    def sample(self, name: str, x, y=None) -> np.ndarray:
+        """Bilinear value of channel ``name`` at positions (x, y), metres.
+
+        Outside the canvas the edge value is held (coordinates are clamped to
+        the outermost sample centres). A 1-D table ignores ``y``.
+        """
+        g = self.grid
+        vals = self.dense(name)
+        x = np.asarray(x, dtype=np.float64)
+        fc = np.clip((x - g.x0) / g.dx, 0.0, g.cols - 1)
+        c0 = np.minimum(np.floor(fc).astype(np.int64), max(g.cols - 2, 0))
+        tx = fc - c0
+        c1 = np.minimum(c0 + 1, g.cols - 1)
+        if g.rows == 1 or y is None:
+            row = vals[0]
+            return row[c0] * (1 - tx) + row[c1] * tx
+        y = np.asarray(y, dtype=np.float64)
+        fr = np.clip((y - g.y0) / g.dy, 0.0, g.rows - 1)
+        r0 = np.minimum(np.floor(fr).astype(np.int64), max(g.rows - 2, 0))
+        ty = fr - r0
+        r1 = np.minimum(r0 + 1, g.rows - 1)
+        return ((vals[r0, c0] * (1 - tx) + vals[r0, c1] * tx) * (1 - ty)
+                + (vals[r1, c0] * (1 - tx) + vals[r1, c1] * tx) * ty)
+
+    @property
+    def stored_bytes(self) -> int:
+        """Bytes of channel data actually stored (codes of every unique patch)."""
+        return int(sum(a.nbytes for a in self.codes.values()))
+
+    @property
+    def dense_bytes(self) -> int:
+        """Bytes of a dense float32 table of every format channel on this canvas."""
+        return int(self.grid.rows * self.grid.cols * len(CHANNELS) * 4)
+
+    # -------------------------------------------------------------- header
+    def header(self) -> dict:
+        h = {
+            "format": FORMAT_NAME,
+            "format_version": FORMAT_VERSION,
+            "grid": self.grid.to_json(),
+            "patches": [list(s) for s in self.patch_shapes],
+            "blocks": [list(b) for b in self.blocks],
+            "channels": {
+                n: {"unit": CHANNELS[n][0], "dtype": q.dtype, "scale": q.scale, "offset": q.offset,
+                    "max_error": q.max_error, "background": self.background[n]}
+                for n, q in sorted(self.quant.items())
+            },
+        }
+        h.update(self.meta)
+        return h
+
+    def checksum(self) -> str:
+        return _checksum(self.header(), self.codes)
+
+    def _check_layout(self) -> None:
+        g = self.grid
+        if g.rows < 1 or g.cols < 1 or not (g.dx > 0 and g.dy > 0):
+            raise TableError(f"table grid is invalid: {g}")
+        n_vals = int(self.patch_offsets()[-1])
+        for n, a in self.codes.items():
+            if a.ndim != 1 or a.size != n_vals:
+                raise TableError(f"channel '{n}' holds {a.size} values; the patches need {n_vals}")
+        occupied = np.zeros((g.rows, g.cols), dtype=bool) if g.rows * g.cols <= 1 << 26 else None
+        for r0, c0, p in self.blocks:
+            if not 0 <= p < len(self.patch_shapes):
+                raise TableError(f"block at ({r0}, {c0}) names patch {p}; only {len(self.patch_shapes)} exist")
+            nr, nc = self.patch_shapes[p]
+            if r0 < 0 or c0 < 0 or r0 + nr > g.rows or c0 + nc > g.cols:
+                raise TableError(f"block at ({r0}, {c0}) of {nr}x{nc} lies outside the canvas")
+            if occupied is not None:
+                if occupied[r0:r0 + nr, c0:c0 + nc].any():
+                    raise TableError(f"block at ({r0}, {c0}) overlaps another block")
+                occupied[r0:r0 + nr, c0:c0 + nc] = True
+
+    # -------------------------------------------------------------- files
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write atomically to ``path`` (.npz). Returns the path."""
+        path = Path(path)
+        header = self.header()
+        header["checksum"] = _checksum(header, self.codes)
+        arrays = {"header": np.frombuffer(json.dumps(header, sort_keys=True).encode(), dtype=np.uint8)}
+        for n, a in self.codes.items():
+            arrays[n] = a.astype(a.dtype.newbyteorder("<"), copy=False)
+        with atomic_path(path, suffix=".npz") as tmp:
+            with open(tmp, "wb") as fh:
+                np.savez_compressed(fh, **arrays)
+        return path
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> "FrictionTable":
+        """Read and verify a table; raise :class:`TableError` on any defect."""
+        path = Path(path)
+        if not path.is_file():
+            raise TableError(f"table '{path}': no such file")
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                if "header" not in z.files:
+                    raise TableError(f"table '{path}': no 'header' entry; not a shapedisplay table")
+                header = json.loads(bytes(z["header"]).decode("utf-8"))
+                arrays = {n: z[n] for n in z.files if n != "header"}
+        except TableError:
+            raise
+        except (OSError, ValueError, zipfile.BadZipFile, EOFError, KeyError, UnicodeDecodeError) as exc:
+            raise TableError(f"table '{path}': unreadable or truncated ({exc})") from None
+        return cls.from_header(header, arrays, str(path))
+
+    @classmethod
+    def from_header(cls, header: dict, arrays: dict, where: str = "table") -> "FrictionTable":
+        if header.get("format") != FORMAT_NAME:
+            raise TableError(f"table '{where}': format is {header.get('format')!r}, expected {FORMAT_NAME!r}")
+        ver = header.get("format_version")
+        if ver != FORMAT_VERSION:
+            raise TableError(f"table '{where}': format_version must be {FORMAT_VERSION} (got {ver!r})")
+        stored = header.get("checksum")
+        body = {k: v for k, v in header.items() if k != "checksum"}
+        actual = _checksum(body, arrays)
+        if stored != actual:
+            raise TableError(f"table '{where}': checksum mismatch (stored {stored}, computed {actual}); file is corrupt")
+        try:
+            grid = Grid.from_json(header["grid"])
+            quant, background, codes = {}, {}, {}
+            for n, c in header["channels"].items():
+                quant[n] = Quantization(c["dtype"], float(c["scale"]), float(c["offset"]), float(c["max_error"]))
+                background[n] = float(c["background"])
+                codes[n] = np.asarray(arrays[n])
+            meta = {k: v for k, v in body.items()
+                    if k not in ("format", "format_version", "grid", "patches", "blocks", "channels")}
+            t = cls(grid, [tuple(s) for s in header["patches"]], [tuple(b) for b in header["blocks"]],
+                    codes, quant, background, meta)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise TableError(f"table '{where}': malformed header ({exc!r})") from None
+        t._check_layout()
+        return t
+
+    # -------------------------------------------------------------- exports
+    def to_json(self) -> dict:
+        """Dense export: grid and every stored channel at the sample centres, SI, row-major."""
+        return {
+            "format": FORMAT_NAME,
+            "format_version": FORMAT_VERSION,
+            "checksum": self.checksum(),
+            "grid": self.grid.to_json(),
+            "channels": {n: {"unit": CHANNELS[n][0], "max_error": self.quant[n].max_error,
+                             "values": self.dense(n).tolist()} for n in self.channels},
+            "meta": self.meta,
+        }
+
+    def summary(self) -> dict:
+        """Sizes, channels and ranges for ``inspect``."""
+        return {
+            "format_version": FORMAT_VERSION,
+            "checksum": self.checksum(),
+            "grid": self.grid.to_json(),
+            "is_1d": self.is_1d,
+            "channels": {n: {"unit": CHANNELS[n][0], "dtype": self.quant[n].dtype,
+                             "max_error": self.quant[n].max_error,
+                             "min": float(self.dense(n).min()), "max": float(self.dense(n).max())}
+                         for n in self.channels},
+            "patches": len(self.patch_shapes),
+            "blocks": len(self.blocks),
+            "stored_bytes": self.stored_bytes,
+            "dense_bytes": self.dense_bytes,
+            "meta": self.meta,
+        }
+
+
+def _checksum(header: dict, arrays: dict) -> str:
+    d = hashlib.sha256()
+    d.update(json.dumps({k: v for k, v in header.items() if k != "checksum"}, sort_keys=True).encode())
+    for n in sorted(arrays):
+        a = np.asarray(arrays[n])
+        d.update(n.encode() + b"\0" + a.dtype.newbyteorder("<").str.encode() + b"\0")
+        d.update(a.astype(a.dtype.newbyteorder("<"), copy=False).tobytes())
+    return "sha256:" + d.hexdigest()
+
+
+def is_finite_json(obj) -> bool:
+    """True if no float anywhere in ``obj`` is NaN or infinite."""
+    if isinstance(obj, float):
+        return math.isfinite(obj)
+    if isinstance(obj, dict):
+        return all(is_finite_json(v) for v in obj.values())
+    if isinstance(obj, (list, tuple)):
+        return all(is_finite_json(v) for v in obj)
+    return True
