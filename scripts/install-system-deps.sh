@@ -1,0 +1,45 @@
+#!/bin/sh
+# System libraries for off-screen 3D preview (`shapedisplay preview -o shot.png`)
+# on a headless Linux machine without a GPU.
+#
+# The VTK wheels used by pyvista load OpenGL at run time. Without an X display
+# they render through EGL with Mesa's software rasterizer (llvmpipe), which
+# needs exactly these Debian/Ubuntu packages:
+#   libegl1         EGL loader (libglvnd)
+#   libegl-mesa0    Mesa's EGL vendor library (surfaceless platform)
+#   libgl1-mesa-dri Mesa's software rasterizer (swrast/llvmpipe DRI driver)
+# Nothing else (no Xvfb, no OSMesa) is needed.
+#
+# Idempotent and non-interactive: does nothing when the packages are present,
+# and only prints what to install when it is not root or apt-get is absent.
+set -eu
+
+PACKAGES="libegl1 libegl-mesa0 libgl1-mesa-dri"
+
+missing=""
+if command -v dpkg-query >/dev/null 2>&1; then
+    for p in $PACKAGES; do
+        if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+            missing="$missing $p"
+        fi
+    done
+else
+    echo "install-system-deps: no dpkg on this system; off-screen 3D preview needs EGL + Mesa (llvmpipe) or OSMesa from your package manager" >&2
+    exit 0
+fi
+
+if [ -z "$missing" ]; then
+    echo "install-system-deps: off-screen rendering libraries present ($PACKAGES)"
+    exit 0
+fi
+
+if [ "$(id -u)" != "0" ] || ! command -v apt-get >/dev/null 2>&1; then
+    echo "install-system-deps: off-screen 3D preview needs:$missing" >&2
+    echo "install-system-deps: run as root: apt-get install -y --no-install-recommends$missing" >&2
+    exit 0
+fi
+
+echo "install-system-deps: installing$missing"
+export DEBIAN_FRONTEND=noninteractive
+apt-get update -q
+apt-get install -y -q --no-install-recommends $missing
