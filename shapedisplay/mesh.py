@@ -1,0 +1,648 @@
+"""Meshes as shape sources: 3D models to height fields and back.
+
+A designer's keycap, knob or relief map arrives as a triangle mesh. This
+module turns it into a :class:`~shapedisplay.heightfield.HeightField` by
+looking at it from above and keeping the top surface, and writes a height
+field back out as a mesh (STL/PLY) to 3D-print or inspect what will be
+rendered.
+
+Conventions
+-----------
+* **Files.** STL (ASCII and binary), OBJ, PLY, OFF, GLB and glTF are read with
+  trimesh (optional extra: ``pip install 'shapedisplay[mesh]'``). A file that
+  holds a scene of several meshes is merged: every mesh is moved into world
+  coordinates by its scene-graph transform and the triangles are
+  concatenated. Points, lines and other non-triangle geometry are ignored.
+* **Units.** Coordinates are read in ``units`` ("mm" by default, also "cm",
+  "m", "in") and converted to metres. A footprint under 1 mm or over 2 m
+  looks implausible for a screen and raises :class:`ImplausibleSizeWarning`
+  with the unit that would make it plausible.
+* **View.** The mesh is rotated so that ``up`` points along +z and viewed
+  from above; every sample keeps the highest surface over it (overhangs take
+  the top, normals and winding are ignored, so inverted normals,
+  non-watertight and non-manifold meshes work).  ``up`` is an axis name
+  ``x|y|z|-x|-y|-z``, a 3-vector direction, or a (3, 3) rotation matrix
+  applied to the vertices before viewing from +z. For an axis or direction
+  the in-plane axes are: new x = world x made perpendicular to ``up`` (world
+  y when ``up`` is along x), new y = up × new x. So ``up="z"`` is the
+  identity and ``up="y"`` (glTF's convention) shows a Y-up model from above
+  with x to the right and -z towards +y.
+* **Origin.** Height-field coordinates are relative to the bounding-box
+  minimum of the (rotated) mesh: the footprint starts at x = y = 0 and the
+  lowest point of the mesh has height 0. ``meta["model_origin_m"]`` keeps
+  that corner in the rotated model frame (metres). With ``margin`` the grid
+  extends by whole samples beyond the footprint (x0 = y0 = -margin rounded
+  up to a sample).
+* **Sampling.** Sample (r, c) sits at (x0 + c*dx, y0 + r*dy). With
+  ``resolution`` the spacing is fixed and the grid covers the footprint
+  (the last sample may lie up to one spacing beyond it); with
+  ``grid=(rows, cols)`` the first and last samples sit on the footprint's
+  edges. Samples no triangle covers get ``background``.
+* **Supersampling.** ``supersample=k`` rasterises k x k sub-samples spread
+  evenly over each sample's cell (centred on the sample) and reduces them by
+  their mean (``supersample_mode="mean"``: anti-aliased edges, a thin ridge
+  keeps its area) or their maximum (``"max"``: a thin ridge keeps its full
+  height). Uncovered sub-samples count as ``background``.
+* **Vertical faces** (a button's side) cover no sample: they become a step
+  between neighbouring samples, which gradient analysis reports as a wall.
+* **Degenerate faces** (zero area in 3D) are dropped and counted in
+  ``meta["degenerate_faces_dropped"]``.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import struct
+import warnings
+import zlib
+from pathlib import Path
+
+import numpy as np
+
+from .errors import FileFormatError, InputError, require, unknown_key
+from .heightfield import HeightField, check_grid_size
+
+#: File suffixes read through trimesh.
+MESH_SUFFIXES = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf")
+
+#: Length units accepted for mesh coordinates, metres per unit.
+UNITS = {"mm": 1e-3, "cm": 1e-2, "m": 1.0, "in": 0.0254}
+
+#: Footprints (longest side, metres) outside this range raise ImplausibleSizeWarning.
+PLAUSIBLE_FOOTPRINT_M = (1e-3, 2.0)
+
+#: Sub-sample reductions for supersampling.
+SUPERSAMPLE_MODES = ("mean", "max")
+
+#: Longest side of the grid when neither resolution nor grid is given.
+DEFAULT_LONG_SIDE = 512
+
+_AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
+
+
+class ImplausibleSizeWarning(UserWarning):
+    """The mesh footprint is implausibly small or large for a screen (unit confusion?)."""
+
+
+# ---------------------------------------------------------------------------
+# loading
+
+def _check_stl(path: Path) -> None:
+    """Detect truncated STL files, which trimesh reads as empty without complaint."""
+    size = path.stat().st_size
+    with open(path, "rb") as f:
+        head = f.read(84)
+    if len(head) >= 84:
+        (n,) = struct.unpack("<I", head[80:84])
+        if size == 84 + 50 * n:
+            return  # consistent binary STL
+    if head[:5].lower() == b"solid":
+        with open(path, "rb") as f:
+            f.seek(max(0, size - 512))
+            tail = f.read().lower()
+        if b"endsolid" in tail:
+            return  # ASCII STL with its closing line
+        if b"facet" in head.lower() or size < 84:
+            raise FileFormatError(f"mesh '{path}': ASCII STL is truncated (no closing 'endsolid' line)")
+    if len(head) < 84:
+        raise FileFormatError(f"mesh '{path}': binary STL is truncated ({size} bytes, the header alone is 84)")
+    raise FileFormatError(
+        f"mesh '{path}': binary STL is truncated or corrupt: header says {n} triangles "
+        f"({84 + 50 * n} bytes) but the file has {size} bytes"
+    )
+
+
+def load_mesh(path) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Read a mesh file and merge its scene into one triangle list.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        ``.stl .obj .ply .off .glb .gltf``.
+
+    Returns
+    -------
+    vertices : ndarray of shape (n, 3), float64, file units
+    faces : ndarray of shape (m, 3), int64
+        Indices into ``vertices``.
+    info : dict
+        ``{"meshes": number of meshes merged, "format": suffix}``.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in MESH_SUFFIXES:
+        raise FileFormatError(
+            f"mesh '{path}': unsupported suffix '{suffix}'; readable: {', '.join(MESH_SUFFIXES)}"
+        )
+    if not path.is_file():
+        raise FileFormatError(f"mesh '{path}': file not found")
+    if not os.access(path, os.R_OK):
+        raise FileFormatError(f"mesh '{path}': file is not readable (permission denied)")
+    if path.stat().st_size == 0:
+        raise FileFormatError(f"mesh '{path}': file is empty (0 bytes)")
+    if suffix == ".stl":
+        _check_stl(path)
+    trimesh = require("trimesh", "mesh", "Loading meshes")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            scene = trimesh.load(str(path), file_type=suffix[1:], process=False, force="scene")
+            geoms = scene.dump()
+    except Exception as exc:  # trimesh raises many kinds for corrupt files
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise FileFormatError(f"mesh '{path}': cannot read {suffix[1:].upper()} file ({msg})") from None
+    verts, faces, offset, count = [], [], 0, 0
+    for g in geoms:
+        f = getattr(g, "faces", None)
+        v = getattr(g, "vertices", None)
+        if f is None or v is None or len(f) == 0:
+            continue
+        f = np.asarray(f, dtype=np.int64)
+        if f.ndim != 2 or f.shape[1] != 3:
+            continue
+        verts.append(np.asarray(v, dtype=np.float64))
+        faces.append(f + offset)
+        offset += len(v)
+        count += 1
+    if not faces:
+        raise FileFormatError(f"mesh '{path}': no triangles found (empty mesh or unreadable content)")
+    return np.concatenate(verts), np.concatenate(faces), {"meshes": count, "format": suffix[1:]}
+
+
+# ---------------------------------------------------------------------------
+# parameters
+
+def up_rotation(up="z") -> np.ndarray:
+    """Rotation matrix that turns ``up`` into +z (see the module docstring).
+
+    Parameters
+    ----------
+    up : str, array of shape (3,), or array of shape (3, 3)
+        Axis name ``x|y|z|-x|-y|-z``, a direction, or a rotation matrix.
+
+    Returns
+    -------
+    ndarray of shape (3, 3), float64
+        Rows are the new x, y, z axes in world coordinates.
+    """
+    if isinstance(up, str):
+        name = up.strip().lower()
+        sign = -1.0 if name.startswith("-") else 1.0
+        key = name.lstrip("+-")
+        if key not in _AXES:
+            raise InputError(f"`up` must be one of x, y, z, -x, -y, -z, a direction or a 3x3 rotation (got {up!r})")
+        d = sign * np.array(_AXES[key])
+    else:
+        arr = np.asarray(up, dtype=np.float64)
+        if arr.shape == (3, 3):
+            if not np.all(np.isfinite(arr)) or not np.allclose(arr @ arr.T, np.eye(3), atol=1e-6) \
+                    or np.linalg.det(arr) < 0:
+                raise InputError(f"`up` as a 3x3 matrix must be a proper rotation (orthonormal, det +1) (got {arr.tolist()})")
+            return arr
+        if arr.shape != (3,) or not np.all(np.isfinite(arr)) or np.linalg.norm(arr) == 0:
+            raise InputError(f"`up` must be an axis name, a non-zero finite 3-vector or a 3x3 rotation (got {up!r})")
+        d = arr / np.linalg.norm(arr)
+    ref = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    ex = ref - d * (ref @ d)
+    ex /= np.linalg.norm(ex)
+    ey = np.cross(d, ex)
+    return np.vstack([ex, ey, d])
+
+
+def _length(value, name: str, allow_zero: bool = False) -> float:
+    from .units import parse_quantity
+    if isinstance(value, str):
+        v = parse_quantity(value, "m", name)
+    else:
+        try:
+            v = float(value)
+        except (TypeError, ValueError):
+            raise InputError(f"`{name}` must be a length in metres or a string such as '0.1 mm' (got {value!r})") from None
+    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        rule = ">= 0" if allow_zero else "> 0"
+        raise InputError(f"`{name}` must be a finite length {rule} (got {value!r})")
+    return v
+
+
+def _grid(value) -> tuple[int, int]:
+    if isinstance(value, str):
+        parts = value.lower().replace(" ", "").split("x")
+        if len(parts) != 2:
+            raise InputError(f"`grid` must look like 'ROWSxCOLS', e.g. '512x512' (got {value!r})")
+        value = parts
+    try:
+        rows, cols = (int(v) for v in value)
+    except (TypeError, ValueError):
+        raise InputError(f"`grid` must be two integers (rows, cols) (got {value!r})") from None
+    if rows < 2 or cols < 2:
+        raise InputError(f"`grid` must be at least 2x2 samples (got rows={rows}, cols={cols})")
+    return rows, cols
+
+
+def _background(value) -> float:
+    from .units import parse_quantity
+    if isinstance(value, str):
+        return parse_quantity(value, "m", "background")
+    v = float(value)
+    if not math.isfinite(v):
+        raise InputError(f"`background` must be a finite height in metres (got {value!r})")
+    return v
+
+
+# ---------------------------------------------------------------------------
+# mesh -> height field
+
+def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units="mm", background=0.0,
+                        supersample=1, *, supersample_mode="mean", margin=0.0, method="numba") -> HeightField:
+    """Project the top surface of a mesh onto a regular height field.
+
+    Parameters
+    ----------
+    path : str, os.PathLike, trimesh.Trimesh / Scene, or (vertices, faces)
+        A mesh file (``.stl .obj .ply .off .glb .gltf``), a trimesh object, or
+        arrays ``vertices`` (n, 3) float in ``units`` and ``faces`` (m, 3) int.
+    resolution : float (metres) or str such as ``"0.1 mm"``, optional
+        Sample spacing along x and y. Exclusive with ``grid``.
+    grid : (rows, cols) or str ``"ROWSxCOLS"``, optional
+        Grid size; the spacing then follows from the footprint. If neither is
+        given, the longer side gets 512 samples.
+    up : str, (3,) or (3, 3)
+        View direction, see :func:`up_rotation`.
+    units : {"mm", "cm", "m", "in"}
+        Unit of the mesh coordinates.
+    background : float (metres) or str
+        Height of samples the mesh does not cover.
+    supersample : int >= 1
+        k: average (or max) of k x k sub-samples per sample.
+    supersample_mode : {"mean", "max"}
+        Reduction of sub-samples.
+    margin : float (metres) or str
+        Background border added around the footprint.
+    method : {"numba", "numpy"}
+        Rasteriser backend (:data:`shapedisplay.raster.METHODS`); same answer.
+
+    Returns
+    -------
+    HeightField
+        heights (rows, cols) float64 metres above the mesh's lowest point;
+        ``meta`` holds ``triangles``, ``degenerate_faces_dropped``,
+        ``meshes``, ``units``, ``up``, ``model_origin_m``, ``footprint_m``,
+        ``supersample``, ``supersample_mode``, ``covered_fraction``.
+
+    Raises
+    ------
+    FileFormatError
+        Missing, unreadable, truncated or empty file.
+    InputError
+        Bad parameter, non-finite vertices, zero-area footprint, grid too large.
+    MissingDependencyError
+        trimesh is needed for files and is not installed.
+    """
+    from . import raster
+
+    # --- check parameters before touching the file
+    if units not in UNITS:
+        raise unknown_key("mesh units", units, UNITS)
+    if resolution is not None and grid is not None:
+        raise InputError(f"give either `resolution` or `grid`, not both (got resolution={resolution!r}, grid={grid!r})")
+    res = _length(resolution, "resolution") if resolution is not None else None
+    shape = _grid(grid) if grid is not None else None
+    bg = _background(background)
+    mrg = _length(margin, "margin", allow_zero=True)
+    if isinstance(supersample, bool) or not isinstance(supersample, (int, np.integer)) or not 1 <= supersample <= 16:
+        raise InputError(f"`supersample` must be an integer from 1 to 16 (got {supersample!r})")
+    k = int(supersample)
+    if supersample_mode not in SUPERSAMPLE_MODES:
+        raise unknown_key("supersample mode", supersample_mode, SUPERSAMPLE_MODES)
+    if method not in raster.METHODS:
+        raise unknown_key("rasteriser method", method, raster.METHODS)
+    rot = up_rotation(up)
+
+    verts, faces, info, name = _mesh_arrays(path)
+    where = f"mesh '{name}'"
+
+    # --- check the mesh
+    if faces.size == 0 or verts.size == 0:
+        raise InputError(f"{where}: mesh is empty ({len(verts)} vertices, {len(faces)} faces)")
+    if faces.ndim != 2 or faces.shape[1] != 3 or verts.ndim != 2 or verts.shape[1] != 3:
+        raise InputError(f"{where}: need vertices (n, 3) and triangle faces (m, 3) (got {verts.shape}, {faces.shape})")
+    if faces.min() < 0 or faces.max() >= len(verts):
+        raise InputError(f"{where}: face indices must lie in 0..{len(verts) - 1} (got {faces.min()}..{faces.max()})")
+    used = np.zeros(len(verts), dtype=bool)
+    used[faces.ravel()] = True
+    bad = used & ~np.all(np.isfinite(verts), axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise InputError(
+            f"{where}: vertices must be finite: {int(bad.sum())} NaN/inf vertices, first #{i} = {verts[i].tolist()}"
+        )
+
+    scale = UNITS[units]
+    tri = (verts * scale) @ rot.T
+    tri = tri[faces]  # (m, 3, 3) metres, rotated
+    e1 = tri[:, 1] - tri[:, 0]
+    e2 = tri[:, 2] - tri[:, 0]
+    area2 = np.linalg.norm(np.cross(e1, e2), axis=1)
+    lo, hi = tri.reshape(-1, 3).min(0), tri.reshape(-1, 3).max(0)
+    diag = float(np.linalg.norm(hi - lo))
+    degenerate = area2 <= (1e-9 * diag) ** 2
+    n_deg = int(degenerate.sum())
+    tri = tri[~degenerate]
+    if len(tri) == 0:
+        raise InputError(f"{where}: all {len(faces)} faces are degenerate (zero area); nothing to rasterise")
+    lo, hi = tri.reshape(-1, 3).min(0), tri.reshape(-1, 3).max(0)
+    width, height = float(hi[0] - lo[0]), float(hi[1] - lo[1])
+    proj = np.abs(e1[~degenerate, 0] * e2[~degenerate, 1] - e1[~degenerate, 1] * e2[~degenerate, 0]).sum() / 2
+    tiny = 1e-9 * max(diag, 1e-300)
+    if width <= tiny or height <= tiny or proj <= (1e-9 * diag) ** 2:
+        raise InputError(
+            f"{where}: footprint seen along up={_up_text(up)} has zero area "
+            f"({width * 1e3:.6g} x {height * 1e3:.6g} mm, projected area {proj * 1e6:.3g} mm^2); choose another `up`"
+        )
+    _warn_size(where, width, height, units)
+
+    # --- grid
+    if shape is not None:
+        rows_f, cols_f = shape
+        dx, dy = width / (cols_f - 1), height / (rows_f - 1)
+    else:
+        if res is None:
+            res = max(width, height) / (DEFAULT_LONG_SIDE - 1)
+        dx = dy = res
+        cols_f = int(math.ceil(width / dx - 1e-9)) + 1
+        rows_f = int(math.ceil(height / dy - 1e-9)) + 1
+    mc = int(math.ceil(mrg / dx - 1e-9)) if mrg > 0 else 0
+    mr = int(math.ceil(mrg / dy - 1e-9)) if mrg > 0 else 0
+    rows, cols = rows_f + 2 * mr, cols_f + 2 * mc
+    check_grid_size(rows, cols, f"{where} height field")
+    check_grid_size(rows * k, cols * k, f"{where} with supersample={k}")
+    x0, y0 = -mc * dx, -mr * dy
+
+    # --- rasterise in sub-sample grid units
+    sdx, sdy = dx / k, dy / k
+    ox = lo[0] + x0 - dx / 2 * (1 - 1 / k)
+    oy = lo[1] + y0 - dy / 2 * (1 - 1 / k)
+    g = np.empty_like(tri)
+    g[:, :, 0] = (tri[:, :, 0] - ox) / sdx
+    g[:, :, 1] = (tri[:, :, 1] - oy) / sdy
+    g[:, :, 2] = tri[:, :, 2] - lo[2]
+    zbuf = raster.rasterize(g, rows * k, cols * k, method=method)
+    covered = np.isfinite(zbuf)
+    zbuf[~covered] = bg
+    if k > 1:
+        blocks = zbuf.reshape(rows, k, cols, k)
+        heights = blocks.mean(axis=(1, 3)) if supersample_mode == "mean" else blocks.max(axis=(1, 3))
+    else:
+        heights = zbuf
+    meta = {
+        "kind": "mesh",
+        "triangles": int(len(faces)),
+        "degenerate_faces_dropped": n_deg,
+        "meshes": info.get("meshes", 1),
+        "units": units,
+        "up": _up_text(up),
+        "model_origin_m": [float(lo[0]), float(lo[1]), float(lo[2])],
+        "footprint_m": [width, height],
+        "height_range_m": [0.0, float(hi[2] - lo[2])],
+        "supersample": k,
+        "supersample_mode": supersample_mode,
+        "background_m": bg,
+        "covered_fraction": float(covered.mean()),
+    }
+    return HeightField(heights, dx, dy, x0, y0, source=f"mesh {name}", meta=meta)
+
+
+def _up_text(up) -> str:
+    return up if isinstance(up, str) else json.dumps(np.asarray(up, dtype=float).tolist())
+
+
+def _mesh_arrays(src):
+    """Return (vertices, faces, info, name) from a path, a trimesh object or arrays."""
+    if isinstance(src, (str, os.PathLike)):
+        v, f, info = load_mesh(src)
+        return v, f, info, str(src)
+    if isinstance(src, tuple) and len(src) == 2:
+        v = np.asarray(src[0], dtype=np.float64)
+        f = np.asarray(src[1])
+        if f.size and not np.issubdtype(f.dtype, np.integer):
+            raise InputError(f"mesh '<arrays>': faces must be integers (got dtype {f.dtype})")
+        return v, f.astype(np.int64).reshape(-1, 3) if f.size else f.reshape(0, 3).astype(np.int64), \
+            {"meshes": 1}, "<arrays>"
+    if hasattr(src, "dump") and hasattr(src, "geometry"):  # trimesh.Scene
+        geoms = [g for g in src.dump() if getattr(g, "faces", None) is not None and len(g.faces)]
+        if not geoms:
+            return np.zeros((0, 3)), np.zeros((0, 3), np.int64), {"meshes": 0}, "<scene>"
+        vs, fs, off = [], [], 0
+        for g in geoms:
+            vs.append(np.asarray(g.vertices, dtype=np.float64))
+            fs.append(np.asarray(g.faces, dtype=np.int64) + off)
+            off += len(g.vertices)
+        return np.concatenate(vs), np.concatenate(fs), {"meshes": len(geoms)}, "<scene>"
+    if hasattr(src, "vertices") and hasattr(src, "faces"):  # trimesh.Trimesh
+        return (np.asarray(src.vertices, dtype=np.float64), np.asarray(src.faces, dtype=np.int64),
+                {"meshes": 1}, "<trimesh>")
+    raise InputError(f"mesh source must be a file path, a trimesh object or (vertices, faces) (got {type(src).__name__})")
+
+
+def _warn_size(where: str, width: float, height: float, units: str) -> None:
+    lo, hi = PLAUSIBLE_FOOTPRINT_M
+    side = max(width, height)
+    if lo <= side <= hi:
+        return
+    raw = side / UNITS[units]
+    fits = [u for u, s in UNITS.items() if lo <= raw * s <= hi and u != units]
+    hint = f"; if the file is in {' or '.join(fits)}, pass units='{fits[0]}'" if fits else ""
+    warnings.warn(
+        f"{where}: footprint {width * 1e3:.4g} x {height * 1e3:.4g} mm looks implausible for a screen "
+        f"(expected {lo * 1e3:g} mm to {hi:g} m) with units='{units}'{hint}",
+        ImplausibleSizeWarning, stacklevel=3,
+    )
+
+
+# ---------------------------------------------------------------------------
+# height field -> mesh
+
+def heightfield_to_mesh(hf: HeightField, solid: bool = True, base_thickness: float = 1e-3):
+    """Triangulate a height field, optionally as a closed solid for printing.
+
+    Parameters
+    ----------
+    hf : HeightField
+    solid : bool
+        If True, add vertical side walls and a flat bottom at
+        ``min(heights) - base_thickness`` so the mesh is watertight.
+    base_thickness : float, metres
+        Thickness below the lowest sample (``solid`` only); > 0.
+
+    Returns
+    -------
+    vertices : ndarray of shape (n, 3), float64, metres
+        Top vertex of sample (r, c) is ``vertices[r * cols + c] = (x, y, h)``.
+    faces : ndarray of shape (m, 3), int64
+        Counter-clockwise seen from outside (normals point out / up).
+    """
+    if hf.rows < 2:
+        raise InputError(f"`hf`: a 1-D profile ({hf.rows}x{hf.cols}) has no surface to triangulate; need >= 2 rows")
+    rows, cols = hf.rows, hf.cols
+    xx, yy = np.meshgrid(hf.x, hf.y)
+    top = np.column_stack([xx.ravel(), yy.ravel(), hf.heights.ravel()])
+    idx = np.arange(rows * cols).reshape(rows, cols)
+    a, b = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
+    c, d = idx[1:, :-1].ravel(), idx[1:, 1:].ravel()
+    faces = [np.column_stack([a, b, d]), np.column_stack([a, d, c])]
+    verts = [top]
+    if solid:
+        t = float(base_thickness)
+        if not math.isfinite(t) or t <= 0:
+            raise InputError(f"`base_thickness` must be a finite length > 0 (got {base_thickness!r})")
+        zb = float(hf.heights.min()) - t
+        # boundary loop counter-clockwise seen from +z
+        ring = np.concatenate([idx[0, :], idx[1:, -1], idx[-1, -2::-1], idx[-2:0:-1, 0]])
+        n0 = rows * cols
+        bottom = top[ring].copy()
+        bottom[:, 2] = zb
+        verts.append(bottom)
+        nr = len(ring)
+        nxt = np.roll(np.arange(nr), -1)
+        # wall quad: top i -> top i+1 -> bottom i+1 -> bottom i (outward for a CCW ring)
+        faces.append(np.column_stack([ring, n0 + np.arange(nr), n0 + nxt]))
+        faces.append(np.column_stack([ring, n0 + nxt, ring[nxt]]))
+        # bottom: fan around the centre, facing down
+        centre = n0 + nr
+        verts.append([[hf.x0 + (cols - 1) * hf.dx / 2, hf.y0 + (rows - 1) * hf.dy / 2, zb]])
+        faces.append(np.column_stack([np.full(nr, centre), n0 + nxt, n0 + np.arange(nr)]))
+    return np.vstack(verts).astype(np.float64), np.vstack(faces).astype(np.int64)
+
+
+def save_mesh(vertices, faces, path, units: str = "mm") -> None:
+    """Write a triangle mesh as binary STL or binary little-endian PLY, atomically.
+
+    Parameters
+    ----------
+    vertices : ndarray of shape (n, 3), metres
+    faces : ndarray of shape (m, 3), int
+    path : str or os.PathLike
+        ``.stl`` or ``.ply``.
+    units : {"mm", "cm", "m", "in"}
+        Unit written into the file (STL and PLY carry none; mm is customary).
+    """
+    from .atomic import atomic_path
+
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in (".stl", ".ply"):
+        raise FileFormatError(f"mesh output '{path}': suffix must be .stl or .ply (got '{suffix}')")
+    if units not in UNITS:
+        raise unknown_key("mesh units", units, UNITS)
+    v = np.asarray(vertices, dtype=np.float64) / UNITS[units]
+    f = np.asarray(faces, dtype=np.int64)
+    if suffix == ".stl":
+        tri = v[f]
+        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        norm = np.linalg.norm(n, axis=1, keepdims=True)
+        n = np.divide(n, norm, out=np.zeros_like(n), where=norm > 0)
+        rec = np.zeros(len(f), dtype=[("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+        rec["n"], rec["v"] = n, tri
+        header = f"shapedisplay height field mesh, units {units}".encode().ljust(80, b" ")[:80]
+        data = header + struct.pack("<I", len(f)) + rec.tobytes()
+    else:
+        head = (f"ply\nformat binary_little_endian 1.0\ncomment shapedisplay height field mesh, units {units}\n"
+                f"element vertex {len(v)}\nproperty float x\nproperty float y\nproperty float z\n"
+                f"element face {len(f)}\nproperty list uchar int vertex_indices\nend_header\n").encode()
+        rec = np.zeros(len(f), dtype=[("n", "u1"), ("i", "<i4", 3)])
+        rec["n"], rec["i"] = 3, f
+        data = head + v.astype("<f4").tobytes() + rec.tobytes()
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+
+
+def save_heightfield_mesh(hf: HeightField, path, units: str = "mm", solid: bool = True,
+                          base_thickness: float = 1e-3) -> None:
+    """Export a height field as a mesh (``.stl`` binary or ``.ply``), atomically.
+
+    Coordinates are written in ``units`` (mm by default, so that reading the
+    file back with :func:`mesh_to_heightfield` and its default ``units="mm"``
+    round-trips). See :func:`heightfield_to_mesh` for ``solid`` and
+    ``base_thickness``; reading a solid back gives heights shifted by
+    ``base_thickness - min(heights)`` (heights are measured from the mesh's
+    lowest point).
+    """
+    v, f = heightfield_to_mesh(hf, solid=solid, base_thickness=base_thickness)
+    save_mesh(v, f, path, units=units)
+
+
+# ---------------------------------------------------------------------------
+# height field -> image / array files
+
+#: Height-map output suffixes handled by :func:`save_heightmap`.
+HEIGHTMAP_SUFFIXES = (".npy", ".npz", ".png", ".stl", ".ply")
+
+
+def _png16(gray: np.ndarray, text: dict) -> bytes:
+    """Encode a (rows, cols) uint16 array as a 16-bit grayscale PNG."""
+    rows, cols = gray.shape
+
+    def chunk(kind: bytes, body: bytes) -> bytes:
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body) & 0xFFFFFFFF)
+
+    raw = np.zeros((rows, 1 + 2 * cols), dtype=np.uint8)
+    raw[:, 1:] = gray.astype(">u2").view(np.uint8).reshape(rows, 2 * cols)
+    out = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", cols, rows, 16, 0, 0, 0, 0))
+    for key, value in text.items():
+        out += chunk(b"tEXt", key.encode("latin-1") + b"\x00" + str(value).encode("latin-1"))
+    return out + chunk(b"IDAT", zlib.compress(raw.tobytes(), 6)) + chunk(b"IEND", b"")
+
+
+def save_heightmap(hf: HeightField, path, **mesh_options) -> str:
+    """Write a height field to ``path``; the suffix picks the format. Atomic.
+
+    ``.npy``
+        heights (rows, cols) float64 metres.
+    ``.npz``
+        ``heights``, ``dx``, ``dy``, ``x0``, ``y0`` (metres) and ``meta`` (JSON text).
+    ``.png``
+        16-bit grayscale; black = lowest, white = highest sample; image row 0
+        is the *largest* y (the picture looks like the view from above).
+        tEXt chunks record ``height_min_m``, ``height_max_m``, ``size_m``, ``dx_m``, ``dy_m``.
+    ``.stl`` / ``.ply``
+        :func:`save_heightfield_mesh` with ``mesh_options``.
+
+    Returns
+    -------
+    str
+        One-line description of what was written.
+    """
+    from .atomic import atomic_path
+
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in HEIGHTMAP_SUFFIXES:
+        raise FileFormatError(
+            f"height-map output '{path}': unsupported suffix '{suffix}'; use one of {', '.join(HEIGHTMAP_SUFFIXES)}"
+        )
+    h = hf.heights
+    if suffix in (".stl", ".ply"):
+        save_heightfield_mesh(hf, path, **mesh_options)
+        return f"mesh of {2 * (hf.rows - 1) * (hf.cols - 1)} top triangles"
+    with atomic_path(path) as tmp:
+        if suffix == ".npy":
+            with open(tmp, "wb") as fh:
+                np.save(fh, h)
+            desc = "heights in metres (float64)"
+        elif suffix == ".npz":
+            with open(tmp, "wb") as fh:
+                np.savez(fh, heights=h, dx=hf.dx, dy=hf.dy, x0=hf.x0, y0=hf.y0,
+                         meta=np.array(json.dumps(hf.meta, default=str)))
+            desc = "heights in metres with grid"
+        else:
+            lo, hi = float(h.min()), float(h.max())
+            span = hi - lo
+            gray = np.zeros(h.shape, np.uint16) if span == 0 else np.round((h - lo) / span * 65535).astype(np.uint16)
+            w, ht = hf.size_m
+            text = {"height_min_m": repr(lo), "height_max_m": repr(hi), "dx_m": repr(hf.dx), "dy_m": repr(hf.dy),
+                    "size_m": f"{(hf.cols - 1) * hf.dx!r}x{(hf.rows - 1) * hf.dy!r}",
+                    "Software": "shapedisplay"}
+            tmp.write_bytes(_png16(gray[::-1], text))
+            desc = f"16-bit PNG, black={lo * 1e3:.4g} mm, white={hi * 1e3:.4g} mm"
+    return desc
