@@ -15,6 +15,7 @@ import sys
 COMMAND_MODULES = (
     "shapedisplay_cli.cmd_compile",
     "shapedisplay_cli.cmd_table",
+    "shapedisplay_cli.cmd_heightmap",
 )
 
 

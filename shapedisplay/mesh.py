@@ -602,9 +602,11 @@ def save_heightmap(hf: HeightField, path, **mesh_options) -> str:
     ``.npz``
         ``heights``, ``dx``, ``dy``, ``x0``, ``y0`` (metres) and ``meta`` (JSON text).
     ``.png``
-        16-bit grayscale; black = lowest, white = highest sample; image row 0
-        is the *largest* y (the picture looks like the view from above).
-        tEXt chunks record ``height_min_m``, ``height_max_m``, ``size_m``, ``dx_m``, ``dy_m``.
+        16-bit grayscale; black = lowest, white = highest sample; image row r
+        is height-field row r (nothing flipped, as :func:`shapedisplay.sources.load_image`
+        reads it). tEXt chunks record ``height_min_m``, ``height_max_m``,
+        ``dx_m``, ``dy_m`` and ``size_m`` = cols*dx x rows*dy, the ``size`` that
+        reads the image back at the same spacing.
     ``.stl`` / ``.ply``
         :func:`save_heightfield_mesh` with ``mesh_options``.
 
@@ -641,8 +643,9 @@ def save_heightmap(hf: HeightField, path, **mesh_options) -> str:
             gray = np.zeros(h.shape, np.uint16) if span == 0 else np.round((h - lo) / span * 65535).astype(np.uint16)
             w, ht = hf.size_m
             text = {"height_min_m": repr(lo), "height_max_m": repr(hi), "dx_m": repr(hf.dx), "dy_m": repr(hf.dy),
-                    "size_m": f"{(hf.cols - 1) * hf.dx!r}x{(hf.rows - 1) * hf.dy!r}",
+                    "size_m": f"{hf.cols * hf.dx!r}x{hf.rows * hf.dy!r}",
                     "Software": "shapedisplay"}
-            tmp.write_bytes(_png16(gray[::-1], text))
-            desc = f"16-bit PNG, black={lo * 1e3:.4g} mm, white={hi * 1e3:.4g} mm"
+            tmp.write_bytes(_png16(gray, text))
+            desc = (f"16-bit PNG; read it back with --size {w * 1e3:.6g}x{ht * 1e3:.6g}mm "
+                    f"--height {lo * 1e3:.6g}:{hi * 1e3:.6g}mm")
     return desc
