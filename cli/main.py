@@ -16,6 +16,7 @@ COMMAND_MODULES = (
     "shapedisplay_cli.cmd_compile",
     "shapedisplay_cli.cmd_table",
     "shapedisplay_cli.cmd_heightmap",
+    "shapedisplay_cli.cmd_preview",
 )
 
 

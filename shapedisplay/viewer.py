@@ -401,10 +401,12 @@ def model_from_table(table, title: str | None = None, widgets: list | None = Non
             if isinstance(table.meta.get("widgets"), list) else []
     src = table.meta.get("source", {})
     default_title = src.get("description", "") if isinstance(src, dict) else ""
-    return PreviewModel(x=x, y=y, relief=relief, relief_unit=relief_unit, fields=fields, units=units,
-                        labels=labels, stored=stored, widgets=_clean_widgets(widgets),
+    model = PreviewModel(x=x, y=y, relief=relief, relief_unit=relief_unit, fields=fields, units=units,
+                        labels=labels, stored=stored, widgets=[],
                         checksum=table.checksum(), strip=strip,
                         title=title if title is not None else (default_title or "friction table"), notes=notes)
+    model.widgets = _strip_widgets(_clean_widgets(widgets), model)
+    return model
 
 
 def _clean_widgets(widgets) -> list:
@@ -418,6 +420,69 @@ def _clean_widgets(widgets) -> list:
             raise InputError(f"widget #{i}: outline must be finite (got {box})")
         out.append({"id": str(w.get("id", i)), **box})
     return out
+
+
+def widgets_of_scene(scene) -> list:
+    """Outlines ``[{"id", "x0", "y0", "x1", "y1"}]`` (metres) of a loaded scene's widgets."""
+    out = []
+    for w in scene.widgets:
+        x0, y0, x1, y1 = w.bbox
+        out.append({"id": w.id, "x0": x0, "y0": y0, "x1": x1, "y1": y1})
+    return out
+
+
+def load_model(path: str | os.PathLike, scene: str | os.PathLike | None = None, **source_opts) -> PreviewModel:
+    """Preview model of a file: table (.npz), scene (.toml) or source (image, mesh).
+
+    ``scene`` adds the widget outlines and ids of a scene file to a table.
+    ``source_opts`` (``size``, ``height_range``, ``resolution``, ... ; None
+    dropped) go to :func:`shapedisplay.sources.load_source`.
+    """
+    path = Path(os.fspath(path))
+    suffix = path.suffix.lower()
+    opts = {k: v for k, v in source_opts.items() if v is not None}
+    if suffix == ".npz":
+        if opts:
+            raise InputError(f"table '{path}': source options {sorted(opts)} apply to images and meshes only")
+        if path.is_file():
+            try:
+                with np.load(path, allow_pickle=False) as z:
+                    is_trace = "header" not in z.files and "table_checksum" in z.files
+            except (OSError, ValueError, EOFError):
+                is_trace = False
+            if is_trace:
+                raise InputError(f"input '{path}' is a trace; give the table as input and the trace with --trace")
+        from .table import FrictionTable
+        table = FrictionTable.load(path)
+        widgets = widgets_of_scene(_load_scene(scene)) if scene else None
+        return model_from_table(table, title=path.name, widgets=widgets)
+    if suffix == ".toml":
+        if opts:
+            raise InputError(f"scene '{path}': source options {sorted(opts)} apply to images and meshes only")
+        sc = _load_scene(path)
+        from .scene import scene_heightfield
+        model = model_from_heightfield(scene_heightfield(sc), title=getattr(sc, "name", "") or path.name)
+        model.widgets = _strip_widgets(_clean_widgets(widgets_of_scene(sc)), model)
+        return model
+    if scene:
+        raise InputError(f"`--scene` draws widget outlines on a table; '{path}' is a source")
+    from .sources import load_source
+    return model_from_heightfield(load_source(path, **opts))
+
+
+def _load_scene(path):
+    path = Path(os.fspath(path))
+    if not path.is_file():
+        raise FileFormatError(f"scene '{path}': no such file")
+    from .scene import load_scene
+    return load_scene(path)
+
+
+def _strip_widgets(widgets: list, model: PreviewModel) -> list:
+    """On a 1-D strip, widget boxes (zero depth) span the strip's width."""
+    if not model.strip:
+        return widgets
+    return [{**w, "y0": float(model.y[0]), "y1": float(model.y[-1])} for w in widgets]
 
 
 def check_trace(trace: Trace, model: PreviewModel) -> None:
@@ -712,6 +777,11 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
     if trace is not None:
         check_trace(trace, model)
     pv = _pyvista(off_screen)
+    try:
+        from pyvista.plotting.colors import get_cmap_safe
+        get_cmap_safe(cmap)
+    except (ValueError, KeyError, ImportError) as exc:
+        raise InputError(f"`cmap` {cmap!r} is not a known colour map ({exc})") from None
 
     pl = pv.Plotter(off_screen=off_screen, window_size=(width, height))
     pl.set_background("white")

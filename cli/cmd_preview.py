@@ -1,0 +1,71 @@
+"""``shapedisplay preview``: 3D view of a source, scene or table, with a played stroke."""
+from __future__ import annotations
+
+import argparse
+
+PREVIEW_HELP = """\
+Show a height map, mesh, scene or compiled table as a 3D surface coloured by
+a channel, with a colour bar in physical units, a scale bar in mm and the
+vertical exaggeration stated on screen. With --trace, the played stroke is
+drawn on the surface (stick/slip segments, bursts sized by amplitude) with a
+chart of N and friction force along it; the trace must come from this table.
+
+Without -o a window opens: drag to orbit, scroll to zoom, click or hover for
+a read-out of position, height and every channel, 'r' replays the stroke.
+With -o the picture is rendered off-screen (no display or GPU needed; on
+Debian/Ubuntu it needs libegl1 libegl-mesa0 libgl1-mesa-dri, see
+scripts/install-system-deps.sh).
+
+colour channels: height, normal_force (N), breakaway_force, kinetic_force,
+lateral (|F_lat|), slope, walls, and any other channel the table stores.
+
+examples:
+  shapedisplay preview out/tent.npz --color N -o tent.png
+  shapedisplay preview out/phone.npz --trace out/stroke.npz --scene assets/scenes/phone.toml -o shot.png
+  shapedisplay preview assets/meshes/keycap.stl --resolution 0.1mm --color slope
+  shapedisplay preview map.png --extent 60x40mm --height 0:2mm -o map.png --size 1200x800
+"""
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "preview", help="3D preview of a source, scene or table (window, or PNG with -o)",
+        description=PREVIEW_HELP, formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("input", metavar="SOURCE|TABLE",
+                   help="compiled table (.npz), scene (.toml), image (.png/.npy) or mesh (.stl .obj .ply ...)")
+    p.add_argument("--trace", help="played stroke (.npz from 'shapedisplay play'); needs the table it was played on")
+    p.add_argument("--color", "--colour", dest="color", default="height",
+                   help="channel colouring the surface (default height; N = normal_force)")
+    p.add_argument("-o", "--output", help="write a PNG off-screen instead of opening a window")
+    p.add_argument("--size", default="1600x1000", help="picture/window size in pixels WxH (default 1600x1000)")
+    p.add_argument("--exaggeration", default="auto",
+                   help="vertical exaggeration: auto (relief about 15%% of the width) or a number")
+    p.add_argument("--view", default="iso", help="camera: iso (default), top or side")
+    p.add_argument("--scene", help="scene file (.toml) whose widget outlines and ids are drawn on a table")
+    p.add_argument("--cmap", default="viridis", help="colour map (default viridis)")
+    p.add_argument("--no-chart", action="store_true", help="do not draw the N/friction chart of the stroke")
+    p.add_argument("--extent", help="image sources only: physical size WxH, e.g. 60x40mm")
+    p.add_argument("--height", help="image sources only: height range LO:HI, e.g. 0:2mm")
+    p.add_argument("--resolution", help="image/mesh sources: sample spacing, e.g. 0.1mm")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from shapedisplay import viewer
+
+    model = viewer.load_model(args.input, scene=args.scene, size=args.extent, height_range=args.height,
+                              resolution=args.resolution)
+    trace = viewer.load_trace(args.trace) if args.trace else None
+    preview = viewer.render(model, args.color, trace=trace, exaggeration=args.exaggeration, size=args.size,
+                            off_screen=bool(args.output), view=args.view, cmap=args.cmap,
+                            chart=not args.no_chart)
+    try:
+        if args.output:
+            path = preview.save(args.output)
+            print(f"wrote {path} ({preview.channel}, vertical exaggeration x{preview.exaggeration:g})")
+        else:
+            preview.show()
+    finally:
+        preview.close()
+    return 0
