@@ -94,8 +94,13 @@ class Quantization:
         if self.dtype in ("float32", "float64"):
             return values.astype(_DTYPES[self.dtype])
         top = np.iinfo(_DTYPES[self.dtype]).max
-        codes = np.rint((values - self.offset) / self.scale) if self.scale > 0 else np.zeros_like(values)
-        return np.clip(codes, 0, top).astype(_DTYPES[self.dtype])
+        if not self.scale > 0:
+            return np.zeros(values.shape, dtype=_DTYPES[self.dtype])
+        codes = np.subtract(values, self.offset)  # one float64 temporary, reused in place
+        codes /= self.scale
+        np.rint(codes, out=codes)
+        np.clip(codes, 0, top, out=codes)
+        return codes.astype(_DTYPES[self.dtype])
 
     def decode(self, codes: np.ndarray) -> np.ndarray:
         if self.dtype in ("float32", "float64"):
@@ -156,6 +161,29 @@ class FrictionTable:
     def from_dense(cls, grid: Grid, channels: dict, quant: dict, meta: dict | None = None) -> "FrictionTable":
         """One block covering the canvas. ``channels[name]`` has shape (rows, cols), SI."""
         return cls.from_patches(grid, [((0, 0), channels)], quant, {n: 0.0 for n in channels}, meta)
+
+    @classmethod
+    def from_codes(cls, grid: Grid, codes: dict, quant: dict, background: dict | None = None,
+                   meta: dict | None = None) -> "FrictionTable":
+        """One block covering the canvas from channels already coded with ``quant``.
+
+        ``codes[name]`` has shape (rows, cols) and the dtype of ``quant[name]``.
+        Lets a compiler code one channel at a time instead of holding every
+        float64 channel at once.
+        """
+        names = sorted(quant)
+        for name in names:
+            if name not in CHANNELS:
+                raise unknown_key("channel", name, CHANNELS)
+            c = np.asarray(codes[name])
+            if c.shape != (grid.rows, grid.cols) or c.dtype != np.dtype(_DTYPES[quant[name].dtype]):
+                raise InputError(f"codes of channel '{name}' must be {quant[name].dtype} of shape "
+                                 f"{(grid.rows, grid.cols)} (got {c.dtype} {c.shape})")
+        flat = {n: np.ascontiguousarray(codes[n]).reshape(-1) for n in names}
+        bg = {n: float((background or {}).get(n, 0.0)) for n in names}
+        t = cls(grid, [(grid.rows, grid.cols)], [(0, 0, 0)], flat, dict(quant), bg, copy.deepcopy(meta or {}))
+        t._check_layout()
+        return t
 
     @classmethod
     def from_patches(cls, grid: Grid, placed: list, quant: dict, background: dict,

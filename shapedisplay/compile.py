@@ -1,0 +1,414 @@
+"""Compile a height field into a friction-envelope table.
+
+Pipeline: gradient analysis (slopes, walls, wall limiting) -> force profiles
+(:mod:`shapedisplay.profiles`) -> keep only the channels the mapping and the
+device use -> quantize each channel from perceptual resolution -> table with
+meta data and a compile report.
+
+Quantization rule (``quantize="auto"``)
+---------------------------------------
+A channel is coded as ``value = offset + scale * code`` with the smallest
+integer width (uint8, then uint16) whose worst-case error is within the
+channel's *perceptual bound*; otherwise float32 (float64 if even that is too
+coarse). With ``w`` the friction Weber fraction (``weber_fraction``, default
+0.1), half a just-noticeable difference is not felt, so:
+
+``normal_force`` (and other force/ratio channels)
+    error <= w/2 * (smallest nonzero |value| of the channel): every rendered
+    force is reproduced to within half a JND of itself.
+``lateral_x``, ``lateral_y``
+    error <= w/2 * mu_k * N_min: the lateral cue adds to the tangential force
+    the finger feels, the smallest of which is kinetic friction at the
+    smallest rendered normal force N_min.
+``grad_x``, ``grad_y``
+    error <= w/2 * mu_k / K_mu: the slope error changes mu_eff by at most
+    half a JND of the kinetic friction coefficient.
+``skin_stretch``
+    error <= w/2 * (smallest nonzero stretch).
+
+For integer codes the stated worst-case error is ``scale/2`` plus a few
+ulps of the largest magnitude; for float32 ``max|value| * 2^-24``. A fixed
+``quantize`` dtype is honoured and the report says whether it meets the bound.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, fields
+
+import numpy as np
+
+from .errors import InputError, unknown_key
+from .gradients import GRADIENT_METHODS, detect_walls, gradient, limit_walls
+from .heightfield import HeightField
+from .profiles import MappingOptions, lateral_force, needed_channels, normal_force, skin_stretch
+from .table import CHANNELS, FrictionTable, Grid, Quantization
+
+QUANTIZE_CHOICES = ("auto", "uint8", "uint16", "float32", "float64")
+_TOP = {"uint8": 255, "uint16": 65535}
+_EPS = np.finfo(np.float64).eps
+
+
+@dataclass(frozen=True)
+class CompileOptions:
+    """How a height field is compiled.
+
+    Attributes
+    ----------
+    quantize : {"auto", "uint8", "uint16", "float32", "float64"}
+        "auto" picks per channel from the perceptual bound (module docs).
+    weber_fraction : float
+        Friction Weber fraction w (0 < w < 1; literature 0.1-0.2).
+    gradient_method : {"central", "gaussian", "savgol"}
+    gradient_kw : dict
+        Options of the gradient method (gaussian ``sigma`` m; savgol ``window``, ``order``).
+    max_slope : float
+        Steepest renderable slope (dimensionless; inf = no limit). Steeper
+        samples are walls.
+    limit_walls : bool
+        Clip wall slopes to ``max_slope`` (direction kept) before the slope
+        and lateral mappings.
+    keep : tuple of str
+        Channels to store even if the device does not use them (must be
+        producible by the mapping; grad_x/grad_y always are).
+    """
+
+    quantize: str = "auto"
+    weber_fraction: float = 0.1
+    gradient_method: str = "central"
+    gradient_kw: dict = field(default_factory=dict)
+    max_slope: float = 1.0            # 45 degrees
+    limit_walls: bool = True
+    keep: tuple = ()
+
+    def __post_init__(self):
+        if self.quantize not in QUANTIZE_CHOICES:
+            raise unknown_key("quantization", self.quantize, QUANTIZE_CHOICES)
+        w = float(self.weber_fraction)
+        if not (0 < w < 1):
+            raise InputError(f"`weber_fraction` must be within (0, 1) (got {self.weber_fraction!r})")
+        object.__setattr__(self, "weber_fraction", w)
+        if self.gradient_method not in GRADIENT_METHODS:
+            raise unknown_key("gradient method", self.gradient_method, GRADIENT_METHODS)
+        object.__setattr__(self, "gradient_kw", dict(self.gradient_kw or {}))
+        ms = float(self.max_slope)
+        if math.isnan(ms) or ms <= 0:
+            raise InputError(f"`max_slope` must be > 0 (got {self.max_slope!r})")
+        object.__setattr__(self, "max_slope", ms)
+        keep = (self.keep,) if isinstance(self.keep, str) else tuple(self.keep)
+        for k in keep:
+            if k not in CHANNELS:
+                raise unknown_key("channel", k, CHANNELS)
+        object.__setattr__(self, "keep", keep)
+
+    def to_json(self) -> dict:
+        d = asdict(self)
+        d["keep"] = list(self.keep)
+        d["max_slope"] = None if math.isinf(self.max_slope) else self.max_slope
+        d["gradient_kw"] = {k: (v if isinstance(v, (int, float, str)) else str(v)) for k, v in self.gradient_kw.items()}
+        return d
+
+    @classmethod
+    def from_json(cls, d: dict) -> "CompileOptions":
+        valid = {f.name for f in fields(cls)}
+        d = {k: v for k, v in d.items() if k in valid}
+        if d.get("max_slope", 0) is None:
+            d["max_slope"] = math.inf
+        return cls(**d)
+
+
+@dataclass(frozen=True)
+class CompileResult:
+    """A compiled table and its report (dict, JSON-safe; also in ``table.meta["report"]``)."""
+
+    table: FrictionTable
+    report: dict
+
+
+# ----------------------------------------------------------------- quantization
+def _min_nonzero_abs(values: np.ndarray) -> float:
+    vmin, vmax = float(values.min()), float(values.max())
+    if vmin > 0:
+        return vmin
+    if vmax < 0:
+        return -vmax
+    a = np.abs(values)
+    a[a == 0] = np.inf
+    m = float(a.min())
+    return m if math.isfinite(m) else 0.0
+
+
+def perceptual_bound(name: str, values: np.ndarray, device, options: CompileOptions,
+                     mapping: MappingOptions | None = None, n_min: float | None = None) -> tuple[float, str]:
+    """Largest quantization error of channel ``name`` that is not felt (module docs).
+
+    Returns
+    -------
+    bound : float
+        In the channel's SI unit; ``inf`` if every value is zero.
+    rule : str
+        The rule used, for the report.
+    """
+    w2 = options.weber_fraction / 2
+    mu_k = float(device.friction.mu_k)
+    if name in ("lateral_x", "lateral_y"):
+        if n_min is None:
+            n_min = max(float(device.normal_force_range[0]), mapping.n_base if mapping else 0.5)
+        ref = mu_k * n_min
+        if ref > 0:
+            return w2 * ref, f"w/2 * mu_k * N_min = {w2:g} * {mu_k:g} * {n_min:.6g} N"
+    if name in ("grad_x", "grad_y") and mapping is not None and mapping.slope_friction_gain > 0 and mu_k > 0:
+        return (w2 * mu_k / mapping.slope_friction_gain,
+                f"w/2 * mu_k / K_mu = {w2:g} * {mu_k:g} / {mapping.slope_friction_gain:g}")
+    m = _min_nonzero_abs(values)
+    if m == 0:
+        return math.inf, "channel is zero everywhere"
+    return w2 * m, f"w/2 * smallest nonzero |value| = {w2:g} * {m:.6g} {CHANNELS[name][0]}"
+
+
+def _coding(dtype: str, lo: float, hi: float) -> Quantization:
+    big = max(abs(lo), abs(hi))
+    if dtype in _TOP:
+        scale = (hi - lo) / _TOP[dtype] if hi > lo else 0.0
+        err = scale / 2 + 4 * _EPS * big if scale > 0 else 0.0
+        return Quantization(dtype, scale, lo, err)
+    if dtype == "float32":
+        return Quantization("float32", 1.0, 0.0, big * 2.0 ** -24)
+    return Quantization("float64", 1.0, 0.0, 0.0)
+
+
+def quantization_for(name: str, values: np.ndarray, device, options: CompileOptions,
+                     mapping: MappingOptions | None = None, n_min: float | None = None) -> Quantization:
+    """Coding of channel ``name`` holding ``values`` (rows, cols), SI.
+
+    ``options.quantize == "auto"``: smallest of uint8/uint16/float32/float64
+    whose worst-case error (``max_error``) is within :func:`perceptual_bound`.
+    Otherwise the given dtype.
+    """
+    if name not in CHANNELS:
+        raise unknown_key("channel", name, CHANNELS)
+    values = np.asarray(values, dtype=np.float64)
+    if values.size == 0:
+        raise InputError(f"channel '{name}' is empty")
+    lo, hi = float(values.min()), float(values.max())
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise InputError(f"channel '{name}' holds NaN/inf values; cannot quantize")
+    if options.quantize != "auto":
+        return _coding(options.quantize, lo, hi)
+    bound, _ = perceptual_bound(name, values, device, options, mapping, n_min)
+    for dt in ("uint8", "uint16", "float32"):
+        q = _coding(dt, lo, hi)
+        if q.max_error <= bound:
+            return q
+    return _coding("float64", lo, hi)
+
+
+# ----------------------------------------------------------------- meta
+def table_meta(device, mapping: MappingOptions, options: CompileOptions, source_description: str,
+               source_sha256: str, report: dict | None = None) -> dict:
+    """The table header's free part (DESIGN 5).
+
+    Keys: ``device`` (:meth:`DeviceProfile.to_json`: pad, friction, burst,
+    rates, ranges), ``mapping`` (incl. ``slope_friction_gain`` K_mu and
+    ``n_base``, the constant N when the table has no normal_force),
+    ``source`` {description, sha256}, ``compile`` (options), ``report``,
+    ``tick_rate_hz`` and ``velocity_range_m_s`` (from the device).
+    """
+    return {
+        "device": device.to_json(),
+        "mapping": mapping.to_json(),
+        "source": {"description": str(source_description), "sha256": str(source_sha256)},
+        "compile": options.to_json(),
+        "report": report or {},
+        "tick_rate_hz": float(device.tick_rate_hz),
+        "velocity_range_m_s": [float(v) for v in device.velocity_range],
+    }
+
+
+def _device(device):
+    from .devices import DeviceProfile, load_device
+    if device is None or isinstance(device, str):
+        return load_device(device)
+    if not isinstance(device, DeviceProfile):
+        raise InputError(f"`device` must be a DeviceProfile, a bundled name or a TOML path (got {type(device).__name__})")
+    return device
+
+
+def _producible(name: str, mapping: MappingOptions, is_1d: bool) -> str | None:
+    """None if the compiler can produce ``name`` for this mapping, else why not."""
+    if name in ("grad_y", "lateral_y") and is_1d:
+        return "1-D source has no y direction"
+    if name in ("normal_force", "grad_x", "grad_y"):
+        return None
+    if name in ("lateral_x", "lateral_y"):
+        return None if mapping.lateral != "off" else "the mapping has no lateral cue"
+    if name == "skin_stretch":
+        return None if mapping.skin_stretch > 0 else "the mapping has no skin stretch"
+    return "not produced by a height mapping"
+
+
+# ----------------------------------------------------------------- compile
+def compile_heightfield(hf: HeightField, device=None, mapping: MappingOptions = MappingOptions(),
+                        options: CompileOptions = CompileOptions()) -> CompileResult:
+    """Compile a height field into a friction-envelope table.
+
+    Parameters
+    ----------
+    hf : HeightField
+        Heights (rows, cols) in metres; one row compiles to a 1-D table.
+    device : DeviceProfile, str or None
+        Target device (bundled name or TOML path; None = default profile).
+    mapping : MappingOptions
+    options : CompileOptions
+
+    Returns
+    -------
+    CompileResult
+        ``table`` on the grid of ``hf`` (same rows, cols, spacing and origin)
+        holding only the needed channels; ``report`` with keys ``kept``,
+        ``left_out`` {name: reason}, ``quantization`` {name: dtype, scale,
+        offset, max_error, bound, rule, meets_bound}, ``walls``, ``clamped``,
+        ``stored_bytes``, ``dense_bytes``, ``bytes_saved``.
+    """
+    if not isinstance(hf, HeightField):
+        raise InputError(f"`hf` must be a HeightField (got {type(hf).__name__})")
+    if not isinstance(mapping, MappingOptions):
+        raise InputError(f"`mapping` must be MappingOptions (got {type(mapping).__name__})")
+    if not isinstance(options, CompileOptions):
+        raise InputError(f"`options` must be CompileOptions (got {type(options).__name__})")
+    device = _device(device)
+    kept, left_out = needed_channels(device, mapping, hf.is_1d)
+    for k in options.keep:
+        if k in kept:
+            continue
+        why = _producible(k, mapping, hf.is_1d)
+        if why is not None:
+            raise InputError(f"cannot keep channel '{k}': {why}")
+        kept.append(k)
+        left_out.pop(k, None)
+    kept = [n for n in CHANNELS if n in kept]
+    if not kept:
+        raise InputError(f"nothing to store: device '{device.name}' (outputs {list(device.outputs)}) uses none of the "
+                         f"channels mapping '{mapping.spec}' produces; left out: "
+                         + "; ".join(f"{k}: {v}" for k, v in left_out.items() if k in
+                                     ("normal_force", "grad_x", "lateral_x", "skin_stretch")))
+
+    # -- gradient analysis (walls are analysed for every compile)
+    gx, gy = gradient(hf, options.gradient_method, **options.gradient_kw)
+    walls = detect_walls(hf, gx, gy, options.max_slope)
+    uses_slopes = any(n in kept for n in ("grad_x", "grad_y", "lateral_x", "lateral_y"))
+    if walls.count == 0:
+        walls.limited = "no walls"
+    elif not uses_slopes:
+        walls.limited = "not needed: no kept channel uses slopes (N steps where the walls are)"
+    elif options.limit_walls:
+        limit_walls(gx, gy, options.max_slope, out=(gx, gy))
+        walls.limited = f"slope magnitude clipped to {options.max_slope:g}, direction kept"
+    else:
+        walls.limited = "not limited (limit_walls=False)"
+    walls.mask = None
+    if not uses_slopes:
+        del gx, gy
+        gx = gy = None
+
+    # -- channels, one at a time: compute, quantize, code, free
+    codes, quant, qinfo, clamped = {}, {}, {}, {}
+
+    def code(name, values, n_min=None):
+        q = quantization_for(name, values, device, options, mapping, n_min)
+        bound, rule = perceptual_bound(name, values, device, options, mapping, n_min)
+        codes[name] = q.encode(values)
+        quant[name] = q
+        qinfo[name] = {"dtype": q.dtype, "scale": q.scale, "offset": q.offset, "max_error": float(q.max_error),
+                       "bound": None if math.isinf(bound) else bound, "rule": rule,
+                       "meets_bound": bool(q.max_error <= bound)}
+
+    n = None
+    lo_n, hi_n = device.normal_force_range
+    n_min = min(max(mapping.n_base, lo_n), hi_n)
+    if mapping.height and (any(k in kept for k in ("normal_force", "skin_stretch"))
+                           or (mapping.lateral == "normal" and "lateral_x" in kept)):
+        n, clamped["normal_force"] = normal_force(hf, device, mapping)
+        n_min = _min_nonzero_abs(n) or n_min
+        if "normal_force" in kept:
+            code("normal_force", n)
+    elif "normal_force" in kept:  # kept on request with a constant N
+        n, clamped["normal_force"] = normal_force(hf.with_heights(np.zeros(hf.shape)), device,
+                                                  mapping.with_(height=True))
+        code("normal_force", n)
+        n = None
+    if "grad_x" in kept:
+        code("grad_x", gx)
+    if "grad_y" in kept:
+        code("grad_y", gy)
+    if "lateral_x" in kept:
+        fx, fy, clamped["lateral"] = lateral_force(gx, None if hf.is_1d else gy, device, mapping,
+                                                   n if mapping.height else None,
+                                                   out=(gx, None if hf.is_1d else gy))
+        code("lateral_x", fx, n_min)
+        if "lateral_y" in kept:
+            code("lateral_y", fy, n_min)
+        del fx, fy
+    gx = gy = None
+    if "skin_stretch" in kept:
+        s, clamped["skin_stretch"] = skin_stretch(n if mapping.height else None, hf.shape, device, mapping)
+        code("skin_stretch", s)
+        del s
+    n = None
+
+    grid = Grid(hf.rows, hf.cols, hf.dx, hf.dy, hf.x0, hf.y0)
+    stored = int(sum(c.nbytes for c in codes.values()))
+    dense = int(grid.rows * grid.cols * len(CHANNELS) * 4)
+    report = {
+        "source": hf.source,
+        "grid": grid.to_json(),
+        "is_1d": hf.is_1d,
+        "device": device.name,
+        "mapping": mapping.spec,
+        "kept": kept,
+        "left_out": left_out,
+        "quantization": qinfo,
+        "walls": walls.to_json(),
+        "clamped": clamped,
+        "stored_bytes": stored,
+        "dense_bytes": dense,
+        "bytes_saved": dense - stored,
+        "dense_rule": "dense = rows*cols * every format channel * 4 bytes (float32)",
+    }
+    meta = table_meta(device, mapping, options, hf.source, hf.sha256(), report)
+    table = FrictionTable.from_codes(grid, codes, quant, {k: 0.0 for k in codes}, meta)
+    return CompileResult(table, report)
+
+
+def format_report(report: dict) -> str:
+    """Human-readable multi-line summary of a compile report."""
+    g = report["grid"]
+    lines = [f"source: {report['source']}",
+             f"grid: {g['rows']} x {g['cols']} samples, dx={g['dx_m'] * 1e3:.4g} mm, dy={g['dy_m'] * 1e3:.4g} mm"
+             + (" (1-D)" if report.get("is_1d") else ""),
+             f"device: {report['device']}   mapping: {report['mapping']}",
+             "kept:"]
+    for name in report["kept"]:
+        q = report["quantization"][name]
+        unit = CHANNELS[name][0]
+        bound = "no bound" if q["bound"] is None else f"bound {q['bound']:.3g} {unit}"
+        ok = "" if q["meets_bound"] else "  (exceeds the perceptual bound)"
+        lines.append(f"  {name:<16} {q['dtype']:<8} max error {q['max_error']:.3g} {unit} ({bound}){ok}")
+    lines.append("left out:")
+    for name, why in report["left_out"].items():
+        lines.append(f"  {name:<16} {why}")
+    w = report["walls"]
+    if w["count"]:
+        lines.append(f"walls: {w['count']} samples ({w['fraction'] * 100:.3g} %) in {w['regions']} region(s) steeper "
+                     f"than {w['max_slope']}, steepest {w['steepest']:.3g}; {w['limited']}")
+        for b in w["boxes_mm"][:5]:
+            lines.append(f"  x {b[0]:.4g}..{b[1]:.4g} mm, y {b[2]:.4g}..{b[3]:.4g} mm")
+    else:
+        lines.append(f"walls: none (steepest slope {w['steepest']:.3g})")
+    for name, c in report["clamped"].items():
+        n_cl = c["below"] + c["above"]
+        if n_cl:
+            lines.append(f"clamped {name}: {n_cl} samples ({c['fraction'] * 100:.3g} %) to "
+                         f"{c['range']} {c['unit']}, by up to {c['max_excess']:.3g} {c['unit']}")
+    lines.append(f"stored {report['stored_bytes']} bytes; dense {report['dense_bytes']} bytes; "
+                 f"saved {report['bytes_saved']} bytes")
+    return "\n".join(lines)

@@ -1,0 +1,280 @@
+"""Gradient analysis of height fields: slopes, walls, and how walls are limited.
+
+Functions on arrays of shape (rows, cols): ``gx = dh/dx`` (along columns)
+and ``gy = dh/dy`` (along rows), dimensionless slopes. A 1-D field (one row)
+has ``gy = 0``.
+
+Methods (:data:`GRADIENT_METHODS`, selected by name):
+
+``"central"``
+    Second-order central differences inside, second-order one-sided at the
+    edges: error ``h^2/6 * f'''`` (O(dx^2)). Exact for quadratics.
+``"gaussian"``
+    Derivative of a Gaussian of standard deviation ``sigma`` (metres) —
+    smooths noisy maps; the result is the exact slope of the height field
+    convolved with that Gaussian (edges: nearest-value extension).
+``"savgol"``
+    Savitzky-Golay derivative along each axis with ``window`` samples (odd,
+    or a length such as "1 mm") and polynomial ``order``: exact for
+    polynomials of degree <= order inside the map.
+
+A *wall* is a sample whose slope magnitude exceeds ``max_slope`` — too
+steep to render (e.g. the vertical side of a mesh button, where the
+finite-difference slope is height/dx). :func:`detect_walls` says where they
+are; :func:`limit_walls` clips the slope magnitude to ``max_slope`` while
+keeping its direction.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import InputError, unknown_key
+from .heightfield import HeightField
+
+
+# ----------------------------------------------------------------- methods
+def _diff_axis(h: np.ndarray, step: float, axis: int, out: np.ndarray) -> np.ndarray:
+    """Second-order derivative along ``axis`` written into ``out`` (no large temporaries)."""
+    n = h.shape[axis]
+    hv = np.moveaxis(h, axis, -1)
+    ov = np.moveaxis(out, axis, -1)
+    if n < 2:
+        ov[...] = 0.0
+        return out
+    if n == 2:
+        np.subtract(hv[..., 1:], hv[..., :1], out=ov[..., :1])
+        ov[..., 1:] = ov[..., :1]
+        ov *= 1.0 / step
+        return out
+    np.subtract(hv[..., 2:], hv[..., :-2], out=ov[..., 1:-1])
+    ov[..., 1:-1] *= 0.5 / step
+    # second-order one-sided edges: (-3 f0 + 4 f1 - f2) / 2h
+    ov[..., 0] = (-3.0 * hv[..., 0] + 4.0 * hv[..., 1] - hv[..., 2]) * (0.5 / step)
+    ov[..., -1] = (3.0 * hv[..., -1] - 4.0 * hv[..., -2] + hv[..., -3]) * (0.5 / step)
+    return out
+
+
+def central(hf: HeightField) -> tuple[np.ndarray, np.ndarray]:
+    """Central differences, O(dx^2) everywhere (one-sided second order at edges)."""
+    h = hf.heights
+    gx = _diff_axis(h, hf.dx, 1, np.empty_like(h))
+    gy = np.zeros_like(h) if hf.rows == 1 else _diff_axis(h, hf.dy, 0, np.empty_like(h))
+    return gx, gy
+
+
+def gaussian(hf: HeightField, sigma=None) -> tuple[np.ndarray, np.ndarray]:
+    """Derivative-of-Gaussian slopes; ``sigma`` in metres (or "0.2 mm"); default 1.5 dx."""
+    from scipy import ndimage
+
+    s = 1.5 * hf.dx if sigma is None else _positive_length(sigma, "sigma")
+    sx, sy = s / hf.dx, s / hf.dy
+    h = hf.heights
+    if hf.rows == 1:
+        gx = ndimage.gaussian_filter1d(h[0], sx, order=1, mode="nearest")[None, :] / hf.dx
+        return gx, np.zeros_like(h)
+    gx = ndimage.gaussian_filter(h, (sy, sx), order=(0, 1), mode="nearest")
+    gx /= hf.dx
+    gy = ndimage.gaussian_filter(h, (sy, sx), order=(1, 0), mode="nearest")
+    gy /= hf.dy
+    return gx, gy
+
+
+def savgol(hf: HeightField, window=7, order: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """Savitzky-Golay derivative; ``window`` odd samples or a length; ``order`` < window."""
+    from scipy.signal import savgol_filter
+
+    order = int(order)
+    if order < 1:
+        raise InputError(f"savgol `order` must be >= 1 (got {order})")
+
+    def win(step: float, n: int) -> int:
+        if isinstance(window, str):
+            w = int(round(_positive_length(window, "window") / step))
+        else:
+            w = int(window)
+            if w != window:
+                raise InputError(f"savgol `window` must be an odd number of samples or a length (got {window!r})")
+        w = w + 1 if w % 2 == 0 else w
+        if w <= order:
+            raise InputError(f"savgol `window` ({w} samples) must exceed `order` ({order})")
+        if w > n:
+            raise InputError(f"savgol `window` ({w} samples) is longer than the map ({n} samples)")
+        return w
+
+    h = hf.heights
+    gx = savgol_filter(h, win(hf.dx, hf.cols), order, deriv=1, delta=hf.dx, axis=1, mode="interp")
+    if hf.rows == 1:
+        return gx, np.zeros_like(h)
+    gy = savgol_filter(h, win(hf.dy, hf.rows), order, deriv=1, delta=hf.dy, axis=0, mode="interp")
+    return gx, gy
+
+
+#: name -> function(hf, **kw) -> (gx, gy)
+GRADIENT_METHODS = {"central": central, "gaussian": gaussian, "savgol": savgol}
+_METHOD_KW = {"central": (), "gaussian": ("sigma",), "savgol": ("window", "order")}
+
+
+def _positive_length(value, name: str) -> float:
+    from .units import parse_quantity
+    v = parse_quantity(value, "m", name) if isinstance(value, str) else float(value)
+    if not (math.isfinite(v) and v > 0):
+        raise InputError(f"`{name}` must be a length > 0 (got {value!r})")
+    return v
+
+
+def gradient(hf: HeightField, method: str = "central", **kw) -> tuple[np.ndarray, np.ndarray]:
+    """Slopes of a height field.
+
+    Parameters
+    ----------
+    hf : HeightField
+    method : {"central", "gaussian", "savgol"}
+        See module docs. Keywords: gaussian ``sigma`` (m); savgol ``window``
+        (samples or length), ``order``.
+
+    Returns
+    -------
+    gx, gy : ndarray of shape (rows, cols), float64
+        dh/dx and dh/dy (dimensionless); ``gy`` is zero for a 1-D field.
+    """
+    if method not in GRADIENT_METHODS:
+        raise unknown_key("gradient method", method, GRADIENT_METHODS)
+    for k in kw:
+        if k not in _METHOD_KW[method]:
+            raise unknown_key(f"option of gradient method '{method}'", k, _METHOD_KW[method] or ("(none)",))
+    return GRADIENT_METHODS[method](hf, **kw)
+
+
+def slope_along(gx: np.ndarray, gy: np.ndarray, direction) -> np.ndarray:
+    """Slope along a direction: ``grad h . u``.
+
+    ``direction`` is an angle from +x in radians, or a vector (ux, uy)
+    (normalised here; arrays broadcast against ``gx``).
+    """
+    if np.ndim(direction) == 0:
+        ux, uy = math.cos(float(direction)), math.sin(float(direction))
+    else:
+        ux, uy = (np.asarray(v, dtype=np.float64) for v in direction)
+        norm = np.hypot(ux, uy)
+        if np.any(norm == 0) or not np.all(np.isfinite(norm)):
+            raise InputError(f"`direction` must be a non-zero finite vector (got {direction!r})")
+        ux, uy = ux / norm, uy / norm
+    return gx * ux + gy * uy
+
+
+def slope_magnitude(gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
+    """|grad h| (dimensionless), shape of ``gx``."""
+    return np.hypot(gx, gy)
+
+
+# ----------------------------------------------------------------- walls
+@dataclass
+class WallReport:
+    """Where the surface is too steep to render.
+
+    Attributes
+    ----------
+    mask : ndarray (rows, cols) bool
+        True at wall samples (slope magnitude > max_slope).
+    count : int
+    fraction : float
+        count / samples.
+    max_slope : float
+        The limit used (dimensionless slope; inf = no limit).
+    steepest : float
+        Largest slope magnitude found.
+    boxes_mm : list of [x_min, x_max, y_min, y_max]
+        Bounding boxes (sample centres, mm) of connected wall regions, largest
+        first (at most :attr:`MAX_BOXES`).
+    regions : int
+        Number of connected wall regions.
+    limited : str
+        How the walls were treated ("not limited", or the clipping rule).
+    """
+
+    mask: np.ndarray
+    count: int
+    fraction: float
+    max_slope: float
+    steepest: float
+    boxes_mm: list = field(default_factory=list)
+    regions: int = 0
+    limited: str = "not limited"
+
+    MAX_BOXES = 20
+
+    def to_json(self) -> dict:
+        """JSON-safe summary (no mask)."""
+        return {"count": self.count, "fraction": self.fraction,
+                "max_slope": None if math.isinf(self.max_slope) else self.max_slope,
+                "steepest": self.steepest, "regions": self.regions, "boxes_mm": self.boxes_mm,
+                "limited": self.limited}
+
+
+def _check_max_slope(max_slope) -> float:
+    v = float(max_slope)
+    if math.isnan(v) or v <= 0:
+        raise InputError(f"`max_slope` must be > 0 (got {max_slope!r})")
+    return v
+
+
+def detect_walls(hf: HeightField, gx: np.ndarray, gy: np.ndarray, max_slope: float) -> WallReport:
+    """Find samples steeper than ``max_slope`` and describe where they are.
+
+    Parameters
+    ----------
+    hf : HeightField
+        The field the slopes belong to (for positions).
+    gx, gy : ndarray (rows, cols)
+        Slopes.
+    max_slope : float
+        Steepest renderable slope (dimensionless, > 0; ``inf`` disables).
+    """
+    limit = _check_max_slope(max_slope)
+    mag = np.hypot(gx, gy)
+    steepest = float(mag.max(initial=0.0))
+    if math.isinf(limit) or steepest <= limit:
+        return WallReport(np.zeros(gx.shape, dtype=bool), 0, 0.0, limit, steepest)
+    mask = np.greater(mag, limit, out=np.empty(gx.shape, dtype=bool))
+    del mag
+    count = int(np.count_nonzero(mask))
+    from scipy import ndimage
+    labels, n = ndimage.label(mask)
+    slices = ndimage.find_objects(labels)
+    del labels
+    sized = sorted(slices, key=lambda s: -((s[0].stop - s[0].start) * (s[1].stop - s[1].start)))
+    boxes = []
+    for sr, sc in sized[:WallReport.MAX_BOXES]:
+        boxes.append([round((hf.x0 + sc.start * hf.dx) * 1e3, 6), round((hf.x0 + (sc.stop - 1) * hf.dx) * 1e3, 6),
+                      round((hf.y0 + sr.start * hf.dy) * 1e3, 6), round((hf.y0 + (sr.stop - 1) * hf.dy) * 1e3, 6)])
+    return WallReport(mask, count, count / mask.size, limit, steepest, boxes, int(n))
+
+
+def limit_walls(gx: np.ndarray, gy: np.ndarray, max_slope: float, *, out=None) -> tuple[np.ndarray, np.ndarray]:
+    """Clip the slope magnitude to ``max_slope``, keeping its direction.
+
+    Where ``|grad h| > max_slope`` the slope becomes
+    ``max_slope * grad h / |grad h|``; elsewhere it is unchanged.
+    ``out=(gx_out, gy_out)`` may be ``(gx, gy)`` to work in place.
+    """
+    limit = _check_max_slope(max_slope)
+    if out is None:
+        out = (np.array(gx, dtype=np.float64, copy=True), np.array(gy, dtype=np.float64, copy=True))
+    ox, oy = out
+    if ox is not gx:
+        ox[...] = gx
+    if oy is not gy:
+        oy[...] = gy
+    if math.isinf(limit):
+        return ox, oy
+    mag = np.hypot(ox, oy)
+    over = mag > limit
+    if over.any():
+        f = limit / mag[over]
+        del mag
+        ox[over] *= f
+        oy[over] *= f
+    return ox, oy
