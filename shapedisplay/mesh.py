@@ -370,8 +370,8 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units="mm", ba
         if res is None:
             res = max(width, height) / (DEFAULT_LONG_SIDE - 1)
         dx = dy = res
-        cols_f = int(math.ceil(width / dx - 1e-9)) + 1
-        rows_f = int(math.ceil(height / dy - 1e-9)) + 1
+        cols_f = int(math.ceil(width / dx - raster.EDGE_TOLERANCE)) + 1
+        rows_f = int(math.ceil(height / dy - raster.EDGE_TOLERANCE)) + 1
     mc = int(math.ceil(mrg / dx - 1e-9)) if mrg > 0 else 0
     mr = int(math.ceil(mrg / dy - 1e-9)) if mrg > 0 else 0
     rows, cols = rows_f + 2 * mr, cols_f + 2 * mc
@@ -452,7 +452,7 @@ def _warn_size(where: str, width: float, height: float, units: str) -> None:
         return
     raw = side / UNITS[units]
     fits = [u for u, s in UNITS.items() if lo <= raw * s <= hi and u != units]
-    hint = f"; if the file is in {' or '.join(fits)}, pass units='{fits[0]}'" if fits else ""
+    hint = f"; if the file is in {', '.join(fits)}, pass e.g. units='{fits[0]}'" if fits else ""
     warnings.warn(
         f"{where}: footprint {width * 1e3:.4g} x {height * 1e3:.4g} mm looks implausible for a screen "
         f"(expected {lo * 1e3:g} mm to {hi:g} m) with units='{units}'{hint}",

@@ -11,7 +11,8 @@ A sample belongs to a triangle when it lies inside it or within
 :data:`EDGE_TOLERANCE` samples of one of its edges. The test is inclusive so
 that a sample exactly on an edge shared by two triangles is never lost (max
 reduction makes a double hit harmless). Heights are interpolated
-barycentrically. Triangles with zero projected area (vertical faces) cover no
+barycentrically relative to the first vertex (so a flat triangle gives
+its height exactly). Triangles with zero projected area (vertical faces) cover no
 sample: a vertical wall appears as a step between neighbouring samples.
 
 Backends, by name in :data:`METHODS`:
@@ -30,8 +31,9 @@ import numpy as np
 
 from .errors import unknown_key
 
-#: A sample within this distance (in samples) of a triangle edge counts as inside.
-EDGE_TOLERANCE = 1e-7
+#: A sample within this distance (in samples) of a triangle edge counts as inside
+#: (absorbs float32 rounding of coordinates read from STL/PLY files).
+EDGE_TOLERANCE = 1e-5
 
 
 def _as_soup(triangles) -> np.ndarray:
@@ -83,7 +85,7 @@ def _numba_kernel():
                     wc = s * ((bx - ax) * (py - ay) - (by - ay) * (px - ax))
                     if wc < -lc:
                         continue
-                    z = (wa * az + wb * bz + wc * cz) / area
+                    z = az + (wb * (bz - az) + wc * (cz - az)) / area
                     if z > zbuf[r, c]:
                         zbuf[r, c] = z
         return zbuf
@@ -166,7 +168,7 @@ def zbuffer_numpy(triangles, rows: int, cols: int, fill: float = -np.inf,
         lb = np.hypot(A[:, 0] - C[:, 0], A[:, 1] - C[:, 1]) * tol
         lc = np.hypot(B[:, 0] - A[:, 0], B[:, 1] - A[:, 1]) * tol
         inside = (wa >= -la) & (wb >= -lb) & (wc >= -lc)
-        z = (wa * A[:, 2] + wb * B[:, 2] + wc * C[:, 2]) / (s * area[t])
+        z = A[:, 2] + (wb * (B[:, 2] - A[:, 2]) + wc * (C[:, 2] - A[:, 2])) / (s * area[t])
         np.maximum.at(zbuf, (rr * cols + cc)[inside], z[inside])
         start = stop
     zbuf = zbuf.reshape(rows, cols)

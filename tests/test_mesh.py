@@ -1,0 +1,351 @@
+"""Meshes to height fields: exact answers on analytic shapes, backends, files, export."""
+from __future__ import annotations
+
+import math
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+trimesh = pytest.importorskip("trimesh")
+
+from shapedisplay import mesh, raster  # noqa: E402
+from shapedisplay.heightfield import HeightField  # noqa: E402
+
+MM = 1e-3
+ROOT = Path(__file__).resolve().parents[1]
+KEYCAP = ROOT / "assets" / "meshes" / "keycap.stl"
+
+
+def sample_xy(hf):
+    """Sample positions (x, y) in the height field frame, each (rows, cols), metres."""
+    return np.meshgrid(hf.x, hf.y)
+
+
+def sphere_cap(R, hc, n_rings=48, n_sectors=192):
+    """Closed spherical cap (mm): sphere radius R, cap height hc, flat base on z=0."""
+    a = math.sqrt(2 * R * hc - hc * hc)
+    theta_max = math.asin(a / R)
+    verts = [[0.0, 0.0, hc]]
+    for i in range(1, n_rings + 1):
+        th = theta_max * i / n_rings
+        phi = np.linspace(0, 2 * np.pi, n_sectors, endpoint=False)
+        r = R * math.sin(th)
+        z = R * math.cos(th) - (R - hc)
+        verts += np.column_stack([r * np.cos(phi), r * np.sin(phi), np.full(n_sectors, z)]).tolist()
+    verts.append([0.0, 0.0, 0.0])
+    verts = np.array(verts)
+    faces = []
+    j = np.arange(n_sectors)
+    k = (j + 1) % n_sectors
+    faces.append(np.column_stack([np.zeros(n_sectors, int), 1 + j, 1 + k]))
+    for i in range(1, n_rings):
+        a0, a1 = 1 + (i - 1) * n_sectors, 1 + i * n_sectors
+        faces.append(np.column_stack([a0 + j, a1 + j, a1 + k]))
+        faces.append(np.column_stack([a0 + j, a1 + k, a0 + k]))
+    last = 1 + (n_rings - 1) * n_sectors
+    faces.append(np.column_stack([np.full(n_sectors, len(verts) - 1), last + k, last + j]))
+    return verts, np.vstack(faces)
+
+
+def circumradius(tri):
+    a = np.linalg.norm(tri[:, 1] - tri[:, 2], axis=1)
+    b = np.linalg.norm(tri[:, 0] - tri[:, 2], axis=1)
+    c = np.linalg.norm(tri[:, 0] - tri[:, 1], axis=1)
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    return a * b * c / (4 * area)
+
+
+# --------------------------------------------------------------- exact answers
+def test_box_rasterises_to_its_exact_heights_and_step_locations():
+    box = trimesh.creation.box(extents=(20, 10, 5))
+    box.apply_translation([100, -40, 7])  # placement in the file must not matter
+    hf = mesh.mesh_to_heightfield(box, resolution=0.5 * MM, margin=2 * MM)
+    X, Y = sample_xy(hf)
+    tol = raster.EDGE_TOLERANCE * hf.dx
+    inside = (X >= -tol) & (X <= 20 * MM + tol) & (Y >= -tol) & (Y <= 10 * MM + tol)
+    np.testing.assert_allclose(hf.heights, np.where(inside, 5 * MM, 0.0), rtol=0, atol=1e-15)
+    # the walls sit between the last background and first top sample on every side
+    mid = hf.heights[hf.rows // 2]
+    jumps = np.flatnonzero(np.diff(mid) != 0)
+    assert hf.x[jumps].tolist() == pytest.approx([-0.5 * MM, 20 * MM])
+    assert hf.x0 == pytest.approx(-2 * MM) and hf.y0 == pytest.approx(-2 * MM)
+    assert hf.meta["model_origin_m"] == pytest.approx([0.09, -0.045, 0.0045])
+    assert hf.meta["footprint_m"] == pytest.approx([0.02, 0.01])
+
+
+def test_sphere_cap_matches_analytic_heights_within_half_a_sample_of_slope():
+    R, hc = 20.0, 5.0
+    v, f = sphere_cap(R, hc)
+    dx = 0.25 * MM
+    hf = mesh.mesh_to_heightfield((v, f), resolution=dx)
+    a = math.sqrt(2 * R * hc - hc * hc) * MM
+    X, Y = sample_xy(hf)
+    r = np.hypot(X - a, Y - a)  # footprint min corner is (-a, -a)
+    Rm, hm = R * MM, hc * MM
+    inside = r <= a
+    exact = np.where(inside, np.sqrt(np.maximum(Rm**2 - r**2, 0)) - (Rm - hm), 0.0)
+    slope = np.where(inside, r / np.sqrt(np.maximum(Rm**2 - r**2, 1e-30)), 0.0)
+    # tessellation: a flat triangle through 3 points of the sphere deviates from it by at most
+    # R - sqrt(R^2 - rho^2) (rho = circumradius) along the normal; vertically divide by cos of the
+    # steepest normal on the cap, (R - hc) / R
+    rho = circumradius(v[f] * MM).max()
+    tess = (Rm - math.sqrt(Rm**2 - rho**2)) / ((Rm - hm) / Rm)
+    err = np.abs(hf.heights - exact)
+    assert np.all(err <= 0.5 * dx * slope + tess)      # the stated tolerance
+    assert err.max() <= tess * (1 + 1e-9) + 1e-12       # point sampling adds no slope error
+    # the apex lies within half a sample diagonal of a sample: drop <= r^2 / (2 (R - hc)) there
+    assert hm - (dx**2 / 2) / (2 * (Rm - hm)) - tess <= hf.heights.max() <= hm
+
+
+def test_cone_matches_analytic_heights_and_upside_down_is_flat():
+    N, a, h = 256, 10.0, 6.0
+    cone = trimesh.creation.cone(radius=a, height=h, sections=N)
+    dx = 0.2 * MM
+    hf = mesh.mesh_to_heightfield(cone, resolution=dx)
+    X, Y = sample_xy(hf)
+    r = np.hypot(X - a * MM, Y - a * MM)
+    exact = np.where(r <= a * MM, h * MM * (1 - r / (a * MM)), 0.0)
+    # facets through the apex and two rim points: error <= h (1/cos(pi/N) - 1)
+    facet = h * MM * (1 / math.cos(math.pi / N) - 1)
+    slope = h / a
+    err = np.abs(hf.heights - exact)
+    assert np.all(err <= 0.5 * dx * slope + facet)
+    assert err.max() <= facet + 1e-12
+    # seen from below (up = -z) the top surface is the flat base disc at height h
+    under = mesh.mesh_to_heightfield(cone, resolution=dx, up="-z")
+    covered = under.heights > 0
+    np.testing.assert_allclose(under.heights[covered], h * MM, atol=1e-12)
+
+
+def test_tilted_plane_is_exact_at_every_covered_sample():
+    rng = np.random.default_rng(3)
+    from scipy.spatial import Delaunay
+    pts = np.vstack([rng.uniform(0, 30, size=(300, 2)), [[0, 0], [30, 0], [0, 30], [30, 30]]])
+    z = 0.3 * pts[:, 0] - 0.2 * pts[:, 1] + 9                  # mm; lowest at (0, 30): 3 mm
+    hf = mesh.mesh_to_heightfield((np.c_[pts, z], Delaunay(pts).simplices), resolution=0.5 * MM)
+    X, Y = sample_xy(hf)
+    np.testing.assert_allclose(hf.heights, 0.3 * X - 0.2 * Y + 6 * MM, rtol=0, atol=1e-15)
+
+
+def test_overhang_keeps_the_highest_surface_and_normals_do_not_matter():
+    base = trimesh.creation.box(extents=(20, 20, 2))            # z -1..1
+    cap = trimesh.creation.box(extents=(6, 6, 1))
+    cap.apply_translation([0, 0, 6])                            # floating plate z 5.5..6.5
+    scene_mesh = trimesh.util.concatenate([base, cap])
+    hf = mesh.mesh_to_heightfield(scene_mesh, resolution=1 * MM)
+    X, Y = sample_xy(hf)
+    on_cap = (np.abs(X - 10 * MM) <= 3 * MM + 1e-12) & (np.abs(Y - 10 * MM) <= 3 * MM + 1e-12)
+    np.testing.assert_allclose(hf.heights, np.where(on_cap, 7.5 * MM, 2 * MM), atol=1e-15)
+    inverted = (scene_mesh.vertices, scene_mesh.faces[:, ::-1])
+    np.testing.assert_array_equal(mesh.mesh_to_heightfield(inverted, resolution=1 * MM).heights, hf.heights)
+
+
+def test_open_and_non_manifold_meshes_still_give_the_top_surface():
+    box = trimesh.creation.box(extents=(10, 10, 4))           # z -2..2
+    ref = mesh.mesh_to_heightfield(box, resolution=0.5 * MM)
+    no_bottom = box.faces[box.triangles_center[:, 2] > -1.9]  # open: not watertight
+    assert not trimesh.Trimesh(box.vertices, no_bottom, process=False).is_watertight
+    np.testing.assert_array_equal(
+        mesh.mesh_to_heightfield((box.vertices, no_bottom), resolution=0.5 * MM).heights, ref.heights)
+    # a vertical fin on a top edge (three faces share that edge) and a duplicated face
+    v = np.vstack([box.vertices, [[5, -5, 2], [5, 5, 2], [5, 0, 10]]])
+    n = len(box.vertices)
+    faces = np.vstack([box.faces, box.faces[:1], [[n, n + 1, n + 2]]])
+    assert not trimesh.Trimesh(v, faces, process=True).is_watertight
+    np.testing.assert_array_equal(mesh.mesh_to_heightfield((v, faces), resolution=0.5 * MM).heights,
+                                  ref.heights)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 60),
+       rows=st.integers(2, 40), cols=st.integers(2, 40))
+def test_numba_and_numpy_backends_give_the_same_answer(seed, n, rows, cols):
+    rng = np.random.default_rng(seed)
+    tri = rng.uniform(-5, 45, size=(n, 3, 3))
+    a = raster.rasterize(tri, rows, cols, method="numba")
+    b = raster.rasterize(tri, rows, cols, method="numpy")
+    np.testing.assert_array_equal(np.isfinite(a), np.isfinite(b))
+    np.testing.assert_allclose(a[np.isfinite(a)], b[np.isfinite(b)], rtol=0, atol=1e-12)
+
+
+def test_mesh_to_heightfield_backends_agree_on_the_keycap():
+    a = mesh.mesh_to_heightfield(KEYCAP, resolution=0.3 * MM, supersample=2)
+    b = mesh.mesh_to_heightfield(KEYCAP, resolution=0.3 * MM, supersample=2, method="numpy")
+    np.testing.assert_allclose(a.heights, b.heights, atol=1e-15)
+
+
+def test_supersampling_keeps_a_thin_ridge_that_point_sampling_misses():
+    plate = trimesh.creation.box(bounds=[[0, 0, -1], [10, 10, 0]])
+    ridge = trimesh.creation.box(bounds=[[4.23, 0, 0], [4.33, 10, 1]])
+    both = trimesh.util.concatenate([plate, ridge])
+    plain = mesh.mesh_to_heightfield(both, resolution=0.5 * MM)
+    assert plain.heights.max() == pytest.approx(1 * MM)        # ridge lost between samples
+    # 5x5 sub-samples at offsets (-0.2, -0.1, 0, 0.1, 0.2) mm: only x = 4.3 mm (col 9) hits the ridge
+    mean = mesh.mesh_to_heightfield(both, resolution=0.5 * MM, supersample=5)
+    peak = mesh.mesh_to_heightfield(both, resolution=0.5 * MM, supersample=5, supersample_mode="max")
+    inner = slice(1, -1)  # rows away from the plate's outer edge
+    np.testing.assert_allclose(mean.heights[inner, 9], (4 * 1 + 2) / 5 * MM, atol=1e-15)
+    np.testing.assert_allclose(peak.heights[inner, 9], 2 * MM, atol=1e-15)
+    others = np.delete(mean.heights[inner, 1:-1], 8, axis=1)
+    np.testing.assert_allclose(others, 1 * MM, atol=1e-15)
+
+
+def test_background_value_and_grid_size_option():
+    cone = trimesh.creation.cone(radius=5, height=3, sections=64)
+    hf = mesh.mesh_to_heightfield(cone, grid=(21, 41), background=-1 * MM)
+    assert hf.shape == (21, 41)
+    assert hf.dx == pytest.approx(10 * MM / 40) and hf.dy == pytest.approx(10 * MM / 20)
+    assert hf.heights[0, 0] == -1 * MM                             # corner outside the disc
+    assert hf.heights.max() == pytest.approx(3 * MM)
+    same = mesh.mesh_to_heightfield(cone, grid="21x41", background="-1 mm")
+    np.testing.assert_array_equal(same.heights, hf.heights)
+    default = mesh.mesh_to_heightfield(cone)
+    assert max(default.shape) == mesh.DEFAULT_LONG_SIDE
+
+
+@pytest.mark.parametrize("up, rotate", [
+    ("y", [[1, 0, 0], [0, 0, 1], [0, -1, 0]]),     # model built Y-up: (x, y, z) -> (x, z, -y)
+    ("x", [[0, 0, 1], [1, 0, 0], [0, 1, 0]]),      # z -> x, x -> y
+    ("-y", [[1, 0, 0], [0, 0, -1], [0, 1, 0]]),    # (x, y, z) -> (x, -z, y)
+])
+def test_up_axis_recovers_the_z_up_view(up, rotate):
+    cone = trimesh.creation.cone(radius=5, height=3, sections=64)
+    box = trimesh.creation.box(extents=(2, 3, 1))
+    box.apply_translation([7, 0, 0])
+    shape = trimesh.util.concatenate([cone, box])
+    ref = mesh.mesh_to_heightfield(shape, resolution=0.25 * MM)
+    R = np.array(rotate, float)
+    turned = (shape.vertices @ R.T, shape.faces)
+    got = mesh.mesh_to_heightfield(turned, resolution=0.25 * MM, up=up)
+    np.testing.assert_allclose(got.heights, ref.heights, atol=1e-12)
+    by_vector = mesh.mesh_to_heightfield(turned, resolution=0.25 * MM, up=(R @ [0, 0, 1]).tolist())
+    np.testing.assert_allclose(by_vector.heights, ref.heights, atol=1e-12)
+
+
+def test_up_as_rotation_matrix():
+    cone = trimesh.creation.cone(radius=5, height=3, sections=64)
+    rot = mesh.up_rotation("y")
+    a = mesh.mesh_to_heightfield(cone, resolution=0.5 * MM, up="y")
+    b = mesh.mesh_to_heightfield(cone, resolution=0.5 * MM, up=rot)
+    np.testing.assert_array_equal(a.heights, b.heights)
+    for name in ("x", "y", "z", "-x", "-y", "-z"):
+        m = mesh.up_rotation(name)
+        np.testing.assert_allclose(m @ m.T, np.eye(3), atol=1e-15)
+        assert np.linalg.det(m) == pytest.approx(1.0)
+
+
+# --------------------------------------------------------------- files and scenes
+@pytest.mark.parametrize("fmt", ["stl", "stl_ascii", "obj", "ply", "off", "glb"])
+def test_every_format_gives_the_same_height_field(tmp_path, fmt):
+    cone = trimesh.creation.cone(radius=5, height=3, sections=48)
+    ref = mesh.mesh_to_heightfield(cone, resolution=0.25 * MM)
+    suffix = "stl" if fmt == "stl_ascii" else fmt
+    path = tmp_path / f"shape.{suffix}"
+    data = cone.export(file_type=fmt)
+    path.write_bytes(data.encode() if isinstance(data, str) else data)
+    hf = mesh.mesh_to_heightfield(path, resolution=0.25 * MM)
+    # STL stores float32 coordinates: allow their rounding times the slope
+    np.testing.assert_allclose(hf.heights, ref.heights, atol=1e-8)
+    assert hf.shape == ref.shape
+
+
+@pytest.mark.parametrize("fmt", ["glb", "gltf"])
+def test_scene_meshes_are_merged_in_world_coordinates(tmp_path, fmt):
+    a = trimesh.creation.box(extents=(4, 4, 2))
+    b = trimesh.creation.box(extents=(4, 4, 6))
+    scene = trimesh.Scene()
+    scene.add_geometry(a, node_name="a", transform=trimesh.transformations.translation_matrix([0, 0, 1]))
+    scene.add_geometry(b, node_name="b", transform=trimesh.transformations.translation_matrix([10, 0, 3]))
+    if fmt == "glb":
+        path = tmp_path / "scene.glb"
+        path.write_bytes(scene.export(file_type="glb"))
+    else:
+        for name, data in scene.export(file_type="gltf").items():
+            (tmp_path / name).write_bytes(data)
+        path = tmp_path / "model.gltf"
+    hf = mesh.mesh_to_heightfield(path, resolution=0.5 * MM)
+    assert hf.meta["meshes"] == 2
+    assert hf.meta["footprint_m"] == pytest.approx([14 * MM, 4 * MM])
+    X, _ = sample_xy(hf)
+    row = hf.heights[hf.rows // 2]
+    x = hf.x
+    assert np.all(row[x <= 4 * MM] == pytest.approx(2 * MM))
+    assert np.all(row[(x > 4 * MM + 1e-9) & (x < 10 * MM - 1e-9)] == 0)
+    assert np.all(row[x >= 10 * MM] == pytest.approx(6 * MM))
+
+
+# --------------------------------------------------------------- export round trip
+@pytest.mark.parametrize("suffix", [".stl", ".ply"])
+def test_export_then_rasterise_round_trips(tmp_path, suffix):
+    hf = mesh.mesh_to_heightfield(KEYCAP, resolution=0.5 * MM, margin=1 * MM)
+    path = tmp_path / f"out{suffix}"
+    mesh.save_heightfield_mesh(hf, path)                       # closed solid, 1 mm base
+    back = mesh.mesh_to_heightfield(path, resolution=0.5 * MM)
+    assert back.shape == hf.shape
+    # heights are measured from the lowest point, which is now the 1 mm base below min(h)
+    np.testing.assert_allclose(back.heights, hf.heights - hf.heights.min() + 1 * MM, atol=2e-8)
+    surface = tmp_path / f"surface{suffix}"
+    mesh.save_heightfield_mesh(hf, surface, solid=False)
+    back2 = mesh.mesh_to_heightfield(surface, resolution=0.5 * MM)
+    np.testing.assert_allclose(back2.heights, hf.heights - hf.heights.min(), atol=2e-8)
+
+
+def test_exported_solid_is_watertight_with_outward_normals(tmp_path):
+    hf = HeightField(np.random.default_rng(0).uniform(0, 1e-3, (7, 9)), 1e-3, 2e-3)
+    v, f = mesh.heightfield_to_mesh(hf)
+    tm = trimesh.Trimesh(v, f, process=True)
+    assert tm.is_watertight and tm.is_winding_consistent
+    assert tm.volume > 0
+    # volume = integral of (h - zb) over the grid with linear triangles
+    h = hf.heights
+    zb = h.min() - 1e-3
+    cell = (h[:-1, :-1] + h[:-1, 1:] + h[1:, 1:]) / 3 + (h[:-1, :-1] + h[1:, 1:] + h[1:, :-1]) / 3
+    expected = (cell.sum() / 2 - zb * (h.shape[0] - 1) * (h.shape[1] - 1)) * hf.dx * hf.dy
+    assert tm.volume == pytest.approx(expected, rel=1e-9)
+
+
+def test_save_heightmap_png_npy_npz(tmp_path):
+    hf = mesh.mesh_to_heightfield(KEYCAP, resolution=0.5 * MM)
+    mesh.save_heightmap(hf, tmp_path / "h.npy")
+    np.testing.assert_array_equal(np.load(tmp_path / "h.npy"), hf.heights)
+    mesh.save_heightmap(hf, tmp_path / "h.npz")
+    with np.load(tmp_path / "h.npz") as z:
+        np.testing.assert_array_equal(z["heights"], hf.heights)
+        assert float(z["dx"]) == hf.dx
+    mesh.save_heightmap(hf, tmp_path / "h.png")
+    from shapedisplay.imageio import read_png
+    gray = read_png(tmp_path / "h.png")
+    assert gray.dtype == np.uint16 and gray.shape == hf.shape
+    lo, hi = hf.heights.min(), hf.heights.max()
+    np.testing.assert_allclose(lo + gray / 65535 * (hi - lo), hf.heights, atol=(hi - lo) / 65535)
+    with pytest.raises(mesh.FileFormatError, match="unsupported suffix '.txt'"):
+        mesh.save_heightmap(hf, tmp_path / "h.txt")
+
+
+# --------------------------------------------------------------- the keycap asset
+def test_keycap_asset_is_reproducible_and_matches_its_formula(tmp_path):
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("make_keycap", KEYCAP.with_name("make_keycap.py"))
+    gen = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(gen)
+    out = tmp_path / "keycap.stl"
+    gen.main([str(out)])
+    assert out.read_bytes() == KEYCAP.read_bytes()
+    v, f = gen.keycap()
+    assert 2000 <= len(f) <= 10000
+    assert trimesh.Trimesh(v, f).is_watertight
+    dx = 0.25 * MM
+    hf = mesh.mesh_to_heightfield(KEYCAP, resolution=dx)
+    X, Y = sample_xy(hf)
+    x, y = X / MM - 9, Y / MM - 9                               # keycap centred on 0 in its file
+    centre = (np.abs(x) < 5) & (np.abs(y) < 5)
+    exact = gen.dish(x, y) * MM
+    R = gen.DISH_R * MM
+    top = f[np.all(v[f][:, :, 2] > gen.HEIGHT - gen.DISH_DEPTH - 1e-9, axis=1)]
+    rho = circumradius(v[top] * MM).max()
+    tess = (R - math.sqrt(R**2 - rho**2)) / math.sqrt(1 - (5 * math.sqrt(2) * MM / R) ** 2)
+    assert np.abs(hf.heights[centre] - exact[centre]).max() <= tess + 1e-9  # float32 file
+    assert hf.heights[hf.rows // 2, hf.cols // 2] == pytest.approx(7.2 * MM, abs=1e-8)
