@@ -1,0 +1,153 @@
+"""``shapedisplay compile``: height map, mesh or scene -> friction-envelope table."""
+from __future__ import annotations
+
+import argparse
+
+_IMAGE_ONLY = ("size", "height")
+_MESH_ONLY = ("up", "units")
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "compile",
+        help="compile a height map, mesh or scene into a friction-envelope table",
+        description="Compile SOURCE (.png/.npy height map, .stl/.obj/.ply/.off/.glb/.gltf mesh, or .toml scene) "
+                    "into a table. Quantities take units: '60x4mm', '0:2mm', '0.5N', '2N/mm'.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="example:\n  shapedisplay compile map.png -o t.npz --size 60x4mm --height 0:2mm "
+               "--mapping height --n-base 0.5N --n-gain 2N/mm",
+    )
+    p.add_argument("source", help="height map (.png 8/16-bit gray, .npy), mesh, or scene (.toml)")
+    p.add_argument("-o", "--output", required=True, help="table file to write (.npz)")
+    p.add_argument("--device", help="device profile: TOML file or bundled name (default: built-in Konyo pad)")
+    g = p.add_argument_group("image sources")
+    g.add_argument("--size", help="physical width x height of the whole image, e.g. 60x4mm")
+    g.add_argument("--height", help="heights of gray 0 and full scale, e.g. 0:2mm (float .npy: omit = metres)")
+    g.add_argument("--resolution", help="sample spacing, e.g. 0.1mm (images: instead of --size; meshes: grid step)")
+    g = p.add_argument_group("mesh sources")
+    g.add_argument("--up", help="mesh axis that points up: x, y or z (default z)")
+    g.add_argument("--units", help="length unit of the mesh coordinates, e.g. mm (default mm)")
+    g = p.add_argument_group("mapping (DESIGN 3.2-3.6)")
+    g.add_argument("--mapping", default="height",
+                   help="terms joined by '+': height, slope, lateral, lateral-normal, stretch, perceptual "
+                        "(default height)")
+    g.add_argument("--n-base", help="normal force on flat ground N1, e.g. 0.5N (default 0.5 N)")
+    g.add_argument("--n-gain", help="height gain G in N = N1 + G*h, e.g. 2N/mm (default 1 N/mm)")
+    g.add_argument("--slope-gain", help="K_mu of the one-sided slope friction, per unit slope (default 0.2)")
+    g.add_argument("--lateral-gain", help="K of the lateral cue F = -K grad h, e.g. 1N (default 1 N)")
+    g.add_argument("--skin-stretch", help="skin-stretch target, e.g. 0.55mm")
+    g.add_argument("--perceptual", help="power-law exponent beta or a name (bumpiness, friction, vibration)")
+    g = p.add_argument_group("analysis and coding")
+    g.add_argument("--gradient", default="central", help="central | gaussian | savgol (default central)")
+    g.add_argument("--sigma", help="gaussian gradient: smoothing sigma, e.g. 0.2mm")
+    g.add_argument("--window", help="savgol gradient: window in samples (odd) or a length, e.g. 1mm")
+    g.add_argument("--order", type=int, help="savgol gradient: polynomial order (default 2)")
+    g.add_argument("--max-slope", help="steepest renderable slope (default 1 = 45 deg; 'inf' = none)")
+    g.add_argument("--no-limit-walls", action="store_true", help="do not clip wall slopes")
+    g.add_argument("--quantize", default="auto", help="auto | uint8 | uint16 | float32 | float64 (default auto)")
+    g.add_argument("--weber", help="friction Weber fraction for auto quantization (default 0.1)")
+    g.add_argument("--keep", help="comma-separated channels to store even if the device does not use them")
+    p.add_argument("--json", action="store_true", help="print the compile report as JSON")
+    p.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
+    p.set_defaults(func=run)
+
+
+def _float(text, name):
+    from shapedisplay.errors import InputError
+    try:
+        return float(text)
+    except ValueError:
+        raise InputError(f"`{name}` must be a number (got {text!r})") from None
+
+
+def build_options(args):
+    """(MappingOptions, CompileOptions) from parsed arguments."""
+    from shapedisplay.compile import CompileOptions
+    from shapedisplay.profiles import EXPONENTS, MappingOptions
+    from shapedisplay.units import parse_quantity
+
+    def q(value, unit, name, bare_ok=False):
+        return None if value is None else parse_quantity(value, unit, name, bare_ok=bare_ok)
+
+    perceptual = None
+    if args.perceptual is not None:
+        perceptual = args.perceptual if args.perceptual in EXPONENTS else _float(args.perceptual, "--perceptual")
+    mapping = MappingOptions.parse(
+        args.mapping,
+        n_base=q(args.n_base, "N", "--n-base"),
+        n_gain=q(args.n_gain, "N/m", "--n-gain"),
+        slope_friction_gain=q(args.slope_gain, "1", "--slope-gain", bare_ok=True),
+        lateral_gain=q(args.lateral_gain, "N", "--lateral-gain"),
+        skin_stretch=q(args.skin_stretch, "m", "--skin-stretch"),
+        perceptual_exponent=perceptual,
+    )
+    gkw = {}
+    if args.sigma is not None:
+        gkw["sigma"] = q(args.sigma, "m", "--sigma")
+    if args.window is not None:
+        gkw["window"] = int(args.window) if args.window.isdigit() else args.window
+    if args.order is not None:
+        gkw["order"] = args.order
+    kw = {}
+    if args.max_slope is not None:
+        kw["max_slope"] = _float(args.max_slope, "--max-slope")
+    if args.weber is not None:
+        kw["weber_fraction"] = _float(args.weber, "--weber")
+    keep = tuple(k.strip() for k in args.keep.split(",") if k.strip()) if args.keep else ()
+    options = CompileOptions(quantize=args.quantize, gradient_method=args.gradient, gradient_kw=gkw,
+                             limit_walls=not args.no_limit_walls, keep=keep, **kw)
+    return mapping, options
+
+
+def run(args) -> int:
+    import json
+    from pathlib import Path
+
+    from shapedisplay.compile import compile_heightfield, format_report
+    from shapedisplay.devices import load_device
+    from shapedisplay.errors import InputError
+    from shapedisplay.sources import IMAGE_SUFFIXES, MESH_SUFFIXES, load_source
+    from shapedisplay.units import parse_pair, parse_quantity
+
+    src = Path(args.source)
+    suffix = src.suffix.lower()
+    mapping, options = build_options(args)
+    device = load_device(args.device)
+    if suffix == ".toml":
+        for opt in _IMAGE_ONLY + _MESH_ONLY + ("resolution",):
+            if getattr(args, opt) is not None:
+                raise InputError(f"`--{opt}` applies to images and meshes; a scene sets its own geometry ({src})")
+        from shapedisplay.scene import compile_scene
+        result = compile_scene(src, device=device, options=options)
+    else:
+        opts = {}
+        if suffix in MESH_SUFFIXES:
+            for opt in _IMAGE_ONLY:
+                if getattr(args, opt) is not None:
+                    raise InputError(f"`--{opt}` applies to images; mesh '{src}' takes --resolution, --up, --units")
+            if args.resolution is not None:
+                opts["resolution"] = parse_quantity(args.resolution, "m", "--resolution")
+            opts["up"], opts["units"] = args.up, args.units
+        elif suffix in IMAGE_SUFFIXES:
+            for opt in _MESH_ONLY:
+                if getattr(args, opt) is not None:
+                    raise InputError(f"`--{opt}` applies to meshes, not to image '{src}'")
+            if args.size is not None:
+                opts["size"] = parse_pair(args.size, "x", "m", "--size")
+            if args.height is not None:
+                opts["height_range"] = parse_pair(args.height, ":", "m", "--height")
+            if args.resolution is not None:
+                opts["resolution"] = parse_quantity(args.resolution, "m", "--resolution")
+            if args.size is None and args.resolution is None:
+                raise InputError(f"image '{src}' needs `--size` (physical width x height, e.g. 60x4mm)")
+            if args.height is None and suffix == ".png":
+                raise InputError(f"image '{src}' needs `--height` (heights of gray 0 and full scale, e.g. 0:2mm)")
+        hf = load_source(src, **opts)
+        result = compile_heightfield(hf, device, mapping, options)
+    out = result.table.save(args.output)
+    if args.json:
+        print(json.dumps(result.report, indent=2, allow_nan=False))
+    elif not args.quiet:
+        print(format_report(result.report))
+        print(f"wrote {out}")
+    return 0
