@@ -1,0 +1,357 @@
+"""Host <-> emulated device over a real pty: handshake, upload, streaming and every fault."""
+import os
+import threading
+import time
+
+import numpy as np
+import pytest
+
+pytest.importorskip("serial")
+
+from shapedisplay.device import protocol as P
+from shapedisplay.device.emulator import DeviceEmulator, EmulatorConfig, parse_table_image
+from shapedisplay.device.framing import crc32, encode_frame
+from shapedisplay.device.host import (DeviceDisconnected, DeviceLink, DeviceRefused, DeviceResetError,
+                                      LinkError, LinkTimeout, ProtocolVersionError)
+from shapedisplay.table import FrictionTable, Grid, choose_quantization
+
+
+class ProbeEngine:
+    """Deterministic device engine for link tests: each tick outputs the table's normal force / 10 N."""
+
+    def __init__(self, table, model, tick_rate_hz, stream_rate_hz, input_kind):
+        table.require("normal_force")
+        self.table = table
+        self.per = max(1, tick_rate_hz // stream_rate_hz)
+
+    def render(self, x, y):
+        return np.full(self.per, float(self.table.sample("normal_force", x)) / 10.0)
+
+
+def make_table(cols=64, seed=0, noise=True):
+    rng = np.random.default_rng(seed)
+    x = np.linspace(0, 1, cols)
+    nf = 0.5 + 2.0 * np.exp(-((x - 0.5) / 0.1) ** 2)
+    if noise:
+        nf = nf + 0.01 * rng.random(cols)   # incompressible: image size grows with cols
+    grid = Grid(1, cols, 1e-3, 1e-3)
+    chans = {"normal_force": nf[None, :]}
+    q = {"normal_force": choose_quantization(nf, "float32")}
+    return FrictionTable.from_dense(grid, chans, q, {"tick_rate_hz": 10000})
+
+
+@pytest.fixture
+def image(tmp_path):
+    path = make_table(2048).save(tmp_path / "t.npz")
+    return path.read_bytes()
+
+
+@pytest.fixture
+def emu():
+    e = DeviceEmulator(EmulatorConfig(max_table_bytes=64 * 1024, chunk_size=256, upload_window=4),
+                       engine_factory=ProbeEngine)
+    e.start()
+    yield e
+    e.close()
+
+
+def make_emu(**kw):
+    e = DeviceEmulator(EmulatorConfig(**kw), engine_factory=ProbeEngine)
+    e.start()
+    return e
+
+
+@pytest.fixture
+def link(emu):
+    ln = DeviceLink(emu.port, timeout=0.3, retries=4)
+    ln.connect()
+    yield ln
+    ln.close()
+
+
+# ------------------------------------------------------------------ basics
+def test_handshake_and_caps(link, emu):
+    caps = link.caps
+    assert caps.version == P.PROTOCOL_VERSION and caps.max_table_bytes == 64 * 1024
+    assert caps.chunk_size == 256 and caps.samples_per_cursor == 10 and caps.has_renderer
+    st = link.status()
+    assert st.state == P.State.IDLE and st.active_crc == 0 and st.boots == emu.boots
+
+
+def test_parse_table_image_round_trip(image):
+    t = parse_table_image(image)
+    assert t.channels == ["normal_force"]
+
+
+def test_upload_commits_exact_image(link, emu, image):
+    rep = link.upload(image)
+    assert rep.size == len(image) and rep.crc32 == crc32(image)
+    assert rep.chunks >= len(image) // 256 and rep.retransmits == 0 and rep.restarts == 0
+    st = link.status()
+    assert st.active_crc == crc32(image) and st.active_size == len(image)
+    assert emu.activations == [(crc32(image), len(image))]
+    assert emu.active_table.checksum() == parse_table_image(image).checksum()
+
+
+def test_stream_renders_on_device(link, emu, image):
+    link.upload(image)
+    x = np.linspace(0.0, 2.047, 200)
+    rep = link.stream(x, paced=False, monitor=True)
+    assert rep.sent == 200 and rep.rendered == 200 and rep.overruns == 0, rep.problems()
+    table = parse_table_image(image)
+    # Positions travel as float32: compare against the host rendering the same float32 positions.
+    x32 = x.astype(np.float32).astype(np.float64)
+    want = np.repeat(table.sample("normal_force", x32)[:, None] / 10.0, 10, axis=1)
+    np.testing.assert_array_equal(rep.outputs, want.astype(np.float32).astype(np.float64))
+    assert np.all(np.isfinite(rep.latencies_s))
+
+
+def test_stream_without_table_refused(link):
+    with pytest.raises(DeviceRefused, match="NO_TABLE"):
+        link.stream(np.zeros(5), paced=False)
+
+
+def test_actuator_mode_clipping_reported(link, emu):
+    blocks = np.zeros((50, 10))
+    blocks[10, :3] = 1.5            # three samples beyond full scale
+    rep = link.stream(blocks, mode="actuator", paced=False, monitor=True)
+    assert rep.rendered == 50 and rep.clipped == 3
+    assert rep.outputs[10, 0] == 1.0 and rep.outputs[10, 3] == 0.0
+    assert any("clipped" in p for p in rep.problems())
+    assert any(code == P.Err.CLIPPED for code, _, _ in link.events)
+
+
+# ------------------------------------------------------------------ faults on the line
+@pytest.mark.parametrize("kind", ["corrupt", "drop", "truncate", "duplicate"])
+@pytest.mark.parametrize("direction", ["rx", "tx"])
+def test_line_faults_during_upload_recovered(link, emu, image, kind, direction):
+    emu.inject(kind, direction, count=2, after=3)
+    rep = link.upload(image)
+    st = link.status()
+    assert st.active_crc == crc32(image)
+    assert emu.activations == [(crc32(image), len(image))]
+    assert emu.counters[f"injected_{direction}_{kind}"] == 2
+    if kind != "duplicate" and direction == "rx":
+        assert rep.retransmits + link.resends >= 1   # the damage was noticed and repaired
+    if kind != "duplicate" and direction == "tx":
+        assert link.bad_frames_seen >= 1             # lost acks are covered by later cumulative acks
+    if direction == "rx" and kind != "duplicate":
+        assert st.rx_bad_frames >= 1
+    if kind == "duplicate" and direction == "rx":
+        assert st.rx_duplicates >= 1
+
+
+@pytest.mark.parametrize("kind", ["corrupt", "drop", "truncate", "duplicate"])
+def test_line_faults_on_requests_retried(link, emu, kind):
+    emu.inject(kind, "rx", count=1)
+    assert link.status().state == P.State.IDLE
+    emu.inject(kind, "tx", count=1)
+    assert link.status().state == P.State.IDLE
+
+
+def test_duplicated_request_runs_once(link, emu, image):
+    link.upload(image)
+    new = make_table_bytes(seed=3)
+    uid = 77
+    link.request(P.Msg.UPLOAD_BEGIN, P.UPLOAD_BEGIN.pack(uid, len(new), crc32(new)), (P.Msg.ACK,))
+    for off in range(0, len(new), 256):
+        link.request(P.Msg.UPLOAD_CHUNK, P.UPLOAD_CHUNK.pack(uid, off) + new[off:off + 256], (P.Msg.CHUNK_ACK,))
+    link.request(P.Msg.UPLOAD_END, P.UPLOAD_END.pack(uid, crc32(new), len(new)), (P.Msg.VERIFIED,))
+    wire = encode_frame(P.PROTOCOL_VERSION, P.Msg.COMMIT, 4321, P.UPLOAD_ID.pack(uid))
+    link._write(wire + wire)                      # the same COMMIT twice on the line
+    replies = [link._get_reply(time.monotonic() + 1.0) for _ in range(2)]
+    assert [(r.type, r.seq) for r in replies] == [(P.Msg.ACK, 4321)] * 2
+    assert emu.activations == [(crc32(image), len(image)), (crc32(new), len(new))]
+    assert link.status().rx_duplicates == 1
+
+
+def make_table_bytes(seed, cols=128):
+    import io
+    import tempfile
+    with tempfile.TemporaryDirectory() as d:
+        return make_table(cols, seed).save(os.path.join(d, "t.npz")).read_bytes()
+
+
+def test_garbage_on_line_is_counted_and_link_survives(link, emu):
+    link._write(os.urandom(500).replace(b"\x00", b"\x01") + b"\x00" + b"\x00\x00")
+    assert link.status().rx_bad_frames >= 1
+
+
+# ------------------------------------------------------------------ protocol versions
+def test_newer_version_frame_refused_by_device(link, emu):
+    seq = link.send_frame(P.Msg.GET_STATUS, version=P.PROTOCOL_VERSION + 1)
+    f = link._get_reply(time.monotonic() + 2.0)
+    assert f.type == P.Msg.NAK and f.seq == seq
+    _, code, detail, text = P.unpack_nak(f.body)
+    assert code == P.Err.VERSION and detail == P.PROTOCOL_VERSION and "version 2" in text
+    assert link.status().rx_version_errors == 1
+
+
+def test_newer_device_detected_by_host():
+    e = make_emu(protocol_version=P.PROTOCOL_VERSION + 1)
+    try:
+        ln = DeviceLink(e.port, timeout=0.3, retries=1)
+        with pytest.raises(ProtocolVersionError, match="speaks protocol 2"):
+            ln.connect()
+        ln.close()
+    finally:
+        e.close()
+
+
+# ------------------------------------------------------------------ device memory and resets
+def test_table_larger_than_device_memory(link, emu, tmp_path):
+    big = make_table_bytes(seed=1, cols=30000)
+    assert len(big) > 64 * 1024
+    with pytest.raises(DeviceRefused, match="exceeds the device memory"):
+        link.upload(big)
+    # The device refuses it too if a host skips the check.
+    seq = link.send_frame(P.Msg.UPLOAD_BEGIN, P.UPLOAD_BEGIN.pack(7, len(big), crc32(big)))
+    f = link._get_reply(time.monotonic() + 2.0)
+    assert f.type == P.Msg.NAK and P.unpack_nak(f.body)[1] == P.Err.TOO_LARGE
+    assert link.status().active_crc == 0 and emu.activations == []
+
+
+def test_reset_mid_upload_restarts_and_never_activates_partial(link, emu, image):
+    old = make_table_bytes(seed=5)
+    link.upload(old)
+    emu.reset_after_chunks = 5
+    rep = link.upload(image)
+    assert rep.restarts == 1
+    assert emu.activations == [(crc32(old), len(old)), (crc32(image), len(image))]
+    assert link.status().active_crc == crc32(image)
+
+
+def test_reset_mid_upload_without_restart_keeps_old_table(link, emu, image):
+    old = make_table_bytes(seed=6)
+    link.upload(old)
+    emu.reset_after_chunks = 3
+    with pytest.raises(DeviceResetError, match="no new table is active"):
+        link.upload(image, restarts=0)
+    link.connect()
+    st = link.status()
+    assert st.active_crc == crc32(old) and st.state == P.State.IDLE and st.staged_bytes == 0
+    assert emu.activations == [(crc32(old), len(old))]
+
+
+def test_commit_without_verified_upload_refused(link, emu, image):
+    with pytest.raises(DeviceRefused, match="NOT_VERIFIED"):
+        link.request(P.Msg.COMMIT, P.UPLOAD_ID.pack(1), (P.Msg.ACK,))
+    # An upload whose whole-table CRC disagrees is discarded at END.
+    link.request(P.Msg.UPLOAD_BEGIN, P.UPLOAD_BEGIN.pack(9, 4, 0x1234), (P.Msg.ACK,))
+    link.request(P.Msg.UPLOAD_CHUNK, P.UPLOAD_CHUNK.pack(9, 0) + b"abcd", (P.Msg.CHUNK_ACK,))
+    with pytest.raises(DeviceRefused, match="CHECKSUM"):
+        link.request(P.Msg.UPLOAD_END, P.UPLOAD_END.pack(9, 0x1234, 4), (P.Msg.VERIFIED,))
+    with pytest.raises(DeviceRefused, match="NOT_VERIFIED"):
+        link.request(P.Msg.COMMIT, P.UPLOAD_ID.pack(9), (P.Msg.ACK,))
+    assert emu.activations == []
+
+
+def test_corrupt_table_image_rejected_before_commit(link, emu, image):
+    bad = bytearray(image)
+    bad[len(bad) // 2] ^= 0xFF          # consistent CRC-32 of a damaged file: the table checksum catches it
+    with pytest.raises(DeviceRefused, match="TABLE_INVALID"):
+        link.upload(bytes(bad))
+    assert emu.activations == [] and link.status().active_crc == 0
+
+
+def test_reset_device_and_reconnect(link, emu, image):
+    link.upload(image)
+    boots = emu.boots
+    link.reset_device()
+    assert emu.boots == boots + 1 and link.device_boots == boots + 1
+    assert link.status().active_crc == crc32(image)       # committed table survives (flash)
+    link.reconnect()
+    assert link.status().boots == boots + 1
+
+
+# ------------------------------------------------------------------ streaming faults
+def test_fast_stream_with_backpressure_has_no_overrun(link, emu, image):
+    link.upload(image)
+    x = np.linspace(0, 0.2, 400)
+    rep = link.stream(x, paced=False, backpressure=True, per_frame=8)
+    assert rep.overruns == 0 and rep.rendered == 400
+    assert rep.backpressure_waits > 0           # the host had to wait for the device
+
+
+def test_fast_stream_without_backpressure_reports_overrun(link, emu, image):
+    link.upload(image)
+    x = np.linspace(0, 0.2, 600)
+    rep = link.stream(x, paced=False, backpressure=False, per_frame=20)
+    assert rep.overruns > 0 and rep.rendered == 600 - rep.overruns
+    assert any("faster than the device renders" in p for p in rep.problems())
+    assert any(code == P.Err.OVERRUN for code, _, _ in link.events)
+
+
+def test_underrun_reported_when_host_stalls(link, emu, image):
+    link.upload(image)
+    link.start()
+    link.send_frame(P.Msg.CURSOR, P.pack_cursor(0, 0, 0.1, 0.0))
+    time.sleep(0.05)                             # ~50 render periods without samples
+    link.send_frame(P.Msg.CURSOR, P.pack_cursor(1, 1000, 0.1, 0.0))
+    link.stop()
+    st = link.status()
+    assert st.underruns >= 10 and st.samples_rendered == 2
+
+
+def test_duplicated_cursor_frames_rendered_once(link, emu, image):
+    link.upload(image)
+    emu.inject("duplicate", "rx", count=5, after=2)
+    rep = link.stream(np.linspace(0, 0.1, 50), paced=False)
+    assert rep.rendered == 50 and rep.duplicates >= 5
+
+
+def test_reset_during_stream_stops_cleanly(link, emu, image):
+    link.upload(image)
+    t = threading.Timer(0.05, emu.reset)
+    t.start()
+    with pytest.raises(DeviceResetError, match="reset during streaming"):
+        link.stream(np.linspace(0, 0.1, 2000), paced=True)
+    t.join()
+    link.connect()
+    assert link.status().state == P.State.IDLE
+
+
+def test_port_disappearing_mid_stream(link, emu, image):
+    link.upload(image)
+    t = threading.Timer(0.05, emu.vanish)
+    t.start()
+    t0 = time.monotonic()
+    with pytest.raises((DeviceDisconnected, LinkTimeout)):
+        link.stream(np.linspace(0, 0.1, 5000), paced=True)
+    t.join()
+    assert time.monotonic() - t0 < 20
+    link.close()
+    link.close()   # idempotent
+
+
+def test_port_disappearing_while_idle_then_request(emu):
+    ln = DeviceLink(emu.port, timeout=0.2, retries=1)
+    ln.connect()
+    emu.vanish()
+    with pytest.raises((DeviceDisconnected, LinkTimeout)):
+        ln.status()
+    ln.close()
+
+
+def test_open_missing_port_is_one_line_error(tmp_path):
+    with pytest.raises(DeviceDisconnected, match="cannot open"):
+        DeviceLink(str(tmp_path / "no-such-tty")).connect()
+
+
+def test_loopback_url_is_recognised():
+    ln = DeviceLink("loop://", timeout=0.2, retries=0)
+    with pytest.raises(LinkError, match="loopback"):
+        ln.connect()
+    ln.close()
+
+
+def test_silent_port_times_out(tmp_path):
+    master, slave = os.openpty()
+    try:
+        ln = DeviceLink(os.ttyname(slave), timeout=0.1, retries=2)
+        with pytest.raises(LinkTimeout, match="did not answer HELLO after 3 tries"):
+            ln.connect()
+        ln.close()
+    finally:
+        os.close(master)
+        os.close(slave)
