@@ -665,6 +665,7 @@ class Preview:
         self.stroke_points: np.ndarray | None = None    # (n, 3) display coordinates of the path
         self.stroke_times: np.ndarray | None = None
         self.last_readout: dict | None = None
+        self.info = ""                                  # text shown in the upper left corner
 
     # -- coordinates ------------------------------------------------------------------------
     def z_display(self, relief) -> np.ndarray:
@@ -795,7 +796,8 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
     values = model.fields[channel] * factor
     grid.point_data[channel] = values.ravel(order="F")    # points of (rows, cols) arrays: rows fastest
     title = f"{model.labels.get(channel, channel)}" + (f" [{unit}]" if unit else "")
-    bar_args = dict(title=title, vertical=True, position_x=0.88, position_y=0.25, width=0.06, height=0.6,
+    bar_title = f"{model.labels.get(channel, channel)}" + (f"\n[{unit}]" if unit else "")
+    bar_args = dict(title=bar_title, vertical=True, position_x=0.85, position_y=0.25, width=0.05, height=0.55,
                     color="black", title_font_size=14, label_font_size=12, fmt="%.3g")
     if channel == "walls":
         bar_args["n_labels"] = 2
@@ -858,7 +860,8 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
             lines.append("grey: left out by the compiler")
         if trace is not None:
             lines.append(f"stroke: {trace.t.size} ticks, {trace.event_time.size} bursts (marker size ~ amplitude)")
-        pl.add_text("\n".join(lines), position="upper_left", font_size=10, color="black", name="info")
+        preview.info = "\n".join(lines)
+        pl.add_text(preview.info, position="upper_left", font_size=10, color="black", name="info")
         _draw_scale_bar(pv, pl, xs, ys)
 
     # ---- camera ---------------------------------------------------------------------------

@@ -1,0 +1,400 @@
+"""3D preview: what is drawn (exact), and real off-screen images checked for content."""
+from __future__ import annotations
+
+import os
+import sys
+
+import numpy as np
+import pytest
+
+from shapedisplay import viewer
+from shapedisplay.errors import InputError, MissingDependencyError, ShapeDisplayError, TableError
+from shapedisplay.heightfield import HeightField
+from shapedisplay.table import FrictionTable, Grid, choose_quantization
+
+pytest.importorskip("pyvista")   # the viewer extra; installed by `make test`
+
+W, H = 480, 320                   # small frames keep the suite fast
+
+
+# --------------------------------------------------------------------------------- fixtures
+def gaussian_field(height=1e-3, sigma=5e-3) -> HeightField:
+    x = np.linspace(-20e-3, 20e-3, 81)
+    y = np.linspace(-15e-3, 15e-3, 61)
+    X, Y = np.meshgrid(x, y)
+    return HeightField(height * np.exp(-(X ** 2 + Y ** 2) / (2 * sigma ** 2)), x[1] - x[0], y[1] - y[0],
+                       x[0], y[0], source="gaussian bump")
+
+
+N_BASE, N_GAIN = 0.5, 2000.0      # N, N/m
+
+
+def two_widget_table(tmp_path) -> FrictionTable:
+    """60x100 canvas (0.5 mm), two identical bump widgets stored once, the rest left out."""
+    g = Grid(60, 100, 0.5e-3, 0.5e-3)
+    r, c = np.mgrid[0:40, 0:35]
+    bump = np.exp(-(((r - 20) / 8.0) ** 2 + ((c - 17) / 7.0) ** 2))       # 0..1
+    h = 1e-3 * bump                                                        # 1 mm bump
+    n = N_BASE + N_GAIN * h
+    chans = {"normal_force": n, "breakaway_force": 0.3 + 0.01 * c,          # ramp along x, 0.3..0.64 N
+             "lateral_x": 0.3 * np.ones_like(n), "lateral_y": 0.4 * np.ones_like(n)}
+    q = {k: choose_quantization(v, "float64") for k, v in chans.items()}
+    meta = {"mapping": {"n_base": N_BASE, "n_gain": N_GAIN},
+            "widgets": [{"id": "ok", "x0": 5e-3, "y0": 5e-3, "x1": 22e-3, "y1": 24.5e-3},
+                        {"id": "cancel", "x0": 27.5e-3, "y0": 5e-3, "x1": 44.5e-3, "y1": 24.5e-3}]}
+    bg = {"normal_force": N_BASE, "breakaway_force": 0.3, "lateral_x": 0.0, "lateral_y": 0.0}
+    t = FrictionTable.from_patches(g, [((10, 10), chans), ((10, 55), chans)], q, bg, meta)
+    path = tmp_path / "table.npz"
+    t.save(path)
+    return FrictionTable.load(path)
+
+
+def write_trace(path, table: FrictionTable, checksum: str | None = None, n: int = 1500):
+    """A stroke across both widgets in the format of shapedisplay.sinks.write_trace."""
+    t = np.linspace(0.0, 1.5, n)
+    x = np.linspace(2e-3, 48e-3, n)
+    y = np.full(n, 15e-3)
+    nf = table.sample("normal_force", x, y)
+    state = ((t * 20) % 1 > 0.7).astype(np.int8)
+    ff = 0.5 * nf * (1 - 0.3 * state)
+    ev = t[np.flatnonzero(np.diff(state) == 1) + 1]
+    amp = np.interp(ev, t, nf)
+    np.savez(path, t=t, x=x, y=y, normal_force=nf, friction_force=ff, state=state, event_time=ev,
+             event_amplitude=amp, table_checksum=np.array(checksum or table.checksum()))
+    return path
+
+
+@pytest.fixture(scope="module")
+def table(tmp_path_factory):
+    return two_widget_table(tmp_path_factory.mktemp("tab"))
+
+
+@pytest.fixture(scope="module")
+def trace_path(tmp_path_factory, table):
+    return write_trace(tmp_path_factory.mktemp("trace") / "stroke.npz", table)
+
+
+# --------------------------------------------------------------------------------- helpers
+def surface_pixels(img: np.ndarray) -> np.ndarray:
+    """Mask of pixels that are not the white background."""
+    return np.any(img < 245, axis=2)
+
+
+def lut_values(preview, img: np.ndarray, mask: np.ndarray):
+    """Invert the colour map: scalar value of each masked pixel and its colour distance to the LUT."""
+    lut = preview.surface_actor.mapper.lookup_table
+    colours = np.asarray(lut.values[:, :3], dtype=np.float64)            # (n, 3)
+    lo, hi = preview.surface_actor.mapper.scalar_range
+    px = img[mask].astype(np.float64)
+    d = np.linalg.norm(px[:, None, :] - colours[None, :, :], axis=2)
+    k = np.argmin(d, axis=1)
+    values = lo + (hi - lo) * (k + 0.5) / len(colours)
+    return values, d[np.arange(len(k)), k]
+
+
+def flat_top(model, channel, **kw):
+    """Top view, unlit, no bar or text: pixel colours are exactly colour-map entries."""
+    return viewer.render(model, channel, size=(W, H), view="top", lighting=False, scalar_bar=False,
+                         annotations=False, **kw)
+
+
+# --------------------------------------------------------------------------------- the model (exact)
+def test_auto_exaggeration_draws_relief_at_fifteen_percent_of_extent():
+    m = viewer.model_from_heightfield(gaussian_field(height=1e-3))
+    # extent 40 mm, relief 1 mm: 0.15 * 40 / 1 = 6 -> 1-2-5 series floor = 5
+    assert viewer.auto_exaggeration(m) == 5.0
+    m = viewer.model_from_heightfield(gaussian_field(height=0.02e-3))
+    assert viewer.auto_exaggeration(m) == 200.0                       # 0.15 * 40 / 0.02 = 300 -> 200
+    m = viewer.model_from_heightfield(gaussian_field(height=30e-3))
+    assert viewer.auto_exaggeration(m) == 1.0                         # never flattens
+    flat = viewer.model_from_heightfield(HeightField(np.zeros((3, 4)), 1e-3, 1e-3))
+    assert viewer.auto_exaggeration(flat) == 1.0
+
+
+@pytest.mark.parametrize("value, expected", [(6.0, 5.0), (1.0, 1.0), (0.0299, 0.02), (199.9, 100.0), (2.0, 2.0)])
+def test_nice_number_floor(value, expected):
+    assert viewer.nice_number(value) == pytest.approx(expected)
+
+
+def test_table_model_recovers_height_from_mapping_and_marks_left_out(table):
+    m = viewer.model_from_table(table)
+    assert m.relief_unit == "m"
+    n = table.dense("normal_force")
+    np.testing.assert_allclose(m.fields["height"], (n - N_BASE) / N_GAIN, rtol=0, atol=1e-15)
+    assert m.fields["height"].max() == pytest.approx(1e-3)
+    expected = np.zeros((60, 100), bool)
+    expected[10:50, 10:45] = expected[10:50, 55:90] = True
+    np.testing.assert_array_equal(m.stored, expected)
+    # |(0.3, 0.4)| = 0.5 N where stored, background 0 elsewhere
+    np.testing.assert_allclose(m.fields["lateral"], np.where(expected, 0.5, 0.0), atol=1e-12)
+    assert [w["id"] for w in m.widgets] == ["ok", "cancel"]
+    assert m.checksum == table.checksum()
+
+
+def test_table_without_mapping_draws_normal_force_as_relief(tmp_path):
+    g = Grid(1, 50, 1e-3, 1e-3)
+    n = np.linspace(0.5, 2.5, 50)[None, :]
+    t = FrictionTable.from_dense(g, {"normal_force": n}, {"normal_force": choose_quantization(n, "float64")})
+    m = viewer.model_from_table(t)
+    assert m.relief_unit == "N" and "height" not in m.fields
+    assert m.strip and m.relief.shape == (2, 50)                       # 1-D drawn as a strip
+    assert np.ptp(m.y) == pytest.approx(viewer.STRIP_FRACTION * 49e-3)
+    # "auto": relief of 2 N drawn at 15 % of 49 mm -> 3.675 mm/N -> 2 mm/N
+    assert viewer.auto_exaggeration(m) == 2.0
+
+
+def test_readout_is_bilinear_in_every_channel():
+    x = np.linspace(0, 10e-3, 11)
+    y = np.linspace(0, 5e-3, 6)
+    X, Y = np.meshgrid(x, y)
+    hf = HeightField(0.1 * X + 0.05 * Y, 1e-3, 1e-3)                  # a plane: bilinear is exact
+    m = viewer.model_from_heightfield(hf)
+    r = m.readout(3.3e-3, 2.7e-3)
+    assert r["height"] == pytest.approx(0.1 * 3.3e-3 + 0.05 * 2.7e-3, rel=1e-12)
+    assert r["slope"] == pytest.approx(np.hypot(0.1, 0.05), rel=1e-12)
+    assert r["walls"] == 0.0
+    text = m.format_readout(r)
+    assert "x = 3.30 mm" in text and "slope" in text
+
+
+def test_walls_follow_slope_threshold():
+    h = np.zeros((5, 20))
+    h[:, 10:] = 2e-3                                                   # 2 mm step over 1 mm spacing
+    m = viewer.model_from_heightfield(HeightField(h, 1e-3, 1e-3))
+    assert set(np.flatnonzero(m.fields["walls"][2])) == {9, 10}        # slope 1 >= WALL_SLOPE at the step
+
+
+def test_unknown_channel_lists_valid_ones(table):
+    m = viewer.model_from_table(table)
+    assert m.resolve_channel("N") == "normal_force"
+    assert m.resolve_channel("lateral_magnitude") == "lateral"
+    with pytest.raises(InputError) as e:
+        m.resolve_channel("normal_forc")
+    msg = str(e.value)
+    assert "did you mean 'normal_force'" in msg and "breakaway_force" in msg and "slope" in msg
+
+
+def test_trace_round_trip_and_checksum_refusal(tmp_path, table, trace_path):
+    tr = viewer.load_trace(trace_path)
+    assert tr.table_checksum == table.checksum() and tr.state.dtype == np.int8
+    viewer.check_trace(tr, viewer.model_from_table(table))
+    other = write_trace(tmp_path / "other.npz", table, checksum="sha256:" + "0" * 64)
+    with pytest.raises(TableError, match="different table"):
+        viewer.render(viewer.model_from_table(table), trace=viewer.load_trace(other))
+    with pytest.raises(InputError, match="compiled table"):
+        viewer.check_trace(tr, viewer.model_from_heightfield(gaussian_field()))
+
+
+def test_bad_traces_are_refused(tmp_path):
+    p = tmp_path / "t.npz"
+    np.savez(p, t=np.arange(3.0), x=np.zeros(3))
+    with pytest.raises(ShapeDisplayError, match="lacks array"):
+        viewer.load_trace(p)
+    arrays = dict(t=np.arange(3.0), x=np.zeros(3), y=np.zeros(3), normal_force=np.array([1, np.nan, 1]),
+                  friction_force=np.zeros(3), state=np.zeros(3), event_time=np.zeros(0),
+                  event_amplitude=np.zeros(0), table_checksum=np.array("sha256:x"))
+    np.savez(p, **arrays)
+    with pytest.raises(InputError, match="normal_force.*NaN"):
+        viewer.load_trace(p)
+    arrays["normal_force"] = np.ones(3)
+    arrays["state"] = np.array([0, 2, 1])
+    np.savez(p, **arrays)
+    with pytest.raises(InputError, match="state"):
+        viewer.load_trace(p)
+
+
+@pytest.mark.parametrize("text, ok", [("auto", "auto"), ("12.5", 12.5), ("x3", 3.0), ("0", None), ("-1", None),
+                                      ("nan", None), ("big", None)])
+def test_parse_exaggeration(text, ok):
+    if ok is None:
+        with pytest.raises(InputError, match="exaggeration"):
+            viewer.parse_exaggeration(text)
+    else:
+        assert viewer.parse_exaggeration(text) == ok
+
+
+def test_window_size_parsing():
+    assert viewer.parse_window_size("1600x1000") == (1600, 1000)
+    for bad in ("1600", "10x10", "axb", "9000x100"):
+        with pytest.raises(InputError, match="size"):
+            viewer.parse_window_size(bad)
+
+
+# --------------------------------------------------------------------------------- environment errors
+def test_missing_pyvista_names_the_extra(monkeypatch):
+    monkeypatch.setitem(sys.modules, "pyvista", None)                 # import pyvista -> ImportError
+    with pytest.raises(MissingDependencyError) as e:
+        viewer.render(viewer.model_from_heightfield(gaussian_field()), size=(W, H))
+    assert "pip install 'shapedisplay[viewer]'" in str(e.value) and "\n" not in str(e.value)
+
+
+def test_interactive_without_display_suggests_offscreen(monkeypatch):
+    if not sys.platform.startswith("linux"):
+        pytest.skip("display detection by environment is Linux-only")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    with pytest.raises(ShapeDisplayError, match="-o shot.png"):
+        viewer.render(viewer.model_from_heightfield(gaussian_field()), off_screen=False)
+
+
+def test_no_offscreen_opengl_gives_clear_error():
+    """With no display and EGL/OSMesa unusable, the probe fails cleanly (VTK itself would crash)."""
+    if not sys.platform.startswith("linux"):
+        pytest.skip("EGL/OSMesa selection is Linux-only")
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY",
+                                                             "VTK_DEFAULT_OPENGL_WINDOW")}
+    env["__EGL_VENDOR_LIBRARY_FILENAMES"] = os.devnull                # no EGL vendor library
+    env["LD_LIBRARY_PATH"] = ""
+    try:
+        import ctypes.util
+        has_osmesa = ctypes.util.find_library("OSMesa") is not None
+    except Exception:  # noqa: BLE001
+        has_osmesa = False
+    if has_osmesa:
+        pytest.skip("OSMesa is installed: off-screen still works without EGL")
+    with pytest.raises(ShapeDisplayError) as e:
+        viewer.check_offscreen(env=env)
+    assert "libegl-mesa0" in str(e.value) and "install-system-deps" in str(e.value)
+
+
+def test_offscreen_probe_succeeds_here():
+    assert viewer.check_offscreen().startswith("vtk")
+
+
+# --------------------------------------------------------------------------------- real images
+def test_height_colours_span_the_channel_range():
+    hf = gaussian_field()
+    m = viewer.model_from_heightfield(hf)
+    p = flat_top(m, "height")
+    img = p.screenshot()
+    p.close()
+    assert img.shape == (H, W, 3)
+    mask = surface_pixels(img)
+    assert 0.3 < mask.mean() < 0.95                                     # the surface fills most of the frame
+    lo, hi = p.surface_actor.mapper.scalar_range
+    assert (lo, hi) == pytest.approx((hf.heights.min() * 1e3, hf.heights.max() * 1e3))   # mm
+    values, dist = lut_values(p, img, mask)
+    assert np.median(dist) < 3.0                                        # unlit pixels are colour-map colours
+    span = hi - lo
+    assert values.min() < lo + 0.02 * span and values.max() > hi - 0.02 * span
+    # where the colours are: the bump's top in the middle of the frame, low at the edge
+    rows, cols = np.nonzero(mask)
+    cy, cx = int(rows.mean()), int(cols.mean())
+    centre, _ = lut_values(p, img, np.pad(np.ones((3, 3), bool), ((cy - 1, H - cy - 2), (cx - 1, W - cx - 2))))
+    assert centre.min() > hi - 0.05 * span
+    edge = np.zeros_like(mask)
+    edge[rows.min() + 2, cols.min() + 2:cols.max() - 2] = True
+    v_edge, _ = lut_values(p, img, edge & mask)
+    assert v_edge.max() < lo + 0.1 * span
+
+
+def test_channel_choice_changes_colours_and_units(table):
+    m = viewer.model_from_table(table)
+    p = flat_top(m, "breakaway_force")
+    img = p.screenshot()
+    p.close()
+    lo, hi = p.surface_actor.mapper.scalar_range
+    ba = table.dense("breakaway_force")
+    assert (lo, hi) == pytest.approx((ba.min(), ba.max()))
+    mask = surface_pixels(img)
+    # stored blocks are coloured; the left-out canvas is faint grey: mostly unsaturated light pixels
+    sat = img.max(axis=2).astype(int) - img.min(axis=2)
+    coloured = mask & (sat > 40)
+    faint = mask & (sat < 15) & (img.min(axis=2) > 200)
+    assert coloured.mean() > 0.15 and faint.mean() > 0.1
+    values, dist = lut_values(p, img, coloured)
+    assert np.median(dist) < 3.0
+    # breakaway force ramps along x inside each widget: colours left of a widget's middle are lower
+    rows, cols = np.nonzero(coloured)
+    left = coloured & (np.arange(W)[None, :] < np.percentile(cols, 15))
+    right_of_left_widget = coloured & (np.arange(W)[None, :] > np.percentile(cols, 35)) \
+        & (np.arange(W)[None, :] < np.percentile(cols, 48))
+    v_left, _ = lut_values(p, img, left)
+    v_right, _ = lut_values(p, img, right_of_left_widget)
+    assert np.median(v_left) < np.median(v_right)
+
+
+def test_stroke_overlay_changes_the_image(table, trace_path):
+    m = viewer.model_from_table(table)
+    tr = viewer.load_trace(trace_path)
+    base = viewer.render(m, "N", size=(W, H), view="top", lighting=False, annotations=False, chart=False)
+    img0 = base.screenshot()
+    base.close()
+    over = viewer.render(m, "N", trace=tr, size=(W, H), view="top", lighting=False, annotations=False,
+                         chart=False)
+    img1 = over.screenshot()
+    changed = np.any(np.abs(img1.astype(int) - img0.astype(int)) > 30, axis=2)
+    assert changed.mean() > 0.005
+
+    def near(colour, tol=60):
+        rgb = np.array([int(colour[i:i + 2], 16) for i in (1, 3, 5)])
+        return np.linalg.norm(img1.astype(float) - rgb, axis=2) < tol
+
+    assert (near(viewer.STICK_COLOR) & changed).sum() > 20
+    assert (near(viewer.SLIP_COLOR) & changed).sum() > 20
+    assert (near(viewer.BURST_COLOR) & changed).sum() > 20
+    # the overlay lies along y = 15 mm: changed pixels form a horizontal band, not all over the frame
+    rows = np.nonzero(changed[:, :int(0.8 * W)])[0]                   # right of that: colour bar, legend
+    assert np.mean(np.abs(rows - np.median(rows)) < 0.1 * H) > 0.7
+    # replay moves the cursor marker from the first to the last stroke point
+    seen = []
+    assert over.replay(frames=4, realtime=False, on_frame=lambda i, pos: seen.append(tuple(pos))) == 4
+    assert seen[0] == pytest.approx(tuple(over.stroke_points[0]))
+    assert tuple(over.cursor_actor.position) == pytest.approx(tuple(over.stroke_points[-1]))
+    # read-out at a picked point on the path equals the model's read-out there
+    r = over.read_at_display(over.stroke_points[700])
+    assert r["normal_force"] == pytest.approx(m.readout(tr.x[700], tr.y[700])["normal_force"])
+    over.close()
+
+
+def test_annotations_state_exaggeration_and_chart_adds_pixels(table, trace_path):
+    m = viewer.model_from_table(table)
+    tr = viewer.load_trace(trace_path)
+    p = viewer.render(m, "N", trace=tr, size=(W, H), exaggeration="7.5", chart=False)
+    assert "vertical exaggeration x7.5" in p.info and "normal force [N]" in p.info
+    img0 = p.screenshot()
+    p.close()
+    q = viewer.render(m, "N", trace=tr, size=(W, H), exaggeration=7.5, chart=True)
+    img1 = q.screenshot()
+    q.close()
+    # the chart sits in the lower-left corner and draws there
+    corner = (slice(int(0.7 * H), H), slice(0, int(0.44 * W)))
+    assert np.any(img1[corner] != img0[corner], axis=2).mean() > 0.05
+
+
+# --------------------------------------------------------------------------------- command line
+def run_cli(argv):
+    from shapedisplay_cli import main as cli_main
+    return cli_main.main(argv)
+
+
+def test_cli_writes_png_of_requested_size(tmp_path, table, trace_path, capsys):
+    tpath = tmp_path / "t.npz"
+    table.save(tpath)
+    out = tmp_path / "shot.png"
+    assert run_cli(["preview", str(tpath), "--trace", str(trace_path), "--color", "N", "-o", str(out),
+                    "--size", "400x260"]) == 0
+    assert "wrote" in capsys.readouterr().out
+    from PIL import Image
+    img = np.asarray(Image.open(out).convert("RGB"))
+    assert img.shape == (260, 400, 3)
+    assert 0.2 < surface_pixels(img).mean() < 0.98
+    assert not list(tmp_path.glob(".shot*"))                            # written atomically
+
+
+def test_cli_bad_inputs_one_line_exit_2(tmp_path, table, capsys):
+    tpath = tmp_path / "t.npz"
+    table.save(tpath)
+    bad = write_trace(tmp_path / "bad.npz", table, checksum="sha256:" + "1" * 64, n=10)
+    cases = [
+        (["preview", str(tpath), "--color", "heigth", "-o", str(tmp_path / "a.png")], "valid:"),
+        (["preview", str(tpath), "--trace", str(bad), "-o", str(tmp_path / "a.png")], "different table"),
+        (["preview", str(bad), "-o", str(tmp_path / "a.png")], "is a trace"),
+        (["preview", str(tpath), "-o", str(tmp_path / "a.jpg")], "PNG"),
+        (["preview", str(tpath), "--exaggeration", "-2", "-o", str(tmp_path / "a.png")], "exaggeration"),
+    ]
+    for argv, words in cases:
+        assert run_cli(argv) == 2
+        err = capsys.readouterr().err
+        assert words in err and err.count("\n") == 1, err
+    assert not (tmp_path / "a.png").exists()
