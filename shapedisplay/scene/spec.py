@@ -1,0 +1,488 @@
+"""The scene file format: parsing and validation.
+
+A scene is a TOML file::
+
+    [scene]                     # optional: name, description
+    name = "phone"
+
+    [canvas]
+    size = "100x180 mm"         # or pixels = "1080x1920" with dpi = 160;
+                                # a single length ("120 mm") makes a 1-D strip
+    resolution = "0.5 mm"       # sample spacing
+
+    [device]
+    profile = "handheld-stick"  # bundled name or a path to a device TOML
+
+    [mapping]                   # how height becomes force (DESIGN 3.2, 3.3)
+    n_base = "0.5 N"            # N1, the force on flat ground
+    n_gain = "1 N/mm"           # extra normal force per mm of height
+    direction = "symmetric"     # or "one-sided": bump uphill, dent downhill
+
+    [defaults]                  # any widget key; [defaults.button] for one type
+    ramp = "10 mm"
+
+    [[widget]]
+    id = "call"
+    type = "button"
+    position = "10,20 mm"       # lower-left corner (x, y); or center = "x,y mm"
+    size = "30x16 mm"
+    height = "2 mm"             # or force = "2.5 N", force_step = "2 N", level = 3
+
+Every length, force and stiffness carries its unit; lengths may also be given
+in ``px`` when the canvas states a ``dpi``. Coordinates are in the canvas
+frame: x along columns, y along rows (row index grows with y), origin at the
+canvas corner, samples at ``(c * resolution, r * resolution)``.
+
+Placement rules (documented in the README):
+
+* widget boxes are **snapped** to the sample grid (the corner to the nearest
+  sample, the size to a whole number of samples), so identical widgets give
+  identical patches and are stored once;
+* a widget reaching **outside the canvas is clipped, with a warning** stating
+  by how much; a widget entirely outside is an error;
+* overlapping widgets combine by their ``overlap`` rule (``max`` by default;
+  ``min``, ``add``, ``over`` = later widget wins); overlapping widgets with
+  different rules are an error.
+"""
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import FileFormatError, InputError, UnitError, did_you_mean
+from ..table import Grid
+from ..units import parse_pair, parse_quantity
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+SECTIONS = ("scene", "canvas", "device", "mapping", "defaults", "widget")
+CANVAS_KEYS = ("size", "pixels", "dpi", "resolution")
+SCENE_KEYS = ("name", "description")
+DEVICE_KEYS = ("profile",)
+#: [mapping] key -> (unit or kind, meaning). Values go to profiles.MappingOptions.
+MAPPING_KEYS = {
+    "n_base": ("N", "N1, normal force on flat ground"),
+    "n_gain": ("N/m", "extra normal force per metre of height"),
+    "direction": ("choice", "symmetric | one-sided (bump uphill, dent downhill)"),
+    "slope_friction": ("1", "K_mu of the one-sided slope friction"),
+    "lateral": ("choice", "off | gradient | normal"),
+    "lateral_gain": ("N", "K of F_lat = -K grad h"),
+    "skin_stretch": ("m", "skin-stretch target at breakaway"),
+}
+DIRECTIONS = ("symmetric", "one-sided")
+LATERAL = ("off", "gradient", "normal")
+#: Slope-friction gain K_mu used by direction = "one-sided" when none is given
+#: (profiles.DEFAULT_SLOPE_FRICTION_GAIN: mu rises 0.2 on a 45 degree uphill).
+DEFAULT_SLOPE_FRICTION = 0.2
+OVERLAP_RULES = ("max", "min", "add", "over")
+#: Largest canvas accepted (samples), checked before anything is allocated.
+MAX_CANVAS_SAMPLES = 4096 * 4096
+
+
+class SceneError(InputError):
+    """A scene file breaks a rule; the message names widget, field, rule and value."""
+
+
+@dataclass(frozen=True)
+class Canvas:
+    """The scene's sample grid.
+
+    ``width``/``height`` in metres (``height`` 0 for a 1-D strip); samples at
+    ``(c * spacing, r * spacing)`` for ``c < cols``, ``r < rows``.
+    """
+
+    width: float
+    height: float
+    spacing: float
+    dpi: float | None = None
+
+    @property
+    def is_1d(self) -> bool:
+        return self.height == 0.0
+
+    @property
+    def cols(self) -> int:
+        return int(round(self.width / self.spacing)) + 1
+
+    @property
+    def rows(self) -> int:
+        return 1 if self.is_1d else int(round(self.height / self.spacing)) + 1
+
+    @property
+    def grid(self) -> Grid:
+        return Grid(self.rows, self.cols, self.spacing, self.spacing, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Widget:
+    """One widget after validation.
+
+    ``params`` holds SI values (metres, newtons) after defaults; ``bbox`` is
+    the snapped box ``(x0, y0, x1, y1)`` in metres before clipping; ``col0``,
+    ``row0`` the canvas sample of the box corner and ``ncols``, ``nrows`` its
+    sample counts (the box may reach outside the canvas; see ``clipped``).
+    ``height_m`` is the signed height of the widget's main feature.
+    """
+
+    id: str
+    type: str
+    index: int
+    params: dict
+    col0: int
+    row0: int
+    ncols: int
+    nrows: int
+    spacing: float
+    overlap: str = "max"
+    clipped: bool = False
+    label: str = ""
+    box: tuple = (0, 0, 0, 0)   # (row0, col0, row1, col1) inclusive, clipped to the canvas
+
+    @property
+    def where(self) -> str:
+        return f"widget[{self.index}] '{self.id}'"
+
+    @property
+    def bbox(self) -> tuple[float, float, float, float]:
+        """Snapped box (x0, y0, x1, y1) in metres, clipped to the canvas; y0 == y1 == 0 on a 1-D canvas."""
+        s = self.spacing
+        r0, c0, r1, c1 = self.box
+        return (c0 * s, r0 * s, c1 * s, r1 * s)
+
+    @property
+    def size(self) -> tuple[float, float]:
+        """Snapped (width, height) in metres (height 0 on a 1-D canvas)."""
+        return (self.ncols - 1) * self.spacing, (self.nrows - 1) * self.spacing
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated scene."""
+
+    path: str
+    name: str
+    description: str
+    canvas: Canvas
+    device: object              # devices.DeviceProfile
+    device_source: str
+    mapping: dict               # MappingOptions keyword arguments (SI)
+    widgets: tuple              # of Widget
+    warnings: tuple = ()
+    levels: dict = field(default_factory=dict)
+
+    def widget(self, wid: str) -> Widget:
+        for w in self.widgets:
+            if w.id == wid:
+                return w
+        raise InputError(f"scene '{self.path}': no widget '{wid}'{did_you_mean(wid, [w.id for w in self.widgets])}")
+
+
+# --------------------------------------------------------------- value parsing
+class Ctx:
+    """Parsing context: where we are, the canvas dpi, the scene directory."""
+
+    def __init__(self, path: str, base_dir: Path, dpi: float | None = None, is_1d: bool = False):
+        self.path, self.base_dir, self.dpi, self.is_1d = path, base_dir, dpi, is_1d
+        self.warnings: list[str] = []
+
+    def error(self, where: str, field_path: str, msg: str) -> SceneError:
+        head = f"scene '{self.path}'" + (f": {where}" if where else "")
+        return SceneError(f"{head}: `{field_path}` {msg}")
+
+    def warn(self, where: str, msg: str) -> None:
+        self.warnings.append(f"{where}: {msg}" if where else msg)
+
+
+def _px(value, field_path: str, ctx: Ctx, where: str):
+    """Turn '12 px' into a length string in mm using the canvas dpi."""
+    if isinstance(value, str) and value.strip().endswith("px"):
+        if not ctx.dpi:
+            raise ctx.error(where, field_path, f"is in px but the canvas has no `dpi` (got {value!r})")
+        try:
+            n = float(value.strip()[:-2])
+        except ValueError:
+            raise ctx.error(where, field_path, f"must be a number of px (got {value!r})") from None
+        return f"{n * 25.4 / ctx.dpi!r} mm"
+    return value
+
+
+def _wrap(ctx: Ctx, where: str, fn, *args):
+    try:
+        return fn(*args)
+    except UnitError as exc:
+        head = f"scene '{ctx.path}'" + (f": {where}" if where else "")
+        raise SceneError(f"{head}: {exc}") from None
+
+
+def length(value, field_path: str, ctx: Ctx, where: str = "", positive: bool = False,
+           nonneg: bool = False) -> float:
+    v = _wrap(ctx, where, parse_quantity, _px(value, field_path, ctx, where), "m", field_path)
+    if positive and not v > 0:
+        raise ctx.error(where, field_path, f"must be a length > 0 (got {value!r})")
+    if nonneg and v < 0:
+        raise ctx.error(where, field_path, f"must be a length >= 0 (got {value!r})")
+    return v
+
+
+def quantity(value, unit: str, field_path: str, ctx: Ctx, where: str = "", bare_ok: bool = False) -> float:
+    return _wrap(ctx, where, lambda: parse_quantity(value, unit, field_path, bare_ok=bare_ok))
+
+
+def pair(value, sep: str, field_path: str, ctx: Ctx, where: str = "") -> tuple[float, float]:
+    """'10,20 mm' / '30x16 mm' / ['10 mm', '20 mm'] -> two lengths in metres."""
+    if isinstance(value, list):
+        if len(value) != 2:
+            raise ctx.error(where, field_path, f"must hold two lengths (got {value!r})")
+        return (length(value[0], field_path, ctx, where), length(value[1], field_path, ctx, where))
+    if isinstance(value, str) and value.strip().endswith("px"):
+        parts = value.strip()[:-2].split(sep)
+        if len(parts) != 2:
+            raise ctx.error(where, field_path, f"must look like 'A{sep}B px' (got {value!r})")
+        return (length(parts[0].strip() + " px", field_path, ctx, where),
+                length(parts[1].strip() + " px", field_path, ctx, where))
+    return _wrap(ctx, where, parse_pair, value, sep, "m", field_path)
+
+
+def number(value, field_path: str, ctx: Ctx, where: str = "", lo=None, hi=None, integer=False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+        raise ctx.error(where, field_path, f"must be a number (got {value!r})")
+    v = quantity(value, "1", field_path, ctx, where, bare_ok=True)
+    if integer and (float(v) != int(v)):
+        raise ctx.error(where, field_path, f"must be a whole number (got {value!r})")
+    if (lo is not None and v < lo) or (hi is not None and v > hi):
+        rng = f"{lo if lo is not None else '-inf'}..{hi if hi is not None else 'inf'}"
+        raise ctx.error(where, field_path, f"must lie within {rng} (got {value!r})")
+    return int(v) if integer else v
+
+
+def choice(value, options, field_path: str, ctx: Ctx, where: str = "") -> str:
+    if not isinstance(value, str) or value not in options:
+        hint = did_you_mean(str(value), options)
+        raise ctx.error(where, field_path, f"must be one of {', '.join(options)} (got {value!r}){hint}")
+    return value
+
+
+def check_keys(raw: dict, valid, ctx: Ctx, where: str, prefix: str, kind: str = "key") -> None:
+    for key in raw:
+        if key not in valid:
+            hint = did_you_mean(key, valid)
+            raise SceneError(
+                f"scene '{ctx.path}'" + (f": {where}" if where else "")
+                + f": unknown {kind} `{prefix}{key}`{hint}; valid: {', '.join(sorted(valid))}")
+
+
+# --------------------------------------------------------------- loading
+def load_scene(path, device=None) -> Scene:
+    """Read and validate a scene file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The scene TOML.
+    device : DeviceProfile, str, Path or None
+        Overrides the scene's ``[device] profile`` (a profile, a bundled name
+        or a path).
+
+    Returns
+    -------
+    Scene
+        With widgets placed on the grid, parameters in SI units and the
+        warnings gathered while validating (clipping, snapping, detents).
+    """
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise FileFormatError(f"scene '{p}': no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise FileFormatError(f"scene '{p}': unreadable ({exc})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise FileFormatError(f"scene '{p}': invalid TOML ({exc})") from None
+    return parse_scene(data, str(p), p.resolve().parent, device=device)
+
+
+def parse_scene(data: dict, path: str = "<scene>", base_dir: Path | None = None, device=None) -> Scene:
+    """Validate parsed TOML ``data`` into a :class:`Scene` (see :func:`load_scene`)."""
+    from ..devices import DeviceProfile, load_device
+    from .widgets import WIDGET_TYPES, place_widget
+
+    ctx = Ctx(path, Path(base_dir) if base_dir is not None else Path.cwd())
+    check_keys(data, SECTIONS, ctx, "", "", "section")
+    for sec in ("scene", "canvas", "device", "mapping", "defaults"):
+        if sec in data and not isinstance(data[sec], dict):
+            raise ctx.error("", sec, f"must be a table [{sec}] (got {data[sec]!r})")
+    meta = data.get("scene", {})
+    check_keys(meta, SCENE_KEYS, ctx, "", "scene.")
+    name = str(meta.get("name", Path(path).stem))
+    description = str(meta.get("description", ""))
+
+    canvas = _parse_canvas(data.get("canvas"), ctx)
+    ctx.dpi, ctx.is_1d = canvas.dpi, canvas.is_1d
+
+    dev_raw = data.get("device", {})
+    check_keys(dev_raw, DEVICE_KEYS, ctx, "", "device.")
+    if isinstance(device, DeviceProfile):
+        dev, dev_src = device, device.name
+    else:
+        src = device if device is not None else dev_raw.get("profile")
+        if src is not None and not isinstance(src, (str, Path)):
+            raise ctx.error("", "device.profile", f"must be a bundled device name or a path (got {src!r})")
+        if src is not None and isinstance(src, str) and (src.endswith(".toml") or "/" in src) and device is None:
+            cand = ctx.base_dir / src
+            src = cand if cand.exists() else src
+        try:
+            dev = load_device(src)
+        except InputError as exc:
+            raise SceneError(f"scene '{path}': `device.profile`: {exc}") from None
+        dev_src = str(src) if src is not None else "default"
+
+    mapping = _parse_mapping(data.get("mapping", {}), ctx)
+    defaults = data.get("defaults", {})
+    type_defaults = {t: defaults[t] for t in WIDGET_TYPES if isinstance(defaults.get(t), dict)}
+    common_defaults = {k: v for k, v in defaults.items() if k not in type_defaults}
+    all_keys = set()
+    for wt in WIDGET_TYPES.values():
+        all_keys |= set(wt.keys)
+    all_keys |= {"levels", "level_force"}
+    check_keys(common_defaults, sorted(all_keys | set(WIDGET_TYPES)), ctx, "", "defaults.")
+    for t, d in type_defaults.items():
+        check_keys(d, WIDGET_TYPES[t].keys, ctx, "", f"defaults.{t}.")
+    for k in ("id", "type", "position", "center", "from", "to"):
+        if k in common_defaults:
+            raise ctx.error("", f"defaults.{k}", "cannot have a default; give it per widget")
+    levels = {
+        "levels": number(common_defaults.pop("levels", 5), "defaults.levels", ctx, lo=1, integer=True),
+        "level_force": quantity(common_defaults.pop("level_force", "4 N"), "N", "defaults.level_force", ctx),
+    }
+    if levels["level_force"] <= 0:
+        raise ctx.error("", "defaults.level_force", f"must be a force > 0 (got {levels['level_force']} N)")
+
+    raw_widgets = data.get("widget", [])
+    if isinstance(raw_widgets, dict):
+        raw_widgets = [raw_widgets]
+    if not isinstance(raw_widgets, list) or not raw_widgets:
+        raise SceneError(f"scene '{path}': the scene is empty: add at least one [[widget]] "
+                         f"(types: {', '.join(sorted(WIDGET_TYPES))})")
+    widgets, seen = [], {}
+    for i, raw in enumerate(raw_widgets):
+        if not isinstance(raw, dict):
+            raise ctx.error(f"widget[{i}]", f"widget[{i}]", f"must be a table [[widget]] (got {raw!r})")
+        wid = str(raw.get("id", f"{raw.get('type', 'widget')}-{i}"))
+        where = f"widget[{i}] '{wid}'"
+        if wid in seen:
+            raise ctx.error(where, f"widget[{i}].id", f"must be unique; '{wid}' is also widget[{seen[wid]}]")
+        seen[wid] = i
+        if "type" not in raw:
+            raise ctx.error(where, f"widget[{i}].type", f"is required; one of {', '.join(sorted(WIDGET_TYPES))}")
+        wtype = raw["type"]
+        if wtype not in WIDGET_TYPES:
+            hint = did_you_mean(str(wtype), WIDGET_TYPES)
+            raise ctx.error(where, f"widget[{i}].type",
+                            f"names an unknown widget type {wtype!r}{hint}; valid: {', '.join(sorted(WIDGET_TYPES))}")
+        wt = WIDGET_TYPES[wtype]
+        check_keys(raw, wt.keys, ctx, where, f"widget[{i}].")
+        merged = {k: v for k, v in common_defaults.items() if k in wt.keys}
+        merged.update(type_defaults.get(wtype, {}))
+        # strength keys from defaults must not fight the widget's own choice
+        own_strength = [k for k in wt.strength_keys if k in raw]
+        if own_strength:
+            for k in wt.strength_keys:
+                merged.pop(k, None)
+        merged.update(raw)
+        widgets.append(place_widget(wt, merged, i, wid, canvas, mapping, levels, dev, ctx))
+    return Scene(path, name, description, canvas, dev, dev_src, mapping, tuple(widgets),
+                 tuple(ctx.warnings), levels)
+
+
+def _parse_canvas(raw, ctx: Ctx) -> Canvas:
+    if raw is None:
+        raise SceneError(f"scene '{ctx.path}': `canvas` is required: [canvas] size = \"100x180 mm\" "
+                         f"(or pixels = \"1080x1920\" with dpi = 160)")
+    check_keys(raw, CANVAS_KEYS, ctx, "", "canvas.")
+    dpi = None
+    if "dpi" in raw:
+        dpi = number(raw["dpi"], "canvas.dpi", ctx, lo=1e-9)
+    ctx.dpi = dpi
+    if "size" in raw and "pixels" in raw:
+        raise ctx.error("", "canvas.pixels", "cannot be given together with `canvas.size`; keep one")
+    if "pixels" in raw:
+        if dpi is None:
+            raise ctx.error("", "canvas.pixels", f"needs `canvas.dpi` to give the physical size (got {raw['pixels']!r})")
+        text = str(raw["pixels"]).replace("px", "").strip()
+        parts = [s.strip() for s in text.split("x")]
+        try:
+            nums = [float(s) for s in parts]
+        except ValueError:
+            raise ctx.error("", "canvas.pixels", f"must look like '1080x1920' or '1080' (got {raw['pixels']!r})") from None
+        if len(nums) not in (1, 2) or any(not (n > 0 and math.isfinite(n)) for n in nums):
+            raise ctx.error("", "canvas.pixels", f"must be one or two pixel counts > 0 (got {raw['pixels']!r})")
+        width = nums[0] * 0.0254 / dpi
+        height = nums[1] * 0.0254 / dpi if len(nums) == 2 else 0.0
+    elif "size" in raw:
+        size = raw["size"]
+        if isinstance(size, str) and "x" in size.replace("px", ""):
+            width, height = pair(size, "x", "canvas.size", ctx)
+        elif isinstance(size, list):
+            width, height = pair(size, "x", "canvas.size", ctx)
+        else:
+            width, height = length(size, "canvas.size", ctx), 0.0
+        if not width > 0 or height < 0 or (isinstance(size, (list,)) or "x" in str(size)) and not height > 0:
+            raise ctx.error("", "canvas.size", f"must be lengths > 0 (got {size!r})")
+    else:
+        raise ctx.error("", "canvas.size", "is required (e.g. size = \"100x180 mm\"; a single length makes a 1-D strip)")
+    spacing = length(raw.get("resolution", "0.5 mm"), "canvas.resolution", ctx, positive=True)
+    canvas = Canvas(width, height, spacing, dpi)
+    if width < spacing or (not canvas.is_1d and height < spacing):
+        raise ctx.error("", "canvas.resolution",
+                        f"must be finer than the canvas ({spacing * 1e3:g} mm for a "
+                        f"{width * 1e3:g} x {height * 1e3:g} mm canvas)")
+    n = canvas.rows * canvas.cols
+    if n > MAX_CANVAS_SAMPLES:
+        raise ctx.error("", "canvas.resolution",
+                        f"gives {canvas.rows}x{canvas.cols} = {n} samples, more than the limit of "
+                        f"{MAX_CANVAS_SAMPLES}; use a coarser resolution (got {spacing * 1e3:g} mm)")
+    return canvas
+
+
+def _parse_mapping(raw: dict, ctx: Ctx) -> dict:
+    """[mapping] -> keyword arguments of profiles.MappingOptions (SI)."""
+    check_keys(raw, MAPPING_KEYS, ctx, "", "mapping.")
+    out: dict = {"n_base": 0.5, "n_gain": 1000.0}
+    for key, value in raw.items():
+        unit = MAPPING_KEYS[key][0]
+        fp = f"mapping.{key}"
+        if key == "direction":
+            out["_direction"] = choice(value, DIRECTIONS, fp, ctx)
+        elif key == "lateral":
+            out["lateral"] = choice(value, LATERAL, fp, ctx)
+        elif key == "slope_friction":
+            out["slope_friction_gain"] = number(value, fp, ctx, lo=0.0)
+        elif unit == "m":
+            out[key] = length(value, fp, ctx, nonneg=True)
+        else:
+            out[key] = quantity(value, unit, fp, ctx)
+    if out["n_base"] < 0:
+        raise ctx.error("", "mapping.n_base", f"must be a force >= 0 (got {out['n_base']} N)")
+    if out.get("lateral_gain", 0.0) < 0:
+        raise ctx.error("", "mapping.lateral_gain", f"must be >= 0 (got {out['lateral_gain']} N)")
+    direction = out.pop("_direction", "one-sided" if out.get("slope_friction_gain", 0.0) > 0 else "symmetric")
+    if direction == "one-sided":
+        out.setdefault("slope_friction_gain", DEFAULT_SLOPE_FRICTION)
+        if out["slope_friction_gain"] <= 0:
+            raise ctx.error("", "mapping.slope_friction",
+                            f"must be > 0 when direction = \"one-sided\" (got {out['slope_friction_gain']})")
+    else:
+        if out.get("slope_friction_gain", 0.0) > 0:
+            raise ctx.error("", "mapping.slope_friction",
+                            f"needs direction = \"one-sided\" (got slope_friction={out['slope_friction_gain']} "
+                            f"with direction = \"symmetric\")")
+        out["slope_friction_gain"] = 0.0
+    out["direction"] = direction
+    return out
