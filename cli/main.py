@@ -17,6 +17,7 @@ COMMAND_MODULES = (
     "shapedisplay_cli.cmd_table",
     "shapedisplay_cli.cmd_heightmap",
     "shapedisplay_cli.cmd_preview",
+    "shapedisplay_cli.cmd_scene",
 )
 
 

@@ -21,17 +21,20 @@ resolution = "0.5 mm"       # sample spacing; identical widgets snapped to it ar
 profile = "handheld-stick"  # bundled: handheld-stick, desktop-rig, linear-slider, ... or a path
 
 [mapping]
-n_base = "0.5 N"            # N1: normal force on flat ground (published 0.5 N)
+n_base = "1 N"              # N1, force on flat ground (published 0.5 N); above the device
+                            # minimum so dents and grooves (less force) can be felt
 n_gain = "1 N/mm"           # extra normal force per mm of height
 direction = "symmetric"     # "one-sided": uphill resists (bump), downhill releases (dent)
 # slope_friction = 0.2      # K_mu per unit slope, with direction = "one-sided"
 
-[defaults]                  # any widget key, for every widget; [defaults.button] for one type
-ramp = "10 mm"              # edge span L: published studies used 10-30 mm
-edge = "linear"             # linear (the published ramp), cosine, or tent (no plateau)
+[defaults]                  # any widget key, for every widget that has it
 overlap = "max"             # overlapping widgets: max | min | add | over (later wins)
 levels = 5                  # perceived-height steps for `level = 1..levels`
 level_force = "4 N"         # force step of the top level; lower levels follow the power law
+
+[defaults.button]           # defaults for one widget type
+ramp = "10 mm"              # edge span L: published studies used 10-30 mm
+edge = "linear"             # linear (the published ramp), cosine, or tent (no plateau)
 
 [[widget]]
 id = "ok"
