@@ -1,0 +1,197 @@
+"""Friction-envelope table container: bit-exact round trips, verification, layout, lookups."""
+import json
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+from hypothesis.extra import numpy as hnp
+
+from shapedisplay.errors import FileFormatError, InputError, TableError
+from shapedisplay.table import (CHANNELS, FORMAT_VERSION, FrictionTable, Grid, Quantization,
+                                choose_quantization)
+
+
+def _table(rows=4, cols=5, dtype="uint8"):
+    g = Grid(rows, cols, 1e-3, 2e-3, 0.5e-3, 1e-3)
+    n = 0.5 + np.arange(rows * cols, dtype=float).reshape(rows, cols) * 0.1
+    q = choose_quantization(n, dtype)
+    return FrictionTable.from_dense(g, {"normal_force": n}, {"normal_force": q}, {"source": {"x": 1}}), n
+
+
+finite = st.floats(min_value=-1e3, max_value=1e3, allow_nan=False, allow_infinity=False, width=64)
+
+
+@settings(max_examples=40, deadline=None)
+@given(values=hnp.arrays(np.float64, st.tuples(st.integers(1, 6), st.integers(2, 7)), elements=finite),
+       dtype=st.sampled_from(["uint8", "uint16", "float32", "float64"]),
+       names=st.sets(st.sampled_from(sorted(CHANNELS)), min_size=1, max_size=4))
+def test_save_load_round_trip_is_bit_exact(tmp_path_factory, values, dtype, names):
+    rows, cols = values.shape
+    grid = Grid(rows, cols, 1e-4, 2e-4, 0.05e-3, 0.1e-3)
+    chans = {n: values * (i + 1) for i, n in enumerate(sorted(names))}
+    quant = {n: choose_quantization(v, dtype) for n, v in chans.items()}
+    t = FrictionTable.from_dense(grid, chans, quant, {"mapping": {"n_base": 0.5}, "note": "x"})
+    path = tmp_path_factory.mktemp("rt") / "t.npz"
+    t.save(path)
+    u = FrictionTable.load(path)
+    assert u.grid == t.grid and u.channels == t.channels
+    assert u.meta == t.meta and u.quant == t.quant and u.checksum() == t.checksum()
+    for n in t.channels:
+        assert u.codes[n].dtype == t.codes[n].dtype
+        assert u.codes[n].tobytes() == t.codes[n].tobytes()
+        assert np.array_equal(u.dense(n), t.dense(n))
+        err = np.abs(t.dense(n) - chans[n]).max()
+        assert err <= t.quant[n].max_error * (1 + 1e-12) + 1e-300
+
+
+def test_quantization_error_bound_is_stated_truthfully():
+    rng = np.random.default_rng(1)
+    v = rng.uniform(0.5, 4.5, size=1000)
+    for dt in ("uint8", "uint16"):
+        q = choose_quantization(v, dt)
+        assert np.abs(q.decode(q.encode(v)) - v).max() <= q.max_error
+        assert q.max_error == pytest.approx((4.5 - 0.5) / np.iinfo(dt).max / 2, rel=1e-2)
+    q = choose_quantization(v, "auto", max_error=0.01)
+    assert q.dtype == "uint8"
+    q = choose_quantization(v, "auto", max_error=1e-4)
+    assert q.dtype == "uint16"
+
+
+def test_readable_without_the_package(tmp_path):
+    t, n = _table()
+    t.save(tmp_path / "t.npz")
+    with np.load(tmp_path / "t.npz") as z:
+        header = json.loads(bytes(z["header"]).decode())
+        codes = z["normal_force"]
+    c = header["channels"]["normal_force"]
+    values = (c["offset"] + c["scale"] * codes.astype(float)).reshape(header["grid"]["rows"], header["grid"]["cols"])
+    assert np.abs(values - n).max() <= c["max_error"]
+    assert header["format_version"] == FORMAT_VERSION
+
+
+def _rewrite(path, out, header_edit=None, array_edit=None, fix_checksum=False):
+    from shapedisplay.table import _checksum
+    with np.load(path) as z:
+        header = json.loads(bytes(z["header"]).decode())
+        arrays = {k: z[k] for k in z.files if k != "header"}
+    if header_edit:
+        header_edit(header)
+    if array_edit:
+        array_edit(arrays)
+    if fix_checksum:
+        header["checksum"] = _checksum(header, arrays)
+    np.savez(out, header=np.frombuffer(json.dumps(header).encode(), np.uint8), **arrays)
+
+
+def test_wrong_version_rejected(tmp_path):
+    t, _ = _table()
+    t.save(tmp_path / "t.npz")
+    _rewrite(tmp_path / "t.npz", tmp_path / "v.npz", lambda h: h.update(format_version=99), fix_checksum=True)
+    with pytest.raises(TableError, match=r"format_version must be 1 \(got 99\)"):
+        FrictionTable.load(tmp_path / "v.npz")
+
+
+def test_checksum_mismatch_rejected(tmp_path):
+    t, _ = _table()
+    t.save(tmp_path / "t.npz")
+
+    def flip(arrays):
+        a = arrays["normal_force"].copy()
+        a[3] ^= 1
+        arrays["normal_force"] = a
+    _rewrite(tmp_path / "t.npz", tmp_path / "c.npz", array_edit=flip)
+    with pytest.raises(TableError, match="checksum mismatch"):
+        FrictionTable.load(tmp_path / "c.npz")
+    _rewrite(tmp_path / "t.npz", tmp_path / "m.npz", lambda h: h["grid"].update(dx_m=5.0))
+    with pytest.raises(TableError, match="checksum mismatch"):
+        FrictionTable.load(tmp_path / "m.npz")
+
+
+def test_truncated_and_foreign_files(tmp_path):
+    t, _ = _table()
+    t.save(tmp_path / "t.npz")
+    data = (tmp_path / "t.npz").read_bytes()
+    (tmp_path / "trunc.npz").write_bytes(data[: len(data) // 2])
+    with pytest.raises(TableError, match="unreadable or truncated"):
+        FrictionTable.load(tmp_path / "trunc.npz")
+    np.savez(tmp_path / "other.npz", a=np.zeros(3))
+    with pytest.raises(TableError, match="no 'header' entry"):
+        FrictionTable.load(tmp_path / "other.npz")
+    with pytest.raises(TableError, match="no such file"):
+        FrictionTable.load(tmp_path / "missing.npz")
+
+
+def test_save_is_atomic(tmp_path, monkeypatch):
+    t, _ = _table()
+    target = tmp_path / "t.npz"
+
+    def boom(fh, **arrays):
+        fh.write(b"partial")
+        raise RuntimeError("disk full")
+    monkeypatch.setattr(np, "savez_compressed", boom)
+    with pytest.raises(RuntimeError):
+        t.save(target)
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(FileFormatError, match="does not exist"):
+        t.save(tmp_path / "nodir" / "t.npz")
+
+
+def test_identical_patches_stored_once_and_sampled():
+    grid = Grid(10, 30, 1e-3, 1e-3)
+    patch = {"normal_force": np.full((4, 5), 2.0)}
+    placed = [((1, 1), patch), ((1, 10), patch), ((5, 20), {"normal_force": np.full((4, 5), 3.0)})]
+    q = {"normal_force": Quantization("uint8", 0.02, 0.0, 0.01)}
+    t = FrictionTable.from_patches(grid, placed, q, {"normal_force": 0.5})
+    assert len(t.patch_shapes) == 2 and len(t.blocks) == 3
+    assert t.stored_bytes == 2 * 4 * 5
+    d = t.dense("normal_force")
+    assert d[0, 0] == 0.5 and d[2, 12] == 2.0 and d[6, 21] == 3.0
+    with pytest.raises(TableError, match="overlaps"):
+        FrictionTable.from_patches(grid, [((0, 0), patch), ((2, 2), patch)], q, {})
+
+
+def test_bilinear_sampling_is_exact_on_linear_fields():
+    grid = Grid(5, 7, 1e-3, 2e-3, 1e-3, 0.0)
+    r, c = np.mgrid[0:5, 0:7]
+    x, y = grid.x0 + c * grid.dx, grid.y0 + r * grid.dy
+    f = 1.0 + 200.0 * x + 50.0 * y
+    t = FrictionTable.from_dense(grid, {"normal_force": f}, {"normal_force": Quantization("float64")})
+    px, py = np.array([1.3e-3, 4.77e-3, 6.9e-3]), np.array([0.5e-3, 3.3e-3, 7.9e-3])
+    assert np.allclose(t.sample("normal_force", px, py), 1.0 + 200.0 * px + 50.0 * py, rtol=0, atol=1e-12)
+    # outside: edge value held
+    assert t.sample("normal_force", -1.0, -1.0) == pytest.approx(f[0, 0])
+    assert t.sample("normal_force", 1.0, 1.0) == pytest.approx(f[-1, -1])
+
+
+def test_one_d_table_ignores_y():
+    grid = Grid(1, 4, 1e-3, 1e-3)
+    t = FrictionTable.from_dense(grid, {"normal_force": np.array([[1.0, 2.0, 3.0, 4.0]])},
+                                 {"normal_force": Quantization("float64")})
+    assert t.is_1d
+    assert t.sample("normal_force", 1.5e-3, 123.0) == pytest.approx(2.5)
+
+
+def test_unknown_channel_suggests():
+    with pytest.raises(InputError, match=r"unknown channel 'normal_forse' \(did you mean 'normal_force'\?\)"):
+        FrictionTable.from_dense(Grid(1, 2, 1e-3, 1e-3), {"normal_forse": np.zeros((1, 2))},
+                                 {"normal_forse": Quantization("float64")})
+    t, _ = _table()
+    with pytest.raises(TableError, match="lacks channel"):
+        t.require("lateral_x")
+
+
+def test_from_codes_matches_from_dense():
+    t, n = _table(6, 9, "uint16")
+    q = t.quant["normal_force"]
+    u = FrictionTable.from_codes(t.grid, {"normal_force": q.encode(n)}, {"normal_force": q}, None, t.meta)
+    assert u.checksum() == t.checksum()
+    with pytest.raises(InputError, match="must be uint16 of shape"):
+        FrictionTable.from_codes(t.grid, {"normal_force": q.encode(n)[:2]}, {"normal_force": q})
+
+
+def test_sizes_reported():
+    t, _ = _table(4, 5)
+    assert t.stored_bytes == 20
+    assert t.dense_bytes == 4 * 5 * len(CHANNELS) * 4
+    s = t.summary()
+    assert s["stored_bytes"] == 20 and s["dense_bytes"] == t.dense_bytes
