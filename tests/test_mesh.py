@@ -349,3 +349,22 @@ def test_keycap_asset_is_reproducible_and_matches_its_formula(tmp_path):
     tess = (R - math.sqrt(R**2 - rho**2)) / math.sqrt(1 - (5 * math.sqrt(2) * MM / R) ** 2)
     assert np.abs(hf.heights[centre] - exact[centre]).max() <= tess + 1e-9  # float32 file
     assert hf.heights[hf.rows // 2, hf.cols // 2] == pytest.approx(7.2 * MM, abs=1e-8)
+
+
+def test_box_sides_are_reported_as_walls_by_gradient_analysis():
+    from shapedisplay.gradients import detect_walls, gradient
+    box = trimesh.creation.box(extents=(20, 10, 5))
+    hf = mesh.mesh_to_heightfield(box, resolution=0.5 * MM, margin=2 * MM)
+    gx, gy = gradient(hf, "central")
+    report = detect_walls(hf, gx, gy, max_slope=1.0)
+    X, Y = sample_xy(hf)
+    tol = 1e-9
+    inside = (X >= -tol) & (X <= 20 * MM + tol) & (Y >= -tol) & (Y <= 10 * MM + tol)
+    # central differences see the 5 mm step on both samples next to each side
+    expected = np.zeros_like(inside)
+    expected[:, 1:-1] |= inside[:, 2:] != inside[:, :-2]
+    expected[1:-1, :] |= inside[2:, :] != inside[:-2, :]
+    np.testing.assert_array_equal(report.mask, expected)
+    assert report.regions == 1
+    assert report.boxes_mm == [[-0.5, 20.5, -0.5, 10.5]]
+    assert report.steepest == pytest.approx(math.hypot(5, 5))   # 5 mm over 2 x 0.5 mm, both axes at corners
