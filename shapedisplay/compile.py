@@ -172,7 +172,9 @@ def _coding(dtype: str, lo: float, hi: float) -> Quantization:
         err = scale / 2 + 4 * _EPS * big if scale > 0 else 0.0
         return Quantization(dtype, scale, lo, err)
     if dtype == "float32":
-        return Quantization("float32", 1.0, 0.0, big * 2.0 ** -24)
+        if big > float(np.finfo(np.float32).max):
+            return Quantization("float64", 1.0, 0.0, 0.0)   # would overflow float32
+        return Quantization("float32", 1.0, 0.0, max(big * 2.0 ** -24, 2.0 ** -150) if big > 0 else 0.0)
     return Quantization("float64", 1.0, 0.0, 0.0)
 
 

@@ -127,7 +127,9 @@ def choose_quantization(values: np.ndarray, dtype: str = "auto", max_error: floa
                 return q
         dtype = "float32"
     if dtype in ("float32", "float64"):
-        eps = 0.0 if dtype == "float64" else float(np.max(np.abs(v), initial=0.0)) * 2.0 ** -24
+        big = float(np.max(np.abs(v), initial=0.0))
+        # half an ulp relative (2^-24), and at least half the smallest subnormal (2^-150)
+        eps = 0.0 if dtype == "float64" or big == 0 else max(big * 2.0 ** -24, 2.0 ** -150)
         return Quantization(dtype, 1.0, 0.0, eps)
     if dtype not in _DTYPES:
         raise unknown_key("quantization dtype", dtype, list(_DTYPES) + ["auto"])
