@@ -1,0 +1,420 @@
+"""Pad and friction models by name, and the table-free pad simulator.
+
+``MODELS`` maps a name to a model class, the way ``scipy.integrate.solve_ivp``
+maps ``method`` names to ``OdeSolver`` classes. A model class only validates
+and packs its parameters and names its numba kernel (see :mod:`.pads`); the
+:class:`~shapedisplay.runtime.renderer.Renderer` owns the bookkeeping
+(state, counters, buffers, checks).
+
+==========  ==================================================================
+name        model
+==========  ==================================================================
+exact       Konyo 1-DOF pad, every stick and slip phase solved in closed form,
+            events located inside the tick by root finding (the reference)
+jump        quasi-static O(1)-per-tick model: stick is a spring stretch,
+            breakaway a threshold crossing, re-stick from the closed-form
+            damped overshoot (error stated in :class:`JumpModel`)
+karnopp     modified Karnopp virtual spring with velocity threshold
+            (Provancher & Sylvester), drives a skin-stretch output
+stribeck    Imaizumi pad with Stribeck friction on a laterally vibrating
+            contactor, exponential substeps with stick/slip logic
+euler       one explicit Euler step per tick (diverges on the Konyo pad)
+rk4         one classical RK4 step per tick (diverges below ~45 kHz)
+==========  ==================================================================
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..devices import DeviceProfile, FrictionParams, PadParams, BurstParams, load_device
+from ..errors import InputError, ModelError, unknown_key
+from ..units import parse_quantity
+from . import pads
+
+#: Allowed tick rates, Hz.
+TICK_RATE_RANGE = (100.0, 192_000.0)
+
+
+def check_tick_rate(rate: float, field: str = "tick_rate") -> float:
+    """Return ``rate`` (Hz) as float or raise if outside 100 Hz .. 192 kHz."""
+    try:
+        r = float(rate)
+    except (TypeError, ValueError):
+        raise InputError(f"`{field}` must be a number in Hz (got {rate!r})") from None
+    lo, hi = TICK_RATE_RANGE
+    if not (math.isfinite(r) and lo <= r <= hi):
+        raise InputError(f"`{field}` must be within 100 Hz..192 kHz (got {rate!r} Hz)")
+    return r
+
+
+def _extra_q(device: DeviceProfile, section: str, key: str, unit: str, default: float, bare_ok=False) -> float:
+    sec = device.extra.get(section, {}) or {}
+    if key not in sec:
+        return default
+    return parse_quantity(sec[key], unit, f"{section}.{key}", bare_ok=bare_ok)
+
+
+class PadModel:
+    """Base class: validated parameters packed for the numba kernels.
+
+    Subclasses set ``name``, ``model_id``, ``needs`` (table channels the
+    model cannot run without) and may extend :meth:`pack`.
+    """
+
+    name = "base"
+    model_id = -1
+    needs: tuple = ("normal_force",)
+    #: True if the pad mass/stiffness/damping of the device are used.
+    uses_pad = True
+
+    def __init__(self, device: DeviceProfile | None = None, **options):
+        self.device = (device or load_device(None))
+        self.device.friction.validate()
+        self.device.burst.validate()
+        if self.uses_pad:
+            self.device.pad.validate()
+        if options:
+            raise InputError(f"model '{self.name}' takes no options (got {sorted(options)})")
+        self.params = self.pack()
+
+    def pack(self) -> np.ndarray:
+        """Parameter vector for :func:`pads.model_tick` (float64, ``PARAM_SIZE``)."""
+        d = self.device
+        P = np.zeros(pads.PARAM_SIZE, dtype=np.float64)
+        P[pads.P_M] = d.pad.mass
+        P[pads.P_K] = d.pad.stiffness
+        P[pads.P_C] = d.pad.damping
+        P[pads.P_B] = d.burst.gain
+        P[pads.P_TMAX] = d.burst.max_stick_period_s
+        P[pads.P_HSUB] = 1.0
+        return P
+
+    def new_state(self) -> np.ndarray:
+        return pads.new_state()
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(device={self.device.name!r})"
+
+
+class ExactModel(PadModel):
+    """Event-driven exact solution of the Konyo pad (DESIGN 3.1, 4).
+
+    Stick phases are linear in time (breakaway solved exactly), slip phases
+    are closed-form damped oscillations under constant kinetic friction;
+    re-stick is located by bracketing between the closed-form extrema of the
+    pad velocity and Newton polishing. Results do not depend on the tick
+    rate (event times agree to ~1e-12 s between 1 and 10 kHz).
+    """
+
+    name = "exact"
+    model_id = pads.MODEL_EXACT
+
+
+class JumpModel(PadModel):
+    """Quasi-static jump model: O(1) work per tick, O(1) per event.
+
+    Stick: the spring stretches with the surface, ``f = k x + c V``;
+    breakaway is the exact threshold crossing (linear in time). Slip is not
+    integrated: the pad jumps to the re-stick stretch given by the closed-form
+    damped overshoot evaluated at ``t_pi = pi / omega_d`` plus one Newton
+    correction for the pad velocity ``V`` (:func:`pads.jump_restick`); for
+    ``V -> 0``::
+
+        f_restick = mu_k N - (mu_s - mu_k) N exp(-zeta pi / sqrt(1 - zeta^2))
+
+    and the friction holds ``mu_k N`` for the slip duration. N and V are
+    frozen at their breakaway values during the slip.
+
+    Error against ``exact`` (constant V, N; measured over zeta 0..0.6,
+    V 5..500 mm/s, N 0.5..5 N, checked by ``tests/test_runtime_pads.py``):
+    the only approximation is the Newton step, whose error grows with the
+    dimensionless pad speed ``r = V k / (delta_mu N omega_n)`` (surface speed
+    over the slip-velocity amplitude). The relative stick-slip period error
+    is at most ``0.02 r`` for ``r <= 0.25`` and ``zeta <= 0.6`` (measured:
+    1e-3 at r = 0.22, 3e-5 at r = 0.056, 4e-8 on the published pad at
+    N = 2 N, delta_mu = 0.2, V = 50 mm/s where r = 0.006), and ``jump``
+    predicts re-stick exactly when ``exact`` does (no re-stick for
+    over-damped pads, for delta_mu = 0 with c > 0, or when the overshoot
+    cannot bring the pad back to the surface speed: steady sliding).
+    Event times inherit the period error cumulatively; changes of N or V
+    during a slip (~70 us) are ignored.
+    """
+
+    name = "jump"
+    model_id = pads.MODEL_JUMP
+    #: Stated bound: relative period error <= BOUND_PER_R * r for r <= BOUND_R_MAX, zeta <= BOUND_ZETA_MAX.
+    BOUND_PER_R = 0.02
+    BOUND_R_MAX = 0.25
+    BOUND_ZETA_MAX = 0.6
+
+
+class KarnoppModel(PadModel):
+    """Modified Karnopp virtual spring with skin stretch (DESIGN 3.5).
+
+    A spring ``k_K`` (``[karnopp] spring``, default 1.5 N/mm) anchored at
+    first contact; stuck while ``k_K z <= mu_s N``; beyond, the force drops
+    to ``mu_k N`` and the anchor is dragged; stuck again (force preserved)
+    when the finger speed falls below ``v_T`` (``[karnopp]
+    velocity_threshold``, default 12.5 mm/s); a reversal unstretches the
+    spring first. ``mu_k`` comes from the profile (0.9 mu_s in the study).
+    """
+
+    name = "karnopp"
+    model_id = pads.MODEL_KARNOPP
+    uses_pad = False
+
+    def pack(self) -> np.ndarray:
+        P = super().pack()
+        kk = _extra_q(self.device, "karnopp", "spring", "N/m", 1500.0)
+        vt = _extra_q(self.device, "karnopp", "velocity_threshold", "m/s", 0.0125)
+        if not kk > 0:
+            raise ModelError(f"karnopp `spring` must be > 0 (got {kk} N/m)")
+        if not vt >= 0:
+            raise ModelError(f"karnopp `velocity_threshold` must be >= 0 (got {vt} m/s)")
+        P[pads.P_KK] = kk
+        P[pads.P_VT] = vt
+        return P
+
+
+class StribeckModel(PadModel):
+    """Imaizumi fingerpad with Stribeck friction on a vibrating contactor (DESIGN 3.4).
+
+    Parameters come from the profile: ``[pad]`` (m, k, c), ``[friction]``
+    (mu_s, mu_k), ``[stribeck] a, b`` (defaults 55, 1.9; the pre-maximum
+    variant uses ``p = 400, d = 0.005, a = 86, b = 2.0`` unless given),
+    ``[contactor] frequency, amplitude`` (default still). The finger bone
+    moves at the cursor speed; the load W is the table's normal force.
+
+    Options
+    -------
+    variant : {"stribeck", "premax"}
+    contactor_hz, contactor_amplitude_m : float, optional
+        Override the contactor stimulus.
+    substep_s : float
+        Largest substep (default 2 us).
+    """
+
+    name = "stribeck"
+    model_id = pads.MODEL_STRIBECK
+
+    def __init__(self, device=None, variant="stribeck", contactor_hz=None, contactor_amplitude_m=None,
+                 substep_s=2e-6):
+        if variant not in ("stribeck", "premax"):
+            raise unknown_key("stribeck variant", variant, ("stribeck", "premax"))
+        self.variant = variant
+        self._chz = contactor_hz
+        self._camp = contactor_amplitude_m
+        if not (substep_s > 0 and math.isfinite(substep_s)):
+            raise InputError(f"`substep_s` must be > 0 (got {substep_s!r})")
+        self._hsub = float(substep_s)
+        super().__init__(device)
+
+    def pack(self) -> np.ndarray:
+        P = super().pack()
+        d = self.device
+        pre = self.variant == "premax"
+        if pre:   # published pre-maximum variant; [stribeck] a, b describe the plain curve
+            P[pads.P_SA], P[pads.P_SB] = 86.0, 2.0
+        else:
+            P[pads.P_SA] = _extra_q(d, "stribeck", "a", "1", 55.0, True)
+            P[pads.P_SB] = _extra_q(d, "stribeck", "b", "1", 1.9, True)
+        P[pads.P_SP] = _extra_q(d, "stribeck", "p", "1", 400.0, True)
+        P[pads.P_SD] = _extra_q(d, "stribeck", "d", "1", 0.005, True)
+        P[pads.P_SVAR] = 1.0 if pre else 0.0
+        hz = self._chz if self._chz is not None else _extra_q(d, "contactor", "frequency", "Hz", 0.0)
+        amp = self._camp if self._camp is not None else _extra_q(d, "contactor", "amplitude", "m", 0.0)
+        if not (hz >= 0 and amp >= 0 and math.isfinite(hz) and math.isfinite(amp)):
+            raise InputError(f"contactor frequency and amplitude must be >= 0 (got {hz} Hz, {amp} m)")
+        P[pads.P_CA] = amp
+        P[pads.P_CW] = 2 * math.pi * hz
+        P[pads.P_HSUB] = self._hsub
+        return P
+
+
+class EulerModel(PadModel):
+    """Forward Euler, one step per tick. Diverges on the Konyo pad unless h < 2 zeta/omega_n (~5 us)."""
+
+    name = "euler"
+    model_id = pads.MODEL_EULER
+
+
+class Rk4Model(PadModel):
+    """Classical RK4, one step per tick. Diverges on the Konyo pad unless h < 2.8/omega_n (~63 us)."""
+
+    name = "rk4"
+    model_id = pads.MODEL_RK4
+
+
+#: Registry: model name -> class. A new model is one class plus one line here.
+MODELS: dict[str, type[PadModel]] = {
+    "exact": ExactModel,
+    "jump": JumpModel,
+    "karnopp": KarnoppModel,
+    "stribeck": StribeckModel,
+    "euler": EulerModel,
+    "rk4": Rk4Model,
+}
+
+
+def get_model(model, device: DeviceProfile | None = None, **options) -> PadModel:
+    """Instantiate ``model`` (a name, a :class:`PadModel` subclass or instance)."""
+    if isinstance(model, PadModel):
+        return model
+    if isinstance(model, type) and issubclass(model, PadModel):
+        return model(device, **options)
+    if model not in MODELS:
+        raise unknown_key("model", str(model), MODELS)
+    return MODELS[model](device, **options)
+
+
+# ================================================================ pad without a table
+@dataclass(frozen=True)
+class PadResult:
+    """Output of :func:`simulate_pad` (all arrays float64 unless stated).
+
+    Attributes
+    ----------
+    t : ndarray (n,)
+        Tick end times, s.
+    x : ndarray (n,)
+        Pad displacement (spring stretch), m, at each tick end.
+    v : ndarray (n,)
+        Pad velocity, m/s, at each tick end.
+    friction_force : ndarray (n,)
+        Friction force on the pad, N.
+    state : ndarray (n,), int8
+        0 stick, 1 slip.
+    work_friction, work_damping : ndarray (n,)
+        Work done by friction on the pad and energy dissipated by the damper
+        during each tick, J (exact model; zero for others).
+    event_time, event_amplitude : ndarray (n_events,)
+        Stick-to-slip times (s) and burst amplitudes ``B |k x|`` at breakaway.
+    model : str
+    tick_rate : float
+    diverged_at : float or None
+        Time the explicit baselines blew up, s (None otherwise).
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    v: np.ndarray
+    friction_force: np.ndarray
+    state: np.ndarray
+    work_friction: np.ndarray
+    work_damping: np.ndarray
+    event_time: np.ndarray
+    event_amplitude: np.ndarray
+    model: str
+    tick_rate: float
+    diverged_at: float | None = None
+
+
+def run_kernel(model: PadModel, t, V, N, mus, muk, gain, state=None):
+    """Run ``model`` over per-tick inputs (arrays of shape (n,)); grow the event buffer as needed.
+
+    Returns ``(state, friction, phase, x, v, wf, wd, ev_t, ev_a)``.
+    """
+    n = t.shape[0]
+    cap = 2 * n + 64
+    S0 = model.new_state() if state is None else state
+    while True:
+        S = S0.copy()
+        out_f = np.empty(n)
+        out_s = np.empty(n)
+        out_x = np.empty(n)
+        out_v = np.empty(n)
+        out_wf = np.empty(n)
+        out_wd = np.empty(n)
+        ev_t = np.empty(cap)
+        ev_a = np.empty(cap)
+        n_ev = pads.run_ticks(model.model_id, S, model.params, t, V, N, mus, muk, gain,
+                              out_f, out_s, out_x, out_v, out_wf, out_wd, ev_t, ev_a)
+        if n_ev <= cap:
+            break
+        cap = n_ev + 64
+    if S[pads.S_TRUNC] > 0:
+        raise ModelError(f"model '{model.name}' exceeded {pads.MAX_EVENTS_PER_TICK} phase changes in one tick "
+                         f"({int(S[pads.S_TRUNC])} ticks); inputs are outside the model's range")
+    return S, out_f, out_s, out_x, out_v, out_wf, out_wd, ev_t[:n_ev].copy(), ev_a[:n_ev].copy()
+
+
+def _as_ticks(value, n, field):
+    a = np.asarray(value, dtype=np.float64)
+    if a.ndim == 0:
+        a = np.full(n, float(a))
+    if a.shape != (n,):
+        raise InputError(f"`{field}` must be a scalar or have shape ({n},) (got {a.shape})")
+    if not np.all(np.isfinite(a)):
+        raise InputError(f"`{field}` must be finite (got a non-finite value)")
+    return a
+
+
+def simulate_pad(model="exact", V=0.05, N=2.0, pad: PadParams | None = None,
+                 friction: FrictionParams | None = None, tick_rate: float = 10_000.0,
+                 duration: float = 0.1, burst: BurstParams | None = None, on_divergence="raise",
+                 **options) -> PadResult:
+    """Run a pad model with no table at all (e.g. the Konyo pad at constant speed).
+
+    Parameters
+    ----------
+    model : str or PadModel
+        A name from :data:`MODELS`.
+    V : float or ndarray (n,)
+        Surface velocity relative to the finger per tick, m/s.
+    N : float or ndarray (n,)
+        Normal force per tick, N (must be >= 0).
+    pad, friction, burst : dataclasses from :mod:`shapedisplay.devices`
+        Defaults: the published Konyo pad (k = 2 N/mm, m = 1e-6 kg,
+        c = 0.01 N s/m), mu_s 0.5, mu_k 0.3, burst gain 1.
+    tick_rate : float
+        Hz, 100 Hz .. 192 kHz.
+    duration : float
+        s; the run has ``n = round(duration * tick_rate) + 1`` ticks, tick 0
+        at t = 0 (array inputs fix ``n`` instead).
+    on_divergence : {"raise", "report"}
+        What to do when an explicit baseline blows up: raise
+        :class:`ModelError`, or return the result with ``diverged_at`` set
+        (outputs frozen at zero from that tick; never NaN).
+
+    Returns
+    -------
+    PadResult
+    """
+    rate = check_tick_rate(tick_rate)
+    dev = load_device(None)
+    dev = dev.with_(pad=pad or dev.pad, friction=friction or dev.friction,
+                    burst=burst or BurstParams(gain=1.0))
+    m = get_model(model, dev, **options)
+    Va = np.asarray(V, dtype=np.float64)
+    Na = np.asarray(N, dtype=np.float64)
+    if Va.ndim == 1:
+        n = Va.shape[0]
+    elif Na.ndim == 1:
+        n = Na.shape[0]
+    else:
+        if not (math.isfinite(duration) and duration > 0):
+            raise InputError(f"`duration` must be > 0 s (got {duration!r})")
+        n = int(round(duration * rate)) + 1
+    Va = _as_ticks(Va, n, "V")
+    Na = _as_ticks(Na, n, "N")
+    if np.any(Na < 0):
+        raise InputError(f"`N` must be >= 0 N (got min {Na.min()})")
+    t = np.arange(n, dtype=np.float64) / rate
+    ones = np.ones(n)
+    S, f, st, x, v, wf, wd, et, ea = run_kernel(m, t, Va, Na, dev.friction.mu_s * ones,
+                                             dev.friction.mu_k * ones, ones)
+    div = None
+    if S[pads.S_BLOW] != 0:
+        div = float(S[pads.S_BLOWT])
+        if on_divergence == "raise":
+            raise ModelError(divergence_message(m, rate, div))
+    return PadResult(t, x, v, f, st.astype(np.int8), wf, wd, et, ea, m.name, rate, div)
+
+
+def divergence_message(model: PadModel, rate: float, when: float) -> str:
+    p = model.device.pad
+    return (f"model '{model.name}' diverged at t={when:.6g} s: tick {1e6 / rate:.4g} us is too long for the "
+            f"pad (h*omega_n = {p.omega_n / rate:.3g}, zeta = {p.zeta:.3g}); use model 'exact' or 'jump'")

@@ -1,0 +1,890 @@
+"""Per-tick numba kernels of the fingerpad / friction models.
+
+Functions for advancing a 1-DOF fingerpad pressed on a moving surface by one
+renderer tick, in float64 SI units (m, s, N, kg). Every model shares one
+calling convention so the offline fast path and the online ``step()`` run
+the same code:
+
+``n_ev = model_tick(model_id, S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev)``
+
+``S`` : ndarray (STATE_SIZE,), float64
+    The model state, updated in place (layout ``S_*`` below).
+``P`` : ndarray (PARAM_SIZE,), float64
+    Parameters (layout ``P_*`` below), packed by :mod:`.models`.
+``t0, h`` : float
+    Start time of the tick and its length, s.
+``V`` : float
+    Surface velocity relative to the finger during the tick, m/s (signed
+    along the pad axis). Constant within a tick.
+``N, mus, muk, gain`` : float
+    Normal force (N), effective static/kinetic coefficients and burst-gain
+    multiplier for the tick (constant within a tick).
+``ev_t, ev_a`` : ndarray (capacity,), float64
+    Stick-to-slip event times (s) and burst amplitudes; events beyond the
+    capacity are counted but not written (the caller re-runs with more room).
+
+Sign conventions
+----------------
+``x`` is the pad displacement from its rest position relative to the
+finger (spring stretch, m); ``v = dx/dt``. The friction force on the pad is
+``f``; in stick the pad moves with the surface (``v = V``) and
+``f = k x + c V``; in slip ``f = s * mu_k * N`` where ``s`` is the sign of
+the friction (opposite to the relative velocity ``v - V``).
+
+The exact model (DESIGN 3.1, 4)
+-------------------------------
+Stick is linear in time, so breakaway (``|f|`` reaches ``mu_s N``) is solved
+in closed form. Slip is the damped oscillator ``m x'' + c x' + k x = s mu_k N``
+solved in closed form (under-, critically and over-damped, and ``c = 0``).
+The relative velocity ``w(t) = -s (x'(t) - V)`` is monotone between the zeros
+of ``x''`` (closed-form times spaced ``pi / omega_d``), so each interval is
+bracketed exactly and the re-stick time polished by safeguarded Newton to
+~1e-15 s; this catches double crossings and near-tangent touches inside one
+tick. Any number of events may occur per tick; phases run across tick
+boundaries without being cut, so event times do not depend on the tick rate.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# ----------------------------------------------------------------- layouts
+S_PHASE, S_X, S_V, S_S, S_F, S_AGE, S_NCAP, S_WF, S_WD, S_TSLIP, S_XR, S_BLOW, S_BLOWT, \
+    S_TRUNC, S_NEV, S_VR = range(16)
+STATE_SIZE = 16
+
+P_M, P_K, P_C, P_B, P_TMAX, P_KK, P_VT, P_SA, P_SB, P_SP, P_SD, P_SVAR, P_CA, P_CW, P_HSUB = range(15)
+PARAM_SIZE = 16
+
+MODEL_EXACT, MODEL_JUMP, MODEL_KARNOPP, MODEL_STRIBECK, MODEL_EULER, MODEL_RK4 = range(6)
+
+#: Safety cap on phase changes inside one tick (never reached by physical inputs).
+MAX_EVENTS_PER_TICK = 200_000
+_ADMIT = 1.0 - 1e-9      # re-stick admissible if |f| <= _ADMIT * mu_s N
+_ADMIT_TOUCH = 1.0 - 1e-6  # stricter for tangent touches (grazing at the limit is not a re-stick)
+_TWO_PI = 2.0 * math.pi
+
+
+def new_state() -> np.ndarray:
+    """A fresh state: stuck, spring relaxed, no normal-force cap."""
+    S = np.zeros(STATE_SIZE, dtype=np.float64)
+    S[S_NCAP] = np.inf
+    S[S_S] = 1.0
+    return S
+
+
+# ================================================================ oscillator
+@njit(cache=True)
+def osc(m, c, k, y0, v0, t):
+    """Free damped oscillator ``m y'' + c y' + k y = 0`` from (y0, v0).
+
+    Returns ``(y, v)`` at time ``t`` (s). Handles under-, critically and
+    over-damped pads, ``c = 0`` and negative ``c`` (used by linearised
+    Stribeck steps).
+    """
+    sig = 0.5 * c / m
+    wn2 = k / m
+    disc = sig * sig - wn2
+    if disc < -1e-10 * wn2:
+        wd = math.sqrt(-disc)
+        e = math.exp(-sig * t)
+        cs = math.cos(wd * t)
+        sn = math.sin(wd * t)
+        y = e * (y0 * cs + (v0 + sig * y0) / wd * sn)
+        v = e * (v0 * cs - (wn2 * y0 + sig * v0) / wd * sn)
+        return y, v
+    if disc > 1e-10 * wn2:
+        sq = math.sqrt(disc)
+        if sig >= 0.0:
+            r2 = -sig - sq
+            r1 = wn2 / r2
+        else:
+            r1 = -sig + sq
+            r2 = wn2 / r1
+        p = (v0 - r2 * y0) / (r1 - r2)
+        q = y0 - p
+        e1 = math.exp(r1 * t)
+        e2 = math.exp(r2 * t)
+        return p * e1 + q * e2, r1 * p * e1 + r2 * q * e2
+    w = sig
+    a = y0
+    b = v0 + w * y0
+    e = math.exp(-w * t)
+    return (a + b * t) * e, (b - w * a - w * b * t) * e
+
+
+@njit(cache=True)
+def osc_damping_work(m, c, k, y0, v0, t):
+    """Energy dissipated by the damper, integral of ``c v^2`` over [0, t], J."""
+    if c == 0.0 or t <= 0.0:
+        return 0.0
+    sig = 0.5 * c / m
+    wn2 = k / m
+    disc = sig * sig - wn2
+    if disc < -1e-10 * wn2:
+        wd = math.sqrt(-disc)
+        # v = Re(Z e^{lam t}), lam = -sig + i wd, Z = v0 + i (wn2 y0 + sig v0)/wd
+        lam = complex(-sig, wd)
+        Z = complex(v0, (wn2 * y0 + sig * v0) / wd)
+        absz2 = Z.real * Z.real + Z.imag * Z.imag
+        part1 = 0.5 * absz2 * (-math.expm1(-2.0 * sig * t)) / (2.0 * sig)
+        z2 = Z * Z
+        part2 = 0.5 * (z2 * (np.exp(2.0 * lam * t) - 1.0) / (2.0 * lam)).real
+        return c * (part1 + part2)
+    if disc > 1e-10 * wn2:
+        sq = math.sqrt(disc)
+        r2 = -sig - sq
+        r1 = wn2 / r2
+        p = (v0 - r2 * y0) / (r1 - r2)
+        q = y0 - p
+        P = r1 * p
+        Q = r2 * q
+        i11 = math.expm1(2 * r1 * t) / (2 * r1)
+        i22 = math.expm1(2 * r2 * t) / (2 * r2)
+        i12 = math.expm1((r1 + r2) * t) / (r1 + r2)
+        return c * (P * P * i11 + 2 * P * Q * i12 + Q * Q * i22)
+    # critical: 32-point composite Gauss-Legendre on a smooth, non-oscillating integrand
+    n = 64
+    acc = 0.0
+    dt = t / n
+    g = 0.5773502691896257
+    for i in range(n):
+        tm = (i + 0.5) * dt
+        for sgn in (-1.0, 1.0):
+            _, v = osc(m, c, k, y0, v0, tm + sgn * g * 0.5 * dt)
+            acc += v * v
+    return c * acc * 0.5 * dt
+
+
+@njit(cache=True)
+def _acc(m, c, k, y, v):
+    return -(c * v + k * y) / m
+
+
+@njit(cache=True)
+def _next_acc_zero(m, c, k, y0, v0, after):
+    """First time > ``after`` (s) where the free oscillator's acceleration is 0; inf if none."""
+    sig = 0.5 * c / m
+    wn2 = k / m
+    disc = sig * sig - wn2
+    a0 = -2.0 * sig * v0 - wn2 * y0
+    j0 = -2.0 * sig * a0 - wn2 * v0
+    if disc < -1e-10 * wn2:
+        wd = math.sqrt(-disc)
+        bb = (j0 + sig * a0) / wd
+        if a0 == 0.0 and bb == 0.0:
+            return np.inf
+        # a(t) ~ a0 cos(th) + bb sin(th) = R cos(th - phi); zeros at th = phi + pi/2 + n pi
+        phi = math.atan2(bb, a0)
+        th1 = (phi + 0.5 * math.pi) % math.pi
+        if th1 < 1e-9 or th1 > math.pi - 1e-9:
+            # the zero at t = 0 is the start point itself
+            th1 = math.pi if th1 > 1.0 else th1 + math.pi
+            if th1 < math.pi:
+                th1 = math.pi
+        tz = th1 / wd
+        if tz <= after:
+            nper = math.floor((after - tz) * wd / math.pi) + 1.0
+            tz = (th1 + nper * math.pi) / wd
+            while tz <= after:
+                tz += math.pi / wd
+        return tz
+    if disc > 1e-10 * wn2:
+        sq = math.sqrt(disc)
+        if sig >= 0.0:
+            r2 = -sig - sq
+            r1 = wn2 / r2
+        else:
+            r1 = -sig + sq
+            r2 = wn2 / r1
+        p = (v0 - r2 * y0) / (r1 - r2)
+        q = y0 - p
+        num = -r2 * r2 * q
+        den = r1 * r1 * p
+        if den == 0.0 or num / den <= 0.0:
+            return np.inf
+        tz = math.log(num / den) / (r1 - r2)
+        return tz if tz > after and tz > 1e-15 else np.inf
+    w = sig
+    b = v0 + w * y0
+    if b == 0.0:
+        return np.inf
+    tz = (2.0 * b - w * y0) / (w * b)
+    return tz if tz > after and tz > 1e-15 else np.inf
+
+
+@njit(cache=True)
+def _w(m, c, k, y0, v0, V, s, t):
+    _, v = osc(m, c, k, y0, v0, t)
+    return -s * (v - V)
+
+
+@njit(cache=True)
+def _polish(m, c, k, y0, v0, V, s, lo, hi):
+    """Root of w in [lo, hi] with w(lo) >= 0 > w(hi): safeguarded Newton, ~1e-15 s."""
+    wlo = _w(m, c, k, y0, v0, V, s, lo)
+    whi = _w(m, c, k, y0, v0, V, s, hi)
+    if wlo - whi > 0.0:
+        t = lo + (hi - lo) * wlo / (wlo - whi)
+    else:
+        t = 0.5 * (lo + hi)
+    if not (lo < t < hi):
+        t = 0.5 * (lo + hi)
+    for _ in range(200):
+        y, v = osc(m, c, k, y0, v0, t)
+        wt = -s * (v - V)
+        if wt == 0.0:
+            return t
+        if wt > 0.0:
+            lo = t
+        else:
+            hi = t
+        dw = -s * _acc(m, c, k, y, v)
+        tn = t - wt / dw if dw != 0.0 else 0.5 * (lo + hi)
+        if not (lo < tn < hi):
+            tn = 0.5 * (lo + hi)
+        if abs(tn - t) <= 1e-16 + 1e-15 * t or hi - lo <= 1e-16 + 1e-15 * hi:
+            return tn
+        t = tn
+    return 0.5 * (lo + hi)
+
+
+@njit(cache=True)
+def slip_search(m, c, k, y0, v0, V, s, rem, tmin):
+    """Find the first re-stick candidate of a slip phase within ``rem`` seconds.
+
+    Returns ``(kind, t)``: kind 0 none (t = rem), 1 crossing of the relative
+    velocity through zero, 2 near-tangent touch (|w| below a round-off
+    tolerance at an extremum). Touches before ``tmin`` are ignored (used to
+    step past a grazing touch that was not a re-stick).
+    """
+    tol = 1e-12 * (abs(V) + abs(v0)) + 1e-300
+    # quick rejection: |v(t)| bounded by the oscillation envelope
+    sig = 0.5 * c / m
+    wn2 = k / m
+    disc = sig * sig - wn2
+    if sig >= 0.0 and disc < -1e-10 * wn2:
+        wd = math.sqrt(-disc)
+        bv = (wn2 * y0 + sig * v0) / wd
+        amp = math.sqrt(v0 * v0 + bv * bv)
+        if s * V - amp > 2.0 * tol:
+            return 0, rem
+    ta = 0.0
+    while True:
+        tz = _next_acc_zero(m, c, k, y0, v0, ta)
+        interior = tz < rem
+        tb = tz if interior else rem
+        wb = _w(m, c, k, y0, v0, V, s, tb)
+        graze = interior and wb >= -tol and wb <= tol
+        if graze and tb < tmin:
+            ta = tb
+            continue
+        if wb < 0.0:
+            tr = _polish(m, c, k, y0, v0, V, s, ta, tb)
+            if interior and wb >= -tol:
+                return 2, tr
+            return 1, tr
+        if wb == 0.0:
+            return (2 if interior else 1), tb
+        if graze:
+            return 2, tb
+        if not interior:
+            return 0, rem
+        ta = tb
+
+
+# ================================================================ exact model
+@njit(cache=True)
+def _record(ev_t, ev_a, n_ev, t, a):
+    if n_ev < ev_t.shape[0]:
+        ev_t[n_ev] = t
+        ev_a[n_ev] = a
+    return n_ev + 1
+
+
+@njit(cache=True)
+def _sgn(x):
+    return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
+
+
+@njit(cache=True)
+def _exact_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
+    m = P[P_M]
+    k = P[P_K]
+    c = P[P_C]
+    B = P[P_B] * gain
+    tmax = P[P_TMAX]
+    x = S[S_X]
+    v = S[S_V]
+    phase = S[S_PHASE]
+    s = S[S_S]
+    age = S[S_AGE]
+    ncap = S[S_NCAP]
+    wf = 0.0
+    wdmp = 0.0
+    t = 0.0
+    nev0 = n_ev
+    it = 0
+    tmin = 0.0
+    while t < h:
+        it += 1
+        if it > MAX_EVENTS_PER_TICK:
+            S[S_TRUNC] += 1.0
+            break
+        rem = h - t
+        if phase == 0.0:
+            v = V
+            thr = mus * N
+            f = k * x + c * V
+            brk = False
+            forced = False
+            if abs(f) > thr * (1.0 + 1e-12) or (abs(f) >= thr and f * V > 0.0 and thr > 0.0) \
+                    or (thr == 0.0 and f != 0.0):
+                brk = True
+            else:
+                tb = np.inf
+                if V != 0.0:
+                    tb = (_sgn(V) * thr - f) / (k * V)
+                    if tb < 0.0:
+                        tb = 0.0
+                tf = np.inf
+                if tmax > 0.0:
+                    tf = max(tmax - age, 0.0)
+                tn = min(tb, tf)
+                if tn >= rem:
+                    wf += (f * V * rem + 0.5 * k * V * V * rem * rem)
+                    wdmp += c * V * V * rem
+                    x += V * rem
+                    age += rem
+                    t = h
+                    break
+                wf += (f * V * tn + 0.5 * k * V * V * tn * tn)
+                wdmp += c * V * V * tn
+                x += V * tn
+                age += tn
+                t += tn
+                f = k * x + c * V
+                brk = True
+                forced = tf < tb
+            if brk:
+                s = _sgn(f)
+                if s == 0.0:
+                    s = _sgn(V) if V != 0.0 else 1.0
+                if forced and mus > 0.0:
+                    ncap = abs(f) / mus
+                n_ev = _record(ev_t, ev_a, n_ev, t0 + t, B * abs(k * x))
+                phase = 1.0
+                age = 0.0
+                continue
+        # ---- slip
+        Neff = N if N < ncap else ncap
+        F = s * muk * Neff
+        xeq = F / k
+        y0 = x - xeq
+        kind, tr = slip_search(m, c, k, y0, v, V, s, rem, tmin)
+        tmin = 0.0
+        y1, v1 = osc(m, c, k, y0, v, tr)
+        wdmp += osc_damping_work(m, c, k, y0, v, tr)
+        wf += F * (y1 - y0)
+        x = y1 + xeq
+        v = v1
+        t += tr
+        if kind == 0:
+            t = h
+            break
+        fst = k * x + c * V
+        if abs(fst) <= (_ADMIT if kind == 1 else _ADMIT_TOUCH) * mus * N:
+            phase = 0.0
+            # re-stick: the pad takes the surface velocity (|v - V| ~ 1e-15 m/s)
+            v = V
+            ncap = np.inf
+            age = 0.0
+        elif kind == 1:
+            s = -s
+        else:
+            # grazing touch that is not a re-stick: keep slipping past it
+            tmin = 1e-9
+    S[S_X] = x
+    S[S_V] = v
+    S[S_PHASE] = phase
+    S[S_S] = s
+    S[S_AGE] = age
+    S[S_NCAP] = ncap
+    S[S_WF] = wf
+    S[S_WD] = wdmp
+    S[S_NEV] = n_ev - nev0
+    if phase == 0.0:
+        S[S_F] = k * x + c * V
+    else:
+        Neff = N if N < ncap else ncap
+        S[S_F] = s * muk * Neff
+    return n_ev
+
+
+# ================================================================ jump model
+@njit(cache=True)
+def jump_restick(m, c, k, s, xb, V, muk, N):
+    """Closed-form slip outcome of the quasi-static jump model.
+
+    From breakaway at spring stretch ``xb`` with pad velocity ``V``, the free
+    slip ``m x'' + c x' + k x = s mu_k N`` is evaluated at
+    ``t_pi = pi / omega_d`` and corrected by one Newton step towards the
+    re-stick condition ``x' = V``. Returns ``(slip_time, x_restick)``;
+    ``slip_time = inf`` means no re-stick (steady sliding): over-damped pad,
+    or the overshoot too small to bring the pad back to the surface speed
+    (always the case for delta_mu = 0 with c > 0).
+    For V -> 0 this gives ``f_restick = mu_k N - (mu_s - mu_k) N exp(-zeta pi / sqrt(1 - zeta^2))``.
+    """
+    sig = 0.5 * c / m
+    wn2 = k / m
+    disc = sig * sig - wn2
+    if disc >= -1e-10 * wn2:
+        return np.inf, xb
+    wd = math.sqrt(-disc)
+    xeq = s * muk * N / k
+    y0 = xb - xeq
+    tp = math.pi / wd
+    e = math.exp(-sig * tp)
+    yp = -e * y0
+    vp = -e * V
+    ap = -2.0 * sig * vp - wn2 * yp
+    if s * ap <= 0.0:
+        return np.inf, xb
+    # re-stick exists only if the velocity peak after the first minimum reaches V
+    tz1 = _next_acc_zero(m, c, k, y0, V, 0.0)
+    if tz1 == np.inf:
+        return np.inf, xb
+    _, vpk = osc(m, c, k, y0, V, tz1 + math.pi / wd)
+    if s * (vpk - V) < 0.0:
+        return np.inf, xb
+    dt = (V - vp) / ap
+    if abs(dt) * wd > 0.5 * math.pi:
+        return np.inf, xb
+    xr = xeq + yp + vp * dt + 0.5 * ap * dt * dt
+    return tp + dt, xr
+
+
+@njit(cache=True)
+def _jump_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
+    m = P[P_M]
+    k = P[P_K]
+    c = P[P_C]
+    B = P[P_B] * gain
+    tmax = P[P_TMAX]
+    x = S[S_X]
+    phase = S[S_PHASE]
+    s = S[S_S]
+    age = S[S_AGE]
+    ncap = S[S_NCAP]
+    tsl = S[S_TSLIP]
+    t = 0.0
+    nev0 = n_ev
+    it = 0
+    while t < h:
+        it += 1
+        if it > MAX_EVENTS_PER_TICK:
+            S[S_TRUNC] += 1.0
+            break
+        rem = h - t
+        if phase == 0.0:
+            thr = mus * N
+            f = k * x + c * V
+            if abs(f) > thr * (1.0 + 1e-12) or (abs(f) >= thr and f * V > 0.0 and thr > 0.0) \
+                    or (thr == 0.0 and f != 0.0):
+                forced = False
+            else:
+                tb = np.inf
+                if V != 0.0:
+                    tb = max((_sgn(V) * thr - f) / (k * V), 0.0)
+                tf = max(tmax - age, 0.0) if tmax > 0.0 else np.inf
+                tn = min(tb, tf)
+                if tn >= rem:
+                    x += V * rem
+                    age += rem
+                    t = h
+                    break
+                x += V * tn
+                age += tn
+                t += tn
+                f = k * x + c * V
+                forced = tf < tb
+            s = _sgn(f)
+            if s == 0.0:
+                s = _sgn(V) if V != 0.0 else 1.0
+            if forced and mus > 0.0:
+                ncap = abs(f) / mus
+            n_ev = _record(ev_t, ev_a, n_ev, t0 + t, B * abs(k * x))
+            Neff = N if N < ncap else ncap
+            tsl, xr = jump_restick(m, c, k, s, x, V, muk, Neff)
+            S[S_XR] = xr
+            phase = 1.0
+            age = 0.0
+            continue
+        # ---- slip: count down the closed-form slip time, or slide steadily
+        Neff = N if N < ncap else ncap
+        if tsl == np.inf:
+            x = s * muk * Neff / k
+            if s * V <= 0.0:
+                phase = 0.0
+                ncap = np.inf
+                age = 0.0
+                continue
+            t = h
+            break
+        if tsl > rem:
+            tsl -= rem
+            t = h
+            break
+        t += tsl
+        tsl = 0.0
+        x = S[S_XR]
+        phase = 0.0
+        ncap = np.inf
+        age = 0.0
+    S[S_X] = x
+    S[S_V] = V
+    S[S_PHASE] = phase
+    S[S_S] = s
+    S[S_AGE] = age
+    S[S_NCAP] = ncap
+    S[S_TSLIP] = tsl
+    S[S_NEV] = n_ev - nev0
+    if phase == 0.0:
+        S[S_F] = k * x + c * V
+    else:
+        Neff = N if N < ncap else ncap
+        S[S_F] = s * muk * Neff
+    return n_ev
+
+
+# ================================================================ karnopp
+@njit(cache=True)
+def _karnopp_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
+    """Modified Karnopp virtual spring (DESIGN 3.5); ``S_X`` is the spring stretch."""
+    kk = P[P_KK]
+    vt = P[P_VT]
+    B = P[P_B] * gain
+    z = S[S_X]
+    phase = S[S_PHASE]
+    s = S[S_S]
+    nev0 = n_ev
+    thr = mus * N
+    kin = muk * N
+    if phase == 1.0:
+        if abs(V) < vt:
+            phase = 0.0          # stuck again, force preserved
+        elif V * s < 0.0:
+            phase = 0.0          # reversal: the spring unstretches first
+        else:
+            z = s * kin / kk     # anchor dragged behind the finger
+    if phase == 0.0:
+        zn = z + V * h
+        if abs(kk * zn) > thr:
+            s = _sgn(zn)
+            if abs(kk * z) >= thr or V == 0.0:
+                tb = 0.0
+            else:
+                tb = (s * thr / kk - z) / V
+            n_ev = _record(ev_t, ev_a, n_ev, t0 + min(max(tb, 0.0), h), B * thr)
+            phase = 1.0
+            z = s * kin / kk
+        else:
+            z = zn
+    S[S_X] = z
+    S[S_V] = V
+    S[S_PHASE] = phase
+    S[S_S] = s
+    S[S_F] = kk * z
+    S[S_NEV] = n_ev - nev0
+    return n_ev
+
+
+# ================================================================ stribeck
+@njit(cache=True)
+def stribeck_mu(vr_abs, W, mus, muk, a, b, p, d, variant):
+    """Friction coefficient of the Imaizumi pad at relative speed |vr| (m/s), load W (N).
+
+    variant 0: ``mu = mu_k + (mu_s - mu_k) exp(-a |vr|/W) + b |vr|/W``;
+    variant 1 (pre-maximum static region): ``mu = p |vr|/W`` below
+    ``|vr|/W < d``, then the Stribeck curve shifted by ``d``.
+    Returns ``(mu, dmu/d|vr|)``.
+    """
+    if W <= 0.0:
+        return 0.0, 0.0
+    u = vr_abs / W
+    if variant == 1:
+        if u < d:
+            return p * u, p / W
+        u = u - d
+    e = math.exp(-a * u)
+    return muk + (mus - muk) * e + b * u, (-(mus - muk) * a * e + b) / W
+
+
+@njit(cache=True)
+def _contactor(P, t):
+    A = P[P_CA]
+    w = P[P_CW]
+    return A * math.sin(w * t), A * w * math.cos(w * t), -A * w * w * math.sin(w * t)
+
+
+@njit(cache=True)
+def _stribeck_slip(P, u, du, s, V, W, mus, muk, ta, dur):
+    """Slip of the Imaizumi pad over ``dur`` seconds from ``ta``; returns (u, du, s, phase, F).
+
+    Adaptive exponential Rosenbrock steps: the friction is linearised about
+    the current relative velocity, the linear oscillator solved in closed
+    form; on the negative Stribeck slope the step keeps the growth factor
+    below e^0.5 (the self-excitation is physical; the step only resolves it).
+    Stops early at a re-stick and finishes the span in stick.
+    """
+    m = P[P_M]
+    k = P[P_K]
+    c = P[P_C]
+    var = int(P[P_SVAR])
+    t = ta
+    tend = ta + dur
+    F = 0.0
+    while t < tend:
+        xca, dxca, ddxca = _contactor(P, t)
+        vr0 = du + V - dxca
+        if var == 1:
+            sr = _sgn(vr0)
+        else:
+            sr = -s if vr0 == 0.0 else _sgn(vr0)
+        mu, dmu = stribeck_mu(abs(vr0), W, mus, muk, P[P_SA], P[P_SB], P[P_SP], P[P_SD], var)
+        F0 = -sr * mu * W
+        ceff = c + dmu * W
+        hs = min(P[P_HSUB], tend - t)
+        if ceff < 0.0:
+            hs = min(hs, 0.5 * m / (-ceff))
+        if hs < 1e-12 * max(1.0, abs(t)):
+            hs = tend - t
+        # F(vr) ~ F0 - dmu W (vr - vr0) with vr = u' + V - xc'(mid): a linear
+        # oscillator m u'' + (c + dmu W) u' + k u = F0 - dmu W (V - xc'(mid) - vr0)
+        _, dxcm, _ = _contactor(P, t + 0.5 * hs)
+        ueq = (F0 - dmu * W * (V - dxcm - vr0)) / k
+        y1, v1 = osc(m, ceff, k, u - ueq, du, hs)
+        un = y1 + ueq
+        dun = v1
+        tb = t + hs
+        xcb, dxcb, ddxcb = _contactor(P, tb)
+        vr1 = dun + V - dxcb
+        if var == 0 and vr0 != 0.0 and _sgn(vr1) != _sgn(vr0):
+            # relative velocity crossed zero: re-stick if the needed friction is admissible
+            fr = vr0 / (vr0 - vr1)
+            tc = t + fr * hs
+            xcc, dxcc, ddxcc = _contactor(P, tc)
+            uc = u + fr * (un - u)
+            Fst = m * ddxcc + c * (dxcc - V) + k * uc
+            if abs(Fst) <= mus * W:
+                xce, dxce, ddxce = _contactor(P, tend)
+                u = uc + (xce - xcc) - V * (tend - tc)
+                du = dxce - V
+                return u, du, s, 0.0, m * ddxce + c * du + k * u
+            s = -s
+        u = un
+        du = dun
+        t = tb
+        if vr1 != 0.0:
+            mu1, _ = stribeck_mu(abs(vr1), W, mus, muk, P[P_SA], P[P_SB], P[P_SP], P[P_SD], var)
+            F = -_sgn(vr1) * mu1 * W
+            s = -_sgn(vr1)
+        else:
+            F = F0
+    return u, du, s, 1.0, F
+
+
+@njit(cache=True)
+def _stribeck_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
+    """Imaizumi pad on a laterally vibrating contactor, finger bone at speed ``V``.
+
+    ``S_X`` is the spring stretch u = x_p - x_f, ``S_V`` its rate; ``W = N``.
+    Stick: the pad moves with the contactor (u' = x_c' - V, exact);
+    breakaway when the needed friction ``m x_c'' + c u' + k u`` exceeds
+    ``mu_s W`` (located by bisection to ~1e-18 s). Slip: the friction is
+    linearised about the current relative velocity and the resulting linear
+    oscillator is solved in closed form over substeps of at most ``P_HSUB``
+    (an exponential Rosenbrock step: stable on the stiff pre-maximum branch
+    and on the self-exciting negative Stribeck slope). Re-stick at a zero of
+    the relative velocity when the needed friction is within ``mu_s W``.
+    The friction force ``F`` on the pad is reported in ``S_F``.
+    """
+    m = P[P_M]
+    k = P[P_K]
+    c = P[P_C]
+    B = P[P_B] * gain
+    W = N
+    u = S[S_X]
+    du = S[S_V]
+    phase = S[S_PHASE]
+    s = S[S_S]
+    F = S[S_F]
+    nev0 = n_ev
+    nsub = int(math.ceil(h / P[P_HSUB] - 1e-9))
+    if nsub < 1:
+        nsub = 1
+    hs = h / nsub
+    if int(P[P_SVAR]) == 1:
+        phase = 1.0      # no set-valued stick in the pre-maximum variant
+    for i in range(nsub):
+        ta = t0 + i * hs
+        if phase == 0.0:
+            xca, dxca, ddxca = _contactor(P, ta)
+            xcb, dxcb, ddxcb = _contactor(P, ta + hs)
+            ub = u + (xcb - xca) - V * hs
+            Fb = m * ddxcb + c * (dxcb - V) + k * ub
+            if abs(Fb) <= mus * W:
+                u = ub
+                du = dxcb - V
+                F = Fb
+                continue
+            lo = 0.0
+            hi = hs
+            for _ in range(60):
+                mid = 0.5 * (lo + hi)
+                xcm, dxcm, ddxcm = _contactor(P, ta + mid)
+                Fm = m * ddxcm + c * (dxcm - V) + k * (u + (xcm - xca) - V * mid)
+                if abs(Fm) > mus * W:
+                    hi = mid
+                else:
+                    lo = mid
+            xcm, dxcm, ddxcm = _contactor(P, ta + hi)
+            u = u + (xcm - xca) - V * hi
+            du = dxcm - V
+            Fb = m * ddxcm + c * du + k * u
+            n_ev = _record(ev_t, ev_a, n_ev, ta + hi, B * abs(k * u))
+            s = _sgn(Fb)
+            phase = 1.0
+            if hs - hi > 0.0:
+                u, du, s, phase, F = _stribeck_slip(P, u, du, s, V, W, mus, muk, ta + hi, hs - hi)
+            continue
+        u, du, s, phase, F = _stribeck_slip(P, u, du, s, V, W, mus, muk, ta, hs)
+    S[S_X] = u
+    S[S_V] = du
+    S[S_PHASE] = phase
+    S[S_S] = s
+    S[S_F] = F
+    S[S_NEV] = n_ev - nev0
+    return n_ev
+
+
+# ================================================================ naive baselines
+@njit(cache=True)
+def _explicit_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev, rk4):
+    """One fixed explicit step per tick (forward Euler or RK4) with stick/slip switching.
+
+    Kept only to show where naive integration fails (DESIGN 4): on the
+    Konyo pad forward Euler needs h < 2 zeta / omega_n ~ 5 us and RK4
+    h < 2.8 / omega_n ~ 63 us. Blow-up (|x| beyond a physical bound, or a
+    non-finite state) sets ``S_BLOW`` and freezes the state at zero.
+    """
+    m = P[P_M]
+    k = P[P_K]
+    c = P[P_C]
+    B = P[P_B] * gain
+    x = S[S_X]
+    v = S[S_V]
+    phase = S[S_PHASE]
+    s = S[S_S]
+    nev0 = n_ev
+    thr = mus * N
+    if S[S_BLOW] != 0.0:
+        S[S_F] = 0.0
+        S[S_NEV] = 0.0
+        return n_ev
+    if phase == 0.0:
+        x += V * h
+        v = V
+        f = k * x + c * V
+        if abs(f) > thr or (thr == 0.0 and f != 0.0):
+            s = _sgn(f)
+            n_ev = _record(ev_t, ev_a, n_ev, t0 + h, B * abs(k * x))
+            phase = 1.0
+    else:
+        F = s * muk * N
+        if rk4:
+            a1 = (F - c * v - k * x) / m
+            x2 = x + 0.5 * h * v
+            v2 = v + 0.5 * h * a1
+            a2 = (F - c * v2 - k * x2) / m
+            x3 = x + 0.5 * h * v2
+            v3 = v + 0.5 * h * a2
+            a3 = (F - c * v3 - k * x3) / m
+            x4 = x + h * v3
+            v4 = v + h * a3
+            a4 = (F - c * v4 - k * x4) / m
+            x = x + h / 6.0 * (v + 2 * v2 + 2 * v3 + v4)
+            v = v + h / 6.0 * (a1 + 2 * a2 + 2 * a3 + a4)
+        else:
+            a1 = (F - c * v - k * x) / m
+            x, v = x + h * v, v + h * a1
+        if -s * (v - V) <= 0.0:
+            if abs(k * x + c * V) <= thr:
+                phase = 0.0
+                v = V
+            else:
+                s = -s
+    limit = 10.0 * (max(mus, muk) * N / k + abs(V) * (h + math.sqrt(m / k))) + 1e-6
+    if not (math.isfinite(x) and math.isfinite(v)) or abs(x) > limit:
+        S[S_BLOW] = 1.0
+        S[S_BLOWT] = t0 + h
+        x = 0.0
+        v = 0.0
+        phase = 0.0
+    S[S_X] = x
+    S[S_V] = v
+    S[S_PHASE] = phase
+    S[S_S] = s
+    S[S_F] = (k * x + c * V) if phase == 0.0 else s * muk * N
+    if S[S_BLOW] != 0.0:
+        S[S_F] = 0.0
+    S[S_NEV] = n_ev - nev0
+    return n_ev
+
+
+# ================================================================ dispatch
+@njit(cache=True)
+def model_tick(model, S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
+    """Advance model number ``model`` by one tick (see module docstring)."""
+    if model == MODEL_EXACT:
+        return _exact_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev)
+    if model == MODEL_JUMP:
+        return _jump_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev)
+    if model == MODEL_KARNOPP:
+        return _karnopp_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev)
+    if model == MODEL_STRIBECK:
+        return _stribeck_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev)
+    if model == MODEL_EULER:
+        return _explicit_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev, False)
+    return _explicit_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev, True)
+
+
+@njit(cache=True)
+def run_ticks(model, S, P, t, V, N, mus, muk, gain, out_f, out_state, out_x, out_v, out_wf, out_wd, ev_t, ev_a):
+    """Offline fast path: advance over ``n`` ticks.
+
+    Tick ``i`` runs from ``t[i-1]`` to ``t[i]`` with inputs ``V[i], N[i], ...``
+    (tick 0 has zero length and only sets the state to the first inputs).
+    Writes per-tick outputs (state at the end of the tick) into ``out_*``
+    (shape (n,)) and returns the total number of events (may exceed
+    ``ev_t.size``; then only the first ``ev_t.size`` are stored).
+    """
+    n = t.shape[0]
+    n_ev = 0
+    for i in range(n):
+        h = t[i] - t[i - 1] if i > 0 else 0.0
+        t0 = t[i - 1] if i > 0 else t[0]
+        if h > 0.0:
+            n_ev = model_tick(model, S, P, t0, h, V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
+        else:
+            S[S_WF] = 0.0
+            S[S_WD] = 0.0
+        out_f[i] = S[S_F]
+        out_state[i] = S[S_PHASE]
+        out_x[i] = S[S_X]
+        out_v[i] = S[S_V]
+        out_wf[i] = S[S_WF]
+        out_wd[i] = S[S_WD]
+    return n_ev

@@ -1,0 +1,216 @@
+"""Pad kernels against exact answers: closed-form periods, tick-rate invariance, energy."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+from scipy.integrate import solve_ivp
+
+from shapedisplay.devices import FrictionParams, PadParams
+from shapedisplay.errors import InputError, ModelError
+from shapedisplay.runtime import pads
+from shapedisplay.runtime.models import MODELS, JumpModel, simulate_pad
+
+KONYO = PadParams(1.0e-6, 2000.0, 0.01)
+
+
+def reference_period(pad, mu_s, mu_k, N, V):
+    """Stick-slip period from an independent fine-step integration of the slip phase.
+
+    Slip from breakaway (k x + c V = mu_s N, x' = V) is integrated with
+    DOP853 at rtol 1e-12 until x' returns to V; the stick time to the next
+    breakaway is then (mu_s N - f_restick) / (k V).
+    """
+    m, k, c = pad.mass, pad.stiffness, pad.damping
+    xb = (mu_s * N - c * V) / k
+
+    def rhs(t, z):
+        return [z[1], (mu_k * N - c * z[1] - k * z[0]) / m]
+
+    def back(t, z):
+        return z[1] - V
+    back.direction = 1.0
+    back.terminal = True
+    sol = solve_ivp(rhs, (1e-9, 1e-2), [xb, V], method="DOP853", rtol=1e-12, atol=1e-16,
+                    events=back, max_step=1e-6, first_step=1e-10)
+    # start just after the breakaway so the tangent start is not an event
+    t_slip = sol.t_events[0][0]
+    x_r = sol.y_events[0][0][0]
+    f_r = k * x_r + c * V
+    return t_slip + (mu_s * N - f_r) / (k * V)
+
+
+@pytest.mark.parametrize("V,N", [(0.05, 2.0), (0.02, 1.0), (0.2, 3.0)])
+def test_exact_stick_period_matches_independent_integration(V, N):
+    r = simulate_pad("exact", V=V, N=N, pad=KONYO, friction=FrictionParams(0.5, 0.3),
+                     tick_rate=10_000, duration=0.1)
+    ref = reference_period(KONYO, 0.5, 0.3, N, V)
+    periods = np.diff(r.event_time)[1:]
+    assert len(periods) >= 3
+    assert np.all(np.abs(periods - ref) <= 0.005 * ref)
+    # in fact it is exact to the reference's precision
+    assert np.all(np.abs(periods - ref) <= 1e-6 * ref)
+
+
+def test_exact_period_undamped_closed_form():
+    """c = 0: f_restick = (2 mu_k - mu_s) N and slip = a known fraction of a cycle."""
+    pad = PadParams(1e-6, 2000.0, 0.0)
+    N, V, mus, muk = 2.0, 0.05, 0.5, 0.3
+    w = math.sqrt(pad.stiffness / pad.mass)
+    A0 = (mus - muk) * N / pad.stiffness          # offset from equilibrium at breakaway
+    # y = A0 cos wt + V/w sin wt ; v = V cos wt - A0 w sin wt; back to V at wt = 2pi - 2 atan(A0 w / V)
+    ts = (2 * math.pi - 2 * math.atan2(A0 * w, V)) / w
+    f_r = (2 * muk - mus) * N
+    period = ts + (mus * N - f_r) / (pad.stiffness * V)
+    r = simulate_pad("exact", V=V, N=N, pad=pad, friction=FrictionParams(mus, muk), tick_rate=2000, duration=0.1)
+    assert np.allclose(np.diff(r.event_time), period, rtol=1e-9, atol=0)
+
+
+def test_exact_event_times_do_not_depend_on_tick_rate():
+    runs = [simulate_pad("exact", V=0.05, N=2.0, pad=KONYO, tick_rate=rate, duration=0.2)
+            for rate in (1000, 2000, 5000, 10000)]
+    base = runs[0].event_time
+    assert len(base) > 20
+    for r in runs[1:]:
+        assert len(r.event_time) == len(base)
+        assert np.max(np.abs(r.event_time - base)) <= 1e-9
+        assert np.allclose(r.event_amplitude, runs[0].event_amplitude, rtol=1e-9)
+
+
+def test_several_events_inside_one_tick():
+    r = simulate_pad("exact", V=0.5, N=2.0, pad=KONYO, tick_rate=100, duration=0.1)
+    per_tick = np.bincount(np.floor(r.event_time * 100 + 1e-9).astype(int))
+    assert per_tick.max() >= 5
+    ref = simulate_pad("exact", V=0.5, N=2.0, pad=KONYO, tick_rate=10_000, duration=0.1)
+    assert np.max(np.abs(r.event_time - ref.event_time)) <= 1e-9
+
+
+def test_burst_amplitude_is_elastic_force_at_breakaway():
+    pad = KONYO
+    V, N, mus = 0.05, 2.0, 0.5
+    r = simulate_pad("exact", V=V, N=N, pad=pad, friction=FrictionParams(mus, 0.3), tick_rate=1000, duration=0.05)
+    # A = B (mu_s N - c x') with x' = V at breakaway, B = 1
+    assert np.allclose(r.event_amplitude, mus * N - pad.damping * V, rtol=1e-12)
+
+
+def test_energy_balance_per_tick():
+    """Work by friction on the pad = change of stored energy + damper loss, every tick."""
+    for V, N in ((0.05, 2.0), (0.3, 1.0)):
+        r = simulate_pad("exact", V=V, N=N, pad=KONYO, tick_rate=1000, duration=0.05)
+        m, k = KONYO.mass, KONYO.stiffness
+        E = 0.5 * k * r.x ** 2 + 0.5 * m * r.v ** 2
+        lhs = r.work_friction[2:]
+        rhs = np.diff(E)[1:] + r.work_damping[2:]
+        scale = np.abs(r.work_friction).max()
+        assert np.max(np.abs(lhs - rhs)) <= 1e-9 * scale
+        assert np.all(r.work_damping >= 0)
+
+
+@settings(max_examples=25, deadline=None)
+@given(V=st.floats(-0.5, 0.5), N=st.floats(0.0, 8.0), dmu=st.floats(0.0, 0.4),
+       zeta=st.floats(0.0, 1.5), rate=st.sampled_from([100, 1000, 10_000, 96_000]))
+def test_friction_never_exceeds_static_limit(V, N, dmu, zeta, rate):
+    c = zeta * 2 * math.sqrt(KONYO.stiffness * KONYO.mass)
+    pad = PadParams(KONYO.mass, KONYO.stiffness, c)
+    for model in ("exact", "jump"):
+        r = simulate_pad(model, V=V, N=N, pad=pad, friction=FrictionParams(0.5, 0.5 - dmu),
+                         tick_rate=rate, duration=0.02)
+        assert np.all(np.isfinite(r.friction_force))
+        # first tick: the pad takes the surface speed, f = c V may exceed a tiny mu_s N
+        assert np.all(np.abs(r.friction_force[1:]) <= 0.5 * N * (1 + 1e-9) + 1e-15)
+
+
+def test_euler_and_rk4_diverge_at_1khz_where_exact_does_not():
+    for name in ("euler", "rk4"):
+        with pytest.raises(ModelError, match="diverged"):
+            simulate_pad(name, V=0.05, N=2.0, pad=KONYO, tick_rate=1000, duration=0.05)
+        r = simulate_pad(name, V=0.05, N=2.0, pad=KONYO, tick_rate=1000, duration=0.05, on_divergence="report")
+        assert r.diverged_at is not None and np.all(np.isfinite(r.friction_force))
+    ok = simulate_pad("exact", V=0.05, N=2.0, pad=KONYO, tick_rate=1000, duration=0.05)
+    assert ok.diverged_at is None and len(ok.event_time) > 3
+    # rk4 is stable once h * omega_n < 2.8 (96 kHz: 0.47)
+    r = simulate_pad("rk4", V=0.05, N=2.0, pad=KONYO, tick_rate=96_000, duration=0.02)
+    assert r.diverged_at is None
+
+
+@pytest.mark.parametrize("c", [0.01, 0.0])
+def test_delta_mu_zero_slips_once_then_slides(c):
+    pad = PadParams(1e-6, 2000.0, c)
+    for model in ("exact", "jump"):
+        r = simulate_pad(model, V=0.05, N=2.0, pad=pad, friction=FrictionParams(0.5, 0.5),
+                         tick_rate=1000, duration=0.3)
+        assert len(r.event_time) == 1, model
+        assert np.all(r.state[-100:] == 1)
+        assert np.allclose(r.friction_force[-100:], 1.0)
+
+
+def test_v_zero_long_stick_no_creep():
+    r = simulate_pad("exact", V=0.0, N=2.0, pad=KONYO, tick_rate=1000, duration=0.5)
+    assert len(r.event_time) == 0 and np.all(r.state == 0) and np.all(r.x == 0)
+
+
+def test_normal_force_zero_is_finite():
+    r = simulate_pad("exact", V=0.05, N=0.0, pad=KONYO, tick_rate=1000, duration=0.05)
+    assert np.all(np.isfinite(r.friction_force)) and np.all(r.friction_force[1:] == 0)
+    assert len(r.event_time) <= 1
+
+
+def test_velocity_reversal_breaks_away_both_ways():
+    n = 2001
+    V = np.where(np.arange(n) < 1000, 0.05, -0.05)
+    r = simulate_pad("exact", V=V, N=2.0, pad=KONYO, tick_rate=10_000)
+    t_rev = 1000 / 10_000
+    assert np.any(r.event_time < t_rev) and np.any(r.event_time > t_rev)
+    assert r.friction_force[990] > 0 > r.friction_force[-1]
+    assert np.all(np.abs(r.friction_force[1:]) <= 1.0 + 1e-12)
+
+
+def test_jump_within_stated_bound():
+    checked = 0
+    for zeta in (0.0, 0.112, 0.3, 0.6):
+        c = zeta * 2 * math.sqrt(2000.0 * 1e-6)
+        pad = PadParams(1e-6, 2000.0, c)
+        for V, N in ((0.02, 0.5), (0.05, 2.0), (0.2, 0.5), (0.5, 0.5), (0.5, 2.0)):
+            r = V * pad.stiffness / (0.2 * N * pad.omega_n)
+            kw = dict(V=V, N=N, pad=pad, friction=FrictionParams(0.5, 0.3), tick_rate=10_000, duration=0.05)
+            e = simulate_pad("exact", **kw)
+            j = simulate_pad("jump", **kw)
+            assert (len(e.event_time) > 1) == (len(j.event_time) > 1)
+            if len(e.event_time) > 3 and r <= JumpModel.BOUND_R_MAX:
+                pe = np.diff(e.event_time)[1:].mean()
+                pj = np.diff(j.event_time)[1:].mean()
+                assert abs(pj - pe) / pe <= JumpModel.BOUND_PER_R * r + 1e-9
+                checked += 1
+    assert checked >= 12
+
+
+def test_jump_restick_force_limit_formula():
+    """V -> 0: f_r = mu_k N - delta_mu N exp(-zeta pi / sqrt(1 - zeta^2))."""
+    m, k, c = 1e-6, 2000.0, 0.01
+    N, mus, muk = 2.0, 0.5, 0.3
+    zeta = c / (2 * math.sqrt(k * m))
+    xb = mus * N / k
+    _, xr = pads.jump_restick(m, c, k, 1.0, xb, 1e-9, muk, N)
+    expect = muk * N - (mus - muk) * N * math.exp(-zeta * math.pi / math.sqrt(1 - zeta ** 2))
+    assert abs(k * xr - expect) <= 1e-6 * N
+
+
+def test_registry_and_bad_inputs():
+    assert set(MODELS) == {"exact", "jump", "karnopp", "stribeck", "euler", "rk4"}
+    with pytest.raises(InputError, match="did you mean 'exact'"):
+        simulate_pad("exakt")
+    with pytest.raises(ModelError, match="mass"):
+        simulate_pad("exact", pad=PadParams(0.0, 2000.0, 0.01))
+    with pytest.raises(ModelError, match="stiffness"):
+        simulate_pad("exact", pad=PadParams(1e-6, -1.0, 0.01))
+    with pytest.raises(ModelError, match="mu_k"):
+        simulate_pad("exact", friction=FrictionParams(0.3, 0.5))
+    for rate in (50, 200_000, float("nan")):
+        with pytest.raises(InputError, match="tick_rate"):
+            simulate_pad("exact", tick_rate=rate)
+    with pytest.raises(InputError, match="`N`"):
+        simulate_pad("exact", N=-1.0)
+    with pytest.raises(InputError, match="finite"):
+        simulate_pad("exact", V=np.array([0.0, np.nan]))
