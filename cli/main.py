@@ -18,6 +18,7 @@ COMMAND_MODULES = (
     "shapedisplay_cli.cmd_heightmap",
     "shapedisplay_cli.cmd_preview",
     "shapedisplay_cli.cmd_scene",
+    "shapedisplay_cli.cmd_device",
 )
 
 

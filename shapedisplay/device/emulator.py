@@ -145,6 +145,9 @@ class DeviceEmulator:
         self._lock = threading.RLock()
         self._stop = threading.Event()
         self._io_thread = None
+        self._tx_thread = None
+        self._txq = collections.deque()
+        self._txcond = threading.Condition()
         self._render_thread = None
         self._faults: list[_Fault] = []
         self._rx_t = self._tx_t = 0.0
@@ -193,6 +196,9 @@ class DeviceEmulator:
         self._stop.clear()
         self._io_thread = threading.Thread(target=self._io_loop, name="emulator-io", daemon=True)
         self._io_thread.start()
+        if self.config.baud > 0:
+            self._tx_thread = threading.Thread(target=self._tx_loop, name="emulator-tx", daemon=True)
+            self._tx_thread.start()
         self._send(P.Msg.BOOT, P.SEQ_UNSOLICITED, P.BOOT.pack(self.config.protocol_version, self.boots))
         return self.port
 
@@ -212,8 +218,9 @@ class DeviceEmulator:
         """Stop the threads and close both pty ends (the port disappears)."""
         self._stop.set()
         self._stop_render()
-        if self._io_thread is not None and self._io_thread is not threading.current_thread():
-            self._io_thread.join(2.0)
+        for th in (self._io_thread, self._tx_thread):
+            if th is not None and th is not threading.current_thread():
+                th.join(2.0)
         for fd in (self._master, self._slave):
             if fd is not None:
                 try:
@@ -294,8 +301,16 @@ class DeviceEmulator:
         self._write(self._damage(wire, "tx"))
 
     def _write(self, wire: bytes) -> None:
+        """Queue ``wire`` for the transmit thread (full duplex: sending never stalls receiving)."""
+        if self.config.baud <= 0:
+            self._write_now(wire)
+            return
+        with self._txcond:
+            self._txq.append(wire)
+            self._txcond.notify()
+
+    def _write_now(self, wire: bytes) -> None:
         with self._wlock:
-            self._pace(len(wire), "tx")
             fd = self._master
             if fd is None:
                 return
@@ -310,6 +325,17 @@ class DeviceEmulator:
                     return
                 view = view[n:]
 
+    def _tx_loop(self) -> None:
+        while True:
+            with self._txcond:
+                while not self._txq and not self._stop.is_set():
+                    self._txcond.wait(0.05)
+                if self._stop.is_set():
+                    return
+                wire = self._txq.popleft()
+            self._pace(len(wire), "tx")      # the last byte leaves the UART at the paced time
+            self._write_now(wire)
+
     def _io_loop(self) -> None:
         fd = self._master
         pending = b""
@@ -318,7 +344,7 @@ class DeviceEmulator:
                 r, _, _ = select.select([fd], [], [], 0.05)
                 if not r:
                     continue
-                data = os.read(fd, 256)
+                data = os.read(fd, 1024)
             except (OSError, ValueError):
                 break
             if not data:

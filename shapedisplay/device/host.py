@@ -366,6 +366,8 @@ class DeviceLink:
                         f"device on '{self.port}' speaks protocol {f.version}; this host speaks "
                         f"{P.PROTOCOL_MIN_VERSION}..{P.PROTOCOL_VERSION} (update shapedisplay or the firmware)")
                 if f.type == P.Msg.BOOT:
+                    if msg_type == P.Msg.HELLO:
+                        break        # the device just booted: greet it again
                     raise DeviceResetError(f"device on '{self.port}' reset during {name}")
                 if f.type < 0x80:
                     raise LinkError(f"port '{self.port}' echoes our own frames: it is a loopback, not a device")
