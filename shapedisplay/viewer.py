@@ -330,6 +330,8 @@ def _mapping_gain(meta: dict) -> tuple[float, float] | None:
                     return None
         return None
 
+    if not mapping.get("height", True) or mapping.get("perceptual_exponent") is not None:
+        return None     # N is not linear in h: draw the force itself
     gain = q(("n_gain_n_per_m", "n_gain"), "N/m")
     base = q(("n_base_n", "n_base"), "N")
     if gain is None or not math.isfinite(gain) or gain <= 0:
@@ -378,6 +380,14 @@ def model_from_table(table, title: str | None = None, widgets: list | None = Non
         fields["slope"] = slope_of(relief, g.dx, g.dy)
     if "slope" in fields:
         fields["walls"] = (fields["slope"] >= WALL_SLOPE).astype(np.float64)
+    friction = table.meta.get("device", {}).get("friction", {}) if isinstance(table.meta.get("device"), dict) else {}
+    scale = fields.get("friction_scale", 1.0)
+    for name, mu_key in (("breakaway_force", "mu_s"), ("kinetic_force", "mu_k")):
+        mu = friction.get(mu_key) if isinstance(friction, dict) else None
+        if name not in fields and "normal_force" in fields and isinstance(mu, (int, float)) and math.isfinite(mu):
+            fields[name] = float(mu) * scale * fields["normal_force"]     # what the runtime computes
+            units[name], labels[name] = "N", name.replace("_", " ")
+            notes.append(f"{name} = {mu_key} * N (device {mu_key} = {mu:g})")
     if "lateral_x" in fields or "lateral_y" in fields:
         fields["lateral"] = np.hypot(fields.get("lateral_x", 0.0), fields.get("lateral_y", 0.0))
     for name in fields:
@@ -666,6 +676,8 @@ class Preview:
         self.stroke_times: np.ndarray | None = None
         self.last_readout: dict | None = None
         self.info = ""                                  # text shown in the upper left corner
+        self._picker = None
+        self.has_chart = False
 
     # -- coordinates ------------------------------------------------------------------------
     def z_display(self, relief) -> np.ndarray:
@@ -690,8 +702,14 @@ class Preview:
         if point is None:
             return
         values = self.read_at_display(point)
-        self.plotter.add_text(self.model.format_readout(values), position="lower_left", font_size=9,
-                              color="black", name="readout")
+        text = self.model.format_readout(values)
+        if self.has_chart:   # the chart holds the lower-left corner: read out just above it
+            actor = self.plotter.add_text(text, position=(8, int(0.34 * self.plotter.window_size[1])),
+                                          font_size=7, color="black", name="readout")
+            actor.prop.background_color = "white"
+            actor.prop.background_opacity = 0.8
+        else:
+            self.plotter.add_text(text, position="lower_left", font_size=9, color="black", name="readout")
 
     def replay(self, frames: int = 240, realtime: bool = True, on_frame: Callable | None = None) -> int:
         """Move the cursor marker along the stroke; returns the number of frames drawn.
@@ -846,6 +864,7 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
         _draw_stroke(pv, pl, preview, trace, lift, extent)
         if chart:
             _draw_chart(pv, pl, trace)
+            preview.has_chart = True
 
     # ---- annotations ----------------------------------------------------------------------
     if annotations:
@@ -872,7 +891,14 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
     if view == "top":
         pl.enable_parallel_projection()
     pl.reset_camera()
-    pl.camera.zoom(1.5 if view == "top" else 1.3)
+    pl.camera.zoom(1.35 if view == "top" else 1.15)
+    if scalar_bar:   # move the surface a little left, clear of the colour bar
+        cam = pl.camera
+        fwd = np.subtract(cam.focal_point, cam.position)
+        right = np.cross(fwd, cam.up)
+        right *= 0.06 * np.linalg.norm(fwd) / max(np.linalg.norm(right), 1e-12)
+        cam.focal_point = tuple(np.add(cam.focal_point, right))
+        cam.position = tuple(np.add(cam.position, right))
 
     if not off_screen:
         pl.enable_surface_point_picking(callback=preview._show_readout, show_message=False,
@@ -886,13 +912,17 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
 
 
 def _hover(preview: Preview) -> None:
+    """Read out the surface under the mouse; nothing when the mouse is off the surface."""
+    from vtkmodules.vtkRenderingCore import vtkCellPicker
+
     pl = preview.plotter
-    try:
-        pos = pl.pick_mouse_position()
-    except Exception:  # noqa: BLE001 - picking outside the scene raises inside pyvista; ignore
-        return
-    if pos is not None:
-        preview._show_readout(pos)
+    if preview._picker is None:
+        preview._picker = vtkCellPicker()
+        preview._picker.SetTolerance(0.0005)
+    x, y = pl.iren.get_event_position()
+    picker = preview._picker
+    if picker.Pick(x, y, 0, pl.renderer) and picker.GetActor() is not None:
+        preview._show_readout(picker.GetPickPosition())
         pl.render()
 
 
@@ -967,9 +997,10 @@ def _draw_scale_bar(pv, pl, xs: np.ndarray, ys: np.ndarray) -> None:
     depth = float(np.ptp(ys))
     length = nice_number(width / 5.0) if width > 0 else 1.0
     x0 = float(xs.min())
-    y = float(ys.min()) - 0.08 * max(depth, 0.1 * width)
+    extent = max(width, depth)
+    y = float(ys.min()) - 0.04 * extent
     bar = pv.Line((x0, y, 0.0), (x0 + length, y, 0.0))
     pl.add_mesh(bar, color="black", line_width=6, pickable=False)
-    y_label = y - 0.05 * max(depth, 0.1 * width)
+    y_label = y - 0.04 * extent
     pl.add_point_labels(np.array([[x0 + 0.5 * length, y_label, 0.0]]), [f"{length:g} mm"], font_size=12,
                         text_color="black", shape=None, show_points=False, always_visible=True)
