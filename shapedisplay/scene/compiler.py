@@ -465,7 +465,7 @@ def compile_scene(path, device=None, options=None):
     lims = height_limits(scene)
 
     # -- every block (and every toggle state), as float channels
-    blocks, walls_total, steepest = [], 0, 0.0
+    blocks, walls_total, steepest, wall_blocks = [], 0, 0.0, 0
     for g in grps:
         toggle = next((scene.widgets[i] for i in g["members"] if WIDGET_TYPES[scene.widgets[i].type].states), None)
         variants = {}
@@ -481,6 +481,7 @@ def compile_scene(path, device=None, options=None):
             main, wc, sp = _group_channels(scene, g["rect"], reach, None, dev, mapping, options, kept, lims)
             walls_total += wc
             steepest = max(steepest, sp)
+        wall_blocks += bool(wc)
         blocks.append({"group": g, "main": main, "toggle": toggle, "variants": variants})
 
     # -- quantization over every stored value and the background
@@ -574,7 +575,7 @@ def compile_scene(path, device=None, options=None):
         "quantization": qinfo,
         "walls": {"count": walls_total, "fraction": walls_total / max(stored_samples, 1),
                   "max_slope": None if math.isinf(options.max_slope) else options.max_slope,
-                  "steepest": steepest, "regions": 0, "boxes_mm": [],
+                  "steepest": steepest, "regions": wall_blocks, "boxes_mm": [],
                   "limited": (f"slope magnitude clipped to {options.max_slope:g}, direction kept"
                               if walls_total and options.limit_walls else
                               ("no walls" if not walls_total else "not limited (limit_walls=False)"))},
