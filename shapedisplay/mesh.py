@@ -338,22 +338,32 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units="mm", ba
             f"{where}: vertices must be finite: {int(bad.sum())} NaN/inf vertices, first #{i} = {verts[i].tolist()}"
         )
 
+    # coordinates as contiguous columns (fast gathers and reductions), metres, rotated
     scale = UNITS[units]
-    tri = (verts * scale) @ rot.T
-    tri = tri[faces]  # (m, 3, 3) metres, rotated
-    e1 = tri[:, 1] - tri[:, 0]
-    e2 = tri[:, 2] - tri[:, 0]
-    area2 = np.linalg.norm(np.cross(e1, e2), axis=1)
-    lo, hi = tri.reshape(-1, 3).min(0), tri.reshape(-1, 3).max(0)
+    px, py, pz = np.ascontiguousarray(verts.T) * scale
+    if not np.array_equal(rot, np.eye(3)):
+        px, py, pz = rot @ np.vstack([px, py, pz])
+    f0, f1, f2 = np.ascontiguousarray(faces.T)
+    e1x, e1y, e1z = px[f1] - px[f0], py[f1] - py[f0], pz[f1] - pz[f0]
+    e2x, e2y, e2z = px[f2] - px[f0], py[f2] - py[f0], pz[f2] - pz[f0]
+    nz = e1x * e2y - e1y * e2x                      # twice the projected (signed) area
+    area2sq = (e1y * e2z - e1z * e2y) ** 2 + (e1z * e2x - e1x * e2z) ** 2 + nz ** 2
+    lo = np.array([px[used].min(), py[used].min(), pz[used].min()])
+    hi = np.array([px[used].max(), py[used].max(), pz[used].max()])
     diag = float(np.linalg.norm(hi - lo))
-    degenerate = area2 <= (1e-9 * diag) ** 2
-    n_deg = int(degenerate.sum())
-    tri = tri[~degenerate]
-    if len(tri) == 0:
+    degenerate = area2sq <= (1e-9 * diag) ** 4      # |cross| <= (1e-9 * bounding-box diagonal)^2
+    n_deg = int(np.count_nonzero(degenerate))
+    if n_deg == len(faces):
         raise InputError(f"{where}: all {len(faces)} faces are degenerate (zero area); nothing to rasterise")
-    lo, hi = tri.reshape(-1, 3).min(0), tri.reshape(-1, 3).max(0)
+    if n_deg:
+        keep = ~degenerate
+        faces, nz = faces[keep], nz[keep]
+        used = np.zeros(len(verts), dtype=bool)
+        used[faces.ravel()] = True
+        lo = np.array([px[used].min(), py[used].min(), pz[used].min()])
+        hi = np.array([px[used].max(), py[used].max(), pz[used].max()])
     width, height = float(hi[0] - lo[0]), float(hi[1] - lo[1])
-    proj = np.abs(e1[~degenerate, 0] * e2[~degenerate, 1] - e1[~degenerate, 1] * e2[~degenerate, 0]).sum() / 2
+    proj = float(np.abs(nz).sum()) / 2
     tiny = 1e-9 * max(diag, 1e-300)
     if width <= tiny or height <= tiny or proj <= (1e-9 * diag) ** 2:
         raise InputError(
@@ -383,11 +393,11 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units="mm", ba
     sdx, sdy = dx / k, dy / k
     ox = lo[0] + x0 - dx / 2 * (1 - 1 / k)
     oy = lo[1] + y0 - dy / 2 * (1 - 1 / k)
-    g = np.empty_like(tri)
-    g[:, :, 0] = (tri[:, :, 0] - ox) / sdx
-    g[:, :, 1] = (tri[:, :, 1] - oy) / sdy
-    g[:, :, 2] = tri[:, :, 2] - lo[2]
-    zbuf = raster.rasterize(g, rows * k, cols * k, method=method)
+    g = np.empty((len(px), 3))
+    g[:, 0] = (px - ox) / sdx
+    g[:, 1] = (py - oy) / sdy
+    g[:, 2] = pz - lo[2]
+    zbuf = raster.rasterize_mesh(g, faces, rows * k, cols * k, method=method)
     covered = np.isfinite(zbuf)
     zbuf[~covered] = bg
     if k > 1:
@@ -397,7 +407,7 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units="mm", ba
         heights = zbuf
     meta = {
         "kind": "mesh",
-        "triangles": int(len(faces)),
+        "triangles": int(len(faces)) + n_deg,
         "degenerate_faces_dropped": n_deg,
         "meshes": info.get("meshes", 1),
         "units": units,

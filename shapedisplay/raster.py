@@ -1,7 +1,8 @@
 """Z-buffer rasterisation of triangle soups onto a regular grid.
 
-Functions for dealing with triangle soups in (n, 3, 3) float form, already
-expressed in *grid units*: a vertex ``(u, v, z)`` has ``u`` in columns,
+Functions for dealing with triangle meshes -- vertices (n, 3) and faces
+(m, 3), or soups in (m, 3, 3) float form -- already expressed in *grid
+units*: a vertex ``(u, v, z)`` has ``u`` in columns,
 ``v`` in rows (sample ``(r, c)`` sits at ``u = c, v = r``) and ``z`` in any
 height unit. Every sample takes the **highest** surface above it (max
 reduction), so overhangs keep their top and the triangle winding (normal
@@ -36,23 +37,29 @@ from .errors import unknown_key
 EDGE_TOLERANCE = 1e-5
 
 
-def _as_soup(triangles) -> np.ndarray:
-    tri = np.ascontiguousarray(triangles, dtype=np.float64)
-    if tri.ndim != 3 or tri.shape[1:] != (3, 3):
-        raise ValueError(f"`triangles` must have shape (n, 3, 3) (got {tri.shape})")
-    return tri
+def _check(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
+    v = np.ascontiguousarray(vertices, dtype=np.float64)
+    f = np.ascontiguousarray(faces, dtype=np.int64)
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise ValueError(f"`vertices` must have shape (n, 3) (got {v.shape})")
+    if f.ndim != 2 or f.shape[1] != 3:
+        raise ValueError(f"`faces` must have shape (m, 3) (got {f.shape})")
+    if f.size and (f.min() < 0 or f.max() >= len(v)):
+        raise ValueError(f"`faces` index outside 0..{len(v) - 1} (got {f.min()}..{f.max()})")
+    return v, f
 
 
 def _numba_kernel():
     import numba
 
     @numba.njit(cache=True, nogil=True)
-    def kernel(tri, zbuf, tol):
+    def kernel(vert, faces, zbuf, tol):  # pragma: no cover - compiled
         rows, cols = zbuf.shape
-        for t in range(tri.shape[0]):
-            ax, ay, az = tri[t, 0, 0], tri[t, 0, 1], tri[t, 0, 2]
-            bx, by, bz = tri[t, 1, 0], tri[t, 1, 1], tri[t, 1, 2]
-            cx, cy, cz = tri[t, 2, 0], tri[t, 2, 1], tri[t, 2, 2]
+        for t in range(faces.shape[0]):
+            i, j, k = faces[t, 0], faces[t, 1], faces[t, 2]
+            ax, ay, az = vert[i, 0], vert[i, 1], vert[i, 2]
+            bx, by, bz = vert[j, 0], vert[j, 1], vert[j, 2]
+            cx, cy, cz = vert[k, 0], vert[k, 1], vert[k, 2]
             area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
             if area == 0.0:
                 continue
@@ -62,14 +69,10 @@ def _numba_kernel():
             la = np.sqrt((cx - bx) ** 2 + (cy - by) ** 2) * tol
             lb = np.sqrt((ax - cx) ** 2 + (ay - cy) ** 2) * tol
             lc = np.sqrt((bx - ax) ** 2 + (by - ay) ** 2) * tol
-            umin = min(ax, bx, cx) - tol
-            umax = max(ax, bx, cx) + tol
-            vmin = min(ay, by, cy) - tol
-            vmax = max(ay, by, cy) + tol
-            c0 = max(int(np.ceil(umin)), 0)
-            c1 = min(int(np.floor(umax)), cols - 1)
-            r0 = max(int(np.ceil(vmin)), 0)
-            r1 = min(int(np.floor(vmax)), rows - 1)
+            c0 = max(int(np.ceil(min(ax, bx, cx) - tol)), 0)
+            c1 = min(int(np.floor(max(ax, bx, cx) + tol)), cols - 1)
+            r0 = max(int(np.ceil(min(ay, by, cy) - tol)), 0)
+            r1 = min(int(np.floor(max(ay, by, cy) + tol)), rows - 1)
             if c0 > c1 or r0 > r1:
                 continue
             for r in range(r0, r1 + 1):
@@ -96,47 +99,45 @@ def _numba_kernel():
 _KERNEL = None
 
 
-def zbuffer_numba(triangles, rows: int, cols: int, fill: float = -np.inf) -> np.ndarray:
-    """Rasterise with the compiled kernel.
+def zbuffer_numba(vertices, faces, rows: int, cols: int) -> np.ndarray:
+    """Max z-buffer with the compiled kernel.
 
     Parameters
     ----------
-    triangles : ndarray of shape (n, 3, 3), float64
-        Vertices ``(u, v, z)`` in grid units (u = column, v = row).
+    vertices : ndarray of shape (n, 3), float64
+        ``(u, v, z)`` in grid units (u = column, v = row).
+    faces : ndarray of shape (m, 3), int64
+        Vertex indices of each triangle.
     rows, cols : int
         Output grid shape.
-    fill : float
-        Value of samples no triangle covers.
 
     Returns
     -------
     ndarray of shape (rows, cols), float64
+        Highest surface at each sample; ``-inf`` where no triangle covers it.
     """
     global _KERNEL
     if _KERNEL is None:
         _KERNEL = _numba_kernel()
-    tri = _as_soup(triangles)
+    v, f = _check(vertices, faces)
     zbuf = np.full((int(rows), int(cols)), -np.inf)
-    _KERNEL(tri, zbuf, EDGE_TOLERANCE)
-    if fill != -np.inf:
-        zbuf[np.isneginf(zbuf)] = fill
-    return zbuf
+    return _KERNEL(v, f, zbuf, EDGE_TOLERANCE)
 
 
-def zbuffer_numpy(triangles, rows: int, cols: int, fill: float = -np.inf,
-                  chunk_pairs: int = 4_000_000) -> np.ndarray:
-    """Rasterise with pure numpy; same contract and answer as :func:`zbuffer_numba`.
+def zbuffer_numpy(vertices, faces, rows: int, cols: int, chunk_pairs: int = 4_000_000) -> np.ndarray:
+    """Max z-buffer in pure numpy; same contract and answer as :func:`zbuffer_numba`.
 
     ``chunk_pairs`` bounds the number of (triangle, sample) candidate pairs
     held in memory at once.
     """
-    tri = _as_soup(triangles)
+    vert, fc = _check(vertices, faces)
     rows, cols = int(rows), int(cols)
     zbuf = np.full(rows * cols, -np.inf)
     tol = EDGE_TOLERANCE
-    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    a, b, c = vert[fc[:, 0]], vert[fc[:, 1]], vert[fc[:, 2]]
     area = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
-    u, v = tri[:, :, 0], tri[:, :, 1]
+    u = np.column_stack([a[:, 0], b[:, 0], c[:, 0]])
+    v = np.column_stack([a[:, 1], b[:, 1], c[:, 1]])
     c0 = np.maximum(np.ceil(u.min(1) - tol), 0).astype(np.int64)
     c1 = np.minimum(np.floor(u.max(1) + tol), cols - 1).astype(np.int64)
     r0 = np.maximum(np.ceil(v.min(1) - tol), 0).astype(np.int64)
@@ -171,23 +172,23 @@ def zbuffer_numpy(triangles, rows: int, cols: int, fill: float = -np.inf,
         z = A[:, 2] + (wb * (B[:, 2] - A[:, 2]) + wc * (C[:, 2] - A[:, 2])) / (s * area[t])
         np.maximum.at(zbuf, (rr * cols + cc)[inside], z[inside])
         start = stop
-    zbuf = zbuf.reshape(rows, cols)
-    if fill != -np.inf:
-        zbuf[np.isneginf(zbuf)] = fill
-    return zbuf
+    return zbuf.reshape(rows, cols)
 
 
 #: Rasteriser backends by name.
 METHODS = {"numba": zbuffer_numba, "numpy": zbuffer_numpy}
 
 
-def rasterize(triangles, rows: int, cols: int, fill: float = -np.inf, method: str = "numba") -> np.ndarray:
-    """Max z-buffer of a triangle soup in grid units; see the module docstring.
+def rasterize_mesh(vertices, faces, rows: int, cols: int, fill: float = -np.inf,
+                   method: str = "numba") -> np.ndarray:
+    """Max z-buffer of an indexed triangle mesh in grid units; see the module docstring.
 
     Parameters
     ----------
-    triangles : ndarray of shape (n, 3, 3), float64
+    vertices : ndarray of shape (n, 3), float64
         ``(u, v, z)`` per vertex; u in columns, v in rows.
+    faces : ndarray of shape (m, 3), int
+        Vertex indices per triangle.
     rows, cols : int
         Grid shape.
     fill : float
@@ -201,4 +202,16 @@ def rasterize(triangles, rows: int, cols: int, fill: float = -np.inf, method: st
     """
     if method not in METHODS:
         raise unknown_key("rasteriser method", method, METHODS)
-    return METHODS[method](triangles, rows, cols, fill)
+    zbuf = METHODS[method](vertices, faces, rows, cols)
+    if fill != -np.inf:
+        zbuf[np.isneginf(zbuf)] = fill
+    return zbuf
+
+
+def rasterize(triangles, rows: int, cols: int, fill: float = -np.inf, method: str = "numba") -> np.ndarray:
+    """Max z-buffer of a triangle soup (m, 3, 3) in grid units; see :func:`rasterize_mesh`."""
+    tri = np.asarray(triangles, dtype=np.float64)
+    if tri.ndim != 3 or tri.shape[1:] != (3, 3):
+        raise ValueError(f"`triangles` must have shape (m, 3, 3) (got {tri.shape})")
+    faces = np.arange(3 * len(tri), dtype=np.int64).reshape(-1, 3)
+    return rasterize_mesh(tri.reshape(-1, 3), faces, rows, cols, fill, method)
