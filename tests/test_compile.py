@@ -1,0 +1,225 @@
+"""Compiler: published tent N(x) within the stated error, pruning, quantization, reports, exports."""
+import json
+import shutil
+import subprocess
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+from hypothesis.extra import numpy as hnp
+
+from shapedisplay import sources
+from shapedisplay.compile import CompileOptions, compile_heightfield, quantization_for
+from shapedisplay.devices import load_device
+from shapedisplay.errors import InputError
+from shapedisplay.export import c_header, export_c, export_json
+from shapedisplay.profiles import MappingOptions
+from shapedisplay.table import CHANNELS, FrictionTable
+
+ASSETS = Path(__file__).resolve().parent.parent / "assets" / "maps"
+RIG = load_device("desktop-rig")
+
+
+def test_tent_height_map_reproduces_published_tent():
+    # DESIGN 3.2 tent: N1 = 0.5 N, L1 = 10 mm, L2 = 25 mm, k = 0.15 N/mm (N2 = 2.75 N), L4 = 50 mm
+    hf = sources.tent_profile("10mm", "25mm", "50mm", n1="0.5N", k="0.15 N/mm", n_gain="2 N/mm", dx="0.1mm")
+    res = compile_heightfield(hf, "linear-slider", MappingOptions(n_base=0.5, n_gain=2000.0))
+    t = res.table
+    assert t.is_1d and t.grid.cols == hf.cols
+    n = t.dense("normal_force")[0]
+    published = sources.tent_force(hf.x, 0.010, 0.025, n1=0.5, k=150.0)
+    err = np.abs(n - published).max()
+    stated = res.report["quantization"]["normal_force"]["max_error"]
+    assert err <= stated
+    assert stated <= 0.1 / 2 * 0.5                     # within half a JND of the smallest force
+    # and the table's own bilinear lookup between samples follows the piecewise-linear profile
+    xs = np.linspace(0.011, 0.024, 57)
+    assert np.abs(t.sample("normal_force", xs) - sources.tent_force(xs, 0.010, 0.025, n1=0.5, k=150.0)).max() <= stated
+
+
+def test_bundled_tent_png_reproduces_published_tent():
+    from shapedisplay.sources import load_image
+    hf = load_image(ASSETS / "tent_profile.png", "60x4mm", "0:2mm")
+    res = compile_heightfield(hf, None, MappingOptions.parse("height", n_base="0.5N", n_gain="2N/mm"))
+    n = res.table.dense("normal_force")
+    published = sources.tent_force(hf.x, 0.010, 0.030, n1=0.5, n2=4.5)
+    gray_step = 2e-3 / 65535 / 2 * 2000.0              # rounding of the 16-bit gray values, in N
+    assert np.abs(n - published[None, :]).max() <= res.report["quantization"]["normal_force"]["max_error"] + gray_step
+
+
+def _rand_field(seed, shape=(20, 30)):
+    rng = np.random.default_rng(seed)
+    return sources.from_array(rng.uniform(0, 1e-3, shape), 0.2e-3)
+
+
+def test_pruning_removes_unused_channels_and_never_changes_kept_values():
+    hf = sources.gaussian_bump("1mm", "3mm", "20x16mm", "0.2mm")
+    m = MappingOptions.parse("height+lateral+slope")
+    full = compile_heightfield(hf, RIG, m).table
+    burst_only = compile_heightfield(hf, RIG.with_(outputs=("burst",)), m).table
+    assert set(full.channels) == {"normal_force", "grad_x", "grad_y", "lateral_x", "lateral_y"}
+    assert burst_only.channels == ["grad_x", "grad_y", "normal_force"]
+    for name in burst_only.channels:
+        assert burst_only.quant[name] == full.quant[name]
+        assert np.array_equal(burst_only.codes[name], full.codes[name])
+    kept_more = compile_heightfield(hf, RIG.with_(outputs=("burst",)), m,
+                                    CompileOptions(keep=("lateral_x",))).table
+    assert "lateral_x" in kept_more.channels
+    for name in burst_only.channels:
+        assert np.array_equal(kept_more.codes[name], burst_only.codes[name])
+
+
+@settings(max_examples=25, deadline=None)
+@given(heights=hnp.arrays(np.float64, st.tuples(st.integers(1, 8), st.integers(2, 12)),
+                          elements=st.floats(-3e-3, 3e-3)),
+       spec=st.sampled_from(["height", "height+lateral", "height+slope+lateral-normal", "slope"]),
+       quantize=st.sampled_from(["auto", "uint8", "uint16", "float32"]))
+def test_stated_errors_hold_and_output_is_finite(heights, spec, quantize):
+    hf = sources.from_array(heights, 0.1e-3)
+    m = MappingOptions.parse(spec)
+    dev = RIG
+    res = compile_heightfield(hf, dev, m, CompileOptions(quantize=quantize, limit_walls=False, max_slope=float("inf")))
+    from shapedisplay.profiles import force_channels
+    from shapedisplay.gradients import gradient
+    exact = force_channels(hf, dev, m, grad=gradient(hf))
+    assert sorted(exact) == res.table.channels
+    for name, q in res.report["quantization"].items():
+        dense = res.table.dense(name)
+        assert np.all(np.isfinite(dense))
+        assert np.abs(dense - exact[name]).max() <= q["max_error"]
+        if quantize == "auto":
+            assert q["meets_bound"]
+        else:
+            assert q["dtype"] == quantize
+
+
+def test_report_accounts_for_everything():
+    hf = _rand_field(1)
+    res = compile_heightfield(hf, RIG, MappingOptions.parse("height+lateral"))
+    r = res.report
+    assert set(r["kept"]) | set(r["left_out"]) == set(CHANNELS)
+    assert not set(r["kept"]) & set(r["left_out"])
+    assert r["stored_bytes"] == res.table.stored_bytes == sum(c.nbytes for c in res.table.codes.values())
+    assert r["dense_bytes"] == res.table.dense_bytes and r["bytes_saved"] == r["dense_bytes"] - r["stored_bytes"]
+    meta = res.table.meta
+    assert meta["device"] == RIG.to_json()
+    assert meta["mapping"]["slope_friction_gain"] == 0.0 and meta["mapping"]["spec"] == "height+lateral"
+    assert meta["source"]["sha256"] == hf.sha256()
+    assert meta["tick_rate_hz"] == RIG.tick_rate_hz
+    assert meta["velocity_range_m_s"] == list(RIG.velocity_range)
+    assert meta["report"] == r
+    json.dumps(meta, allow_nan=False)
+
+
+def test_auto_quantization_follows_the_perceptual_rule():
+    hf = sources.from_array(np.linspace(0, 2e-3, 200)[None, :], 0.1e-3)
+    m = MappingOptions(n_base=0.5, n_gain=2000.0)
+    # N spans 0.5..4.5 N: uint8 error 4/255/2 = 7.8 mN <= w/2 * 0.5 N = 25 mN
+    q = quantization_for("normal_force", 0.5 + 2000.0 * hf.heights, RIG, CompileOptions(), m)
+    assert q.dtype == "uint8"
+    # a stricter Weber fraction needs 16 bits: bound 0.005/2*0.5 = 1.25 mN < 7.8 mN
+    q = quantization_for("normal_force", 0.5 + 2000.0 * hf.heights, RIG, CompileOptions(weber_fraction=0.005), m)
+    assert q.dtype == "uint16"
+
+
+def test_walls_reported_and_limited():
+    hf = sources.rounded_button("10mm", "8mm", "1mm", "20x20mm", "0.1mm", edge="step")
+    m = MappingOptions.parse("height+lateral", lateral_gain="1 N")
+    res = compile_heightfield(hf, RIG, m, CompileOptions(max_slope=0.5))
+    w = res.report["walls"]
+    assert w["count"] > 0 and w["steepest"] == pytest.approx(1e-3 / 0.2e-3 * np.sqrt(2), rel=0.01)
+    assert "clipped to 0.5" in w["limited"]
+    b = w["boxes_mm"][0]
+    assert b[0] == pytest.approx(4.95, abs=0.11) and b[1] == pytest.approx(15.05, abs=0.11)
+    lat = np.hypot(res.table.dense("lateral_x"), res.table.dense("lateral_y"))
+    assert lat.max() <= 0.5 * 1.0 + res.report["quantization"]["lateral_x"]["max_error"] * 2
+    unlimited = compile_heightfield(hf, RIG, m, CompileOptions(max_slope=0.5, limit_walls=False))
+    assert np.hypot(unlimited.table.dense("lateral_x"), unlimited.table.dense("lateral_y")).max() > 1.0
+    only_height = compile_heightfield(hf, RIG, MappingOptions())
+    assert "not needed" in only_height.report["walls"]["limited"]
+
+
+def test_bad_compile_requests():
+    hf = _rand_field(2)
+    with pytest.raises(InputError, match="nothing to store"):
+        compile_heightfield(hf, load_device("handheld-stick"), MappingOptions(height=False, lateral="gradient",
+                                                                                lateral_gain=1.0))
+    with pytest.raises(InputError, match="cannot keep channel 'skin_stretch'"):
+        compile_heightfield(hf, RIG, MappingOptions(), CompileOptions(keep=("skin_stretch",)))
+    with pytest.raises(InputError, match=r"unknown channel 'normal_forse' \(did you mean 'normal_force'\?\)"):
+        CompileOptions(keep=("normal_forse",))
+    with pytest.raises(InputError, match=r"unknown quantization 'uint12'"):
+        CompileOptions(quantize="uint12")
+    with pytest.raises(InputError, match="weber_fraction"):
+        CompileOptions(weber_fraction=0.0)
+    with pytest.raises(InputError, match=r"unknown device 'desktop-rug' \(did you mean 'desktop-rig'\?\)"):
+        compile_heightfield(hf, "desktop-rug")
+
+
+def test_compiled_table_round_trips_bit_exact(tmp_path):
+    res = compile_heightfield(_rand_field(3), RIG, MappingOptions.parse("height+lateral+slope"))
+    p = res.table.save(tmp_path / "t.npz")
+    u = FrictionTable.load(p)
+    assert u.checksum() == res.table.checksum() and u.meta == res.table.meta
+    for n in u.channels:
+        assert u.codes[n].tobytes() == res.table.codes[n].tobytes()
+
+
+def test_json_export_schema(tmp_path):
+    hf = sources.tent_profile("10mm", "20mm", "40mm", n2="1.5N", dx="0.5mm")
+    t = compile_heightfield(hf, RIG, MappingOptions.parse("height+lateral")).table
+    export_json(t, tmp_path / "t.json")
+    doc = json.loads((tmp_path / "t.json").read_text())
+    assert doc["format_version"] == 1
+    assert set(doc["grid"]) == {"rows", "cols", "dx_m", "dy_m", "x0_m", "y0_m"}
+    assert doc["grid"]["rows"] == 1 and doc["grid"]["x0_m"] == pytest.approx(0.25e-3)
+    assert doc["channels"]["normal_force"]["unit"] == "N"
+    assert doc["channels"]["lateral_x"]["unit"] == "N"
+    assert np.array_equal(np.array(doc["channels"]["normal_force"]["values"]), t.dense("normal_force"))
+    assert "lateral_y" not in doc["channels"]      # 1-D: no y force
+
+
+C_MAIN = r"""
+#include <stdio.h>
+#include <stddef.h>
+#include "t.h"
+static uint32_t crc32(const uint8_t *p, size_t n) {
+    uint32_t c = 0xFFFFFFFFu;
+    for (size_t i = 0; i < n; i++) { c ^= p[i]; for (int k = 0; k < 8; k++) c = (c >> 1) ^ (0xEDB88320u & (0u - (c & 1u))); }
+    return ~c;
+}
+int main(void) {
+    int ok = crc32((const uint8_t *)t_normal_force_codes, sizeof t_normal_force_codes) == t_normal_force_crc32
+          && crc32((const uint8_t *)t_lateral_x_codes, sizeof t_lateral_x_codes) == t_lateral_x_crc32;
+    printf("%d %d %d %d\n", ok, T_ROWS, T_COLS, T_N_BLOCKS);
+    for (int i = 0; i < T_N_VALUES; i += 37) printf("%d %.17g %.17g\n", i, T_DECODE(normal_force, i), T_DECODE(lateral_x, i));
+    printf("%.17g %.17g %.17g\n", t_pad_stiffness_n_per_m, t_mu_s, t_dx_m);
+    return 0;
+}
+"""
+
+
+@pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler on this machine")
+def test_c_header_compiles_and_decodes_the_same_values(tmp_path):
+    hf = sources.gaussian_bump("1mm", "2mm", "10x6mm", "0.25mm")
+    t = compile_heightfield(hf, RIG, MappingOptions.parse("height+lateral")).table
+    export_c(t, tmp_path / "t.h")
+    (tmp_path / "main.c").write_text(C_MAIN)
+    subprocess.run(["cc", "-std=c99", "-Wall", "-Werror", "-o", str(tmp_path / "m"), str(tmp_path / "main.c")],
+                   check=True, cwd=tmp_path)
+    out = subprocess.run([str(tmp_path / "m")], capture_output=True, text=True, check=True).stdout.split("\n")
+    assert out[0].split() == ["1", str(t.grid.rows), str(t.grid.cols), "1"]
+    nf, lx = t.dense("normal_force").ravel(), t.dense("lateral_x").ravel()
+    lines = [ln.split() for ln in out[1:] if ln.strip()]
+    for i, a, b in lines[:-1]:
+        assert float(a) == nf[int(i)] and float(b) == lx[int(i)]
+    assert [float(v) for v in lines[-1]] == [2000.0, 0.5, t.grid.dx]
+
+
+def test_c_header_rejects_bad_names():
+    t = compile_heightfield(_rand_field(4), RIG, MappingOptions()).table
+    with pytest.raises(InputError, match="must be a C identifier"):
+        c_header(t, "1bad-name")
+    assert "#define SD_TABLE_HAS_NORMAL_FORCE 1" in c_header(t)
