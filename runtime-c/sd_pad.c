@@ -1,0 +1,219 @@
+/* sd_pad.c -- the quasi-static "jump" stick-slip pad model, one renderer tick at a time.
+ *
+ * A line-by-line port of shapedisplay/runtime/pads.py (_jump_tick, jump_restick and the
+ * under-damped branches of osc and _next_acc_zero). Every floating-point operation is
+ * written in the same order as the Python/numba kernel, in IEEE double precision, with
+ * the same libm functions (exp, sin, cos, atan2, sqrt, fmod), so on a host with the same
+ * libm the results are bit-identical; see runtime-c/README.md for the tolerance on other
+ * targets. Compile as C99 without -ffast-math and without FMA contraction
+ * (-ffp-contract=off), which would change the rounding of a*b+c.
+ *
+ * No allocation, no recursion; work per tick is O(1) plus O(1) per stick-slip event.
+ */
+#include <math.h>
+#include "sd_runtime.h"
+
+#define SD_PI 3.141592653589793
+
+static double sd_sgn(double x) { return x > 0.0 ? 1.0 : (x < 0.0 ? -1.0 : 0.0); }
+/* Python's max(a, b) / min(a, b): the first argument unless the second is strictly larger/smaller. */
+static double py_max(double a, double b) { return b > a ? b : a; }
+static double py_min(double a, double b) { return b < a ? b : a; }
+
+/* Python float modulo (sign of the divisor), as CPython's float_rem and numba. */
+static double py_mod(double a, double b)
+{
+    double r = fmod(a, b);
+    if (r != 0.0) {
+        if ((b < 0.0) != (r < 0.0)) r += b;
+    } else {
+        r = copysign(0.0, b);
+    }
+    return r;
+}
+
+/* Free under-damped oscillator m y'' + c y' + k y = 0 from (y0, v0), at time t. */
+static void osc_under(double m, double c, double k, double y0, double v0, double t, double *y, double *v)
+{
+    double sig = 0.5 * c / m;
+    double wn2 = k / m;
+    double disc = sig * sig - wn2;
+    double wd = sqrt(-disc);
+    double e = exp(-sig * t);
+    double cs = cos(wd * t);
+    double sn = sin(wd * t);
+    *y = e * (y0 * cs + (v0 + sig * y0) / wd * sn);
+    *v = e * (v0 * cs - (wn2 * y0 + sig * v0) / wd * sn);
+}
+
+/* First time > 0 where the under-damped free oscillator's acceleration is zero (after = 0). */
+static double next_acc_zero_under(double m, double c, double k, double y0, double v0)
+{
+    double sig = 0.5 * c / m;
+    double wn2 = k / m;
+    double disc = sig * sig - wn2;
+    double a0 = -2.0 * sig * v0 - wn2 * y0;
+    double j0 = -2.0 * sig * a0 - wn2 * v0;
+    double wd = sqrt(-disc);
+    double bb = (j0 + sig * a0) / wd;
+    double phi, th1, tz;
+    if (a0 == 0.0 && bb == 0.0) return INFINITY;
+    phi = atan2(bb, a0);
+    th1 = py_mod(phi + 0.5 * SD_PI, SD_PI);
+    if (th1 < 1e-9 || th1 > SD_PI - 1e-9) {
+        th1 = th1 > 1.0 ? SD_PI : th1 + SD_PI;
+        if (th1 < SD_PI) th1 = SD_PI;
+    }
+    tz = th1 / wd;
+    /* after = 0: tz > 0 always holds here (th1 >= 1e-9). */
+    return tz;
+}
+
+void sd_jump_restick(double m, double c, double k, double s, double xb, double V, double muk, double N,
+                     double *slip_time, double *x_restick)
+{
+    double sig = 0.5 * c / m;
+    double wn2 = k / m;
+    double disc = sig * sig - wn2;
+    double wd, xeq, y0, tp, e, yp, vp, ap, tz1, ypk, vpk, dt;
+    *slip_time = INFINITY;
+    *x_restick = xb;
+    if (disc >= -1e-10 * wn2) return;
+    wd = sqrt(-disc);
+    xeq = s * muk * N / k;
+    y0 = xb - xeq;
+    tp = SD_PI / wd;
+    e = exp(-sig * tp);
+    yp = -e * y0;
+    vp = -e * V;
+    ap = -2.0 * sig * vp - wn2 * yp;
+    if (s * ap <= 0.0) return;
+    tz1 = next_acc_zero_under(m, c, k, y0, V);
+    if (tz1 == INFINITY) return;
+    osc_under(m, c, k, y0, V, tz1 + SD_PI / wd, &ypk, &vpk);
+    if (s * (vpk - V) < 0.0) return;
+    dt = (V - vp) / ap;
+    if (fabs(dt) * wd > 0.5 * SD_PI) return;
+    *x_restick = xeq + yp + vp * dt + 0.5 * ap * dt * dt;
+    *slip_time = tp + dt;
+}
+
+void sd_pad_reset(sd_pad_state_t *S)
+{
+    S->x = 0.0;
+    S->v = 0.0;
+    S->phase = 0.0;
+    S->s = 1.0;
+    S->age = 0.0;
+    S->ncap = INFINITY;
+    S->tsl = 0.0;
+    S->xr = 0.0;
+    S->f = 0.0;
+    S->truncated = 0;
+    S->n_events = 0;
+}
+
+static int record(double *ev_t, double *ev_a, int cap, int n_ev, double t, double a)
+{
+    if (n_ev < cap) {
+        ev_t[n_ev] = t;
+        ev_a[n_ev] = a;
+    }
+    return n_ev + 1;
+}
+
+int sd_jump_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double t0, double h, double V, double N,
+                 double mus, double muk, double gain, double *ev_t, double *ev_a, int cap, int n_ev)
+{
+    const double m = P->mass, k = P->stiffness, c = P->damping;
+    const double B = P->burst_gain * gain;
+    const double tmax = P->max_stick_period;
+    double x = S->x, phase = S->phase, s = S->s, age = S->age, ncap = S->ncap, tsl = S->tsl;
+    double t = 0.0, Neff;
+    int nev0 = n_ev;
+    long it = 0;
+    while (t < h) {
+        double rem;
+        it += 1;
+        if (it > SD_MAX_EVENTS_PER_TICK) {
+            S->truncated += 1;
+            break;
+        }
+        rem = h - t;
+        if (phase == 0.0) {
+            double thr = mus * N;
+            double f = k * x + c * V;
+            int forced;
+            double xr;
+            if (fabs(f) > thr * (1.0 + 1e-12) || (fabs(f) >= thr && f * V > 0.0 && thr > 0.0)
+                || (thr == 0.0 && f != 0.0)) {
+                forced = 0;
+            } else {
+                double tb = INFINITY, tf, tn;
+                if (V != 0.0) tb = py_max((sd_sgn(V) * thr - f) / (k * V), 0.0);
+                tf = tmax > 0.0 ? py_max(tmax - age, 0.0) : INFINITY;
+                tn = py_min(tb, tf);
+                if (tn >= rem) {
+                    x += V * rem;
+                    age += rem;
+                    t = h;
+                    break;
+                }
+                x += V * tn;
+                age += tn;
+                t += tn;
+                f = k * x + c * V;
+                forced = tf < tb;
+            }
+            s = sd_sgn(f);
+            if (s == 0.0) s = V != 0.0 ? sd_sgn(V) : 1.0;
+            if (forced && mus > 0.0) ncap = fabs(f) / mus;
+            n_ev = record(ev_t, ev_a, cap, n_ev, t0 + t, B * fabs(k * x));
+            Neff = N < ncap ? N : ncap;
+            sd_jump_restick(m, c, k, s, x, V, muk, Neff, &tsl, &xr);
+            S->xr = xr;
+            phase = 1.0;
+            age = 0.0;
+            continue;
+        }
+        /* slip: count down the closed-form slip time, or slide steadily */
+        Neff = N < ncap ? N : ncap;
+        if (tsl == INFINITY) {
+            x = s * muk * Neff / k;
+            if (s * V <= 0.0) {
+                phase = 0.0;
+                ncap = INFINITY;
+                age = 0.0;
+                continue;
+            }
+            t = h;
+            break;
+        }
+        if (tsl > rem) {
+            tsl -= rem;
+            t = h;
+            break;
+        }
+        t += tsl;
+        tsl = 0.0;
+        x = S->xr;
+        phase = 0.0;
+        ncap = INFINITY;
+        age = 0.0;
+    }
+    S->x = x;
+    S->v = V;
+    S->phase = phase;
+    S->s = s;
+    S->age = age;
+    S->ncap = ncap;
+    S->tsl = tsl;
+    S->n_events = n_ev - nev0;
+    if (phase == 0.0) {
+        S->f = k * x + c * V;
+    } else {
+        Neff = N < ncap ? N : ncap;
+        S->f = s * muk * Neff;
+    }
+    return n_ev;
+}
