@@ -13,7 +13,8 @@ A sample belongs to a triangle when it lies inside it or within
 that a sample exactly on an edge shared by two triangles is never lost (max
 reduction makes a double hit harmless). Heights are interpolated
 barycentrically relative to the first vertex (so a flat triangle gives
-its height exactly). Triangles with zero projected area (vertical faces) cover no
+its height exactly) and clamped to the triangle's own height range (a sample
+just outside a steep sliver would otherwise extrapolate far beyond it). Triangles with zero projected area (vertical faces) cover no
 sample: a vertical wall appears as a step between neighbouring samples.
 
 Backends, by name in :data:`METHODS`:
@@ -75,6 +76,7 @@ def _numba_kernel():
             r1 = min(int(np.floor(max(ay, by, cy) + tol)), rows - 1)
             if c0 > c1 or r0 > r1:
                 continue
+            zlo, zhi = min(az, bz, cz), max(az, bz, cz)
             for r in range(r0, r1 + 1):
                 py = float(r)
                 for c in range(c0, c1 + 1):
@@ -89,6 +91,7 @@ def _numba_kernel():
                     if wc < -lc:
                         continue
                     z = az + (wb * (bz - az) + wc * (cz - az)) / area
+                    z = min(max(z, zlo), zhi)  # no overshoot just outside a steep sliver
                     if z > zbuf[r, c]:
                         zbuf[r, c] = z
         return zbuf
@@ -170,6 +173,8 @@ def zbuffer_numpy(vertices, faces, rows: int, cols: int, chunk_pairs: int = 4_00
         lc = np.hypot(B[:, 0] - A[:, 0], B[:, 1] - A[:, 1]) * tol
         inside = (wa >= -la) & (wb >= -lb) & (wc >= -lc)
         z = A[:, 2] + (wb * (B[:, 2] - A[:, 2]) + wc * (C[:, 2] - A[:, 2])) / (s * area[t])
+        zs = np.column_stack([A[:, 2], B[:, 2], C[:, 2]])
+        z = np.clip(z, zs.min(1), zs.max(1))
         np.maximum.at(zbuf, (rr * cols + cc)[inside], z[inside])
         start = stop
     return zbuf.reshape(rows, cols)

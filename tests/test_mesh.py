@@ -368,3 +368,37 @@ def test_box_sides_are_reported_as_walls_by_gradient_analysis():
     assert report.regions == 1
     assert report.boxes_mm == [[-0.5, 20.5, -0.5, 10.5]]
     assert report.steepest == pytest.approx(math.hypot(5, 5))   # 5 mm over 2 x 0.5 mm, both axes at corners
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n_v=st.integers(3, 30), n_f=st.integers(1, 40),
+       scale=st.sampled_from([1e-3, 1.0, 50.0, 1e4]), k=st.integers(1, 3),
+       up=st.sampled_from(["z", "-z", "x", "y"]))
+def test_finite_meshes_give_finite_bounded_heights_or_a_clear_error(seed, n_v, n_f, scale, k, up):
+    from shapedisplay.errors import ShapeDisplayError
+    rng = np.random.default_rng(seed)
+    v = rng.normal(size=(n_v, 3)) * scale
+    f = rng.integers(0, n_v, size=(n_f, 3))
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", mesh.ImplausibleSizeWarning)
+        try:
+            hf = mesh.mesh_to_heightfield((v, f), grid=(17, 23), supersample=k, up=up,
+                                          background=-1 * MM)
+        except ShapeDisplayError as exc:
+            assert "\n" not in str(exc)
+            return
+    h = hf.heights
+    assert np.isfinite(h).all()
+    top = hf.meta["height_range_m"][1]
+    assert h.min() >= -1 * MM - 1e-12 and h.max() <= top * (1 + 1e-9) + 1e-15
+
+
+@pytest.mark.parametrize("method", ["numba", "numpy"])
+def test_samples_just_outside_a_steep_sliver_do_not_overshoot(method):
+    # nearly vertical face (projected width 1e-7 samples, 5 high); samples lie 9e-7 samples beyond
+    # its top edge, inside the edge tolerance: extrapolation would give 50, clamping keeps <= 5
+    tri = np.array([[[0, -1e-6, 0], [4, -1e-6, 0], [2, -1e-6 + 1e-7, 5]]])
+    h = raster.rasterize(tri, 2, 5, method=method)
+    assert np.all(h[0] <= 5.0) and np.all(h[0] >= 0.0)
+    assert np.all(np.isneginf(h[1]))
