@@ -99,6 +99,15 @@ def build_options(args):
     return mapping, options
 
 
+def _resolution(text):
+    from shapedisplay.errors import InputError
+    from shapedisplay.units import parse_quantity
+    v = parse_quantity(text, "m", "--resolution")
+    if not v > 0:
+        raise InputError(f"`--resolution` must be a length > 0 (got {text!r})")
+    return v
+
+
 def run(args) -> int:
     import json
     from pathlib import Path
@@ -107,7 +116,7 @@ def run(args) -> int:
     from shapedisplay.devices import load_device
     from shapedisplay.errors import InputError
     from shapedisplay.sources import IMAGE_SUFFIXES, MESH_SUFFIXES, load_source
-    from shapedisplay.units import parse_pair, parse_quantity
+    from shapedisplay.units import parse_pair
 
     src = Path(args.source)
     suffix = src.suffix.lower()
@@ -126,18 +135,20 @@ def run(args) -> int:
                 if getattr(args, opt) is not None:
                     raise InputError(f"`--{opt}` applies to images; mesh '{src}' takes --resolution, --up, --units")
             if args.resolution is not None:
-                opts["resolution"] = parse_quantity(args.resolution, "m", "--resolution")
+                opts["resolution"] = _resolution(args.resolution)
             opts["up"], opts["units"] = args.up, args.units
         elif suffix in IMAGE_SUFFIXES:
             for opt in _MESH_ONLY:
                 if getattr(args, opt) is not None:
                     raise InputError(f"`--{opt}` applies to meshes, not to image '{src}'")
             if args.size is not None:
-                opts["size"] = parse_pair(args.size, "x", "m", "--size")
+                w, h = opts["size"] = parse_pair(args.size, "x", "m", "--size")
+                if not (w > 0 and h > 0):
+                    raise InputError(f"`--size` must be positive (got {args.size!r}: width={w} m, height={h} m)")
             if args.height is not None:
                 opts["height_range"] = parse_pair(args.height, ":", "m", "--height")
             if args.resolution is not None:
-                opts["resolution"] = parse_quantity(args.resolution, "m", "--resolution")
+                opts["resolution"] = _resolution(args.resolution)
             if args.size is None and args.resolution is None:
                 raise InputError(f"image '{src}' needs `--size` (physical width x height, e.g. 60x4mm)")
             if args.height is None and suffix == ".png":
