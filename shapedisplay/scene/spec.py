@@ -88,6 +88,10 @@ class SceneError(InputError):
     """A scene file breaks a rule; the message names widget, field, rule and value."""
 
 
+class SceneUnitError(SceneError, UnitError):
+    """A quantity of a scene file lacks its unit or has the wrong one."""
+
+
 @dataclass(frozen=True)
 class Canvas:
     """The scene's sample grid.
@@ -216,7 +220,7 @@ def _wrap(ctx: Ctx, where: str, fn, *args):
         return fn(*args)
     except UnitError as exc:
         head = f"scene '{ctx.path}'" + (f": {where}" if where else "")
-        raise SceneError(f"{head}: {exc}") from None
+        raise SceneUnitError(f"{head}: {exc}") from None
 
 
 def length(value, field_path: str, ctx: Ctx, where: str = "", positive: bool = False,

@@ -1,0 +1,195 @@
+"""Scene bad input: each error names the widget, the field path, the rule and the value."""
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from shapedisplay.errors import FileFormatError, InputError, ShapeDisplayError, UnitError
+from shapedisplay.scene import check_scene, compile_scene, load_scene
+
+HEAD = """
+[canvas]
+size = "80x40 mm"
+resolution = "0.5 mm"
+[device]
+profile = "handheld-stick"
+[mapping]
+n_base = "1 N"
+"""
+
+BUTTON = """
+[[widget]]
+id = "ok"
+type = "button"
+position = "10,10 mm"
+size = "20x10 mm"
+"""
+
+
+def scene(tmp_path, text: str, head: str = HEAD):
+    p = tmp_path / "bad.toml"
+    p.write_text(head + text)
+    return p
+
+
+def err(tmp_path, text, head=HEAD, exc=InputError):
+    with pytest.raises(exc) as info:
+        check_scene(scene(tmp_path, text, head))
+    msg = str(info.value)
+    assert "\n" not in msg and "bad.toml" in msg
+    return msg
+
+
+def test_unknown_widget_type_suggests_nearest(tmp_path):
+    msg = err(tmp_path, BUTTON.replace('"button"', '"buton"'))
+    assert "widget[0] 'ok'" in msg and "`widget[0].type`" in msg and "'buton'" in msg
+    assert "did you mean 'button'" in msg
+
+
+def test_typo_in_key_suggests_nearest(tmp_path):
+    msg = err(tmp_path, BUTTON + 'heigth = "2 mm"\n')
+    assert "`widget[0].heigth`" in msg and "did you mean 'height'" in msg and "widget[0] 'ok'" in msg
+
+
+def test_typo_in_section_and_defaults(tmp_path):
+    assert "did you mean 'canvas'" in err(tmp_path, '[canvass]\nsize = "1 mm"\n' + BUTTON, head="")
+    msg = err(tmp_path, '[defaults]\nrmap = "3 mm"\n' + BUTTON)
+    assert "`defaults.rmap`" in msg and "did you mean 'ramp'" in msg
+
+
+def test_missing_size(tmp_path):
+    msg = err(tmp_path, '[[widget]]\nid = "x"\ntype = "button"\nposition = "1,1 mm"\n')
+    assert "widget[0] 'x'" in msg and "`widget[0].size` is required" in msg
+
+
+def test_bare_number_needs_a_unit(tmp_path):
+    with pytest.raises(UnitError) as info:
+        load_scene(scene(tmp_path, BUTTON + "height = 2\n"))
+    msg = str(info.value)
+    assert "widget[0] 'ok'" in msg and "`widget[0].height` needs a unit" in msg and "2" in msg
+
+
+def test_widget_entirely_outside_is_an_error(tmp_path):
+    msg = err(tmp_path, BUTTON.replace('"10,10 mm"', '"100,10 mm"'))
+    assert "`widget[0].position`" in msg and "entirely outside" in msg and "80 x 40 mm" in msg
+
+
+def test_widget_partly_outside_is_clipped_with_warning(tmp_path):
+    p = scene(tmp_path, BUTTON.replace('"10,10 mm"', '"70,35 mm"'))
+    warnings = check_scene(p)
+    assert any("widget[0] 'ok'" in w and "clipped" in w and "right by 10 mm" in w and "top by 5 mm" in w
+               for w in warnings)
+    t = compile_scene(p).table
+    assert load_scene(p).widgets[0].bbox == pytest.approx((70e-3, 35e-3, 80e-3, 40e-3))
+    assert t.dense("normal_force")[-1, -1] > 1.0
+
+
+def test_overlapping_widgets_with_conflicting_rules(tmp_path):
+    text = BUTTON + 'overlap = "add"\n' + BUTTON.replace('"ok"', '"two"').replace('"10,10 mm"', '"20,12 mm"')
+    msg = err(tmp_path, text)
+    assert "widget[0] 'ok'" in msg and "widget[1] 'two'" in msg and "conflicting rules" in msg
+    assert "'add'" in msg and "'max'" in msg
+
+
+def test_toggles_sharing_a_block(tmp_path):
+    t = '[[widget]]\nid = "{i}"\ntype = "toggle"\nposition = "{x},10 mm"\nsize = "16x8 mm"\n'
+    msg = err(tmp_path, t.format(i="t1", x=10) + t.format(i="t2", x=26.5))
+    assert "widget[0] 't1'" in msg and "widget[1] 't2'" in msg and "toggle" in msg
+
+
+def test_missing_image(tmp_path):
+    msg = err(tmp_path, '[[widget]]\nid = "map"\ntype = "image"\nfile = "nowhere.png"\n'
+                        'position = "0,0 mm"\nsize = "10x10 mm"\n')
+    assert "widget[0] 'map'" in msg and "`widget[0].file`" in msg and "missing image" in msg and "nowhere.png" in msg
+
+
+def test_heights_beyond_device_range_are_clamped_with_warning(tmp_path):
+    p = scene(tmp_path, BUTTON + 'height = "7 mm"\nramp = "3 mm"\n')
+    warnings = check_scene(p)
+    assert len(warnings) == 1
+    w = warnings[0]
+    # 1 N + 7 N = 8 N asked, the handheld stick stops at 6 N: 2 N (2 mm) too much
+    assert "widget[0] 'ok'" in w and "8 N" in w and "6 N" in w and "by 2 N" in w and "clamped" in w
+    res = compile_scene(p)
+    assert res.table.dense("normal_force").max() == pytest.approx(6.0, abs=res.table.quant["normal_force"].max_error)
+    assert res.report["warnings"] == warnings
+
+
+def test_dent_below_device_minimum_is_clamped_with_warning(tmp_path):
+    p = scene(tmp_path, BUTTON.replace('"button"', '"dent"') + 'depth = "1 mm"\nramp = "3 mm"\n')
+    (w,) = check_scene(p)
+    assert "below" in w and "0.5 N" in w and "by 0.5 N" in w and "n_base" in w
+
+
+def test_too_many_detents_warn(tmp_path):
+    p = scene(tmp_path, '[[widget]]\nid = "vol"\ntype = "slider"\nposition = "5,5 mm"\nsize = "60x8 mm"\n'
+                        'detents = "0.3 mm"\ndetent_width = "0.2 mm"\n')
+    warnings = check_scene(p)
+    felt = [w for w in warnings if "felt apart" in w]
+    assert felt and "widget[0] 'vol'" in felt[0] and "0.5 mm resolution" in felt[0] and "199 detents" in felt[0]
+
+
+def test_empty_scene(tmp_path):
+    msg = err(tmp_path, "")
+    assert "empty" in msg and "[[widget]]" in msg
+
+
+def test_conflicting_strength_keys(tmp_path):
+    msg = err(tmp_path, BUTTON + 'height = "1 mm"\nlevel = 2\n')
+    assert "`widget[0].level`" in msg and "conflicts" in msg and "height" in msg
+
+
+def test_button_force_below_flat_ground(tmp_path):
+    msg = err(tmp_path, BUTTON + 'force = "0.7 N"\n')
+    assert "`widget[0].force`" in msg and "above the base force 1 N" in msg and "0.7 N" in msg
+
+
+def test_duplicate_ids_and_bad_choices(tmp_path):
+    msg = err(tmp_path, BUTTON + BUTTON)
+    assert "must be unique" in msg and "widget[1]" in msg
+    msg = err(tmp_path, BUTTON + 'edge = "cosin"\n')
+    assert "`widget[0].edge`" in msg and "did you mean 'cosine'" in msg
+
+
+def test_unknown_device(tmp_path):
+    msg = err(tmp_path, BUTTON, head=HEAD.replace("handheld-stick", "handheld-stik"))
+    assert "device.profile" in msg and "did you mean 'handheld-stick'" in msg
+
+
+def test_invalid_toml_and_missing_file(tmp_path):
+    with pytest.raises(FileFormatError, match="invalid TOML"):
+        check_scene(scene(tmp_path, "[[widget]\n"))
+    with pytest.raises(FileFormatError, match="no such file"):
+        check_scene(tmp_path / "none.toml")
+
+
+def test_canvas_errors(tmp_path):
+    assert "`canvas.size`" in err(tmp_path, BUTTON, head=HEAD.replace('"80x40 mm"', '"80x0 mm"'))
+    assert "needs `canvas.dpi`" in err(tmp_path, BUTTON, head=HEAD.replace('size = "80x40 mm"', 'pixels = "800x400"'))
+    msg = err(tmp_path, BUTTON, head=HEAD.replace('"0.5 mm"', '"0.001 mm"'))
+    assert "`canvas.resolution`" in msg and "limit" in msg
+
+
+def test_data_layer_errors(tmp_path):
+    base = '[[widget]]\nid = "d"\ntype = "data"\nposition = "0,0 mm"\nsize = "10x10 mm"\n'
+    assert "did you mean 'burst_gain'" in err(tmp_path, base + 'channel = "burst_gan"\nvalues = [1, 2]\n')
+    assert "exactly one of `values`" in err(tmp_path, base + 'channel = "burst_gain"\n')
+    assert "must be finite" in err(tmp_path, base + 'channel = "burst_gain"\nvalues = [1, nan]\n')
+
+
+def test_cli_errors_are_one_line_exit_2(tmp_path, capsys):
+    from shapedisplay_cli.main import main
+    p = scene(tmp_path, BUTTON.replace('"button"', '"buton"'))
+    assert main(["check", str(p)]) == 2
+    e = capsys.readouterr().err
+    assert e.count("\n") == 1 and "Traceback" not in e and "did you mean 'button'" in e
+    assert main(["compile", str(p), "-o", str(tmp_path / "t.npz")]) == 2
+    assert not (tmp_path / "t.npz").exists()
+
+
+def test_every_error_is_a_shapedisplay_error(tmp_path):
+    for text in ("", BUTTON.replace("size", "sise"), BUTTON + 'ramp = "-1 mm"\n'):
+        with pytest.raises(ShapeDisplayError) as info:
+            check_scene(scene(tmp_path, text))
+        assert re.search(r"`[a-z_\[\]0-9.]+`|empty", str(info.value))
