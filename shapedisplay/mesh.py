@@ -302,6 +302,7 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units="mm", ba
     from . import raster
 
     # --- check parameters before touching the file
+    units = units.strip().lower() if isinstance(units, str) else units
     if units not in UNITS:
         raise unknown_key("mesh units", units, UNITS)
     if resolution is not None and grid is not None:
