@@ -11,7 +11,7 @@ drawn on the surface (stick/slip segments, bursts sized by amplitude) with a
 chart of N and friction force along it; the trace must come from this table.
 
 Without -o a window opens: drag to orbit, scroll to zoom, click or hover for
-a read-out of position, height and every channel, 'r' replays the stroke.
+a read-out of position, height and every channel, space replays the stroke.
 With -o the picture is rendered off-screen (no display or GPU needed; on
 Debian/Ubuntu it needs libegl1 libegl-mesa0 libgl1-mesa-dri, see
 scripts/install-system-deps.sh).

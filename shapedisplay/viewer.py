@@ -660,7 +660,7 @@ class Preview:
 
     Build with :func:`render`. ``screenshot()`` returns the image,
     ``save(path)`` writes a PNG atomically, ``show()`` opens the window
-    (orbit/zoom; click or hover reads out every channel; ``r`` replays the
+    (orbit/zoom; click or hover reads out every channel; space replays the
     stroke).
     """
 
@@ -714,26 +714,40 @@ class Preview:
     def replay(self, frames: int = 240, realtime: bool = True, on_frame: Callable | None = None) -> int:
         """Move the cursor marker along the stroke; returns the number of frames drawn.
 
-        ``realtime`` paces the frames over the stroke's duration (at most 10 s).
-        ``on_frame(i, position)`` is called after each frame.
+        ``realtime`` plays the stroke over its own duration (at most 10 s),
+        dropping frames when rendering is slow; otherwise exactly ``frames``
+        evenly spaced frames are drawn. The last frame is always the stroke's
+        end. ``on_frame(i, position)`` is called after each frame.
         """
         if self.stroke_points is None or self.cursor_actor is None:
             return 0
-        n = len(self.stroke_points)
-        idx = np.unique(np.linspace(0, n - 1, max(2, min(int(frames), n))).round().astype(int))
-        duration = min(10.0, float(self.stroke_times[-1] - self.stroke_times[0])) if realtime else 0.0
-        t_start = time.perf_counter()
-        for i, k in enumerate(idx):
-            pos = self.stroke_points[k]
-            self.cursor_actor.position = tuple(pos)
+        pts, times = self.stroke_points, self.stroke_times
+        n = len(pts)
+        duration = min(10.0, float(times[-1] - times[0])) if realtime else 0.0
+
+        def draw(i, k):
+            self.cursor_actor.position = tuple(pts[k])
             self.plotter.render()
             if on_frame is not None:
-                on_frame(i, pos)
-            if duration > 0:
-                wait = t_start + duration * (i + 1) / len(idx) - time.perf_counter()
-                if wait > 0:
-                    time.sleep(wait)
-        return len(idx)
+                on_frame(i, pts[k])
+
+        if duration <= 0:
+            idx = np.unique(np.linspace(0, n - 1, max(2, min(int(frames), n))).round().astype(int))
+            for i, k in enumerate(idx):
+                draw(i, int(k))
+            return len(idx)
+        t_start, i, k = time.perf_counter(), 0, 0
+        speed = float(times[-1] - times[0]) / duration
+        period = duration / max(int(frames), 1)
+        while k < n - 1:
+            elapsed = time.perf_counter() - t_start
+            k = min(int(np.searchsorted(times, times[0] + elapsed * speed)), n - 1)
+            draw(i, k)
+            i += 1
+            wait = t_start + i * period - time.perf_counter()
+            if wait > 0 and k < n - 1:
+                time.sleep(wait)
+        return i
 
     # -- output -----------------------------------------------------------------------------
     def screenshot(self) -> np.ndarray:
@@ -905,8 +919,8 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
                                         left_clicking=True, show_point=True, color="black")
         pl.iren.add_observer("MouseMoveEvent", lambda *a: _hover(preview))
         if trace is not None:
-            pl.add_key_event("r", lambda: preview.replay())
-        hint = "click/hover: read-out    r: replay stroke" if trace is not None else "click/hover: read-out"
+            pl.add_key_event("space", lambda: preview.replay())
+        hint = "click/hover: read-out    space: replay stroke" if trace is not None else "click/hover: read-out"
         pl.add_text(hint, position="lower_right", font_size=9, color="black", name="hint")
     return preview
 

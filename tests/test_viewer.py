@@ -398,3 +398,62 @@ def test_cli_bad_inputs_one_line_exit_2(tmp_path, table, capsys):
         err = capsys.readouterr().err
         assert words in err and err.count("\n") == 1, err
     assert not (tmp_path / "a.png").exists()
+
+
+# --------------------------------------------------------------------------------- interaction
+def test_readout_text_follows_the_picked_point(table):
+    m = viewer.model_from_table(table)
+    p = viewer.render(m, "N", size=(W, H), annotations=False)
+    x, y = 16e-3, 15e-3                                                # near the top of the 'ok' bump
+    z = float(p.z_display(m.relief_at(x, y)))
+    p._show_readout((x * 1e3, y * 1e3, z))
+    expected = m.readout(x, y)
+    assert p.last_readout == pytest.approx(expected)
+    text = p.plotter.actors["readout"].GetText(0)
+    assert "x = 16.00 mm" in text and f"normal_force = {expected['normal_force']:.4g} N" in text
+    assert f"height = {expected['height'] * 1e3:.4g} mm" in text
+    p.close()
+
+
+INTERACTIVE = r'''
+import sys
+import numpy as np
+sys.path.insert(0, sys.argv[1])
+from test_viewer import two_widget_table, write_trace
+from shapedisplay import viewer
+import pathlib
+tab = two_widget_table(pathlib.Path(sys.argv[2]))
+tr = viewer.load_trace(write_trace(pathlib.Path(sys.argv[2]) / "s.npz", tab))
+m = viewer.model_from_table(tab)
+p = viewer.render(m, "N", trace=tr, size=(640, 400), off_screen=False)
+pl = p.plotter
+pl.show(auto_close=False, interactive_update=True)
+iren = pl.iren.interactor
+iren.SetEventPosition(5, 395)                        # top-left corner: background, no read-out
+iren.InvokeEvent("MouseMoveEvent")
+assert p.last_readout is None
+iren.SetEventPosition(320, 200)                      # middle of the frame: on the surface
+iren.InvokeEvent("MouseMoveEvent")
+r = p.last_readout
+assert r is not None and set(m.fields) <= set(r)
+assert 0 <= r["x"] <= 50e-3 and 0 <= r["y"] <= 30e-3
+iren.SetKeySym("space"); iren.SetKeyCode(" ")
+iren.InvokeEvent("KeyPressEvent")                    # replays the stroke to its end
+assert tuple(p.cursor_actor.position) == tuple(p.stroke_points[-1])
+pl.close()
+print("interactive ok")
+'''
+
+
+def test_interactive_window_hover_and_replay_key(tmp_path):
+    """Under a virtual X server: hover reads out the surface, space replays the stroke."""
+    import shutil
+    import subprocess
+    if shutil.which("xvfb-run") is None:
+        pytest.skip("xvfb-run not installed (interactive mode needs a display)")
+    script = tmp_path / "interactive.py"
+    script.write_text(INTERACTIVE)
+    env = {k: v for k, v in os.environ.items() if k != "VTK_DEFAULT_OPENGL_WINDOW"}
+    res = subprocess.run(["xvfb-run", "-a", sys.executable, str(script), os.path.dirname(__file__), str(tmp_path)],
+                         capture_output=True, text=True, timeout=120, env=env)
+    assert res.returncode == 0 and "interactive ok" in res.stdout, res.stderr[-2000:]
