@@ -23,8 +23,9 @@ from __future__ import annotations
 
 from .spec import Canvas, Scene, Widget, load_scene, parse_scene
 from .widgets import WIDGET_TYPES
-from .compiler import check_scene, compile_scene, scene_heightfield, select_state
+from .compiler import check_scene, compile_scene, format_widget_report, scene_heightfield, select_state
 from .template import TEMPLATE
 
 __all__ = ["Canvas", "Scene", "Widget", "load_scene", "parse_scene", "WIDGET_TYPES",
-           "check_scene", "compile_scene", "scene_heightfield", "select_state", "TEMPLATE"]
+           "check_scene", "compile_scene", "format_widget_report", "scene_heightfield", "select_state",
+           "TEMPLATE"]

@@ -627,3 +627,16 @@ def select_state(table, toggle_id: str, state: str):
     out = replace(table, blocks=blocks, meta=meta, codes=dict(table.codes), _dense_cache={})
     out._check_layout()
     return out
+
+
+def format_widget_report(report: dict) -> str:
+    """Lines listing each widget of a scene compile report with its block, bytes and notes."""
+    lines = ["widgets:"]
+    for w in report.get("widgets", []):
+        notes = "; ".join(w["notes"])
+        r, c = w["block_shape"]
+        lines.append(f"  {w['id']:<14} {w['type']:<7} block {w['block']:>2} ({r}x{c}) {w['bytes']:>7} bytes"
+                     + (f"  {notes}" if notes else ""))
+    for msg in report.get("warnings", []):
+        lines.append(f"warning: {msg}")
+    return "\n".join(lines)
