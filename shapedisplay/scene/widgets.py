@@ -384,7 +384,7 @@ class Slider(WidgetType):
                                                     p["detent_width"] / 2))
             h = h + p["detent_height"] * det * mask
         out = h + 0.0 * (u + v)
-        return out.T if p["vertical"] else out
+        return out  # (rows, cols) whichever way the widget runs
 
 
 class Toggle(WidgetType):
@@ -431,7 +431,7 @@ class Toggle(WidgetType):
         uc = W / 4 if state == "off" else 3 * W / 4
         r = np.abs(u - uc) + 0 * v if is_1d else np.hypot(u - uc, v - H / 2)
         out = h + p["height"] * raised_cosine(r, p["knob_size"] / 2)
-        return out.T if p["vertical"] else out
+        return out  # (rows, cols) whichever way the widget runs
 
 
 class Ridge(WidgetType):
