@@ -407,8 +407,7 @@ def model_from_table(table, title: str | None = None, widgets: list | None = Non
         relief, stored = widened.pop("relief"), widened.pop("stored")
         fields, strip = widened, True
     if widgets is None:
-        widgets = [w for w in table.meta.get("widgets", []) if isinstance(w, dict)] \
-            if isinstance(table.meta.get("widgets"), list) else []
+        widgets = _widgets_of_meta(table.meta)
     src = table.meta.get("source", {})
     default_title = src.get("description", "") if isinstance(src, dict) else ""
     model = PreviewModel(x=x, y=y, relief=relief, relief_unit=relief_unit, fields=fields, units=units,
@@ -417,6 +416,21 @@ def model_from_table(table, title: str | None = None, widgets: list | None = Non
                         title=title if title is not None else (default_title or "friction table"), notes=notes)
     model.widgets = _strip_widgets(_clean_widgets(widgets), model)
     return model
+
+
+def _widgets_of_meta(meta: dict) -> list:
+    """Widget outlines recorded by the scene compiler (``meta["scene"]["widgets"]``, ``bbox_m``)
+    or given directly as ``meta["widgets"]`` (``x0``, ``y0``, ``x1``, ``y1``)."""
+    scene = meta.get("scene")
+    if isinstance(scene, dict) and isinstance(scene.get("widgets"), list):
+        out = []
+        for i, w in enumerate(scene["widgets"]):
+            box = w.get("bbox_m") if isinstance(w, dict) else None
+            if isinstance(box, (list, tuple)) and len(box) == 4:
+                out.append({"id": w.get("id", str(i)), "x0": box[0], "y0": box[1], "x1": box[2], "y1": box[3]})
+        return out
+    widgets = meta.get("widgets")
+    return [w for w in widgets if isinstance(w, dict)] if isinstance(widgets, list) else []
 
 
 def _clean_widgets(widgets) -> list:
@@ -887,6 +901,7 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
         else:
             ex_text = f"relief = normal force, 1 N drawn as {ex:g} mm"
         lines = [model.title, f"colour: {title}", ex_text]
+        lines += [n for n in model.notes if n.startswith((channel, "height", "relief", "flat"))]
         if model.strip:
             lines.append("1-D profile drawn as a strip")
         if model.stored is not None:

@@ -457,3 +457,55 @@ def test_interactive_window_hover_and_replay_key(tmp_path):
     res = subprocess.run(["xvfb-run", "-a", sys.executable, str(script), os.path.dirname(__file__), str(tmp_path)],
                          capture_output=True, text=True, timeout=120, env=env)
     assert res.returncode == 0 and "interactive ok" in res.stdout, res.stderr[-2000:]
+
+
+# --------------------------------------------------------------------------------- scenes
+SCENES = os.path.join(os.path.dirname(__file__), os.pardir, "assets", "scenes")
+
+
+def test_scene_file_preview_has_scene_heights_and_widget_ids():
+    from shapedisplay.scene import load_scene, scene_heightfield
+    path = os.path.join(SCENES, "phone.toml")
+    m = viewer.load_model(path)
+    sc = load_scene(path)
+    np.testing.assert_array_equal(m.fields["height"], scene_heightfield(sc).heights)
+    assert [w["id"] for w in m.widgets] == [w.id for w in sc.widgets]
+    app = next(w for w in m.widgets if w["id"] == "app-1")
+    assert (app["x0"], app["y0"], app["x1"], app["y1"]) == pytest.approx(sc.widget("app-1").bbox)
+
+
+def test_compiled_scene_table_shows_outlines_and_left_out(tmp_path):
+    from shapedisplay.scene import compile_scene
+    res = compile_scene(os.path.join(SCENES, "phone.toml"))
+    path = tmp_path / "phone.npz"
+    res.table.save(path)
+    m = viewer.load_model(path)
+    assert {w["id"] for w in m.widgets} >= {"app-1", "call", "home", "volume"}
+    assert m.stored is not None and 0.1 < m.stored.mean() < 0.9      # empty screen between widgets left out
+    # the relief recovered from N = n_base + n_gain h matches the scene's heights where stored
+    from shapedisplay.scene import scene_heightfield
+    h = scene_heightfield(os.path.join(SCENES, "phone.toml")).heights
+    q = res.table.quant["normal_force"].max_error / res.table.meta["mapping"]["n_gain"]
+    assert np.max(np.abs(m.fields["height"] - h)[m.stored]) <= q + 1e-12
+    with_outlines = viewer.render(m, "N", size=(W, H), view="top", lighting=False, scalar_bar=False,
+                                  annotations=False)
+    img1 = with_outlines.screenshot()
+    with_outlines.close()
+    m.widgets = []
+    bare = viewer.render(m, "N", size=(W, H), view="top", lighting=False, scalar_bar=False, annotations=False)
+    img0 = bare.screenshot()
+    bare.close()
+    dark = lambda img: np.all(img < 70, axis=2)                        # noqa: E731  outline colour #202020
+    assert dark(img1).sum() > dark(img0).sum() + 200
+
+
+def test_one_dimensional_scene_is_a_strip_with_full_width_outlines():
+    from shapedisplay.scene import compile_scene
+    res = compile_scene(os.path.join(SCENES, "media-player.toml"))
+    m = viewer.model_from_table(res.table)
+    assert res.table.is_1d and m.strip and m.relief.shape == (2, res.table.grid.cols)
+    assert all(w["y0"] == m.y[0] and w["y1"] == m.y[-1] for w in m.widgets)
+    p = viewer.render(m, "N", size=(W, H))
+    assert "1-D profile drawn as a strip" in p.info
+    assert 0.05 < surface_pixels(p.screenshot()).mean() < 0.9
+    p.close()
