@@ -160,3 +160,14 @@ def test_compile_command_takes_a_mesh(tmp_path, capsys):
     m = MappingOptions()
     q = table.quant["normal_force"].max_error
     np.testing.assert_allclose(n, m.n_base + m.n_gain * ref.heights, atol=q + 1e-9)
+
+
+def test_heightmap_command_exports_an_image_source_as_a_mesh(tmp_path, capsys):
+    png = ROOT / "assets" / "maps" / "tent_profile.png"
+    out = tmp_path / "tent.ply"
+    rc = main(["heightmap", str(png), "-o", str(out), "--size", "60x4mm", "--height", "0:2mm", "--surface-only"])
+    assert rc == 0, capsys.readouterr().err
+    src = load_source(png, size="60x4mm", height_range="0:2mm")
+    back = mesh.mesh_to_heightfield(out, resolution=src.dx)
+    assert back.shape == src.shape
+    np.testing.assert_allclose(back.heights, src.heights - src.heights.min(), atol=1e-8)
