@@ -402,3 +402,16 @@ def test_samples_just_outside_a_steep_sliver_do_not_overshoot(method):
     h = raster.rasterize(tri, 2, 5, method=method)
     assert np.all(h[0] <= 5.0) and np.all(h[0] >= 0.0)
     assert np.all(np.isneginf(h[1]))
+
+
+@pytest.mark.parametrize("name, text", [
+    ("quad.obj", "v 0 0 0\nv 10 0 0\nv 10 10 2\nv 0 10 2\nf 1 2 3 4\n"),
+    ("quad.off", "OFF\n4 1 0\n0 0 0\n10 0 0\n10 10 2\n0 10 2\n4 0 1 2 3\n"),
+])
+def test_polygon_faces_are_triangulated(tmp_path, name, text):
+    p = tmp_path / name
+    p.write_text(text)
+    hf = mesh.mesh_to_heightfield(p, resolution=1 * MM)
+    assert hf.meta["triangles"] == 2
+    _, Y = sample_xy(hf)
+    np.testing.assert_allclose(hf.heights, 0.2 * Y, atol=1e-15)      # the ramp z = 0.2 y
