@@ -19,6 +19,8 @@ COMMAND_MODULES = (
     "shapedisplay_cli.cmd_preview",
     "shapedisplay_cli.cmd_scene",
     "shapedisplay_cli.cmd_device",
+    "shapedisplay_cli.cmd_play",
+    "shapedisplay_cli.cmd_study",
 )
 
 

@@ -1,0 +1,85 @@
+"""``shapedisplay play``: render a stroke, trace or force recording over a table to WAV/trace/plot."""
+from __future__ import annotations
+
+STROKE_HELP = ('cursor stroke in mm on the table grid: "0,10 -> 60,10 -> 60,30 @ 20 mm/s", back and forth '
+               '"0,2 <-> 60,2 @ 20mm/s x3", 1-D "0:60mm @ 50mm/s"')
+
+
+def register(sub) -> None:
+    p = sub.add_parser("play", help="play a table with the stick-slip renderer (WAV, trace, plot)",
+                       description="Render a cursor stroke over a compiled table with a stick-slip model and "
+                                   "write the burst audio (WAV), the per-tick trace (.npz) and a plot. "
+                                   "Outside the table the edge value is held.")
+    p.add_argument("table", help="table file (.npz)")
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--stroke", help=STROKE_HELP)
+    src.add_argument("--trace", help="recorded cursor trace, CSV t,x,y (s, mm; header x_m,y_m for metres)")
+    src.add_argument("--force", help="pointing-stick force recording, CSV t,fx[,fy] (s, N); v = alpha f "
+                                     "with alpha = the device's cursor_gain")
+    p.add_argument("--start", default="0,0", help="start position for --force, 'x,y' in mm (default 0,0)")
+    p.add_argument("--device", help="device profile (TOML path or bundled name); overrides the table's")
+    p.add_argument("--model", default="exact", help="exact | jump | karnopp | stribeck | euler | rk4 (default exact)")
+    p.add_argument("--rate", help="tick rate, e.g. 10kHz (default: the device's)")
+    p.add_argument("--audio-rate", help="audio sample rate, e.g. 48kHz (default: the device's)")
+    p.add_argument("--format", default="float32", help="WAV sample format: float32 | int16 (default float32)")
+    p.add_argument("--burst-policy", default="retrigger", help="retrigger | add | max (default retrigger)")
+    p.add_argument("--max-stick-period", help="force a slip after this long stuck, e.g. 50ms (default off)")
+    p.add_argument("-o", "--output", required=True, help="WAV file to write")
+    p.add_argument("--trace-out", help="write the per-tick trace (.npz)")
+    p.add_argument("--plot", help="write a plot (.png/.pdf/.svg; needs matplotlib)")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    import json
+
+    from shapedisplay.devices import load_device
+    from shapedisplay.errors import InputError
+    from shapedisplay.runtime.cursor import load_force_csv, load_trace_csv, parse_stroke
+    from shapedisplay.runtime.renderer import Renderer
+    from shapedisplay.sinks import SAMPLE_FORMATS, plot_trace, write_trace, write_wav
+    from shapedisplay.errors import unknown_key
+    from shapedisplay.table import FrictionTable
+    from shapedisplay.units import parse_quantity
+
+    if args.format not in SAMPLE_FORMATS:
+        raise unknown_key("--format", args.format, SAMPLE_FORMATS)
+    table = FrictionTable.load(args.table)
+    device = load_device(args.device) if args.device else None
+    rate = parse_quantity(args.rate, "Hz", "--rate") if args.rate else None
+    arate = parse_quantity(args.audio_rate, "Hz", "--audio-rate") if args.audio_rate else None
+    msp = parse_quantity(args.max_stick_period, "s", "--max-stick-period") if args.max_stick_period else None
+    r = Renderer(table, device=device, model=args.model, tick_rate=rate, audio_rate=arate,
+                 burst_policy=args.burst_policy, max_stick_period=msp)
+    if args.stroke:
+        cursor = parse_stroke(args.stroke, r.tick_rate)
+    elif args.trace:
+        cursor = load_trace_csv(args.trace)
+    else:
+        try:
+            sx, sy = (float(v) * 1e-3 for v in args.start.split(","))
+        except ValueError:
+            raise InputError(f"`--start` must be 'x,y' in mm (got {args.start!r})") from None
+        cursor = load_force_csv(args.force, r.device.cursor_gain, r.tick_rate, (sx, sy))
+    res = r.render(cursor)
+    write_wav(args.output, res.audio, res.audio_rate, args.format)
+    if args.trace_out:
+        write_trace(args.trace_out, res, table.checksum())
+    if args.plot:
+        plot_trace(args.plot, res)
+    s = res.summary()
+    if args.json:
+        print(json.dumps(s, indent=2))
+    else:
+        print(f"{s['model']} at {s['tick_rate_hz']:g} Hz: {s['ticks']} ticks over {s['duration_s']:.4g} s, "
+              f"{s['events']} stick-slip events, max friction {s['max_friction_n']:.4g} N, "
+              f"slip {100 * s['slip_fraction']:.1f} % of the time")
+        print(f"audio: {s['audio_samples']} samples at {s['audio_rate_hz']:g} Hz ({args.format}) -> {args.output}; "
+              f"peak {s['peak']:.3g}, clipped {s['clipped']} samples"
+              + (" (lower the burst gain)" if s["clipped"] else ""))
+        if args.trace_out:
+            print(f"trace -> {args.trace_out}")
+        if args.plot:
+            print(f"plot -> {args.plot}")
+    return 0

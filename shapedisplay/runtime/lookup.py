@@ -1,0 +1,103 @@
+"""Bilinear table lookup inside numba kernels, on the packed table layout.
+
+The same arithmetic as :meth:`shapedisplay.table.FrictionTable.sample`
+(edge value held outside the canvas, 1-D tables ignore y), but on
+:meth:`~shapedisplay.table.FrictionTable.packed` blocks so that a sparse
+table (widgets with empty space between them) is never expanded to a dense
+canvas. A C port does exactly this.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..table import FrictionTable
+
+#: Layout of the grid vector ``g``: rows, cols, dx, dy, x0, y0.
+G_ROWS, G_COLS, G_DX, G_DY, G_X0, G_Y0 = range(6)
+
+
+def pack_channels(table: FrictionTable, names: list[str]):
+    """Pack several channels sharing the table's blocks.
+
+    Returns
+    -------
+    blocks : ndarray (n_blocks, 5), int64 — row0, col0, rows, cols, offset
+    data : ndarray (len(names), n_values), float64 — decoded values, SI
+    background : ndarray (len(names),), float64
+    grid : ndarray (6,), float64 — rows, cols, dx, dy, x0, y0
+    """
+    g = table.grid
+    grid = np.array([g.rows, g.cols, g.dx, g.dy, g.x0, g.y0], dtype=np.float64)
+    if not names:
+        return np.zeros((0, 5), np.int64), np.zeros((0, 1)), np.zeros(0), grid
+    rows = []
+    bgs = []
+    blocks = None
+    for n in names:
+        blk, data, bg = table.packed(n)
+        blocks = blk if blocks is None else blocks
+        rows.append(np.asarray(data, dtype=np.float64))
+        bgs.append(float(bg))
+    data = np.vstack(rows) if rows[0].size else np.zeros((len(names), 1))
+    return np.ascontiguousarray(blocks), np.ascontiguousarray(data), np.array(bgs), grid
+
+
+@njit(cache=True)
+def cell_index(blocks, r, c):
+    """Flat offset of canvas sample (r, c) in the packed data, or -1 for background."""
+    for b in range(blocks.shape[0]):
+        r0 = blocks[b, 0]
+        c0 = blocks[b, 1]
+        nr = blocks[b, 2]
+        nc = blocks[b, 3]
+        if r0 <= r < r0 + nr and c0 <= c < c0 + nc:
+            return blocks[b, 4] + (r - r0) * nc + (c - c0)
+    return -1
+
+
+@njit(cache=True)
+def _value(data, bg, ch, idx):
+    return data[ch, idx] if idx >= 0 else bg[ch]
+
+
+@njit(cache=True)
+def sample_all(blocks, data, bg, grid, x, y, out):
+    """Bilinear values of every packed channel at (x, y) metres into ``out[:n_channels]``."""
+    rows = int(grid[G_ROWS])
+    cols = int(grid[G_COLS])
+    fc = (x - grid[G_X0]) / grid[G_DX]
+    if fc < 0.0:
+        fc = 0.0
+    if fc > cols - 1:
+        fc = cols - 1.0
+    c0 = int(np.floor(fc))
+    if c0 > max(cols - 2, 0):
+        c0 = max(cols - 2, 0)
+    tx = fc - c0
+    c1 = min(c0 + 1, cols - 1)
+    nch = bg.shape[0]
+    if rows == 1:
+        i0 = cell_index(blocks, 0, c0)
+        i1 = cell_index(blocks, 0, c1)
+        for ch in range(nch):
+            out[ch] = _value(data, bg, ch, i0) * (1 - tx) + _value(data, bg, ch, i1) * tx
+        return
+    fr = (y - grid[G_Y0]) / grid[G_DY]
+    if fr < 0.0:
+        fr = 0.0
+    if fr > rows - 1:
+        fr = rows - 1.0
+    r0 = int(np.floor(fr))
+    if r0 > max(rows - 2, 0):
+        r0 = max(rows - 2, 0)
+    ty = fr - r0
+    r1 = min(r0 + 1, rows - 1)
+    i00 = cell_index(blocks, r0, c0)
+    i01 = cell_index(blocks, r0, c1)
+    i10 = cell_index(blocks, r1, c0)
+    i11 = cell_index(blocks, r1, c1)
+    for ch in range(nch):
+        top = _value(data, bg, ch, i00) * (1 - tx) + _value(data, bg, ch, i01) * tx
+        bot = _value(data, bg, ch, i10) * (1 - tx) + _value(data, bg, ch, i11) * tx
+        out[ch] = top * (1 - ty) + bot * ty

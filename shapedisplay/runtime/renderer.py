@@ -1,0 +1,498 @@
+"""The stick-slip renderer: plays a friction-envelope table as the cursor moves.
+
+One :class:`Renderer` runs two ways over the same kernels (:mod:`.pads`):
+
+* offline, :meth:`Renderer.render` over a whole cursor path (the fast path:
+  vectorised table lookups, one compiled loop over all ticks, then burst
+  synthesis);
+* online, :meth:`Renderer.step` once per tick from a host loop or a device
+  link (compiled, allocation-free, O(1) per tick plus O(events)).
+
+Per tick ``i`` (from ``t[i-1]`` to ``t[i]``)
+--------------------------------------------
+* cursor velocity ``(p[i] - p[i-1]) / h``; the pad axis follows the motion
+  direction and keeps its orientation within 90 degrees from tick to tick,
+  so a reversal gives a negative pad speed ``V`` (tick 0 has ``V = 0``);
+* channels are looked up (bilinear) at the midpoint of the tick's motion;
+  outside the table the edge value is held;
+* ``N = normal_force`` (clamped at >= 0);
+  ``mu_s, mu_k`` from the device profile, times ``friction_scale`` if
+  stored (or ``breakaway_force / N`` and ``kinetic_force / N`` if those are
+  stored), plus the one-sided slope term ``K_mu * max(0, grad . v_hat)``
+  (``K_mu = table.meta["mapping"]["slope_friction_gain"]``; uphill resists,
+  downhill releases; needs ``grad_x``/``grad_y``);
+* burst gain ``B * burst_gain``; lateral outputs are the ``lateral_x/y``
+  channels (0 if absent); skin stretch is ``target * f / (mu_s N)`` with
+  ``target`` the ``skin_stretch`` channel or ``[skin_stretch] target`` of
+  the profile (0 if neither).
+
+Real-time rules for :meth:`Renderer.step`
+-----------------------------------------
+* Build the renderer (and so compile and warm the kernels) before the
+  real-time loop; :meth:`reset` also allocates nothing.
+* ``step`` allocates no memory: inputs are two floats, outputs go into
+  preallocated buffers (:attr:`Renderer.last` values, :attr:`audio_block`).
+* Work per call is one table lookup (a scan over the table's blocks), one
+  model tick, and the audio samples of the tick; the exact model adds one
+  closed-form root search per phase change.
+* Call ``step`` exactly once per tick, ``1 / tick_rate`` apart in cursor
+  time; do not call :meth:`render` or read list-building properties from
+  the real-time thread.
+* ``step`` raises :class:`~shapedisplay.errors.ModelError` only if an
+  explicit baseline model (``euler``/``rk4``) diverges.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numba import njit
+
+from ..devices import DeviceProfile, load_device
+from ..errors import InputError, ModelError
+from ..table import FrictionTable
+from ..units import parse_quantity
+from . import pads
+from .bursts import burst_value, policy_id, render_bursts, synth
+from .cursor import CursorPath
+from .lookup import sample_all
+from .models import PadModel, check_tick_rate, divergence_message, get_model, run_kernel
+
+#: Table channels the renderer reads, in slot order.
+SLOTS = ("normal_force", "friction_scale", "burst_gain", "grad_x", "grad_y", "lateral_x", "lateral_y",
+         "skin_stretch", "breakaway_force", "kinetic_force")
+C_N, C_FS, C_BG, C_GX, C_GY, C_LX, C_LY, C_SS, C_BK, C_KF = range(len(SLOTS))
+NSLOT = len(SLOTS)
+
+# cfg vector: mu_s, mu_k, K_mu, default skin target, then presence flags per slot
+CFG_MUS, CFG_MUK, CFG_KMU, CFG_SST, CFG_HAS = 0, 1, 2, 3, 4
+
+# workspace layout for the online path (one float64 array)
+W_S, W_P, W_I, W_CFG, W_BP, W_VALS, W_OUT, W_BG, W_GRID, W_SLOT, W_TMP = 0, 16, 32, 48, 64, 72, 88, 104, 120, 128, 144
+W_SIZE = 160
+# internal registers (W_I + ...)
+I_TICK, I_XP, I_YP, I_AX, I_AY, I_T0, I_RATE, I_NEXTJ, I_NREC, I_CLIP, I_NEVTOT, I_DROPPED = range(12)
+# burst params (W_BP + ...)
+B_RATE, B_CAR, B_RISE, B_DEC, B_POL = range(5)
+# per-tick outputs (W_OUT + ...)
+O_T, O_X, O_Y, O_VX, O_VY, O_N, O_F, O_STATE, O_LX, O_LY, O_SS, O_NEV, O_DRIVE, O_NAUDIO, O_V = range(15)
+OUT_NAMES = ("t", "x", "y", "vx", "vy", "normal_force", "friction_force", "state", "lateral_x", "lateral_y",
+             "skin_stretch", "events", "drive", "audio_samples", "pad_speed")
+
+_RING = 4096
+
+
+@njit(cache=True)
+def _derive(vals, cfg, vx, vy, speed):
+    """Per-tick model inputs from the looked-up channel values: (N, mu_s, mu_k, gain)."""
+    N = vals[C_N]
+    if N < 0.0:
+        N = 0.0
+    fs = vals[C_FS] if cfg[CFG_HAS + C_FS] != 0.0 else 1.0
+    if fs < 0.0:
+        fs = 0.0
+    mus = cfg[CFG_MUS] * fs
+    muk = cfg[CFG_MUK] * fs
+    if cfg[CFG_HAS + C_BK] != 0.0 and N > 0.0:
+        mus = max(vals[C_BK], 0.0) / N
+    if cfg[CFG_HAS + C_KF] != 0.0 and N > 0.0:
+        muk = max(vals[C_KF], 0.0) / N
+    if cfg[CFG_KMU] != 0.0 and speed > 0.0 and cfg[CFG_HAS + C_GX] != 0.0:
+        gy = vals[C_GY] if cfg[CFG_HAS + C_GY] != 0.0 else 0.0
+        slope = (vals[C_GX] * vx + gy * vy) / speed
+        if slope > 0.0:
+            mus += cfg[CFG_KMU] * slope
+            muk += cfg[CFG_KMU] * slope
+    if muk > mus:
+        muk = mus
+    gain = vals[C_BG] if cfg[CFG_HAS + C_BG] != 0.0 else 1.0
+    if gain < 0.0:
+        gain = 0.0
+    return N, mus, muk, gain
+
+
+@njit(cache=True)
+def _axis_speed(vx, vy, ax, ay):
+    """Signed pad speed along an axis that follows the motion (reversal -> negative)."""
+    sp = math.sqrt(vx * vx + vy * vy)
+    if sp == 0.0:
+        return 0.0, ax, ay
+    dx = vx / sp
+    dy = vy / sp
+    if dx * ax + dy * ay >= 0.0:
+        return sp, dx, dy
+    return -sp, -dx, -dy
+
+
+@njit(cache=True)
+def prepare_inputs(t, x, y, vals, cfg, V, vx, vy, N, mus, muk, gain):
+    """Offline: per-tick velocities and model inputs (arrays of shape (n,))."""
+    n = t.shape[0]
+    ax = 1.0
+    ay = 0.0
+    for i in range(n):
+        if i == 0:
+            vx[i] = 0.0
+            vy[i] = 0.0
+        else:
+            h = t[i] - t[i - 1]
+            vx[i] = (x[i] - x[i - 1]) / h
+            vy[i] = (y[i] - y[i - 1]) / h
+        V[i], ax, ay = _axis_speed(vx[i], vy[i], ax, ay)
+        sp = abs(V[i])
+        N[i], mus[i], muk[i], gain[i] = _derive(vals[:, i], cfg, vx[i], vy[i], sp)
+
+
+@njit(cache=True)
+def online_step(model, W, blocks, data, ev, audio, x, y):
+    """Online: one tick at cursor position (x, y) m. Returns the burst drive value."""
+    S = W[W_S:W_S + 16]
+    P = W[W_P:W_P + 16]
+    I = W[W_I:W_I + 16]
+    cfg = W[W_CFG:W_CFG + 16]
+    bp = W[W_BP:W_BP + 8]
+    vals = W[W_VALS:W_VALS + 16]
+    out = W[W_OUT:W_OUT + 16]
+    bg = W[W_BG:W_BG + int(W[W_SLOT + 15])]
+    grid = W[W_GRID:W_GRID + 8]
+    tmp = W[W_TMP:W_TMP + 16]
+    k = I[I_TICK]
+    rate = I[I_RATE]
+    t = I[I_T0] + k / rate
+    if k == 0.0:
+        h = 0.0
+        vx = 0.0
+        vy = 0.0
+        xm = x
+        ym = y
+    else:
+        h = t - (I[I_T0] + (k - 1.0) / rate)
+        vx = (x - I[I_XP]) / h
+        vy = (y - I[I_YP]) / h
+        xm = 0.5 * (x + I[I_XP])
+        ym = 0.5 * (y + I[I_YP])
+    V, ax, ay = _axis_speed(vx, vy, I[I_AX], I[I_AY])
+    I[I_AX] = ax
+    I[I_AY] = ay
+    if bg.shape[0] > 0:
+        sample_all(blocks, data, bg, grid, xm, ym, tmp)
+    for s in range(NSLOT):
+        j = int(W[W_SLOT + s])
+        vals[s] = tmp[j] if j >= 0 else 0.0
+    N, mus, muk, gain = _derive(vals, cfg, vx, vy, abs(V))
+    ev_t = ev[0]
+    ev_a = ev[1]
+    # forget bursts that have finished
+    dur = bp[B_RISE] + bp[B_DEC]
+    nrec = int(I[I_NREC])
+    drop = 0
+    while drop < nrec and ev_t[drop] + dur <= t - h:
+        drop += 1
+    if nrec > ev_t.shape[0] // 2 and drop == 0:
+        drop = nrec - ev_t.shape[0] // 4
+        I[I_DROPPED] += drop
+    if drop > 0:
+        for i in range(drop, nrec):
+            ev_t[i - drop] = ev_t[i]
+            ev_a[i - drop] = ev_a[i]
+        nrec -= drop
+    nev = 0
+    if h > 0.0:
+        n1 = pads.model_tick(model, S, P, t - h, h, V, N, mus, muk, gain, ev_t, ev_a, nrec)
+        nev = n1 - nrec
+        if n1 > ev_t.shape[0]:
+            I[I_DROPPED] += n1 - ev_t.shape[0]
+            n1 = ev_t.shape[0]
+        nrec = n1
+    I[I_NREC] = nrec
+    I[I_NEVTOT] += nev
+    # audio samples with times in (t - h, t]
+    j0 = int(I[I_NEXTJ])
+    j1 = int(math.floor((t - I[I_T0]) * bp[B_RATE] + 1e-9)) + 1
+    if j1 - j0 > audio.shape[0]:
+        j0 = j1 - audio.shape[0]
+    if j1 > j0:
+        I[I_CLIP] += synth(ev_t, ev_a, nrec, I[I_T0], bp[B_RATE], j0, j1, bp[B_CAR], bp[B_RISE], bp[B_DEC],
+                           int(bp[B_POL]), audio)
+    I[I_NEXTJ] = j1
+    hi = 0
+    while hi < nrec and ev_t[hi] <= t:
+        hi += 1
+    lo = hi - 1 if int(bp[B_POL]) == 0 else 0
+    if lo < 0:
+        lo = 0
+    drive = burst_value(t, ev_t, ev_a, lo, hi, bp[B_CAR], bp[B_RISE], bp[B_DEC], int(bp[B_POL]))
+    drive = min(max(drive, -1.0), 1.0)
+    f = S[pads.S_F]
+    out[O_T] = t
+    out[O_X] = x
+    out[O_Y] = y
+    out[O_VX] = vx
+    out[O_VY] = vy
+    out[O_V] = V
+    out[O_N] = N
+    out[O_F] = f
+    out[O_STATE] = S[pads.S_PHASE]
+    out[O_LX] = vals[C_LX]
+    out[O_LY] = vals[C_LY]
+    target = vals[C_SS] if cfg[CFG_HAS + C_SS] != 0.0 else cfg[CFG_SST]
+    out[O_SS] = target * f / (mus * N) if mus * N > 0.0 else 0.0
+    out[O_NEV] = nev
+    out[O_DRIVE] = drive
+    out[O_NAUDIO] = max(j1 - j0, 0)
+    I[I_XP] = x
+    I[I_YP] = y
+    I[I_TICK] = k + 1.0
+    return drive
+
+
+@dataclass
+class RenderResult:
+    """Everything one offline run produced (arrays are float64 of shape (n,) unless stated).
+
+    Attributes
+    ----------
+    t : s, tick times; ``x, y`` : m, cursor; ``vx, vy`` : m/s, cursor velocity
+    normal_force : N; ``friction_force`` : N, on the pad, signed along the pad axis
+    state : int8, 0 stick / 1 slip
+    lateral_x, lateral_y : N, lateral-force cue; ``skin_stretch`` : m
+    event_time, event_amplitude : (n_events,), s and full-scale amplitude
+    audio : (n_audio,), float64 in [-1, 1] at ``audio_rate`` Hz, first sample at ``t[0]``
+    clipped : int, audio samples limited to full scale
+    model : str; ``tick_rate`` : Hz; ``burst_policy`` : str
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    vx: np.ndarray
+    vy: np.ndarray
+    normal_force: np.ndarray
+    friction_force: np.ndarray
+    state: np.ndarray
+    lateral_x: np.ndarray
+    lateral_y: np.ndarray
+    skin_stretch: np.ndarray
+    event_time: np.ndarray
+    event_amplitude: np.ndarray
+    audio: np.ndarray
+    audio_rate: float
+    clipped: int
+    model: str
+    tick_rate: float
+    burst_policy: str = "retrigger"
+    mu_s: np.ndarray = field(default=None, repr=False)
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0])
+
+    def summary(self) -> dict:
+        """Short numbers for a CLI line or a report."""
+        return {
+            "model": self.model,
+            "tick_rate_hz": self.tick_rate,
+            "ticks": int(self.t.size),
+            "duration_s": self.duration,
+            "events": int(self.event_time.size),
+            "max_friction_n": float(np.max(np.abs(self.friction_force), initial=0.0)),
+            "slip_fraction": float(np.mean(self.state)) if self.state.size else 0.0,
+            "audio_samples": int(self.audio.size),
+            "audio_rate_hz": self.audio_rate,
+            "clipped": int(self.clipped),
+            "peak": float(np.max(np.abs(self.audio), initial=0.0)),
+        }
+
+
+def _device_for(table: FrictionTable, device) -> DeviceProfile:
+    if isinstance(device, DeviceProfile):
+        return device.validate()
+    if device is not None:
+        return load_device(device)
+    if isinstance(table.meta.get("device"), dict):
+        return DeviceProfile.from_json(table.meta["device"])
+    return load_device(None)
+
+
+class Renderer:
+    """Stick-slip renderer of a friction-envelope table.
+
+    Parameters
+    ----------
+    table : FrictionTable
+        Must store ``normal_force``; other channels are used when present
+        (see the module docstring).
+    device : DeviceProfile, path, bundled name or None
+        Pad, friction and burst parameters. Default: ``table.meta["device"]``
+        if present, else the built-in Konyo profile.
+    model : str or PadModel
+        A name from :data:`~shapedisplay.runtime.models.MODELS`.
+    tick_rate : float, optional
+        Hz (100 Hz .. 192 kHz); default the device's tick rate.
+    audio_rate : float, optional
+        Hz (1 kHz .. 384 kHz); default the device's audio rate.
+    burst_policy : {"retrigger", "add", "max"}
+    max_stick_period : float, optional
+        s; force a slip (and burst) when stuck longer (0 or None = device
+        setting, off by default).
+    **model_options
+        Passed to the model class (e.g. ``variant="premax"`` for stribeck).
+    """
+
+    def __init__(self, table: FrictionTable, device=None, model="exact", tick_rate=None, audio_rate=None,
+                 burst_policy="retrigger", max_stick_period=None, **model_options):
+        if not isinstance(table, FrictionTable):
+            raise InputError(f"`table` must be a FrictionTable (got {type(table).__name__})")
+        dev = _device_for(table, device)
+        if max_stick_period is not None:
+            msp = float(max_stick_period)
+            if not (math.isfinite(msp) and msp >= 0):
+                raise InputError(f"`max_stick_period` must be >= 0 s (got {max_stick_period!r})")
+            dev = dev.with_(burst=replace(dev.burst, max_stick_period_s=msp))
+        self.table = table
+        self.device = dev
+        self.model: PadModel = get_model(model, dev, **model_options)
+        table.require(*self.model.needs)
+        self.tick_rate = check_tick_rate(dev.tick_rate_hz if tick_rate is None else tick_rate)
+        ar = float(dev.audio_rate_hz if audio_rate is None else audio_rate)
+        if not (math.isfinite(ar) and 1000.0 <= ar <= 384_000.0):
+            raise InputError(f"`audio_rate` must be within 1 kHz..384 kHz (got {audio_rate!r} Hz)")
+        self.audio_rate = ar
+        self.burst_policy = burst_policy
+        self._policy = policy_id(burst_policy)
+        self.present = [name for name in SLOTS if name in table.channels]
+        mapping = table.meta.get("mapping", {}) or {}
+        kmu = float(mapping.get("slope_friction_gain", 0.0) or 0.0)
+        if not (math.isfinite(kmu) and kmu >= 0):
+            raise InputError(f"table mapping `slope_friction_gain` must be >= 0 (got {kmu!r})")
+        sst = 0.0
+        if "skin_stretch" in dev.extra and "target" in dev.extra["skin_stretch"]:
+            sst = parse_quantity(dev.extra["skin_stretch"]["target"], "m", "skin_stretch.target")
+        cfg = np.zeros(16)
+        cfg[CFG_MUS] = dev.friction.mu_s
+        cfg[CFG_MUK] = dev.friction.mu_k
+        cfg[CFG_KMU] = kmu
+        cfg[CFG_SST] = sst
+        for i, name in enumerate(SLOTS):
+            cfg[CFG_HAS + i] = 1.0 if name in self.present else 0.0
+        self._cfg = cfg
+        self._build_online()
+        self.reset()
+        # warm the compiled step on a scratch copy (compilation never happens in the real-time loop)
+        W = self._W.copy()
+        online_step(self.model.model_id, W, self._blocks, self._data, self._ev.copy(), self._audio.copy(), 0.0, 0.0)
+
+    # ------------------------------------------------------------------ offline
+    def _inputs(self, cp: CursorPath):
+        t, x, y = cp.t, cp.x, cp.y
+        xm = np.empty_like(x)
+        ym = np.empty_like(y)
+        xm[0], ym[0] = x[0], y[0]
+        xm[1:] = 0.5 * (x[1:] + x[:-1])
+        ym[1:] = 0.5 * (y[1:] + y[:-1])
+        n = t.size
+        vals = np.zeros((NSLOT, n))
+        for i, name in enumerate(SLOTS):
+            if name in self.present:
+                vals[i] = self.table.sample(name, xm, ym)
+        arrs = [np.empty(n) for _ in range(7)]
+        prepare_inputs(t, x, y, vals, self._cfg, *arrs)
+        V, vx, vy, N, mus, muk, gain = arrs
+        return vals, V, vx, vy, N, mus, muk, gain
+
+    def render(self, cursor: CursorPath) -> RenderResult:
+        """Render a whole cursor path offline (the fast path).
+
+        A path not on this renderer's tick grid is resampled to ``tick_rate``.
+        Raises :class:`ModelError` if an explicit baseline diverges.
+        """
+        if not isinstance(cursor, CursorPath):
+            raise InputError(f"`cursor` must be a CursorPath (got {type(cursor).__name__})")
+        cp = cursor if cursor.tick_rate == self.tick_rate else cursor.resample(self.tick_rate)
+        vals, V, vx, vy, N, mus, muk, gain = self._inputs(cp)
+        S, f, st, _, _, _, _, et, ea = run_kernel(self.model, cp.t, V, N, mus, muk, gain)
+        if S[pads.S_BLOW] != 0:
+            raise ModelError(divergence_message(self.model, self.tick_rate, float(S[pads.S_BLOWT])))
+        target = vals[C_SS] if "skin_stretch" in self.present else np.full(cp.t.size, self._cfg[CFG_SST])
+        lim = mus * N
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ss = np.where(lim > 0, target * f / np.where(lim > 0, lim, 1.0), 0.0)
+        b = self.device.burst
+        audio, clipped = render_bursts(et, ea, cp.t[0], cp.duration, self.audio_rate, b.carrier_hz, b.rise_s,
+                                       b.decay_s, self.burst_policy)
+        return RenderResult(cp.t.copy(), cp.x.copy(), cp.y.copy(), vx, vy, N, f, st.astype(np.int8),
+                            vals[C_LX].copy(), vals[C_LY].copy(), ss, et, ea, audio, self.audio_rate, clipped,
+                            self.model.name, self.tick_rate, self.burst_policy, mus)
+
+    # ------------------------------------------------------------------ online
+    def _build_online(self):
+        from .lookup import pack_channels
+        blocks, data, bg, grid = pack_channels(self.table, self.present)
+        self._blocks, self._data = blocks, data
+        W = np.zeros(W_SIZE)
+        W[W_P:W_P + 16] = self.model.params
+        W[W_CFG:W_CFG + 16] = self._cfg
+        b = self.device.burst
+        W[W_BP + B_RATE] = self.audio_rate
+        W[W_BP + B_CAR] = b.carrier_hz
+        W[W_BP + B_RISE] = b.rise_s
+        W[W_BP + B_DEC] = b.decay_s
+        W[W_BP + B_POL] = self._policy
+        W[W_BG:W_BG + len(bg)] = bg
+        W[W_GRID:W_GRID + 6] = grid
+        for i, name in enumerate(SLOTS):
+            W[W_SLOT + i] = self.present.index(name) if name in self.present else -1
+        W[W_SLOT + 15] = len(self.present)
+        self._W0 = W
+        self._ev = np.zeros((2, _RING))
+        self._audio = np.zeros(int(math.ceil(self.audio_rate / self.tick_rate)) + 2)
+        self.audio_block = self._audio
+        self._model_id = self.model.model_id
+
+    def reset(self, t0: float = 0.0) -> None:
+        """Start a new online run at cursor time ``t0`` (s): state stuck and relaxed, no bursts."""
+        if not hasattr(self, "_W"):
+            self._W = self._W0.copy()
+        W = self._W
+        W[:] = self._W0
+        W[W_S:W_S + 16] = self.model.new_state()
+        W[W_I + I_AX] = 1.0
+        W[W_I + I_T0] = float(t0)
+        W[W_I + I_RATE] = self.tick_rate
+        self._ev[:] = 0.0
+        self._audio[:] = 0.0
+        #: Per-tick outputs of the last :meth:`step` (a view; see ``OUT_NAMES``).
+        self.last = W[W_OUT:W_OUT + len(OUT_NAMES)]
+
+    def step(self, x: float, y: float) -> float:
+        """Advance one tick with the cursor at (x, y) metres; return the burst drive in [-1, 1].
+
+        Outputs of the tick are in :attr:`last` (indexed by ``O_*``; also
+        :meth:`outputs`) and the tick's audio samples in
+        ``audio_block[:int(last[O_NAUDIO])]``. Allocation-free; see the
+        real-time rules in the module docstring.
+        """
+        drive = online_step(self._model_id, self._W, self._blocks, self._data, self._ev, self._audio, x, y)
+        if self._W[W_S + pads.S_BLOW] != 0.0:
+            raise ModelError(divergence_message(self.model, self.tick_rate, float(self._W[W_S + pads.S_BLOWT])))
+        return drive
+
+    def outputs(self) -> dict:
+        """The last tick's outputs as a dict (allocates; not for the real-time loop)."""
+        return {name: float(v) for name, v in zip(OUT_NAMES, self.last)}
+
+    @property
+    def clipped(self) -> int:
+        """Audio samples limited to full scale since :meth:`reset`."""
+        return int(self._W[W_I + I_CLIP])
+
+    @property
+    def event_count(self) -> int:
+        """Stick-to-slip events since :meth:`reset`."""
+        return int(self._W[W_I + I_NEVTOT])
+
+    def recent_events(self):
+        """(times, amplitudes) of the bursts still sounding (copies)."""
+        n = int(self._W[W_I + I_NREC])
+        return self._ev[0, :n].copy(), self._ev[1, :n].copy()

@@ -1,0 +1,201 @@
+"""Where rendered output goes: WAV files, ``.npz`` traces and plots.
+
+Runtime side: imports nothing from the authoring side. Every file is
+written atomically (:func:`shapedisplay.atomic.atomic_path`).
+
+* :func:`write_wav` — mono WAV, 32-bit float (IEEE, format tag 3) or 16-bit
+  PCM; readable by any audio tool (16-bit also by Python's ``wave``).
+* :func:`write_trace` / :func:`read_trace` — the per-tick trace of a render
+  as a plain ``.npz`` (readable with ``numpy.load``): ``t`` (s), ``x``,
+  ``y`` (m), ``vx``, ``vy`` (m/s), ``normal_force``, ``friction_force`` (N),
+  ``state`` (0 stick, 1 slip), ``lateral_x``, ``lateral_y`` (N),
+  ``skin_stretch`` (m), ``event_time`` (s), ``event_amplitude``, plus
+  ``table_checksum``, ``model``, ``tick_rate``, ``audio_rate``, ``clipped``
+  and ``burst_policy``.
+* :func:`plot_trace` — N(x), friction, stick/slip state and bursts along
+  the stroke (needs matplotlib: the ``plot`` extra).
+"""
+from __future__ import annotations
+
+import math
+import os
+import struct
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from .atomic import atomic_path
+from .errors import FileFormatError, InputError, unknown_key
+
+SAMPLE_FORMATS = ("float32", "int16")
+TRACE_ARRAYS = ("t", "x", "y", "vx", "vy", "normal_force", "friction_force", "state", "lateral_x", "lateral_y",
+                "skin_stretch", "event_time", "event_amplitude")
+TRACE_FORMAT = "shapedisplay-trace-1"
+
+
+def write_wav(path, samples, rate, sample_format: str = "float32") -> Path:
+    """Write mono ``samples`` (float, full scale [-1, 1]) to a WAV file.
+
+    Parameters
+    ----------
+    path : str or PathLike
+    samples : ndarray (n,), float
+        Values outside [-1, 1] are limited (renderers already report
+        clipping; this is a last guard). NaN is refused.
+    rate : float
+        Sample rate, Hz (integer after rounding, 1 Hz .. 4294967295 Hz).
+    sample_format : {"float32", "int16"}
+
+    Returns
+    -------
+    Path of the file written.
+    """
+    if sample_format not in SAMPLE_FORMATS:
+        raise unknown_key("sample format", sample_format, SAMPLE_FORMATS)
+    a = np.asarray(samples, dtype=np.float64)
+    if a.ndim != 1:
+        raise InputError(f"WAV samples must be one channel, shape (n,) (got {a.shape})")
+    if not np.all(np.isfinite(a)):
+        raise InputError("WAV samples hold NaN or infinite values")
+    r = float(rate)
+    if not (math.isfinite(r) and 1 <= round(r) < 2 ** 32):
+        raise InputError(f"WAV `rate` must be a positive number of Hz (got {rate!r})")
+    r = int(round(r))
+    a = np.clip(a, -1.0, 1.0)
+    if sample_format == "int16":
+        data = np.round(a * 32767.0).astype("<i2").tobytes()
+        tag, bits = 1, 16
+    else:
+        data = a.astype("<f4").tobytes()
+        tag, bits = 3, 32
+    block = bits // 8
+    fmt = struct.pack("<HHIIHH", tag, 1, r, r * block, block, bits)
+    chunks = b"fmt " + struct.pack("<I", len(fmt)) + fmt
+    if tag == 3:  # non-PCM formats carry a fact chunk with the frame count
+        chunks += b"fact" + struct.pack("<II", 4, a.size)
+    chunks += b"data" + struct.pack("<I", len(data)) + data
+    if len(data) % 2:
+        chunks += b"\0"
+    blob = b"RIFF" + struct.pack("<I", 4 + len(chunks)) + b"WAVE" + chunks
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(blob)
+    return Path(path)
+
+
+def read_wav(path):
+    """Read a mono WAV written by :func:`write_wav`; returns ``(samples float64, rate)``."""
+    p = Path(path)
+    try:
+        blob = p.read_bytes()
+    except FileNotFoundError:
+        raise FileFormatError(f"WAV '{p}': no such file") from None
+    if blob[:4] != b"RIFF" or blob[8:12] != b"WAVE":
+        raise FileFormatError(f"WAV '{p}': not a RIFF/WAVE file")
+    pos, fmt, data = 12, None, None
+    while pos + 8 <= len(blob):
+        cid, size = blob[pos:pos + 4], struct.unpack("<I", blob[pos + 4:pos + 8])[0]
+        body = blob[pos + 8:pos + 8 + size]
+        if cid == b"fmt ":
+            fmt = struct.unpack("<HHIIHH", body[:16])
+        elif cid == b"data":
+            data = body
+        pos += 8 + size + (size % 2)
+    if fmt is None or data is None:
+        raise FileFormatError(f"WAV '{p}': missing fmt or data chunk")
+    tag, ch, rate, _, _, bits = fmt
+    if ch != 1:
+        raise FileFormatError(f"WAV '{p}': expected 1 channel (got {ch})")
+    if tag == 3 and bits == 32:
+        return np.frombuffer(data, "<f4").astype(np.float64), rate
+    if tag == 1 and bits == 16:
+        return np.frombuffer(data, "<i2").astype(np.float64) / 32767.0, rate
+    raise FileFormatError(f"WAV '{p}': unsupported format tag {tag} with {bits} bits")
+
+
+def write_trace(path, result, table_checksum: str = "") -> Path:
+    """Write the per-tick trace of a :class:`~shapedisplay.runtime.renderer.RenderResult` (.npz, atomic)."""
+    arrays = {}
+    for name in TRACE_ARRAYS:
+        a = np.asarray(getattr(result, name))
+        arrays[name] = a.astype(np.int8) if name == "state" else a.astype(np.float64)
+    arrays["table_checksum"] = np.array([str(table_checksum)])
+    arrays["model"] = np.array([str(result.model)])
+    arrays["burst_policy"] = np.array([str(getattr(result, "burst_policy", ""))])
+    arrays["format"] = np.array([TRACE_FORMAT])
+    arrays["tick_rate"] = np.array(float(result.tick_rate))
+    arrays["audio_rate"] = np.array(float(result.audio_rate))
+    arrays["clipped"] = np.array(int(result.clipped))
+    with atomic_path(path, suffix=".npz") as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez_compressed(fh, **arrays)
+    return Path(path)
+
+
+def read_trace(path) -> dict:
+    """Read a trace written by :func:`write_trace` into a dict of arrays and scalars.
+
+    Raises :class:`FileFormatError` for a missing, unreadable or foreign file.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise FileFormatError(f"trace '{p}': no such file")
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            d = {n: z[n] for n in z.files}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        raise FileFormatError(f"trace '{p}': unreadable or truncated ({exc})") from None
+    missing = [n for n in TRACE_ARRAYS if n not in d]
+    if missing:
+        raise FileFormatError(f"trace '{p}': lacks arrays {missing}; not a shapedisplay trace")
+    out = {n: d[n] for n in TRACE_ARRAYS}
+    for n in ("table_checksum", "model", "burst_policy", "format"):
+        if n in d:
+            out[n] = str(d[n][0])
+    for n in ("tick_rate", "audio_rate"):
+        if n in d:
+            out[n] = float(d[n])
+    if "clipped" in d:
+        out["clipped"] = int(d["clipped"])
+    return out
+
+
+def plot_trace(path, result, title: str | None = None) -> Path:
+    """Plot N(x), friction force, stick/slip state and bursts along the stroke (PNG/PDF/SVG by suffix).
+
+    ``result`` is a RenderResult or a dict from :func:`read_trace`.
+    Needs matplotlib (``pip install 'shapedisplay[plot]'``).
+    """
+    from .errors import require
+    require("matplotlib", "plot", "plotting")
+    import matplotlib
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    get = (lambda n: result[n]) if isinstance(result, dict) else (lambda n: getattr(result, n))
+    t = np.asarray(get("t"))
+    x = np.asarray(get("x")) * 1e3
+    y = np.asarray(get("y")) * 1e3
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y)))])
+    et = np.asarray(get("event_time"))
+    ea = np.asarray(get("event_amplitude"))
+    es = np.interp(et, t, s) if et.size else et
+    fig, ax = plt.subplots(4, 1, figsize=(9, 8), sharex=True)
+    ax[0].plot(s, get("normal_force"), color="k")
+    ax[0].set_ylabel("N (N)")
+    ax[1].plot(s, get("friction_force"), color="tab:blue", lw=0.8)
+    ax[1].set_ylabel("friction (N)")
+    ax[2].step(s, get("state"), where="post", color="tab:orange", lw=0.8)
+    ax[2].set_ylabel("slip")
+    ax[2].set_yticks([0, 1])
+    ax[2].set_yticklabels(["stick", "slip"])
+    ax[3].vlines(es, 0, ea, color="tab:red", lw=0.8)
+    ax[3].set_ylabel("burst amplitude")
+    ax[3].set_xlabel("distance along the stroke (mm)")
+    model = get("model") if not isinstance(result, dict) else result.get("model", "")
+    fig.suptitle(title or f"{model}: {et.size} bursts over {s[-1]:.3g} mm, {t[-1] - t[0]:.3g} s")
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=100, format=Path(path).suffix.lstrip(".") or "png")
+    plt.close(fig)
+    return Path(path)

@@ -1,0 +1,235 @@
+"""Renderer over tables: offline vs online, channels, slope mapping, bursts, bad input."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from shapedisplay.devices import BurstParams, load_device
+from shapedisplay.errors import InputError, ModelError, TableError
+from shapedisplay.runtime.bursts import envelope, render_bursts
+from shapedisplay.runtime.cursor import CursorPath, parse_stroke
+from shapedisplay.runtime.models import simulate_pad
+from shapedisplay.runtime.renderer import O_F, O_NAUDIO, O_SS, Renderer
+from shapedisplay.table import FrictionTable, Grid, choose_quantization
+
+
+def make_table(channels: dict, rows=1, cols=121, dx=0.5e-3, meta=None):
+    g = Grid(rows, cols, dx, dx)
+    chans = {n: np.broadcast_to(np.asarray(v, dtype=np.float64), (rows, cols)).copy() for n, v in channels.items()}
+    quant = {n: choose_quantization(a, "float64") for n, a in chans.items()}
+    return FrictionTable.from_dense(g, chans, quant, meta or {})
+
+
+def ramp_table():
+    xs = np.arange(121) * 0.5e-3
+    return make_table({"normal_force": 0.5 + np.clip(100.0 * (xs - 0.02), 0.0, 2.0)})
+
+
+def quiet_device():
+    d = load_device(None)
+    return d.with_(burst=BurstParams(gain=0.3))
+
+
+def test_constant_table_matches_pad_without_table():
+    t = make_table({"normal_force": 2.0})
+    r = Renderer(t, device=quiet_device(), model="exact", tick_rate=5000)
+    res = r.render(parse_stroke("0,0 -> 60,0 @ 50 mm/s", 5000))
+    ref = simulate_pad("exact", V=np.r_[0.0, np.full(res.t.size - 1, 0.05)], N=2.0, tick_rate=5000)
+    assert np.max(np.abs(res.event_time - ref.event_time)) <= 1e-12
+    assert np.allclose(res.event_amplitude, 0.3 * ref.event_amplitude)
+
+
+def test_online_step_reproduces_offline_render():
+    t = ramp_table()
+    for model in ("exact", "jump", "karnopp"):
+        r = Renderer(t, device=quiet_device(), model=model, tick_rate=10_000, burst_policy="add")
+        cp = parse_stroke("0,0 <-> 60,0 @ 40 mm/s", 10_000)
+        res = r.render(cp)
+        r.reset()
+        F, audio = [], []
+        for x, y in zip(cp.x, cp.y):
+            r.step(x, y)
+            F.append(r.last[O_F])
+            audio.extend(r.audio_block[:int(r.last[O_NAUDIO])])
+        assert np.max(np.abs(np.array(F) - res.friction_force)) <= 1e-12
+        assert len(audio) == res.audio.size
+        assert np.max(np.abs(np.array(audio) - res.audio)) <= 1e-12
+        assert r.event_count == res.event_time.size > 0
+        assert r.clipped == res.clipped
+
+
+def test_event_times_independent_of_tick_rate_on_a_table():
+    t = make_table({"normal_force": 1.5})
+    times = []
+    for rate in (1000, 2000, 5000, 10_000):
+        r = Renderer(t, device=quiet_device(), tick_rate=rate)
+        times.append(r.render(parse_stroke("0,0 -> 40,0 @ 20mm/s", rate)).event_time)
+    for et in times[1:]:
+        # the first tick of the stroke (zero speed) shifts the start by one tick length
+        assert et.size == times[0].size
+        d = np.diff(et) - np.diff(times[0])
+        assert np.max(np.abs(d)) <= 1e-9
+
+
+def test_higher_normal_force_gives_longer_stick_periods():
+    t = ramp_table()
+    res = Renderer(t, device=quiet_device(), tick_rate=10_000).render(parse_stroke("0,0 -> 60,0 @ 20 mm/s", 10_000))
+    x_ev = np.interp(res.event_time, res.t, res.x)
+    p = np.diff(res.event_time)
+    low = p[x_ev[1:] < 0.018]
+    high = p[x_ev[1:] > 0.042]
+    assert low.size and high.size
+    assert high.mean() > 3 * low.mean()
+    assert np.all(np.abs(res.friction_force) <= 0.5 * res.normal_force * (1 + 1e-9) + 1e-12)
+
+
+def test_slope_mapping_resists_uphill_only():
+    kmu = 0.4
+    t = make_table({"normal_force": 2.0, "grad_x": 0.5, "grad_y": 0.0}, rows=3,
+                   meta={"mapping": {"slope_friction_gain": kmu}})
+    r = Renderer(t, device=quiet_device(), tick_rate=2000)
+    up = r.render(parse_stroke("0,0.5 -> 50,0.5 @ 20mm/s", 2000))
+    down = r.render(parse_stroke("50,0.5 -> 0,0.5 @ 20mm/s", 2000))
+    across = r.render(parse_stroke("10,0 -> 10,1 @ 1mm/s", 2000))
+    mu_s = r.device.friction.mu_s
+    assert np.allclose(up.mu_s[1:], mu_s + kmu * 0.5)
+    assert np.allclose(down.mu_s[1:], mu_s)
+    assert np.allclose(across.mu_s[1:], mu_s)
+    assert np.abs(up.friction_force).max() > np.abs(down.friction_force).max()
+
+
+def test_lateral_and_skin_stretch_channels():
+    t = make_table({"normal_force": 1.2, "lateral_x": -0.3, "skin_stretch": 0.55e-3})
+    r = Renderer(t, device=quiet_device(), model="karnopp", tick_rate=1000)
+    res = r.render(parse_stroke("0,0 -> 30,0 @ 50mm/s", 1000))
+    assert np.allclose(res.lateral_x, -0.3) and np.allclose(res.lateral_y, 0.0)
+    mus_n = r.device.friction.mu_s * 1.2
+    assert np.allclose(res.skin_stretch, 0.55e-3 * res.friction_force / mus_n)
+    assert np.max(np.abs(res.skin_stretch)) <= 0.55e-3 * (1 + 1e-12)
+    assert np.isclose(np.max(np.abs(res.skin_stretch)), 0.55e-3)
+    # without lateral channels the lateral outputs are zero
+    res2 = Renderer(make_table({"normal_force": 1.0}), device=quiet_device()).render(
+        parse_stroke("0,0 -> 10,0 @ 20mm/s", 10_000))
+    assert not res2.lateral_x.any() and not res2.lateral_y.any()
+
+
+def test_karnopp_restick_below_threshold_and_reversal():
+    t = make_table({"normal_force": 1.0})
+    dev = quiet_device().with_(extra={"karnopp": {"spring": "1.5 N/mm", "velocity_threshold": "12.5 mm/s"}})
+    r = Renderer(t, device=dev, model="karnopp", tick_rate=1000)
+    fast = r.render(parse_stroke("0,0 -> 20,0 @ 50mm/s", 1000))
+    mus, muk = dev.friction.mu_s, dev.friction.mu_k
+    assert fast.event_time.size == 1
+    assert np.isclose(fast.friction_force[-1], muk * 1.0)       # sliding: mu_k N
+    # breakaway after mu_s N / k_K of travel
+    assert np.isclose(fast.event_time[0], mus * 1.0 / 1500.0 / 0.05, atol=1e-3)
+    slow = r.render(parse_stroke("0,0 -> 5,0 @ 10mm/s", 1000))    # below v_T: stuck again after each slip
+    assert slow.event_time.size > 1
+    back = r.render(parse_stroke("0,0 <-> 20,0 @ 50mm/s", 1000))
+    assert back.friction_force[-1] < 0 < back.friction_force[fast.t.size // 2]
+
+
+def test_cursor_outside_table_holds_edge_value():
+    t = ramp_table()
+    r = Renderer(t, device=quiet_device(), tick_rate=1000)
+    res = r.render(parse_stroke("-20,5 -> -10,5 @ 20mm/s", 1000))
+    assert np.allclose(res.normal_force, 0.5)
+    res = r.render(parse_stroke("70,0 -> 90,0 @ 20mm/s", 1000))
+    assert np.allclose(res.normal_force, 2.5)
+
+
+def test_cursor_teleport_many_cells_per_tick():
+    t = ramp_table()
+    r = Renderer(t, device=quiet_device(), tick_rate=100)
+    cp = CursorPath(np.arange(6) / 100, np.array([0, 0.06, 0.0, 0.06, 0.03, 0.0]), np.zeros(6), 100.0, "jumps")
+    for model in ("exact", "jump", "karnopp"):
+        res = Renderer(t, device=quiet_device(), model=model, tick_rate=100).render(cp)
+        assert np.all(np.isfinite(res.friction_force)) and np.all(np.isfinite(res.audio))
+        assert np.all(np.abs(res.friction_force) <= 0.5 * res.normal_force * (1 + 1e-9) + 1e-12)
+
+
+def test_euler_renderer_reports_divergence():
+    t = make_table({"normal_force": 2.0})
+    r = Renderer(t, device=quiet_device(), model="euler", tick_rate=1000)
+    with pytest.raises(ModelError, match="diverged"):
+        r.render(parse_stroke("0,0 -> 60,0 @ 50mm/s", 1000))
+    r.reset()
+    with pytest.raises(ModelError, match="diverged"):
+        for i in range(1000):
+            r.step(i * 5e-5, 0.0)
+
+
+def test_burst_envelope_and_amplitude():
+    rise, decay = 0.005, 0.030
+    assert envelope(-1e-9, rise, decay) == 0.0
+    assert math.isclose(envelope(0.0025, rise, decay), 0.5)
+    assert math.isclose(envelope(rise, rise, decay), 1.0)
+    assert math.isclose(envelope(rise + decay / 2, rise, decay), 0.25)
+    assert envelope(rise + decay, rise, decay) <= 1e-30
+    assert envelope(rise + decay + 1e-9, rise, decay) == 0.0
+    # a single burst: sample-exact sub-sample start, carrier at 300 Hz, peak A at t_e + rise
+    te, A, rate = 0.0123456, 0.7, 48_000.0
+    audio, clipped = render_bursts(np.array([te]), np.array([A]), 0.0, 0.1, rate)
+    tt = np.arange(audio.size) / rate
+    tau = tt - te
+    env = np.where(tau < 0, 0, np.where(tau < rise, tau / rise,
+                                        np.where(tau < rise + decay, (1 - (tau - rise) / decay) ** 2, 0)))
+    assert np.allclose(audio, A * env * np.sin(2 * np.pi * 300 * np.clip(tau, 0, None)), atol=1e-12)
+    assert clipped == 0 and audio.size == int(0.1 * rate) + 1
+
+
+def test_burst_policies_and_clipping_is_counted():
+    et = np.array([0.010, 0.020])  # three carrier periods apart: in phase
+    ea = np.array([0.8, 0.8])
+    re, _ = render_bursts(et, ea, 0.0, 0.06, 48_000, policy="retrigger")
+    ad, clipped_add = render_bursts(et, ea, 0.0, 0.06, 48_000, policy="add")
+    mx, _ = render_bursts(et, ea, 0.0, 0.06, 48_000, policy="max")
+    single, _ = render_bursts(et[1:], ea[1:], 0.0, 0.06, 48_000)
+    j = int(0.020 * 48_000) + 1
+    assert np.allclose(re[j:], single[j:])            # retrigger: the second burst replaces the first
+    assert np.abs(ad).max() <= 1.0 and clipped_add > 0 # add: sum limited, clipping counted
+    assert np.abs(mx).max() <= 0.8 + 1e-12
+    big, clipped = render_bursts(np.array([0.01]), np.array([3.0]), 0.0, 0.05, 48_000)
+    assert clipped > 0 and np.abs(big).max() == 1.0
+
+
+def test_max_stick_period_forces_bursts():
+    t = make_table({"normal_force": 8.0})
+    stroke = parse_stroke("0,0 -> 20,0 @ 5mm/s", 2000)
+    free = Renderer(t, device=quiet_device(), tick_rate=2000).render(stroke)
+    capped = Renderer(t, device=quiet_device(), tick_rate=2000, max_stick_period=0.05).render(stroke)
+    assert capped.event_time.size > free.event_time.size
+    stick_runs = np.diff(capped.event_time)
+    assert np.all(stick_runs <= 0.05 + 1e-3)
+
+
+def test_missing_channel_and_bad_options():
+    t = make_table({"friction_scale": 1.0})
+    with pytest.raises(TableError, match="normal_force"):
+        Renderer(t)
+    t = make_table({"normal_force": 1.0})
+    with pytest.raises(InputError, match="tick_rate"):
+        Renderer(t, tick_rate=50)
+    with pytest.raises(InputError, match="tick_rate"):
+        Renderer(t, tick_rate=250_000)
+    with pytest.raises(InputError, match="burst policy"):
+        Renderer(t, burst_policy="loudest")
+    with pytest.raises(InputError, match="model"):
+        Renderer(t, model="verlet")
+
+
+@settings(max_examples=15, deadline=None)
+@given(xs=st.lists(st.floats(-0.02, 0.08), min_size=3, max_size=40),
+       model=st.sampled_from(["exact", "jump", "karnopp"]))
+def test_random_cursor_paths_give_finite_bounded_output(xs, model):
+    t = ramp_table()
+    n = len(xs)
+    cp = CursorPath(np.arange(n) / 1000.0, np.array(xs), np.zeros(n), 1000.0, "random")
+    res = Renderer(t, device=quiet_device(), model=model, tick_rate=1000).render(cp)
+    for a in (res.friction_force, res.audio, res.skin_stretch, res.event_amplitude):
+        assert np.all(np.isfinite(a))
+    assert np.all(np.abs(res.friction_force) <= 0.5 * res.normal_force * (1 + 1e-9) + 1e-12)
+    assert np.abs(res.audio).max(initial=0) <= 1.0
