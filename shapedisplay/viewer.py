@@ -61,15 +61,16 @@ ALIASES = {
     "stretch": "skin_stretch", "wall": "walls",
 }
 
+#: Labels avoid "|": VTK's text renderer drops it.
 #: Display unit of each SI unit: (label, factor from SI).
 _DISPLAY_UNITS = {"m": ("mm", 1e3), "N": ("N", 1.0), "1": ("", 1.0)}
 
 #: Meaning of derived (non-table) channels: name -> (SI unit, label).
 DERIVED = {
     "height": ("m", "height"),
-    "slope": ("1", "slope |grad h|"),
-    "walls": ("1", f"walls (|grad h| >= {WALL_SLOPE:g})"),
-    "lateral": ("N", "lateral force |F_lat|"),
+    "slope": ("1", "slope magnitude"),
+    "walls": ("1", f"walls (slope >= {WALL_SLOPE:g})"),
+    "lateral": ("N", "lateral force magnitude"),
 }
 
 #: Trace arrays and their dimension: "t" per tick, "e" per event.
@@ -920,7 +921,7 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
     if view == "top":
         pl.enable_parallel_projection()
     pl.reset_camera()
-    pl.camera.zoom(1.35 if view == "top" else 1.15)
+    pl.camera.zoom({"top": 1.35, "side": 1.6, "iso": 1.15}[view])
     if scalar_bar:   # move the surface a little left, clear of the colour bar
         cam = pl.camera
         fwd = np.subtract(cam.focal_point, cam.position)
