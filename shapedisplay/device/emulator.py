@@ -106,22 +106,88 @@ def parse_table_image(image: bytes):
     return FrictionTable.from_header(header, arrays, "uploaded table")
 
 
-class RenderEngine:
-    """Device-side renderer: one cursor sample in, ``samples_per_cursor`` actuator samples out.
+def step_period(renderer, prev, x: float, y: float, per: int, out: np.ndarray) -> int:
+    """Advance ``renderer`` over one cursor period; return the number of drive values written.
 
-    Wraps the Python runtime renderer exactly as the host's offline path uses
-    it, so host and emulated device produce the same samples.
+    The first cursor sample (``prev is None``) is the renderer's tick 0 at
+    (x, y): one value. Every later sample runs ``per`` ticks with the cursor
+    interpolated linearly from ``prev`` to (x, y), the last tick exactly at
+    (x, y). ``out`` receives the burst drive of each tick (Renderer.step).
+    Allocation-free; the device and the host (actuator mode, tests) share it.
+    """
+    if prev is None:
+        out[0] = renderer.step(x, y)
+        return 1
+    x0, y0 = prev
+    for j in range(1, per + 1):
+        if j == per:
+            out[j - 1] = renderer.step(x, y)
+        else:
+            f = j / per
+            out[j - 1] = renderer.step(x0 + (x - x0) * f, y0 + (y - y0) * f)
+    return per
+
+
+def render_stream(renderer, x, y, per: int) -> np.ndarray:
+    """Drive values the device renders for cursor samples ``x, y`` (m), flat, 1 + (n - 1) * per.
+
+    Resets ``renderer`` first. Positions are used as given: pass them through
+    float32 (``np.float32(x)``) to match what crossed the wire.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    y = np.zeros_like(x) if y is None else np.asarray(y, dtype=np.float64)
+    renderer.reset()
+    out = np.empty(1 + max(x.size - 1, 0) * per)
+    buf = np.empty(per)
+    prev = None
+    k = 0
+    for i in range(x.size):
+        m = step_period(renderer, prev, float(x[i]), float(y[i]), per, buf)
+        out[k:k + m] = buf[:m]
+        k += m
+        prev = (float(x[i]), float(y[i]))
+    return out
+
+
+def force_to_position(prev_pos, prev_v, fx: float, fy: float, alpha: float, dt: float):
+    """One step of ``v = alpha f`` with the trapezoid rule (as :func:`runtime.cursor.force_input`)."""
+    vx, vy = alpha * fx, alpha * fy
+    if prev_pos is None:
+        return (0.0, 0.0), (vx, vy)
+    return (prev_pos[0] + 0.5 * (vx + prev_v[0]) * dt, prev_pos[1] + 0.5 * (vy + prev_v[1]) * dt), (vx, vy)
+
+
+class RenderEngine:
+    """Device-side renderer: one cursor sample in, the drive of each renderer tick out.
+
+    Wraps :class:`shapedisplay.runtime.Renderer` through :func:`step_period`,
+    exactly as the host's :func:`render_stream`, so host and emulated device
+    produce identical samples. Input ``FORCE`` integrates ``v = alpha f``
+    with the table's device cursor gain.
     """
 
     def __init__(self, table, model: str, tick_rate_hz: int, stream_rate_hz: int, input_kind: int):
+        from ..errors import InputError
         from ..runtime import Renderer
         self.per = max(1, tick_rate_hz // stream_rate_hz)
         self.input_kind = input_kind
         self.renderer = Renderer(table, model=model, tick_rate=float(tick_rate_hz))
-        self._last = None
+        self.alpha = float(self.renderer.device.cursor_gain)
+        if input_kind == P.Input.FORCE and not self.alpha > 0:
+            raise InputError(f"force input needs a cursor gain; the table's device profile "
+                             f"'{self.renderer.device.name}' has cursor_gain 0")
+        self.dt = 1.0 / stream_rate_hz
+        self._buf = np.zeros(self.per)
+        self._prev = None
+        self._v = None
 
     def render(self, x: float, y: float) -> np.ndarray:
-        return np.asarray(self.renderer.step_cursor(x, y, self.per), dtype=np.float64)
+        if self.input_kind == P.Input.FORCE:
+            pos, self._v = force_to_position(self._prev, self._v, x, y, self.alpha, self.dt)
+            x, y = pos
+        m = step_period(self.renderer, self._prev, x, y, self.per, self._buf)
+        self._prev = (x, y)
+        return self._buf[:m]
 
 
 class _Fault:
@@ -175,6 +241,7 @@ class DeviceEmulator:
             self._qcond = threading.Condition(self._lock)
             self._streaming = False
             self._last_index = -1
+            self._session_consumed = 0
             self._engine = None
             self._monitor = False
             self._last_event = {}
@@ -561,14 +628,19 @@ class DeviceEmulator:
                 return self._nak(f, P.Err.UNSUPPORTED, mode, "this device has no renderer; use actuator mode")
             if self.active_table is None:
                 return self._nak(f, P.Err.NO_TABLE, 0, "no committed table; upload one first")
-            engine = self.engine_factory(self.active_table, self.config.model, self.config.tick_rate_hz,
-                                         self.config.stream_rate_hz, inp)
+            from ..errors import ShapeDisplayError
+            try:
+                engine = self.engine_factory(self.active_table, self.config.model, self.config.tick_rate_hz,
+                                             self.config.stream_rate_hz, inp)
+            except ShapeDisplayError as exc:
+                return self._nak(f, P.Err.UNSUPPORTED, mode, str(exc))
         with self._lock:
             self.mode = P.Mode(mode)
             self._engine = engine
             self._monitor = bool(flags & P.FLAG_MONITOR)
             self._queue.clear()
             self._last_index = -1
+            self._session_consumed = 0
             self._streaming = True
             self.state = P.State.STREAMING
         self._render_thread = threading.Thread(target=self._render_loop, name="emulator-render", daemon=True)
@@ -699,6 +771,7 @@ class DeviceEmulator:
             self.counters["ticks_rendered"] += out.size
             if item is not None:
                 self.counters["samples_rendered"] += 1
+                self._session_consumed += 1
                 consumed_since_flow += 1
                 if self.record_outputs:
                     self.outputs.append((index, out.copy()))
@@ -709,7 +782,7 @@ class DeviceEmulator:
             if consumed_since_flow >= self.config.flow_every or (empty and consumed_since_flow):
                 consumed_since_flow = 0
                 self._send(P.Msg.FLOW, P.SEQ_UNSOLICITED,
-                           P.FLOW.pack(self.counters["samples_rendered"] & 0xFFFFFFFF, len(self._queue),
+                           P.FLOW.pack(self._session_consumed & 0xFFFFFFFF, len(self._queue),
                                        self.config.queue_capacity))
 
     def _finish_stop(self, f: Frame) -> None:
@@ -718,5 +791,5 @@ class DeviceEmulator:
             self.state = P.State.IDLE
             self._engine = None
         self._send(P.Msg.FLOW, P.SEQ_UNSOLICITED,
-                   P.FLOW.pack(self.counters["samples_rendered"] & 0xFFFFFFFF, 0, self.config.queue_capacity))
+                   P.FLOW.pack(self._session_consumed & 0xFFFFFFFF, 0, self.config.queue_capacity))
         self._reply(f, P.Msg.ACK, P.ACK.pack(f.type, self.counters["samples_rendered"]))

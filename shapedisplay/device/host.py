@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import ShapeDisplayError, require
+from ..errors import InputError, ShapeDisplayError, require
 from . import protocol as P
 from .framing import Frame, FrameDecoder, crc32, encode_frame
 
@@ -99,8 +99,9 @@ class StreamReport:
     duplicates: int = 0
     backpressure_waits: int = 0
     seconds: float = 0.0
-    outputs: np.ndarray | None = None        # (n, samples_per_cursor) float64, monitor only
-    latencies_s: np.ndarray | None = None    # send -> OUTPUT received, per sample, monitor only
+    outputs: np.ndarray | None = None        # drive per renderer tick, in order, flat float64 (monitor only)
+    latencies_s: np.ndarray | None = None    # (n,) send -> OUTPUT received per cursor sample, s (monitor only)
+    missing_outputs: int = 0                 # OUTPUT frames lost on the line (monitor only)
     events: list = field(default_factory=list)
 
     def problems(self) -> list[str]:
@@ -151,7 +152,7 @@ class DeviceLink:
 
     def __init__(self, port: str, baudrate: int = DEFAULT_BAUD, timeout: float = 0.5, retries: int = 4):
         if timeout <= 0 or retries < 0:
-            raise ValueError(f"`timeout` must be > 0 and `retries` >= 0 (got {timeout}, {retries})")
+            raise InputError(f"`timeout` must be > 0 and `retries` >= 0 (got {timeout}, {retries})")
         self.port, self.baudrate, self.timeout, self.retries = port, baudrate, float(timeout), int(retries)
         self._ser = None
         self._reader = None
@@ -515,7 +516,7 @@ class DeviceLink:
         modes = {"cursor": P.Mode.CURSOR, "actuator": P.Mode.ACTUATOR}
         inputs = {"position": P.Input.POSITION, "force": P.Input.FORCE}
         if mode not in modes or input not in inputs:
-            raise ValueError(f"`mode` must be cursor|actuator and `input` position|force (got {mode!r}, {input!r})")
+            raise InputError(f"`mode` must be cursor|actuator and `input` position|force (got {mode!r}, {input!r})")
         self._drain_outputs()
         with self._flow:
             self._consumed = 0
@@ -580,11 +581,11 @@ class DeviceLink:
         if mode == "cursor":
             y = np.zeros(n) if y is None else np.asarray(y, dtype=np.float64)
             if y.shape != (n,) or x.ndim != 1:
-                raise ValueError(f"`x` and `y` must both have shape (n,) (got {x.shape}, {y.shape})")
+                raise InputError(f"`x` and `y` must both have shape (n,) (got {x.shape}, {y.shape})")
         elif x.ndim != 2 or x.shape[1] != caps.samples_per_cursor:
-            raise ValueError(f"actuator blocks must have shape (n, {caps.samples_per_cursor}) (got {x.shape})")
+            raise InputError(f"actuator blocks must have shape (n, {caps.samples_per_cursor}) (got {x.shape})")
         if not np.all(np.isfinite(x)) or (y is not None and not np.all(np.isfinite(y))):
-            raise ValueError("cursor or actuator samples hold NaN or infinity")
+            raise InputError("cursor or actuator samples hold NaN or infinity")
         before = self.status()
         self.start(mode, input, monitor)
         period = 1.0 / caps.stream_rate_hz
@@ -629,9 +630,9 @@ class DeviceLink:
         rep.duplicates = after.rx_duplicates - before.rx_duplicates
         rep.events = list(self.events)
         if monitor:
-            outs = np.full((n, caps.samples_per_cursor), np.nan)
+            got: dict = {}
             lat = np.full(n, np.nan)
-            while True:
+            while len(got) < n:
                 try:
                     item = self._outputs.get(timeout=0.2)
                 except queue.Empty:
@@ -640,8 +641,10 @@ class DeviceLink:
                     self._check()
                     break
                 t_rx, idx, _, samples = item
-                if idx < n and samples.size == caps.samples_per_cursor:
-                    outs[idx] = samples
+                if idx < n:
+                    got[idx] = samples
                     lat[idx] = t_rx - send_t[idx]
-            rep.outputs, rep.latencies_s = outs, lat
+            rep.missing_outputs = n - len(got)
+            rep.outputs = (np.concatenate([got[i] for i in sorted(got)]) if got else np.zeros(0))
+            rep.latencies_s = lat
         return rep
