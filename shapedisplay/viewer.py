@@ -382,18 +382,7 @@ def model_from_table(table, title: str | None = None, widgets: list | None = Non
     if "slope" in fields:
         fields["walls"] = (fields["slope"] >= WALL_SLOPE).astype(np.float64)
     friction = table.meta.get("device", {}).get("friction", {}) if isinstance(table.meta.get("device"), dict) else {}
-    scale = fields.get("friction_scale", 1.0)
-    for name, mu_key in (("breakaway_force", "mu_s"), ("kinetic_force", "mu_k")):
-        mu = friction.get(mu_key) if isinstance(friction, dict) else None
-        if name not in fields and "normal_force" in fields and isinstance(mu, (int, float)) and math.isfinite(mu):
-            fields[name] = float(mu) * scale * fields["normal_force"]     # what the runtime computes
-            units[name], labels[name] = "N", name.replace("_", " ")
-            notes.append(f"{name} = {mu_key} * N (device {mu_key} = {mu:g})")
-    if "lateral_x" in fields or "lateral_y" in fields:
-        fields["lateral"] = np.hypot(fields.get("lateral_x", 0.0), fields.get("lateral_y", 0.0))
-    for name in fields:
-        if name in DERIVED:
-            units[name], labels[name] = DERIVED[name]
+    _derive_forces(fields, units, labels, notes, friction)
 
     stored = np.zeros((g.rows, g.cols), dtype=bool)
     for r0, c0, p in table.blocks:
@@ -417,6 +406,44 @@ def model_from_table(table, title: str | None = None, widgets: list | None = Non
                         title=title if title is not None else (default_title or "friction table"), notes=notes)
     model.widgets = _strip_widgets(_clean_widgets(widgets), model)
     return model
+
+
+def _derive_forces(fields: dict, units: dict, labels: dict, notes: list, friction) -> None:
+    """Add what the runtime derives: mu_s*N, mu_k*N (when not stored) and |F_lat|; in place."""
+    scale = fields.get("friction_scale", 1.0)
+    for name, mu_key in (("breakaway_force", "mu_s"), ("kinetic_force", "mu_k")):
+        mu = friction.get(mu_key) if isinstance(friction, dict) else None
+        if name not in fields and "normal_force" in fields and isinstance(mu, (int, float)) and math.isfinite(mu):
+            fields[name] = float(mu) * scale * fields["normal_force"]     # what the runtime computes
+            notes.append(f"{name} = {mu_key} * N (device {mu_key} = {mu:g})")
+    if "lateral_x" in fields or "lateral_y" in fields:
+        fields["lateral"] = np.hypot(fields.get("lateral_x", 0.0), fields.get("lateral_y", 0.0))
+    for name in fields:
+        if name in DERIVED:
+            units[name], labels[name] = DERIVED[name]
+        elif name not in units:
+            from .table import CHANNELS
+            units[name], labels[name] = CHANNELS[name][0], name.replace("_", " ")
+
+
+def scene_forces(scene, hf) -> tuple[dict, list]:
+    """Force channels of a scene's height field as its device and mapping make them (SI).
+
+    Returns ``({name: ndarray (rows, cols)}, notes)``: the channels the
+    compiler would keep, computed densely, plus ``breakaway_force`` and
+    ``kinetic_force`` from the device's friction.
+    """
+    import dataclasses
+
+    from .profiles import MappingOptions, force_channels
+    known = {f.name for f in dataclasses.fields(MappingOptions)}
+    mapping = MappingOptions(**{k: v for k, v in scene.mapping.items() if k in known and k != "height"})
+    chans = force_channels(hf, scene.device, mapping)
+    fields = {name: np.asarray(a, dtype=np.float64) for name, a in chans.items()}
+    friction = {"mu_s": scene.device.friction.mu_s, "mu_k": scene.device.friction.mu_k}
+    notes: list = []
+    _derive_forces(fields, {}, {}, notes, friction)
+    return fields, notes
 
 
 def _widgets_of_meta(meta: dict) -> list:
@@ -486,7 +513,13 @@ def load_model(path: str | os.PathLike, scene: str | os.PathLike | None = None, 
             raise InputError(f"scene '{path}': source options {sorted(opts)} apply to images and meshes only")
         sc = _load_scene(path)
         from .scene import scene_heightfield
-        model = model_from_heightfield(scene_heightfield(sc), title=getattr(sc, "name", "") or path.name)
+        hf = scene_heightfield(sc)
+        model = model_from_heightfield(hf, title=getattr(sc, "name", "") or path.name)
+        forces, notes = scene_forces(sc, hf)
+        for name, arr in forces.items():
+            model.fields[name] = np.repeat(arr, 2, axis=0) if model.strip else arr
+        _derive_forces(model.fields, model.units, model.labels, [], {})
+        model.notes += notes
         model.widgets = _strip_widgets(_clean_widgets(widgets_of_scene(sc)), model)
         return model
     if scene:
