@@ -44,8 +44,8 @@ def test_constant_table_matches_pad_without_table():
 
 def test_online_step_reproduces_offline_render():
     t = ramp_table()
-    for model in ("exact", "jump", "karnopp"):
-        r = Renderer(t, device=quiet_device(), model=model, tick_rate=10_000, burst_policy="add")
+    for model, policy in (("exact", "retrigger"), ("jump", "add"), ("karnopp", "max")):
+        r = Renderer(t, device=quiet_device(), model=model, tick_rate=10_000, burst_policy=policy)
         cp = parse_stroke("0,0 <-> 60,0 @ 40 mm/s", 10_000)
         res = r.render(cp)
         r.reset()

@@ -79,22 +79,45 @@ def burst_value(t, ev_t, ev_a, lo, hi, carrier, rise, decay, policy):
 def synth(ev_t, ev_a, n_ev, t_origin, rate, j0, j1, carrier, rise, decay, policy, out):
     """Audio samples ``j0 .. j1-1`` (time ``t_origin + j / rate``) into ``out[0 : j1-j0]``.
 
-    Events ``ev_t[:n_ev]`` must be sorted. Returns the number of samples
+    Events ``ev_t[:n_ev]`` must be sorted; an event sounds from the first
+    sample strictly after it (its value at its own time is 0 anyway), so
+    an event landing exactly on a sample gives the same stream offline
+    and tick by tick. Returns the number of samples
     limited to [-1, 1].
     """
     dur = rise + decay
     lo = 0
     hi = 0
     clipped = 0
+    w = 2.0 * math.pi * carrier
+    cd = math.cos(w / rate)
+    sd = math.sin(w / rate)
+    cur = -1
+    cr = 0.0
+    sr = 0.0
     for j in range(j0, j1):
         t = t_origin + j / rate
-        while hi < n_ev and ev_t[hi] <= t:
+        while hi < n_ev and ev_t[hi] < t:
             hi += 1
-        while lo < hi and ev_t[lo] + dur <= t:
-            lo += 1
-        if policy == 0 and hi > 0:
-            lo = hi - 1
-        val = burst_value(t, ev_t, ev_a, lo, hi, carrier, rise, decay, policy)
+        if policy == 0:
+            # one burst at a time: the carrier advances by a rotation per sample
+            # (re-anchored with sin/cos at each new burst and at each call)
+            val = 0.0
+            if hi > 0:
+                i = hi - 1
+                tau = t - ev_t[i]
+                if tau < dur:
+                    if i != cur:
+                        cur = i
+                        cr = math.cos(w * tau)
+                        sr = math.sin(w * tau)
+                    else:
+                        cr, sr = cr * cd - sr * sd, sr * cd + cr * sd
+                    val = ev_a[i] * envelope(tau, rise, decay) * sr
+        else:
+            while lo < hi and ev_t[lo] + dur <= t:
+                lo += 1
+            val = burst_value(t, ev_t, ev_a, lo, hi, carrier, rise, decay, policy)
         if val > 1.0:
             val = 1.0
             clipped += 1

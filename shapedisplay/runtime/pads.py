@@ -862,29 +862,55 @@ def model_tick(model, S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
 
 
 @njit(cache=True)
+def _store(S, i, out_f, out_state, out_x, out_v, out_wf, out_wd):
+    out_f[i] = S[S_F]
+    out_state[i] = S[S_PHASE]
+    out_x[i] = S[S_X]
+    out_v[i] = S[S_V]
+    out_wf[i] = S[S_WF]
+    out_wd[i] = S[S_WD]
+
+
+@njit(cache=True)
 def run_ticks(model, S, P, t, V, N, mus, muk, gain, out_f, out_state, out_x, out_v, out_wf, out_wd, ev_t, ev_a):
     """Offline fast path: advance over ``n`` ticks.
 
     Tick ``i`` runs from ``t[i-1]`` to ``t[i]`` with inputs ``V[i], N[i], ...``
-    (tick 0 has zero length and only sets the state to the first inputs).
-    Writes per-tick outputs (state at the end of the tick) into ``out_*``
-    (shape (n,)) and returns the total number of events (may exceed
-    ``ev_t.size``; then only the first ``ev_t.size`` are stored).
+    (tick 0 has zero length and only reports the initial state). Writes
+    per-tick outputs (state at the end of the tick) into ``out_*`` (shape
+    (n,)) and returns the total number of events (may exceed ``ev_t.size``;
+    then only the first ``ev_t.size`` are stored). The model branch is taken
+    once, outside the tick loop.
     """
     n = t.shape[0]
     n_ev = 0
-    for i in range(n):
-        h = t[i] - t[i - 1] if i > 0 else 0.0
-        t0 = t[i - 1] if i > 0 else t[0]
-        if h > 0.0:
-            n_ev = model_tick(model, S, P, t0, h, V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
-        else:
-            S[S_WF] = 0.0
-            S[S_WD] = 0.0
-        out_f[i] = S[S_F]
-        out_state[i] = S[S_PHASE]
-        out_x[i] = S[S_X]
-        out_v[i] = S[S_V]
-        out_wf[i] = S[S_WF]
-        out_wd[i] = S[S_WD]
+    if n == 0:
+        return 0
+    S[S_WF] = 0.0
+    S[S_WD] = 0.0
+    _store(S, 0, out_f, out_state, out_x, out_v, out_wf, out_wd)
+    if model == MODEL_EXACT:
+        for i in range(1, n):
+            n_ev = _exact_tick(S, P, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
+            _store(S, i, out_f, out_state, out_x, out_v, out_wf, out_wd)
+    elif model == MODEL_JUMP:
+        for i in range(1, n):
+            n_ev = _jump_tick(S, P, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
+            _store(S, i, out_f, out_state, out_x, out_v, out_wf, out_wd)
+    elif model == MODEL_KARNOPP:
+        for i in range(1, n):
+            n_ev = _karnopp_tick(S, P, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a,
+                                 n_ev)
+            _store(S, i, out_f, out_state, out_x, out_v, out_wf, out_wd)
+    elif model == MODEL_STRIBECK:
+        for i in range(1, n):
+            n_ev = _stribeck_tick(S, P, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a,
+                                  n_ev)
+            _store(S, i, out_f, out_state, out_x, out_v, out_wf, out_wd)
+    else:
+        rk4 = model == MODEL_RK4
+        for i in range(1, n):
+            n_ev = _explicit_tick(S, P, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a,
+                                  n_ev, rk4)
+            _store(S, i, out_f, out_state, out_x, out_v, out_wf, out_wd)
     return n_ev

@@ -217,7 +217,7 @@ def online_step(model, W, blocks, data, ev, audio, x, y):
                            int(bp[B_POL]), audio)
     I[I_NEXTJ] = j1
     hi = 0
-    while hi < nrec and ev_t[hi] <= t:
+    while hi < nrec and ev_t[hi] < t:
         hi += 1
     lo = hi - 1 if int(bp[B_POL]) == 0 else 0
     if lo < 0:

@@ -1,0 +1,111 @@
+"""Runtime renderer speed: ratios against real time and against a baseline run in the same process.
+
+Run: ``.venv/bin/python benchmarks/bench_runtime.py``. Targets (issue 3):
+
+* ``jump`` offline >= 2000x real time at 10 kHz (>= 20 M ticks/s);
+* ``exact`` offline on the Konyo pad at 50 mm/s >= 300x real time;
+* ``Renderer.step()`` from Python: median <= 5 us per tick.
+
+The baseline is a plain numpy loop-free computation of a spring stretch
+(one ``cumsum`` over the same number of ticks), so machine speed cancels
+out of the ratio column.
+"""
+from __future__ import annotations
+
+import statistics
+import sys
+import time
+
+import numpy as np
+
+from shapedisplay.devices import BurstParams, load_device
+from shapedisplay.runtime.cursor import parse_stroke
+from shapedisplay.runtime.models import get_model, run_kernel
+from shapedisplay.runtime.renderer import Renderer
+from shapedisplay.table import FrictionTable, Grid, choose_quantization
+
+
+def best_of(fn, repeat=5):
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def kernel_rate(model_name, V, N, rate, seconds):
+    n = int(seconds * rate) + 1
+    t = np.arange(n) / rate
+    Va = np.full(n, V)
+    Na = np.full(n, N)
+    dev = load_device(None)
+    model = get_model(model_name, dev)
+    mus = np.full(n, dev.friction.mu_s)
+    muk = np.full(n, dev.friction.mu_k)
+    gain = np.ones(n)
+    run_kernel(model, t[:100], Va[:100], Na[:100], mus[:100], muk[:100], gain[:100])  # compile / warm
+    dt = best_of(lambda: run_kernel(model, t, Va, Na, mus, muk, gain))
+    return n, dt
+
+
+def main() -> int:
+    rate = 10_000.0
+    seconds = 20.0
+    n = int(seconds * rate) + 1
+    x = np.full(n, 0.05 / rate)
+    base = best_of(lambda: np.cumsum(x) * 2000.0 + 0.01 * 0.05)
+    print(f"baseline numpy cumsum over {n} ticks: {base * 1e3:.2f} ms ({n / base / 1e6:.0f} M ticks/s)")
+    ok = True
+    rows = []
+    for name, V, target_rt in (("jump", 0.05, 2000.0), ("exact", 0.05, 300.0), ("karnopp", 0.05, None)):
+        nn, dt = kernel_rate(name, V, 2.0, rate, seconds)
+        rt = seconds / dt
+        rows.append((name, nn / dt, rt, dt / base))
+        flag = "" if target_rt is None else ("  OK" if rt >= target_rt else f"  BELOW TARGET {target_rt:g}x")
+        ok &= target_rt is None or rt >= target_rt
+        print(f"{name:8s} kernel @10 kHz, V=50 mm/s, N=2 N: {nn / dt / 1e6:7.1f} M ticks/s, "
+              f"{rt:9.0f}x real time, {dt / base:6.1f}x baseline time{flag}")
+    # full offline render over a table (lookups + kernel + burst audio)
+    g = Grid(1, 241, 0.25e-3, 0.25e-3)
+    xs = np.arange(241) * 0.25e-3
+    Nx = (0.5 + np.clip(100 * (xs - 0.02), 0, 2.0))[None, :]
+    table = FrictionTable.from_dense(g, {"normal_force": Nx}, {"normal_force": choose_quantization(Nx, "uint8")},
+                                     {})
+    dev = load_device(None).with_(burst=BurstParams(gain=0.2))
+    stroke = parse_stroke("0,0 <-> 60,0 @ 50 mm/s x4", rate)
+    for name in ("jump", "exact"):
+        r = Renderer(table, device=dev, model=name, tick_rate=rate)
+        r.render(stroke)
+        dt = best_of(lambda: r.render(stroke), 3)
+        print(f"{name:8s} full render (table lookup + kernel + 48 kHz audio), {stroke.duration:.1f} s stroke: "
+              f"{stroke.duration / dt:7.0f}x real time")
+    # online step from Python
+    r = Renderer(table, device=dev, model="exact", tick_rate=rate)
+    r.reset()
+    cx = stroke.x
+    step = r.step
+    per = []
+    for rep in range(5):
+        r.reset()
+        samples = []
+        for i in range(0, 20_000, 1000):
+            t0 = time.perf_counter()
+            for j in range(i, i + 1000):
+                step(cx[j], 0.0)
+            samples.append((time.perf_counter() - t0) / 1000)
+        per.extend(samples)
+    med = statistics.median(per)
+    t0 = time.perf_counter()
+    for j in range(20_000):
+        pass
+    loop = (time.perf_counter() - t0) / 20_000
+    ok &= med <= 5e-6
+    print(f"step() from Python (exact, 1000-call batches): median {med * 1e6:.2f} us per tick "
+          f"({med / loop:.0f}x an empty Python loop iteration){'  OK' if med <= 5e-6 else '  ABOVE 5 us'}")
+    print("all targets met" if ok else "some targets missed")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
