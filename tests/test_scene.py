@@ -557,3 +557,24 @@ def test_random_layouts_store_exactly_the_dense_values(tmp_path_factory, text, d
         np.testing.assert_allclose(t.dense(ch), ref[ch], atol=t.quant[ch].max_error + 1e-12, err_msg=ch)
         assert np.isfinite(t.dense(ch)).all()
     assert sum(w["bytes"] for w in res.report["widgets"]) == t.stored_bytes
+
+
+def test_lateral_cue_clamped_to_the_device_is_reported(tmp_path):
+    p = write(tmp_path, """
+[[widget]]
+id = "b"
+type = "button"
+position = "10,10 mm"
+size = "20x20 mm"
+height = "2 mm"
+ramp = "4 mm"
+""", extra='lateral = "gradient"\nlateral_gain = "5 N"\n[device]\nprofile = "desktop-rig"\n')
+    res = compile_scene(p)
+    t = res.table
+    assert t.channels == ["lateral_x", "lateral_y", "normal_force"]
+    note = res.report["clamped"]["lateral"]
+    # slope 0.5 on the straight flanks of the linear ramp: |F| = 5 N * 0.5 = 2.5 N, above the rig's 1.5 N
+    # by 1 N (more at the rounded corners, where central differences see both sides)
+    assert note["above"] > 0 and note["max_excess"] >= 1.0 - 1e-9
+    mag = np.hypot(t.dense("lateral_x"), t.dense("lateral_y"))
+    assert mag.max() <= 1.5 + 2 * t.quant["lateral_x"].max_error

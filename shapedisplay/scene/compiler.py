@@ -353,7 +353,19 @@ def _channels(scene: Scene, device, mapping):
     return [n for n in CHANNELS if n in kept], left_out
 
 
-def _group_channels(scene, rect, reach, states, device, mapping, options, kept, lims):
+def _merge_clamp(acc: dict, notes: dict, samples: int) -> None:
+    """Add one block's clamping notes (profiles._clamp format) to the scene totals."""
+    for name, c in notes.items():
+        a = acc.setdefault(name, dict(c, below=0, above=0, fraction=0.0, max_excess=0.0, samples=0))
+        a["below"] += c["below"]
+        a["above"] += c["above"]
+        a["samples"] += samples
+        a["fraction"] = (a["below"] + a["above"]) / max(a["samples"], 1)
+        a["max_excess"] = max(a["max_excess"], c["max_excess"])
+        a["raw_min"], a["raw_max"] = min(a["raw_min"], c["raw_min"]), max(a["raw_max"], c["raw_max"])
+
+
+def _group_channels(scene, rect, reach, states, device, mapping, options, kept, lims, clamped=None):
     """Channels of one block: dict name -> (rows, cols) float64; plus wall and clamp notes."""
     from ..gradients import detect_walls, gradient, limit_walls
     from ..profiles import force_channels
@@ -371,6 +383,8 @@ def _group_channels(scene, rect, reach, states, device, mapping, options, kept, 
     sl = (slice(r0, r0 + rect[2] - rect[0] + 1), slice(c0, c0 + rect[3] - rect[1] + 1))
     hf = HeightField(h[sl], s, s, rect[1] * s, rect[0] * s, f"scene {scene.name}")
     chans = force_channels(hf, device, mapping, grad=(gx[sl], gy[sl]))
+    if clamped is not None:
+        _merge_clamp(clamped, chans.clamped, hf.rows * hf.cols)
     out = {}
     for name in kept:
         if name in chans:
@@ -465,20 +479,22 @@ def compile_scene(path, device=None, options=None):
     lims = height_limits(scene)
 
     # -- every block (and every toggle state), as float channels
-    blocks, walls_total, steepest, wall_blocks = [], 0, 0.0, 0
+    blocks, walls_total, steepest, wall_blocks, clamped = [], 0, 0.0, 0, {}
     for g in grps:
         toggle = next((scene.widgets[i] for i in g["members"] if WIDGET_TYPES[scene.widgets[i].type].states), None)
         variants = {}
         if toggle is not None:
             for st in WIDGET_TYPES[toggle.type].states:
                 variants[st], wc, sp = _group_channels(scene, g["rect"], reach, {toggle.id: st}, dev, mapping,
-                                                       options, kept, lims)
+                                                       options, kept, lims,
+                                                       clamped if st == toggle.params["state"] else None)
                 if st == toggle.params["state"]:
                     walls_total += wc
                 steepest = max(steepest, sp)
             main = variants[toggle.params["state"]]
         else:
-            main, wc, sp = _group_channels(scene, g["rect"], reach, None, dev, mapping, options, kept, lims)
+            main, wc, sp = _group_channels(scene, g["rect"], reach, None, dev, mapping, options, kept, lims,
+                                           clamped)
             walls_total += wc
             steepest = max(steepest, sp)
         wall_blocks += bool(wc)
@@ -579,7 +595,7 @@ def compile_scene(path, device=None, options=None):
                   "limited": (f"slope magnitude clipped to {options.max_slope:g}, direction kept"
                               if walls_total and options.limit_walls else
                               ("no walls" if not walls_total else "not limited (limit_walls=False)"))},
-        "clamped": {},
+        "clamped": clamped,
         "widgets": widgets_rep,
         "toggles": toggles,
         "blocks": len(table.blocks),
