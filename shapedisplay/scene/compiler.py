@@ -555,9 +555,10 @@ def compile_scene(path, device=None, options=None):
                             + ", ".join(f"'{m.id}'" for m in members if m is not w))
             if b["toggle"] is w:
                 extra = [p for st, p in toggles[w.id]["states"].items() if st != w.params["state"]]
-                added = sum(table.patch_shapes[p][0] * table.patch_shapes[p][1] * bps for p in set(extra)
-                            if first_owner.setdefault(p, w.id) == w.id)
-                wbytes += added
+                for p in sorted(set(extra)):
+                    if p not in first_owner:   # a state identical to a stored patch costs nothing
+                        first_owner[p] = w.id
+                        wbytes += table.patch_shapes[p][0] * table.patch_shapes[p][1] * bps
                 note.append("both states stored (" + ", ".join(f"{st}: patch {p}" for st, p in
                                                                toggles[w.id]["states"].items()) + ")")
             x0, y0, x1, y1 = w.bbox
