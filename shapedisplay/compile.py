@@ -125,8 +125,9 @@ class CompileResult:
 
 
 # ----------------------------------------------------------------- quantization
-def _min_nonzero_abs(values: np.ndarray) -> float:
-    vmin, vmax = float(values.min()), float(values.max())
+def _min_nonzero_abs(values: np.ndarray, lo: float | None = None, hi: float | None = None) -> float:
+    vmin = float(values.min()) if lo is None else lo
+    vmax = float(values.max()) if hi is None else hi
     if vmin > 0:
         return vmin
     if vmax < 0:
@@ -138,7 +139,8 @@ def _min_nonzero_abs(values: np.ndarray) -> float:
 
 
 def perceptual_bound(name: str, values: np.ndarray, device, options: CompileOptions,
-                     mapping: MappingOptions | None = None, n_min: float | None = None) -> tuple[float, str]:
+                     mapping: MappingOptions | None = None, n_min: float | None = None,
+                     _range: tuple | None = None) -> tuple[float, str]:
     """Largest quantization error of channel ``name`` that is not felt (module docs).
 
     Returns
@@ -159,7 +161,8 @@ def perceptual_bound(name: str, values: np.ndarray, device, options: CompileOpti
     if name in ("grad_x", "grad_y") and mapping is not None and mapping.slope_friction_gain > 0 and mu_k > 0:
         return (w2 * mu_k / mapping.slope_friction_gain,
                 f"w/2 * mu_k / K_mu = {w2:g} * {mu_k:g} / {mapping.slope_friction_gain:g}")
-    m = _min_nonzero_abs(values)
+    lo, hi = _range if _range is not None else (None, None)
+    m = _min_nonzero_abs(values, lo, hi)
     if m == 0:
         return math.inf, "channel is zero everywhere"
     return w2 * m, f"w/2 * smallest nonzero |value| = {w2:g} * {m:.6g} {CHANNELS[name][0]}"
@@ -178,6 +181,44 @@ def _coding(dtype: str, lo: float, hi: float) -> Quantization:
     return Quantization("float64", 1.0, 0.0, 0.0)
 
 
+def _minmax(values: np.ndarray) -> tuple[float, float]:
+    if values.flags.c_contiguous and values.size > 4096:
+        from . import _kernels
+        lo, hi = _kernels.minmax(values.reshape(-1))
+        return float(lo), float(hi)
+    return float(values.min()), float(values.max())
+
+
+def _encode(q: Quantization, values: np.ndarray) -> np.ndarray:
+    """``q.encode(values)`` in one pass for large integer-coded channels (same codes)."""
+    if q.dtype in _TOP and q.scale > 0 and values.flags.c_contiguous and values.dtype == np.float64 \
+            and values.size > 4096:
+        from . import _kernels
+        out = np.empty(values.shape, dtype=np.dtype(q.dtype))
+        _kernels.encode(values.reshape(-1), q.offset, q.scale, float(_TOP[q.dtype]), out.reshape(-1))
+        return out
+    return q.encode(values)
+
+
+def _choose(name, values, device, options, mapping, n_min):
+    if name not in CHANNELS:
+        raise unknown_key("channel", name, CHANNELS)
+    values = np.asarray(values, dtype=np.float64)
+    if values.size == 0:
+        raise InputError(f"channel '{name}' is empty")
+    lo, hi = _minmax(values)
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise InputError(f"channel '{name}' holds NaN/inf values; cannot quantize")
+    bound, rule = perceptual_bound(name, values, device, options, mapping, n_min, (lo, hi))
+    if options.quantize != "auto":
+        return _coding(options.quantize, lo, hi), bound, rule
+    for dt in ("uint8", "uint16", "float32"):
+        q = _coding(dt, lo, hi)
+        if q.max_error <= bound:
+            return q, bound, rule
+    return _coding("float64", lo, hi), bound, rule
+
+
 def quantization_for(name: str, values: np.ndarray, device, options: CompileOptions,
                      mapping: MappingOptions | None = None, n_min: float | None = None) -> Quantization:
     """Coding of channel ``name`` holding ``values`` (rows, cols), SI.
@@ -186,22 +227,7 @@ def quantization_for(name: str, values: np.ndarray, device, options: CompileOpti
     whose worst-case error (``max_error``) is within :func:`perceptual_bound`.
     Otherwise the given dtype.
     """
-    if name not in CHANNELS:
-        raise unknown_key("channel", name, CHANNELS)
-    values = np.asarray(values, dtype=np.float64)
-    if values.size == 0:
-        raise InputError(f"channel '{name}' is empty")
-    lo, hi = float(values.min()), float(values.max())
-    if not (math.isfinite(lo) and math.isfinite(hi)):
-        raise InputError(f"channel '{name}' holds NaN/inf values; cannot quantize")
-    if options.quantize != "auto":
-        return _coding(options.quantize, lo, hi)
-    bound, _ = perceptual_bound(name, values, device, options, mapping, n_min)
-    for dt in ("uint8", "uint16", "float32"):
-        q = _coding(dt, lo, hi)
-        if q.max_error <= bound:
-            return q
-    return _coding("float64", lo, hi)
+    return _choose(name, values, device, options, mapping, n_min)[0]
 
 
 # ----------------------------------------------------------------- meta
@@ -316,9 +342,8 @@ def compile_heightfield(hf: HeightField, device=None, mapping: MappingOptions = 
     codes, quant, qinfo, clamped = {}, {}, {}, {}
 
     def code(name, values, n_min=None):
-        q = quantization_for(name, values, device, options, mapping, n_min)
-        bound, rule = perceptual_bound(name, values, device, options, mapping, n_min)
-        codes[name] = q.encode(values)
+        q, bound, rule = _choose(name, values, device, options, mapping, n_min)
+        codes[name] = _encode(q, values)
         quant[name] = q
         qinfo[name] = {"dtype": q.dtype, "scale": q.scale, "offset": q.offset, "max_error": float(q.max_error),
                        "bound": None if math.isinf(bound) else bound, "rule": rule,

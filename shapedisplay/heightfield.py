@@ -126,7 +126,7 @@ class HeightField:
         d = hashlib.sha256()
         d.update(np.asarray(self.shape, dtype="<i8").tobytes())
         d.update(np.asarray([self.dx, self.dy, self.x0, self.y0], dtype="<f8").tobytes())
-        d.update(self.heights.astype("<f8", copy=False).tobytes())
+        d.update(np.ascontiguousarray(self.heights.astype("<f8", copy=False)))  # buffer, no copy
         return d.hexdigest()
 
     def with_heights(self, heights: np.ndarray, source: str | None = None) -> "HeightField":

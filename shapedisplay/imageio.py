@@ -261,32 +261,34 @@ def png_info(path: str | os.PathLike) -> dict:
 # ----------------------------------------------------------------- writing
 def _filter_rows(raw: np.ndarray, ftypes: np.ndarray, bpp: int) -> np.ndarray:
     """Apply PNG filters to raw scanlines (vectorised: filters read raw bytes only)."""
-    raw16 = raw.astype(np.int16)
-    left = np.zeros_like(raw16)
-    left[:, bpp:] = raw16[:, :-bpp]
-    up = np.zeros_like(raw16)
-    up[1:] = raw16[:-1]
-    upleft = np.zeros_like(raw16)
-    upleft[1:, bpp:] = raw16[:-1, :-bpp]
-    out = np.empty_like(raw16)
-    for t in np.unique(ftypes):
-        sel = ftypes == t
-        x, a, b, c = raw16[sel], left[sel], up[sel], upleft[sel]
+    kinds = np.unique(ftypes)
+    out = np.empty_like(raw)
+    for t in kinds:
+        sel = slice(None) if len(kinds) == 1 else (ftypes == t)
+        x = raw[sel]
         if t == 0:
-            v = x
-        elif t == 1:
-            v = x - a
+            out[sel] = x
+            continue
+        left = np.zeros_like(x)
+        left[:, bpp:] = x[:, :-bpp]
+        up = np.zeros_like(raw)
+        up[1:] = raw[:-1]
+        up = up[sel]
+        if t == 1:
+            out[sel] = x - left                       # uint8 arithmetic wraps modulo 256
         elif t == 2:
-            v = x - b
+            out[sel] = x - up
         elif t == 3:
-            v = x - (a + b) // 2
+            out[sel] = x - ((left.astype(np.int16) + up) // 2).astype(np.uint8)
         else:
+            upleft = np.zeros_like(raw)
+            upleft[1:, bpp:] = raw[:-1, :-bpp]
+            a, b, c = left.astype(np.int16), up.astype(np.int16), upleft[sel].astype(np.int16)
             p = a + b - c
             pa, pb, pc = np.abs(p - a), np.abs(p - b), np.abs(p - c)
             pred = np.where((pa <= pb) & (pa <= pc), a, np.where(pb <= pc, b, c))
-            v = x - pred
-        out[sel] = v
-    return (out & 0xFF).astype(np.uint8)
+            out[sel] = x - pred.astype(np.uint8)
+    return out
 
 
 def _chunk(ctype: bytes, body: bytes) -> bytes:

@@ -364,18 +364,33 @@ def lateral_force(gx: np.ndarray, gy: np.ndarray | None, device, mapping: Mappin
             np.multiply(gy, load, out=fy)
         del load
     fmax = float(device.lateral_force_max)
-    mag = np.abs(fx) if fy is None else np.hypot(fx, fy)
-    peak = float(mag.max(initial=0.0))
+    from .gradients import _flat
+    flx, fly = _flat(fx), _flat(fy)
+    if flx is not None and fly is not None and fx.size:
+        from . import _kernels
+        cnt, peak = _kernels.clip_magnitude(flx, fly, fmax if fmax > 0 else math.inf)
+        note = {"range": [0.0, fmax if fmax > 0 else None], "unit": "N", "below": 0, "above": int(cnt),
+                "fraction": int(cnt) / fx.size, "max_excess": max(peak - fmax, 0.0) if fmax > 0 else 0.0,
+                "raw_min": 0.0, "raw_max": float(peak), "rule": "magnitude clipped, direction kept"}
+        return fx, fy, note
+    m2 = np.multiply(fx, fx)
+    if fy is not None:
+        t = np.multiply(fy, fy)
+        m2 += t
+        del t
+    peak = math.sqrt(float(m2.max(initial=0.0)))
     note = {"range": [0.0, fmax if fmax > 0 else None], "unit": "N", "below": 0, "above": 0, "fraction": 0.0,
             "max_excess": 0.0, "raw_min": 0.0, "raw_max": peak, "rule": "magnitude clipped, direction kept"}
     if fmax > 0 and peak > fmax:
-        over = mag > fmax
-        f = fmax / mag[over]
-        del mag
-        fx[over] *= f
+        cnt = int(np.count_nonzero(m2 > fmax * fmax))
+        # factor min(1, fmax/|F|): exactly 1 where |F| <= fmax
+        with np.errstate(divide="ignore"):
+            np.divide(fmax * fmax, m2, out=m2)
+        np.minimum(m2, 1.0, out=m2)
+        np.sqrt(m2, out=m2)
+        fx *= m2
         if fy is not None:
-            fy[over] *= f
-        cnt = int(np.count_nonzero(over))
+            fy *= m2
         note.update(above=cnt, fraction=cnt / fx.size, max_excess=peak - fmax)
     return fx, fy, note
 
