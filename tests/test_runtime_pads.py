@@ -214,3 +214,29 @@ def test_registry_and_bad_inputs():
         simulate_pad("exact", N=-1.0)
     with pytest.raises(InputError, match="finite"):
         simulate_pad("exact", V=np.array([0.0, np.nan]))
+
+
+def test_stribeck_converges_with_substep_and_tick_rate():
+    from shapedisplay.runtime.studies import IMAIZUMI_FRICTION, IMAIZUMI_PAD
+    for hz, amp, v in ((9.0, 1.25e-3, 0.1), (0.0, 0.0, 0.04)):
+        runs = []
+        for rate, hsub in ((10_000, 2e-6), (10_000, 5e-7), (2000, 2e-6)):
+            r = simulate_pad("stribeck", V=v, N=1.0, pad=IMAIZUMI_PAD, friction=IMAIZUMI_FRICTION, tick_rate=rate,
+                             duration=0.5, contactor_hz=hz, contactor_amplitude_m=amp, substep_s=hsub)
+            keep = r.t >= 0.2
+            runs.append((np.abs(r.friction_force[keep]).mean(), r.event_time))
+            assert np.all(np.abs(r.friction_force) <= 2.1 * (1 + 1e-9))
+        for mean, ev in runs[1:]:
+            assert abs(mean - runs[0][0]) <= 1e-3 * runs[0][0]
+            assert ev.size == runs[0][1].size and np.max(np.abs(ev - runs[0][1])) <= 1e-5
+
+
+def test_stribeck_premax_variant_is_finite_and_has_no_stick_state():
+    from shapedisplay.runtime.studies import IMAIZUMI_FRICTION, IMAIZUMI_PAD
+    r = simulate_pad("stribeck", V=0.04, N=1.0, pad=IMAIZUMI_PAD, friction=IMAIZUMI_FRICTION, tick_rate=1000,
+                     duration=0.3, variant="premax", contactor_hz=6.0, contactor_amplitude_m=1.25e-3)
+    assert np.all(np.isfinite(r.friction_force)) and np.all(r.state[1:] == 1)
+    # mu(v) never exceeds its maximum: p d = 2.0 at the corner, Stribeck part <= mu_s + b*v
+    assert np.abs(r.friction_force).max() <= 2.1 + 2.0 * 0.2
+    with pytest.raises(InputError, match="variant"):
+        simulate_pad("stribeck", variant="tanh")
