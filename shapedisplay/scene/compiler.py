@@ -372,6 +372,8 @@ def _group_channels(scene, rect, reach, states, device, mapping, options, kept, 
     c = scene.canvas
     calc = _grow(rect, reach, c.rows, c.cols)
     h, data = composite(scene, calc, states)
+    if clamped is not None:
+        clamped.setdefault("_heights", []).append((float(h.min()), float(h.max())))
     np.clip(h, lims[0], lims[1], out=h)
     s = c.spacing
     hf_calc = HeightField(h, s, s, calc[1] * s, calc[0] * s, f"scene {scene.name}")
@@ -499,6 +501,17 @@ def compile_scene(path, device=None, options=None):
             steepest = max(steepest, sp)
         wall_blocks += bool(wc)
         blocks.append({"group": g, "main": main, "toggle": toggle, "variants": variants})
+
+    # -- combined heights (overlap rule "add") beyond the device, when no single widget is
+    for b, (hmin, hmax) in zip(blocks, clamped.pop("_heights", [])):
+        ids = [scene.widgets[i].id for i in b["group"]["members"]]
+        if len(ids) > 1 and not any(f"'{i}'" in w for i in ids for w in warnings):
+            for v, lim, side in ((hmax, lims[1], "above"), (hmin, lims[0], "below")):
+                if (v - lim) * (1 if side == "above" else -1) > 1e-12:
+                    warnings.append(f"widgets {', '.join(repr(i) for i in ids)}: combined height "
+                                    f"{v * 1e3:.4g} mm is {side} what the device renders by "
+                                    f"{abs(v - lim) * 1e3:.4g} mm ({abs(v - lim) * mapping.n_gain:.4g} N); "
+                                    f"clamped to {lim * 1e3:.4g} mm")
 
     # -- quantization over every stored value and the background
     background = _background(scene, dev, mapping, kept)
