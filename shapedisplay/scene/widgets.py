@@ -663,7 +663,9 @@ class Data(WidgetType):
     """A free data layer: a scalar field driving its own haptic dimension.
 
     ``channel`` friction_scale|burst_gain; the field from ``values`` (inline
-    list or 2-D list) or ``file`` (.npy, .csv or gray PNG); ``data_range``
+    list or 2-D list, rows along y) or ``file`` (.npy, .csv or gray PNG),
+    stretched over the box with its first and last samples on the box edges
+    (bilinear in between); ``data_range``
     "lo:hi" (default: the field's min:max); ``range`` "lo:hi" of the stimulus
     (multiplier); ``scaling`` perceptual (power law with ``exponent``, default
     per dimension: friction 1.26, vibration 0.6) or linear; ``threshold``
