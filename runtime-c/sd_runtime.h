@@ -59,6 +59,87 @@ int sd_jump_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double t0, double 
 void sd_jump_restick(double m, double c, double k, double s, double xb, double V, double muk, double N,
                      double *slip_time, double *x_restick);
 
+/* ------------------------------------------------------------------ tables */
+/* Code types of a stored channel (value = offset + scale * code; float channels store values). */
+enum { SD_U8 = 0, SD_U16 = 1, SD_F32 = 2, SD_F64 = 3 };
+
+typedef struct {
+    const void *codes;     /* n_values codes, all patches back to back */
+    int dtype;             /* SD_U8 .. SD_F64 */
+    double scale, offset;  /* value = offset + scale * code (integer codes) */
+    double background;     /* value outside every block */
+} sd_channel_t;
+
+/* Renderer slots: the channels the renderer reads (same order as renderer.SLOTS). */
+enum {
+    SD_SLOT_NORMAL_FORCE, SD_SLOT_FRICTION_SCALE, SD_SLOT_BURST_GAIN, SD_SLOT_GRAD_X, SD_SLOT_GRAD_Y,
+    SD_SLOT_LATERAL_X, SD_SLOT_LATERAL_Y, SD_SLOT_SKIN_STRETCH, SD_SLOT_BREAKAWAY_FORCE, SD_SLOT_KINETIC_FORCE,
+    SD_NSLOT
+};
+
+/* A friction-envelope table: the arrays of `shapedisplay export --format c` plug in directly:
+ *   sd_channel_t n = {NAME_normal_force_codes, SD_U16, NAME_normal_force_scale, ...};
+ *   sd_table_t T = {NAME_ROWS, NAME_COLS, NAME_dx_m, NAME_dy_m, NAME_x0_m, NAME_y0_m,
+ *                   NAME_N_BLOCKS, NAME_blocks, {&n, 0, ...}};                                  */
+typedef struct {
+    int32_t rows, cols;                 /* canvas samples; sample (r, c) at (x0 + c dx, y0 + r dy) */
+    double dx, dy, x0, y0;              /* m */
+    int32_t n_blocks;
+    const int32_t (*blocks)[5];         /* row0, col0, rows, cols, offset; never overlapping */
+    const sd_channel_t *slot[SD_NSLOT]; /* NULL = channel not stored */
+} sd_table_t;
+
+double sd_channel_value(const sd_channel_t *ch, long idx);
+long sd_cell_index(const sd_table_t *T, long r, long c);
+void sd_sample_slots(const sd_table_t *T, double x, double y, double *out);
+double sd_envelope(double tau, double rise, double decay);
+
+/* ------------------------------------------------------------------ renderer */
+#ifndef SD_EVENT_RING
+#define SD_EVENT_RING 4096      /* bursts remembered (as the Python renderer; smaller saves RAM) */
+#endif
+#ifndef SD_AUDIO_BLOCK_MAX
+#define SD_AUDIO_BLOCK_MAX 4096 /* audio samples per tick, >= ceil(audio_rate / tick_rate) + 2 */
+#endif
+
+enum { SD_RETRIGGER = 0, SD_ADD = 1, SD_MAX = 2 };               /* burst overlap policies */
+enum { SD_OK = 0, SD_ERR_ARG = -1, SD_ERR_TABLE = -2, SD_ERR_PARAM = -3 };
+
+/* Per-tick outputs, indices into sd_renderer_t.out (same as renderer.OUT_NAMES). */
+enum {
+    SD_O_T, SD_O_X, SD_O_Y, SD_O_VX, SD_O_VY, SD_O_N, SD_O_F, SD_O_STATE, SD_O_LX, SD_O_LY, SD_O_SS, SD_O_NEV,
+    SD_O_DRIVE, SD_O_NAUDIO, SD_O_V, SD_NOUT
+};
+
+typedef struct {
+    sd_pad_params_t pad;     /* m, k, c, burst gain B, max stick period */
+    double mu_s, mu_k;       /* device friction coefficients */
+    double k_mu;             /* slope friction gain (table meta mapping.slope_friction_gain) */
+    double skin_target;      /* m, default skin-stretch target */
+    double tick_rate;        /* Hz, 100 .. 192000 */
+    double audio_rate;       /* Hz, 1000 .. 384000; 0 = no audio, drive per tick only */
+    double carrier_hz, rise_s, decay_s;
+    int policy;              /* SD_RETRIGGER, SD_ADD, SD_MAX */
+} sd_config_t;
+
+typedef struct {
+    const sd_table_t *table;
+    sd_config_t cfg;
+    sd_pad_state_t pad;
+    double tick, xp, yp, ax, ay, t0;
+    long next_j, n_rec, clipped, events_total, events_dropped, n_audio, audio_cap;
+    double ev_t[SD_EVENT_RING], ev_a[SD_EVENT_RING];
+    double audio[SD_AUDIO_BLOCK_MAX];   /* audio samples of the last tick: audio[0 .. n_audio-1] */
+    double out[SD_NOUT];                /* outputs of the last tick */
+} sd_renderer_t;
+
+/* Validate and bind; returns SD_OK or an SD_ERR_* code. No allocation here or later. */
+int sd_renderer_init(sd_renderer_t *R, const sd_table_t *table, const sd_config_t *cfg);
+/* Start a new run at cursor time t0 (s). */
+void sd_renderer_reset(sd_renderer_t *R, double t0);
+/* One tick with the cursor at (x, y) metres; returns the burst drive in [-1, 1]. */
+double sd_renderer_step(sd_renderer_t *R, double x, double y);
+
 #ifdef __cplusplus
 }
 #endif

@@ -100,6 +100,96 @@ static int run_pad(void)
     return 0;
 }
 
+static int64_t *rd_i64s(int64_t n)
+{
+    int64_t *a = (int64_t *)malloc((size_t)(n > 0 ? n : 1) * sizeof(int64_t));
+    if (!a) die("out of memory");
+    rd(a, sizeof(int64_t), (size_t)n);
+    return a;
+}
+
+static int run_render(void)
+{
+    static sd_renderer_t R;          /* large (event ring): not on the stack */
+    sd_config_t C;
+    sd_table_t T;
+    sd_channel_t ch[SD_NSLOT];
+    double c[14];
+    int64_t policy, n_values, n, i, s, n_audio_total = 0;
+    int32_t (*blocks)[5];
+    int64_t *blk;
+    double *x, *y, *outs, *audio;
+    size_t audio_cap;
+    int rc;
+    rd(c, sizeof(double), 14);
+    policy = rd_i64();
+    C.pad.mass = c[0]; C.pad.stiffness = c[1]; C.pad.damping = c[2]; C.pad.burst_gain = c[3];
+    C.pad.max_stick_period = c[4]; C.mu_s = c[5]; C.mu_k = c[6]; C.k_mu = c[7]; C.skin_target = c[8];
+    C.tick_rate = c[9]; C.audio_rate = c[10]; C.carrier_hz = c[11]; C.rise_s = c[12]; C.decay_s = c[13];
+    C.policy = (int)policy;
+    T.rows = (int32_t)rd_i64();
+    T.cols = (int32_t)rd_i64();
+    rd(&T.dx, sizeof(double), 1);
+    rd(&T.dy, sizeof(double), 1);
+    rd(&T.x0, sizeof(double), 1);
+    rd(&T.y0, sizeof(double), 1);
+    T.n_blocks = (int32_t)rd_i64();
+    blk = rd_i64s(5 * (int64_t)T.n_blocks);
+    blocks = (int32_t (*)[5])malloc((size_t)(T.n_blocks > 0 ? T.n_blocks : 1) * sizeof *blocks);
+    if (!blocks) die("out of memory");
+    for (i = 0; i < T.n_blocks; i++)
+        for (s = 0; s < 5; s++) blocks[i][s] = (int32_t)blk[5 * i + s];
+    T.blocks = (const int32_t (*)[5])blocks;
+    n_values = rd_i64();
+    for (s = 0; s < SD_NSLOT; s++) {
+        int64_t dtype = rd_i64();
+        static const size_t width[4] = {1, 2, 4, 8};
+        void *codes;
+        T.slot[s] = NULL;
+        if (dtype < 0) continue;
+        if (dtype > 3) die("bad dtype");
+        rd(&ch[s].scale, sizeof(double), 1);
+        rd(&ch[s].offset, sizeof(double), 1);
+        rd(&ch[s].background, sizeof(double), 1);
+        codes = malloc((size_t)(n_values > 0 ? n_values : 1) * width[dtype]);
+        if (!codes) die("out of memory");
+        rd(codes, width[dtype], (size_t)n_values);
+        ch[s].codes = codes;
+        ch[s].dtype = (int)dtype;
+        T.slot[s] = &ch[s];
+    }
+    n = rd_i64();
+    if (n < 1 || n > 100000000) die("bad step count");
+    x = rd_f64(n);
+    y = rd_f64(n);
+    rc = sd_renderer_init(&R, &T, &C);
+    if (rc != SD_OK) {
+        fprintf(stderr, "sd_vectors: sd_renderer_init failed (%d)\n", rc);
+        return 3;
+    }
+    outs = (double *)malloc((size_t)n * SD_NOUT * sizeof(double));
+    audio_cap = (size_t)n * (size_t)(R.audio_cap > 0 ? R.audio_cap : 1);
+    audio = (double *)malloc(audio_cap * sizeof(double));
+    if (!outs || !audio) die("out of memory");
+    for (i = 0; i < n; i++) {
+        sd_renderer_step(&R, x[i], y[i]);
+        memcpy(outs + i * SD_NOUT, R.out, SD_NOUT * sizeof(double));
+        memcpy(audio + n_audio_total, R.audio, (size_t)R.n_audio * sizeof(double));
+        n_audio_total += R.n_audio;
+    }
+    wr(outs, sizeof(double), (size_t)n * SD_NOUT);
+    wr(&n_audio_total, sizeof n_audio_total, 1);
+    wr(audio, sizeof(double), (size_t)n_audio_total);
+    {
+        int64_t counters[3];
+        counters[0] = R.clipped;
+        counters[1] = R.events_total;
+        counters[2] = R.events_dropped;
+        wr(counters, sizeof(int64_t), 3);
+    }
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     int rc;
@@ -109,6 +199,7 @@ int main(int argc, char **argv)
     out_f = fopen(argv[3], "wb");
     if (!out_f) die("cannot open output");
     if (strcmp(argv[1], "pad") == 0) rc = run_pad();
+    else if (strcmp(argv[1], "render") == 0) rc = run_render();
     else die("mode must be pad or render");
     fclose(in_f);
     if (fclose(out_f) != 0) die("cannot write output");

@@ -137,3 +137,141 @@ def test_restick_closed_form_matches_python(sd_vectors, tmp_path):
     # stick period at speed V: the spring force climbs from f_re to mu_s N at k V per second
     period = (fr.mu_s * N - f_re) / (p.stiffness * V)
     assert np.diff(cet)[0] == pytest.approx(period, rel=1e-3)
+
+
+# ------------------------------------------------------------------ renderer vectors
+# Input:  f64 cfg[14] (m, k, c, B, max_stick, mu_s, mu_k, K_mu, skin_target, tick_rate, audio_rate,
+#         carrier, rise, decay), i64 policy; table: i64 rows, cols, f64 dx, dy, x0, y0, i64 n_blocks,
+#         i64 blocks[n_blocks][5], i64 n_values, per slot (renderer.SLOTS order): i64 dtype (-1 absent;
+#         0 u8, 1 u16, 2 f32, 3 f64) then f64 scale, offset, background and the codes;
+#         i64 n, f64 x[n], y[n].
+# Output: f64 out[n][15] (renderer.OUT_NAMES), i64 n_audio, f64 audio[n_audio], i64 clipped, events,
+#         events dropped.
+from shapedisplay.runtime import Renderer                      # noqa: E402
+from shapedisplay.runtime import renderer as R_                # noqa: E402
+from shapedisplay.table import FrictionTable, Grid, choose_quantization   # noqa: E402
+
+_DT = {"uint8": 0, "uint16": 1, "float32": 2, "float64": 3}
+
+
+def render_payload(r: Renderer, x, y) -> bytes:
+    P = r.model.params
+    cfg = r._cfg
+    b = r.device.burst
+    head = np.array([P[pads.P_M], P[pads.P_K], P[pads.P_C], P[pads.P_B], P[pads.P_TMAX],
+                     cfg[R_.CFG_MUS], cfg[R_.CFG_MUK], cfg[R_.CFG_KMU], cfg[R_.CFG_SST],
+                     r.tick_rate, r.audio_rate, b.carrier_hz, b.rise_s, b.decay_s], "<f8").tobytes()
+    head += struct.pack("<q", r._policy)
+    t = r.table
+    g = t.grid
+    off = t.patch_offsets()
+    blocks = np.array([[r0, c0, *t.patch_shapes[p], off[p]] for r0, c0, p in t.blocks], "<i8").reshape(-1, 5)
+    tab = struct.pack("<qq", g.rows, g.cols) + np.array([g.dx, g.dy, g.x0, g.y0], "<f8").tobytes()
+    tab += struct.pack("<q", len(blocks)) + blocks.tobytes() + struct.pack("<q", int(off[-1]))
+    for name in R_.SLOTS:
+        if name not in t.channels:
+            tab += struct.pack("<q", -1)
+            continue
+        q = t.quant[name]
+        tab += struct.pack("<q", _DT[q.dtype]) + np.array([q.scale, q.offset, t.background[name]], "<f8").tobytes()
+        codes = np.asarray(t.codes[name])
+        tab += codes.astype(codes.dtype.newbyteorder("<"), copy=False).tobytes()
+    x = np.asarray(x, "<f8")
+    y = np.asarray(y, "<f8")
+    return head + tab + struct.pack("<q", x.size) + x.tobytes() + y.tobytes()
+
+
+def c_render(exe, tmp_path, r, x, y):
+    raw = _run(exe, "render", render_payload(r, x, y), tmp_path)
+    n = len(x)
+    nout = len(R_.OUT_NAMES)
+    outs = np.frombuffer(raw[:8 * n * nout], "<f8").reshape(n, nout)
+    pos = 8 * n * nout
+    (na,) = struct.unpack_from("<q", raw, pos)
+    audio = np.frombuffer(raw[pos + 8:pos + 8 + 8 * na], "<f8")
+    counters = struct.unpack_from("<qqq", raw, pos + 8 + 8 * na)
+    return outs, audio, counters
+
+
+def py_render(r, x, y):
+    r.reset()
+    outs, audio = [], []
+    for xi, yi in zip(x, y):
+        r.step(float(xi), float(yi))
+        outs.append(r.last.copy())
+        audio.append(r.audio_block[:int(r.last[R_.O_NAUDIO])].copy())
+    return np.array(outs), np.concatenate(audio), (r.clipped, r.event_count)
+
+
+def widget_table(dtype="uint16", kmu=0.4, sparse=True):
+    """A 2-D table with several channels, two identical widgets (one patch stored once), background."""
+    rows, cols, dx = 40, 120, 0.5e-3
+    yy, xx = np.mgrid[0:16, 0:24] * dx
+    bump = np.exp(-(((xx - 6e-3) / 3e-3) ** 2 + ((yy - 4e-3) / 2e-3) ** 2))
+    chans = {
+        "normal_force": 0.5 + 2.5 * bump,
+        "friction_scale": 1.0 + 0.3 * bump,
+        "burst_gain": 0.5 + bump,
+        "grad_x": np.gradient(bump * 1e-3, dx, axis=1),
+        "grad_y": np.gradient(bump * 1e-3, dx, axis=0),
+        "lateral_x": -0.2 * np.gradient(bump, axis=1),
+    }
+    quant = {n: choose_quantization(v, dtype) for n, v in chans.items()}
+    bg = {"normal_force": 0.5, "friction_scale": 1.0, "burst_gain": 0.5, "grad_x": 0.0, "grad_y": 0.0,
+          "lateral_x": 0.0}
+    placed = [((4, 10), chans), ((20, 70), chans)] if sparse else [((0, 0), chans)]
+    dev = load_device("desktop-rig")
+    meta = {"device": dev.to_json(), "mapping": {"slope_friction_gain": kmu}}
+    return FrictionTable.from_patches(Grid(rows, cols, dx, dx, 1e-3, -2e-3), placed, quant, bg, meta)
+
+
+def stroke(n, kind):
+    t = np.linspace(0.0, 1.0, n)
+    if kind == "diagonal":
+        return -0.005 + 0.07 * t, -0.004 + 0.025 * t
+    if kind == "circles":
+        return 0.03 + 0.02 * np.cos(9 * t), 0.008 + 0.008 * np.sin(9 * t)
+    if kind == "teleports":               # jumps of many cells in one tick, and standing still
+        x = np.repeat([0.0, 0.05, 0.012, 0.012, 0.061, -0.02], n // 6 + 1)[:n]
+        return x + 0.01 * t, np.full(n, 0.005)
+    raise ValueError(kind)
+
+
+RENDER_CASES = [
+    ("uint16", "diagonal", "retrigger", 10_000.0, None),
+    ("uint8", "circles", "retrigger", 10_000.0, None),
+    ("float32", "circles", "add", 4_000.0, 48_000.0),
+    ("uint16", "teleports", "max", 10_000.0, 44_100.0),
+    ("float64", "diagonal", "retrigger", 96_000.0, 96_000.0),
+]
+
+
+@pytest.mark.parametrize("dtype, kind, policy, tick, audio", RENDER_CASES)
+def test_renderer_bit_exact(sd_vectors, tmp_path, dtype, kind, policy, tick, audio):
+    table = widget_table(dtype)
+    r = Renderer(table, model="jump", tick_rate=tick, audio_rate=audio, burst_policy=policy)
+    n = int(0.25 * tick)
+    x, y = stroke(n, kind)
+    po, pa, (pclip, pev) = py_render(r, x, y)
+    co, ca, (cclip, cev, cdrop) = c_render(sd_vectors, tmp_path, r, x, y)
+    assert pev > 20 and cev == pev                      # stick-slip happened, same event count
+    assert cclip == pclip and cdrop == 0
+    np.testing.assert_array_equal(co, po)               # every per-tick output, bit for bit
+    np.testing.assert_array_equal(ca, pa)               # every audio sample, bit for bit
+    assert np.count_nonzero(pa) > 0.2 * pa.size
+
+
+def test_renderer_bit_exact_1d_published_tent(sd_vectors, tmp_path):
+    """The bundled handheld profile on a 1-D tent: the device-link default configuration."""
+    dev = load_device("handheld-stick")
+    xg = np.arange(241) * 0.25e-3
+    nf = np.interp(xg, [0, 0.015, 0.030, 0.045, 0.060], [0.5, 0.5, 2.5, 0.5, 0.5])
+    table = FrictionTable.from_dense(Grid(1, xg.size, 0.25e-3, 0.25e-3), {"normal_force": nf[None, :]},
+                                     {"normal_force": choose_quantization(nf, "uint16")}, {"device": dev.to_json()})
+    r = Renderer(table, model="jump")
+    x = np.concatenate([np.linspace(0.0, 0.06, 6000), np.linspace(0.06, 0.0, 3000)])
+    po, pa, (pclip, pev) = py_render(r, x, np.zeros_like(x))
+    co, ca, (cclip, cev, _) = c_render(sd_vectors, tmp_path, r, x, np.zeros_like(x))
+    assert cev == pev > 100
+    np.testing.assert_array_equal(co, po)
+    np.testing.assert_array_equal(ca, pa)

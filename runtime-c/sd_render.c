@@ -1,0 +1,361 @@
+/* sd_render.c -- table lookup, per-tick inputs, bursts and the online renderer step.
+ *
+ * Ports of shapedisplay/runtime/lookup.py (sample_all), renderer.py (_axis_speed, _derive,
+ * online_step) and bursts.py (envelope, burst_value, synth), operation for operation in
+ * IEEE double precision (see sd_pad.c for the rules that keep it bit-identical).
+ */
+#include <math.h>
+#include <string.h>
+#include "sd_runtime.h"
+
+#define SD_PI 3.141592653589793
+
+static double py_max(double a, double b) { return b > a ? b : a; }
+static double py_min(double a, double b) { return b < a ? b : a; }
+static long imax(long a, long b) { return b > a ? b : a; }
+static long imin(long a, long b) { return b < a ? b : a; }
+
+/* ------------------------------------------------------------------ table lookup */
+double sd_channel_value(const sd_channel_t *ch, long idx)
+{
+    double code;
+    if (idx < 0) return ch->background;
+    switch (ch->dtype) {
+    case SD_U8: code = (double)((const uint8_t *)ch->codes)[idx]; break;
+    case SD_U16: code = (double)((const uint16_t *)ch->codes)[idx]; break;
+    case SD_F32: return (double)((const float *)ch->codes)[idx];
+    default: return ((const double *)ch->codes)[idx];
+    }
+    return ch->offset + ch->scale * code;   /* as Quantization.decode */
+}
+
+long sd_cell_index(const sd_table_t *T, long r, long c)
+{
+    int32_t b;
+    for (b = 0; b < T->n_blocks; b++) {
+        long r0 = T->blocks[b][0], c0 = T->blocks[b][1], nr = T->blocks[b][2], nc = T->blocks[b][3];
+        if (r0 <= r && r < r0 + nr && c0 <= c && c < c0 + nc)
+            return (long)T->blocks[b][4] + (r - r0) * nc + (c - c0);
+    }
+    return -1;
+}
+
+/* Bilinear value of every slot at (x, y) metres into out[SD_NSLOT] (0 for absent slots). */
+void sd_sample_slots(const sd_table_t *T, double x, double y, double *out)
+{
+    long rows = T->rows, cols = T->cols, c0, c1, r0, r1;
+    double fc, fr, tx, ty;
+    int s;
+    fc = (x - T->x0) / T->dx;
+    if (fc < 0.0) fc = 0.0;
+    if (fc > (double)(cols - 1)) fc = (double)cols - 1.0;
+    c0 = (long)floor(fc);
+    if (c0 > imax(cols - 2, 0)) c0 = imax(cols - 2, 0);
+    tx = fc - (double)c0;
+    c1 = imin(c0 + 1, cols - 1);
+    if (rows == 1) {
+        long i0 = sd_cell_index(T, 0, c0), i1 = sd_cell_index(T, 0, c1);
+        for (s = 0; s < SD_NSLOT; s++) {
+            const sd_channel_t *ch = T->slot[s];
+            out[s] = ch ? sd_channel_value(ch, i0) * (1 - tx) + sd_channel_value(ch, i1) * tx : 0.0;
+        }
+        return;
+    }
+    fr = (y - T->y0) / T->dy;
+    if (fr < 0.0) fr = 0.0;
+    if (fr > (double)(rows - 1)) fr = (double)rows - 1.0;
+    r0 = (long)floor(fr);
+    if (r0 > imax(rows - 2, 0)) r0 = imax(rows - 2, 0);
+    ty = fr - (double)r0;
+    r1 = imin(r0 + 1, rows - 1);
+    {
+        long i00 = sd_cell_index(T, r0, c0), i01 = sd_cell_index(T, r0, c1);
+        long i10 = sd_cell_index(T, r1, c0), i11 = sd_cell_index(T, r1, c1);
+        for (s = 0; s < SD_NSLOT; s++) {
+            const sd_channel_t *ch = T->slot[s];
+            double top, bot;
+            if (!ch) {
+                out[s] = 0.0;
+                continue;
+            }
+            top = sd_channel_value(ch, i00) * (1 - tx) + sd_channel_value(ch, i01) * tx;
+            bot = sd_channel_value(ch, i10) * (1 - tx) + sd_channel_value(ch, i11) * tx;
+            out[s] = top * (1 - ty) + bot * ty;
+        }
+    }
+}
+
+/* ------------------------------------------------------------------ bursts */
+double sd_envelope(double tau, double rise, double decay)
+{
+    double u, r;
+    if (tau < 0.0) return 0.0;
+    if (tau < rise) return tau / rise;
+    u = tau - rise;
+    if (u < decay) {
+        r = 1.0 - u / decay;
+        return r * r;
+    }
+    return 0.0;
+}
+
+static double burst_value(double t, const double *ev_t, const double *ev_a, long lo, long hi, double carrier,
+                          double rise, double decay, int policy)
+{
+    double dur = rise + decay, w, acc = 0.0, best = -1.0;
+    long i;
+    if (hi <= lo) return 0.0;
+    w = 2.0 * SD_PI * carrier;
+    if (policy == SD_RETRIGGER) {
+        double tau = t - ev_t[hi - 1];
+        if (tau >= dur) return 0.0;
+        return ev_a[hi - 1] * sd_envelope(tau, rise, decay) * sin(w * tau);
+    }
+    for (i = lo; i < hi; i++) {
+        double tau = t - ev_t[i], e;
+        if (tau >= dur || tau < 0.0) continue;
+        e = ev_a[i] * sd_envelope(tau, rise, decay);
+        if (policy == SD_ADD) {
+            acc += e * sin(w * tau);
+        } else if (e > best) {
+            best = e;
+            acc = e * sin(w * tau);
+        }
+    }
+    return acc;
+}
+
+/* Audio samples j0..j1-1 (time t_origin + j / rate) into out[0 .. j1-j0-1]; returns samples clipped. */
+static long synth(const double *ev_t, const double *ev_a, long n_ev, double t_origin, double rate, long j0,
+                  long j1, double carrier, double rise, double decay, int policy, double *out)
+{
+    double dur = rise + decay, w = 2.0 * SD_PI * carrier;
+    double cd = cos(w / rate), sd = sin(w / rate), cr = 0.0, sr = 0.0;
+    long lo = 0, hi = 0, clipped = 0, cur = -1, j;
+    for (j = j0; j < j1; j++) {
+        double t = t_origin + (double)j / rate, val;
+        while (hi < n_ev && ev_t[hi] < t) hi += 1;
+        if (policy == SD_RETRIGGER) {
+            /* one burst at a time: the carrier advances by a rotation per sample
+             * (re-anchored with sin/cos at each new burst and at each call) */
+            val = 0.0;
+            if (hi > 0) {
+                long i = hi - 1;
+                double tau = t - ev_t[i];
+                if (tau < dur) {
+                    if (i != cur) {
+                        cur = i;
+                        cr = cos(w * tau);
+                        sr = sin(w * tau);
+                    } else {
+                        double cn = cr * cd - sr * sd;
+                        double sn = sr * cd + cr * sd;
+                        cr = cn;
+                        sr = sn;
+                    }
+                    val = ev_a[i] * sd_envelope(tau, rise, decay) * sr;
+                }
+            }
+        } else {
+            while (lo < hi && ev_t[lo] + dur <= t) lo += 1;
+            val = burst_value(t, ev_t, ev_a, lo, hi, carrier, rise, decay, policy);
+        }
+        if (val > 1.0) {
+            val = 1.0;
+            clipped += 1;
+        } else if (val < -1.0) {
+            val = -1.0;
+            clipped += 1;
+        }
+        out[j - j0] = val;
+    }
+    return clipped;
+}
+
+/* ------------------------------------------------------------------ per-tick inputs */
+static void axis_speed(double vx, double vy, double *ax, double *ay, double *V)
+{
+    double sp = sqrt(vx * vx + vy * vy), dx, dy;
+    if (sp == 0.0) {
+        *V = 0.0;
+        return;
+    }
+    dx = vx / sp;
+    dy = vy / sp;
+    if (dx * *ax + dy * *ay >= 0.0) {
+        *V = sp;
+        *ax = dx;
+        *ay = dy;
+        return;
+    }
+    *V = -sp;
+    *ax = -dx;
+    *ay = -dy;
+}
+
+static void derive(const sd_renderer_t *R, const double *vals, double vx, double vy, double speed, double *N_out,
+                   double *mus_out, double *muk_out, double *gain_out)
+{
+    const sd_table_t *T = R->table;
+    const sd_config_t *C = &R->cfg;
+    double N = vals[SD_SLOT_NORMAL_FORCE], fs, mus, muk, gain;
+    if (N < 0.0) N = 0.0;
+    fs = T->slot[SD_SLOT_FRICTION_SCALE] ? vals[SD_SLOT_FRICTION_SCALE] : 1.0;
+    if (fs < 0.0) fs = 0.0;
+    mus = C->mu_s * fs;
+    muk = C->mu_k * fs;
+    if (T->slot[SD_SLOT_BREAKAWAY_FORCE] && N > 0.0) mus = py_max(vals[SD_SLOT_BREAKAWAY_FORCE], 0.0) / N;
+    if (T->slot[SD_SLOT_KINETIC_FORCE] && N > 0.0) muk = py_max(vals[SD_SLOT_KINETIC_FORCE], 0.0) / N;
+    if (C->k_mu != 0.0 && speed > 0.0 && T->slot[SD_SLOT_GRAD_X]) {
+        double gy = T->slot[SD_SLOT_GRAD_Y] ? vals[SD_SLOT_GRAD_Y] : 0.0;
+        double slope = (vals[SD_SLOT_GRAD_X] * vx + gy * vy) / speed;
+        if (slope > 0.0) {
+            mus += C->k_mu * slope;
+            muk += C->k_mu * slope;
+        }
+    }
+    if (muk > mus) muk = mus;
+    gain = T->slot[SD_SLOT_BURST_GAIN] ? vals[SD_SLOT_BURST_GAIN] : 1.0;
+    if (gain < 0.0) gain = 0.0;
+    *N_out = N;
+    *mus_out = mus;
+    *muk_out = muk;
+    *gain_out = gain;
+}
+
+/* ------------------------------------------------------------------ renderer */
+int sd_renderer_init(sd_renderer_t *R, const sd_table_t *table, const sd_config_t *cfg)
+{
+    const sd_pad_params_t *p = &cfg->pad;
+    if (!R || !table || !cfg) return SD_ERR_ARG;
+    if (table->rows < 1 || table->cols < 1 || !(table->dx > 0.0) || !(table->dy > 0.0) || table->n_blocks < 0)
+        return SD_ERR_TABLE;
+    if (!table->slot[SD_SLOT_NORMAL_FORCE]) return SD_ERR_TABLE;     /* the jump model needs N */
+    if (!(p->mass > 0.0) || !(p->stiffness > 0.0) || !(p->damping >= 0.0) || !(p->burst_gain >= 0.0)
+        || !(p->max_stick_period >= 0.0) || !(cfg->mu_s > 0.0) || !(cfg->mu_k >= 0.0) || cfg->mu_k > cfg->mu_s
+        || !(cfg->k_mu >= 0.0))
+        return SD_ERR_PARAM;
+    if (!(cfg->tick_rate >= 100.0 && cfg->tick_rate <= 192000.0)) return SD_ERR_PARAM;
+    if (!(cfg->audio_rate == 0.0 || (cfg->audio_rate >= 1000.0 && cfg->audio_rate <= 384000.0)))
+        return SD_ERR_PARAM;
+    if (!(cfg->carrier_hz > 0.0) || !(cfg->rise_s > 0.0) || !(cfg->decay_s > 0.0)) return SD_ERR_PARAM;
+    if (cfg->policy < SD_RETRIGGER || cfg->policy > SD_MAX) return SD_ERR_PARAM;
+    R->table = table;
+    R->cfg = *cfg;
+    R->audio_cap = cfg->audio_rate > 0.0 ? (long)ceil(cfg->audio_rate / cfg->tick_rate) + 2 : 0;
+    if (R->audio_cap > SD_AUDIO_BLOCK_MAX) return SD_ERR_PARAM;
+    sd_renderer_reset(R, 0.0);
+    return SD_OK;
+}
+
+void sd_renderer_reset(sd_renderer_t *R, double t0)
+{
+    sd_pad_reset(&R->pad);
+    R->tick = 0.0;
+    R->xp = 0.0;
+    R->yp = 0.0;
+    R->ax = 1.0;
+    R->ay = 0.0;
+    R->t0 = t0;
+    R->next_j = 0;
+    R->n_rec = 0;
+    R->clipped = 0;
+    R->events_total = 0;
+    R->events_dropped = 0;
+    R->n_audio = 0;
+    memset(R->ev_t, 0, sizeof R->ev_t);
+    memset(R->ev_a, 0, sizeof R->ev_a);
+    memset(R->audio, 0, sizeof R->audio);
+    memset(R->out, 0, sizeof R->out);
+}
+
+double sd_renderer_step(sd_renderer_t *R, double x, double y)
+{
+    double vals[SD_NSLOT];
+    double k = R->tick, rate = R->cfg.tick_rate, t = R->t0 + k / rate;
+    double h, vx, vy, xm, ym, V, N, mus, muk, gain, dur, drive, f, target;
+    long nrec = R->n_rec, drop = 0, nev = 0, j0, j1, hi, lo, i;
+    const long cap = SD_EVENT_RING;
+    if (k == 0.0) {
+        h = 0.0;
+        vx = 0.0;
+        vy = 0.0;
+        xm = x;
+        ym = y;
+    } else {
+        h = t - (R->t0 + (k - 1.0) / rate);
+        vx = (x - R->xp) / h;
+        vy = (y - R->yp) / h;
+        xm = 0.5 * (x + R->xp);
+        ym = 0.5 * (y + R->yp);
+    }
+    axis_speed(vx, vy, &R->ax, &R->ay, &V);
+    sd_sample_slots(R->table, xm, ym, vals);
+    derive(R, vals, vx, vy, fabs(V), &N, &mus, &muk, &gain);
+    /* forget bursts that have finished */
+    dur = R->cfg.rise_s + R->cfg.decay_s;
+    while (drop < nrec && R->ev_t[drop] + dur <= t - h) drop += 1;
+    if (nrec > cap / 2 && drop == 0) {
+        drop = nrec - cap / 4;
+        R->events_dropped += drop;
+    }
+    if (drop > 0) {
+        for (i = drop; i < nrec; i++) {
+            R->ev_t[i - drop] = R->ev_t[i];
+            R->ev_a[i - drop] = R->ev_a[i];
+        }
+        nrec -= drop;
+    }
+    if (h > 0.0) {
+        long n1 = sd_jump_tick(&R->pad, &R->cfg.pad, t - h, h, V, N, mus, muk, gain, R->ev_t, R->ev_a, (int)cap,
+                               (int)nrec);
+        nev = n1 - nrec;
+        if (n1 > cap) {
+            R->events_dropped += n1 - cap;
+            n1 = cap;
+        }
+        nrec = n1;
+    }
+    R->n_rec = nrec;
+    R->events_total += nev;
+    /* audio samples with times in (t - h, t] */
+    R->n_audio = 0;
+    if (R->audio_cap > 0) {
+        j0 = R->next_j;
+        j1 = (long)floor((t - R->t0) * R->cfg.audio_rate + 1e-9) + 1;
+        if (j1 - j0 > R->audio_cap) j0 = j1 - R->audio_cap;
+        if (j1 > j0)
+            R->clipped += synth(R->ev_t, R->ev_a, nrec, R->t0, R->cfg.audio_rate, j0, j1, R->cfg.carrier_hz,
+                                R->cfg.rise_s, R->cfg.decay_s, R->cfg.policy, R->audio);
+        R->next_j = j1;
+        R->n_audio = j1 - j0 > 0 ? j1 - j0 : 0;
+    }
+    hi = 0;
+    while (hi < nrec && R->ev_t[hi] < t) hi += 1;
+    lo = R->cfg.policy == SD_RETRIGGER ? hi - 1 : 0;
+    if (lo < 0) lo = 0;
+    drive = burst_value(t, R->ev_t, R->ev_a, lo, hi, R->cfg.carrier_hz, R->cfg.rise_s, R->cfg.decay_s,
+                        R->cfg.policy);
+    drive = py_min(py_max(drive, -1.0), 1.0);
+    f = R->pad.f;
+    R->out[SD_O_T] = t;
+    R->out[SD_O_X] = x;
+    R->out[SD_O_Y] = y;
+    R->out[SD_O_VX] = vx;
+    R->out[SD_O_VY] = vy;
+    R->out[SD_O_V] = V;
+    R->out[SD_O_N] = N;
+    R->out[SD_O_F] = f;
+    R->out[SD_O_STATE] = R->pad.phase;
+    R->out[SD_O_LX] = vals[SD_SLOT_LATERAL_X];
+    R->out[SD_O_LY] = vals[SD_SLOT_LATERAL_Y];
+    target = R->table->slot[SD_SLOT_SKIN_STRETCH] ? vals[SD_SLOT_SKIN_STRETCH] : R->cfg.skin_target;
+    R->out[SD_O_SS] = mus * N > 0.0 ? target * f / (mus * N) : 0.0;
+    R->out[SD_O_NEV] = (double)nev;
+    R->out[SD_O_DRIVE] = drive;
+    R->out[SD_O_NAUDIO] = (double)R->n_audio;
+    R->xp = x;
+    R->yp = y;
+    R->tick = k + 1.0;
+    return drive;
+}
