@@ -383,7 +383,14 @@ def compile_heightfield(hf: HeightField, device=None, mapping: MappingOptions = 
     n = None
 
     grid = Grid(hf.rows, hf.cols, hf.dx, hf.dy, hf.x0, hf.y0)
-    stored = int(sum(c.nbytes for c in codes.values()))
+    # an extruded profile (every row identical in every stored channel) keeps one row
+    repeated = hf.rows > 1 and all(bool((c == c[:1]).all()) for c in codes.values())
+    if repeated:
+        layout = f"one {hf.cols}-sample row stored once and placed on all {hf.rows} rows (rows identical)"
+        stored = int(sum(c[0].nbytes for c in codes.values()))
+    else:
+        layout = "dense: one block covering the canvas"
+        stored = int(sum(c.nbytes for c in codes.values()))
     dense = int(grid.rows * grid.cols * len(CHANNELS) * 4)
     report = {
         "source": hf.source,
@@ -396,13 +403,19 @@ def compile_heightfield(hf: HeightField, device=None, mapping: MappingOptions = 
         "quantization": qinfo,
         "walls": walls.to_json(),
         "clamped": clamped,
+        "layout": layout,
         "stored_bytes": stored,
         "dense_bytes": dense,
         "bytes_saved": dense - stored,
         "dense_rule": "dense = rows*cols * every format channel * 4 bytes (float32)",
     }
     meta = table_meta(device, mapping, options, hf.source, hf.sha256(), report)
-    table = FrictionTable.from_codes(grid, codes, quant, {k: 0.0 for k in codes}, meta)
+    background = {k: 0.0 for k in codes}
+    if repeated:
+        row = {n: quant[n].decode(c[:1]) for n, c in codes.items()}  # re-encodes to the same codes
+        table = FrictionTable.from_patches(grid, [((r, 0), row) for r in range(hf.rows)], quant, background, meta)
+    else:
+        table = FrictionTable.from_codes(grid, codes, quant, background, meta)
     return CompileResult(table, report)
 
 
@@ -436,6 +449,7 @@ def format_report(report: dict) -> str:
         if n_cl:
             lines.append(f"clamped {name}: {n_cl} samples ({c['fraction'] * 100:.3g} %) to "
                          f"{c['range']} {c['unit']}, by up to {c['max_excess']:.3g} {c['unit']}")
+    lines.append(f"layout: {report['layout']}")
     lines.append(f"stored {report['stored_bytes']} bytes; dense {report['dense_bytes']} bytes; "
                  f"saved {report['bytes_saved']} bytes")
     return "\n".join(lines)

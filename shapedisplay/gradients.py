@@ -51,9 +51,10 @@ def _diff_axis(h: np.ndarray, step: float, axis: int, out: np.ndarray) -> np.nda
         return out
     np.subtract(hv[..., 2:], hv[..., :-2], out=ov[..., 1:-1])
     ov[..., 1:-1] *= 0.5 / step
-    # second-order one-sided edges: (-3 f0 + 4 f1 - f2) / 2h
-    ov[..., 0] = (-3.0 * hv[..., 0] + 4.0 * hv[..., 1] - hv[..., 2]) * (0.5 / step)
-    ov[..., -1] = (3.0 * hv[..., -1] - 4.0 * hv[..., -2] + hv[..., -3]) * (0.5 / step)
+    # second-order one-sided edges: (-3 f0 + 4 f1 - f2) / 2h, written as differences so that
+    # a flat edge gives exactly 0
+    ov[..., 0] = (4.0 * (hv[..., 1] - hv[..., 0]) - (hv[..., 2] - hv[..., 0])) * (0.5 / step)
+    ov[..., -1] = (4.0 * (hv[..., -1] - hv[..., -2]) - (hv[..., -1] - hv[..., -3])) * (0.5 / step)
     return out
 
 

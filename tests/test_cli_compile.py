@@ -29,10 +29,11 @@ def test_demo_compile_inspect_export(tmp_path, capsys):
     assert "normal_force" in out and "left out" in out
     code, out, _ = run(["inspect", t, "--json"], capsys)
     s = json.loads(out)
-    assert code == 0 and s["stored_bytes"] == 40 * 600 and s["dense_bytes"] == 40 * 600 * 10 * 4
+    # 40 identical rows: one 600-sample uint8 row is stored and placed on every row
+    assert code == 0 and s["stored_bytes"] == 600 and s["dense_bytes"] == 40 * 600 * 10 * 4
     assert list(s["channels"]) == ["normal_force"]
     code, out, _ = run(["inspect", t], capsys)
-    assert code == 0 and "left out:" in out and "lateral_x" in out and "stored 24000 bytes" in out
+    assert code == 0 and "left out:" in out and "lateral_x" in out and "stored 600 bytes" in out
     code, _, _ = run(["export", t, "--format", "json", "-o", tmp_path / "t.json"], capsys)
     doc = json.loads((tmp_path / "t.json").read_text())
     assert code == 0 and doc["grid"]["cols"] == 600 and doc["grid"]["dx_m"] == pytest.approx(1e-4)

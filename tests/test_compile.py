@@ -242,3 +242,18 @@ def test_fast_kernels_match_numpy_bit_for_bit():
     assert np.allclose(fast[0], slow[0], rtol=1e-14) and np.allclose(fast[1], slow[1], rtol=1e-14)
     inside = np.hypot(gx, gy) <= 1.5
     assert np.array_equal(fast[0][inside], gx[inside]) and np.array_equal(slow[0][inside], gx[inside])
+
+
+def test_extruded_profile_stores_one_row():
+    hf = sources.tent_profile("10mm", "20mm", "40mm", n2="1.5N", dx="0.2mm", rows=25)
+    res = compile_heightfield(hf, RIG, MappingOptions.parse("height+lateral"))
+    t = res.table
+    assert len(t.patch_shapes) == 1 and t.patch_shapes[0] == (1, hf.cols) and len(t.blocks) == 25
+    assert res.report["stored_bytes"] == t.stored_bytes == 3 * hf.cols      # N, F_x, F_y rows, uint8
+    one = compile_heightfield(sources.tent_profile("10mm", "20mm", "40mm", n2="1.5N", dx="0.2mm"), RIG,
+                              MappingOptions.parse("height+lateral")).table
+    assert np.array_equal(t.dense("normal_force"), np.repeat(one.dense("normal_force"), 25, axis=0))
+    bumped = hf.heights.copy()
+    bumped[3, 7] += 1e-4
+    dense = compile_heightfield(hf.with_heights(bumped), RIG, MappingOptions.parse("height+lateral"))
+    assert len(dense.table.blocks) == 1 and dense.report["layout"].startswith("dense")
