@@ -610,6 +610,9 @@ def compile_scene(path, device=None, options=None):
                               if walls_total and options.limit_walls else
                               ("no walls" if not walls_total else "not limited (limit_walls=False)"))},
         "clamped": clamped,
+        "layout": (f"{len(table.blocks)} block(s), one per widget or group of touching widgets, holding "
+                   f"{len(table.patch_shapes)} stored patch(es) over {covered} of {total} canvas samples; "
+                   f"flat ground elsewhere"),
         "widgets": widgets_rep,
         "toggles": toggles,
         "blocks": len(table.blocks),
