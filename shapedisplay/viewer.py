@@ -45,6 +45,12 @@ MAX_AUTO_EXAGGERATION = 1000.0
 STRIP_FRACTION = 0.12
 #: Most stroke points drawn (longer traces are subsampled for drawing only).
 MAX_STROKE_POINTS = 6000
+#: Height of the stroke chart strip below the 3D view, as a fraction of the window.
+CHART_HEIGHT = 0.28
+#: Bins of the chart's min/max envelope (at most 4 points per bin are drawn).
+CHART_BINS = 1500
+#: Height of the spike of the largest burst, as a fraction of the larger extent.
+SPIKE_FRACTION = 0.06
 #: Most burst markers drawn (the largest are kept).
 MAX_BURST_MARKERS = 3000
 
@@ -750,14 +756,8 @@ class Preview:
         if point is None:
             return
         values = self.read_at_display(point)
-        text = self.model.format_readout(values)
-        if self.has_chart:   # the chart holds the lower-left corner: read out just above it
-            actor = self.plotter.add_text(text, position=(8, int(0.34 * self.plotter.window_size[1])),
-                                          font_size=7, color="black", name="readout")
-            actor.prop.background_color = "white"
-            actor.prop.background_opacity = 0.8
-        else:
-            self.plotter.add_text(text, position="lower_left", font_size=9, color="black", name="readout")
+        self.plotter.add_text(self.model.format_readout(values), position="lower_left", font_size=9,
+                              color="black", name="readout")
 
     def replay(self, frames: int = 240, realtime: bool = True, on_frame: Callable | None = None) -> int:
         """Move the cursor marker along the stroke; returns the number of frames drawn.
@@ -864,7 +864,13 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
     except (ValueError, KeyError, ImportError) as exc:
         raise InputError(f"`cmap` {cmap!r} is not a known colour map ({exc})") from None
 
-    pl = pv.Plotter(off_screen=off_screen, window_size=(width, height))
+    with_chart = trace is not None and chart
+    if with_chart:   # 3D view above, chart of the stroke in a strip below
+        pl = pv.Plotter(off_screen=off_screen, window_size=(width, height), shape=(2, 1),
+                        row_weights=[1.0 - CHART_HEIGHT, CHART_HEIGHT], border=False)
+        pl.subplot(0, 0)
+    else:
+        pl = pv.Plotter(off_screen=off_screen, window_size=(width, height))
     pl.set_background("white")
     preview = Preview(pl, model, channel, ex, trace)
 
@@ -924,8 +930,11 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
     # ---- stroke ---------------------------------------------------------------------------
     if trace is not None:
         _draw_stroke(pv, pl, preview, trace, lift, extent)
-        if chart:
+        if with_chart:
+            pl.subplot(1, 0)
+            pl.set_background("white")
             _draw_chart(pv, pl, trace)
+            pl.subplot(0, 0)
             preview.has_chart = True
 
     # ---- annotations ----------------------------------------------------------------------
@@ -941,7 +950,7 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
         if model.stored is not None:
             lines.append("grey: left out by the compiler")
         if trace is not None:
-            lines.append(f"stroke: {trace.t.size} ticks, {trace.event_time.size} bursts (marker size ~ amplitude)")
+            lines.append(f"stroke: {trace.t.size} ticks, {trace.event_time.size} bursts (spike height ~ amplitude)")
         preview.info = "\n".join(lines)
         pl.add_text(preview.info, position="upper_left", font_size=10, color="black", name="info")
         _draw_scale_bar(pv, pl, xs, ys)
@@ -996,21 +1005,41 @@ def _cell_mask(point_mask: np.ndarray) -> np.ndarray:
     return cells.ravel(order="F")   # StructuredGrid(xs, ys, zs) of (rows, cols) arrays: rows fastest
 
 
+def stroke_segments(state: np.ndarray, limit: int) -> tuple[np.ndarray, np.ndarray]:
+    """Split a stroke of ``n`` ticks into at most ``limit`` drawn segments.
+
+    Returns
+    -------
+    edges : ndarray of shape (m + 1,), int64
+        Tick index where each segment starts (and the last tick).
+    slip : ndarray of shape (m,), bool
+        True where the pad is slipping for at least half of the segment's
+        ticks. With ``n - 1 <= limit`` every tick is its own segment and
+        ``slip == state[:-1] == 1`` exactly; longer strokes show the state
+        the pad is in most of the time (a slip of the stiff pad often lasts
+        one tick, far shorter than a pixel).
+    """
+    n = state.size
+    m = max(1, min(n - 1, int(limit)))
+    edges = np.unique(np.linspace(0, n - 1, m + 1).round().astype(np.int64))
+    slip_ticks = np.concatenate([[0], np.cumsum(state == 1)])
+    counts = slip_ticks[edges[1:]] - slip_ticks[edges[:-1]]
+    return edges, 2 * counts >= (edges[1:] - edges[:-1])
+
+
 def _draw_stroke(pv, pl, preview: Preview, trace: Trace, lift: float, extent: float) -> None:
+    """Path coloured stick/slip; each burst a spike of height ~ amplitude with a ball at its tip."""
     model = preview.model
-    n = trace.t.size
-    idx = np.arange(n) if n <= MAX_STROKE_POINTS else np.unique(
-        np.linspace(0, n - 1, MAX_STROKE_POINTS).round().astype(int))
-    x, y, state = trace.x[idx], trace.y[idx], trace.state[idx]
+    idx, seg_slip = stroke_segments(trace.state, MAX_STROKE_POINTS)
+    x, y = trace.x[idx], trace.y[idx]
     if model.strip:
         y = np.clip(y, model.y[0], model.y[-1])
     z = preview.z_display(model.relief_at(x, y)) + lift
     pts = np.column_stack([x * 1e3, y * 1e3, z])
     preview.stroke_points, preview.stroke_times = pts, trace.t[idx]
     if len(pts) >= 2:
-        seg_state = state[:-1]
-        for value, color in ((0, STICK_COLOR), (1, SLIP_COLOR)):
-            segs = np.flatnonzero(seg_state == value)
+        for value, color in ((False, STICK_COLOR), (True, SLIP_COLOR)):
+            segs = np.flatnonzero(seg_slip == value)
             if segs.size == 0:
                 continue
             lines = np.column_stack([np.full(segs.size, 2), segs, segs + 1]).ravel()
@@ -1019,16 +1048,25 @@ def _draw_stroke(pv, pl, preview: Preview, trace: Trace, lift: float, extent: fl
     if trace.event_time.size:
         ex_, ey_ = trace.event_positions()
         amp = np.abs(trace.event_amplitude)
-        order = np.argsort(amp)[::-1][:MAX_BURST_MARKERS]
+        order = np.sort(np.argsort(amp)[::-1][:MAX_BURST_MARKERS])       # largest kept, in time order
         ex_, ey_, amp = ex_[order], ey_[order], amp[order]
         if model.strip:
             ey_ = np.clip(ey_, model.y[0], model.y[-1])
-        ez = preview.z_display(model.relief_at(ex_, ey_)) + 2 * lift
+        base = preview.z_display(model.relief_at(ex_, ey_)) + lift
         top = float(amp.max()) if amp.size and amp.max() > 0 else 1.0
-        radius = 0.012 * extent * np.sqrt(amp / top)
-        cloud = pv.PolyData(np.column_stack([ex_ * 1e3, ey_ * 1e3, ez]))
-        cloud.point_data["radius"] = np.maximum(radius, 0.002 * extent)
-        glyphs = cloud.glyph(geom=pv.Sphere(radius=1.0, theta_resolution=12, phi_resolution=12),
+        tip = base + SPIKE_FRACTION * extent * amp / top
+        foot = np.column_stack([ex_ * 1e3, ey_ * 1e3, base])
+        head = np.column_stack([ex_ * 1e3, ey_ * 1e3, tip])
+        k = len(foot)
+        spikes = pv.PolyData(np.concatenate([foot, head]),
+                             lines=np.column_stack([np.full(k, 2), np.arange(k), np.arange(k) + k]).ravel())
+        pl.add_mesh(spikes, color=BURST_COLOR, line_width=1.5, pickable=False)
+        # ball radius: about half the typical distance between bursts, within 0.2..1 % of the extent
+        typical = float(np.median(np.hypot(np.diff(ex_), np.diff(ey_)))) * 1e3 if k > 1 else extent
+        r_max = float(np.clip(0.5 * typical, 0.002 * extent, 0.01 * extent))
+        cloud = pv.PolyData(head)
+        cloud.point_data["radius"] = np.maximum(r_max * np.sqrt(amp / top), 0.25 * r_max)
+        glyphs = cloud.glyph(geom=pv.Sphere(radius=1.0, theta_resolution=10, phi_resolution=10),
                              scale="radius", orient=False)
         pl.add_mesh(glyphs, color=BURST_COLOR, pickable=False)
     cursor = pv.Sphere(radius=0.015 * extent, center=(0.0, 0.0, 0.0))
@@ -1045,14 +1083,30 @@ def _draw_chart(pv, pl, trace: Trace) -> None:
         xlabel = "time [s]"
     else:
         xlabel = "distance along stroke [mm]"
-    n = s.size
-    idx = np.arange(n) if n <= 4000 else np.unique(np.linspace(0, n - 1, 4000).round().astype(int))
-    chart = pv.Chart2D(size=(0.42, 0.3), loc=(0.02, 0.02), x_label=xlabel, y_label="force [N]")
-    chart.line(s[idx], trace.normal_force[idx], color="black", width=2.0, label="normal force N")
-    chart.line(s[idx], trace.friction_force[idx], color=SLIP_COLOR, width=2.0, label="friction force")
-    chart.background_color = (1.0, 1.0, 1.0, 0.85)
+    chart = pv.Chart2D(size=(0.9, 0.92), loc=(0.02, 0.04), x_label=xlabel, y_label="force [N]")
+    for values, colour, label in ((trace.normal_force, "black", "normal force N"),
+                                  (trace.friction_force, SLIP_COLOR, "friction force")):
+        idx = envelope_indices(values, CHART_BINS)
+        chart.line(s[idx], values[idx], color=colour, width=2.0, label=label)
+    chart.background_color = (1.0, 1.0, 1.0, 1.0)
     chart.legend_visible = True
     pl.add_chart(chart)
+
+
+def envelope_indices(values: np.ndarray, bins: int) -> np.ndarray:
+    """Indices keeping the first, last, min and max sample of each of ``bins`` bins, in order.
+
+    Draws a long, fast-oscillating signal (friction under stick-slip) with
+    at most ``4 * bins`` points without aliasing its envelope away.
+    """
+    n = values.size
+    if n <= 4 * bins:
+        return np.arange(n)
+    edges = np.linspace(0, n, bins + 1).astype(np.int64)
+    starts, ends = edges[:-1], edges[1:]
+    lo = np.array([a + int(np.argmin(values[a:b])) for a, b in zip(starts, ends)])
+    hi = np.array([a + int(np.argmax(values[a:b])) for a, b in zip(starts, ends)])
+    return np.unique(np.concatenate([starts, ends - 1, lo, hi]))
 
 
 def _draw_scale_bar(pv, pl, xs: np.ndarray, ys: np.ndarray) -> None:

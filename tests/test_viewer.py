@@ -316,6 +316,7 @@ def test_channel_choice_changes_colours_and_units(table):
 
 def test_stroke_overlay_changes_the_image(table, trace_path):
     m = viewer.model_from_table(table)
+    m.widgets = []                     # outlines lie on the surface; keep only the overlay as a change
     tr = viewer.load_trace(trace_path)
     base = viewer.render(m, "N", size=(W, H), view="top", lighting=False, annotations=False, chart=False)
     img0 = base.screenshot()
@@ -515,3 +516,31 @@ def test_one_dimensional_scene_is_a_strip_with_full_width_outlines():
     assert "1-D profile drawn as a strip" in p.info
     assert 0.05 < surface_pixels(p.screenshot()).mean() < 0.9
     p.close()
+
+
+# --------------------------------------------------------------------------------- drawing helpers (exact)
+def test_stroke_segments_exact_for_short_strokes_majority_for_long():
+    state = np.array([0, 0, 1, 1, 0, 1, 0], np.int8)
+    edges, slip = viewer.stroke_segments(state, 100)
+    np.testing.assert_array_equal(edges, np.arange(7))
+    np.testing.assert_array_equal(slip, state[:-1] == 1)
+    # 100 000 ticks: single-tick slips every 50 ticks (stick-slip), then 20 000 ticks of sliding
+    state = np.zeros(100_000, np.int8)
+    state[::50] = 1
+    state[60_000:80_000] = 1
+    edges, slip = viewer.stroke_segments(state, 1000)
+    assert len(slip) == 1000 and edges[0] == 0 and edges[-1] == state.size - 1
+    mid = (edges[:-1] + edges[1:]) // 2
+    np.testing.assert_array_equal(slip, (mid >= 60_000) & (mid < 80_000))
+
+
+def test_envelope_indices_keep_extremes_of_every_bin():
+    rng = np.random.default_rng(1)
+    v = np.cumsum(rng.normal(size=50_000)) + 5 * np.sin(np.arange(50_000))   # fast oscillation
+    idx = viewer.envelope_indices(v, 500)
+    assert idx.size <= 4 * 500 and np.all(np.diff(idx) > 0)
+    assert idx[0] == 0 and idx[-1] == v.size - 1
+    for a, b in ((0, 100), (25_000, 25_100), (49_900, 50_000)):
+        inside = idx[(idx >= a) & (idx < b)]
+        assert v[inside].max() == v[a:b].max() and v[inside].min() == v[a:b].min()
+    np.testing.assert_array_equal(viewer.envelope_indices(v[:1000], 500), np.arange(1000))
