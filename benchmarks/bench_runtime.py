@@ -45,7 +45,7 @@ def kernel_rate(model_name, V, N, rate, seconds):
     muk = np.full(n, dev.friction.mu_k)
     gain = np.ones(n)
     run_kernel(model, t[:100], Va[:100], Na[:100], mus[:100], muk[:100], gain[:100])  # compile / warm
-    dt = best_of(lambda: run_kernel(model, t, Va, Na, mus, muk, gain))
+    dt = best_of(lambda: run_kernel(model, t, Va, Na, mus, muk, gain), 15)
     return n, dt
 
 

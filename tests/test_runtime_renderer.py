@@ -233,3 +233,22 @@ def test_random_cursor_paths_give_finite_bounded_output(xs, model):
         assert np.all(np.isfinite(a))
     assert np.all(np.abs(res.friction_force) <= 0.5 * res.normal_force * (1 + 1e-9) + 1e-12)
     assert np.abs(res.audio).max(initial=0) <= 1.0
+
+
+def test_breakaway_and_kinetic_force_channels_replace_mu():
+    t = make_table({"normal_force": 2.0, "breakaway_force": 1.4, "kinetic_force": 0.9})
+    r = Renderer(t, device=quiet_device(), tick_rate=2000)
+    res = r.render(parse_stroke("0,0 -> 40,0 @ 20mm/s", 2000))
+    assert np.allclose(res.mu_s, 0.7)
+    assert 1.38 < np.abs(res.friction_force).max() <= 1.4 * (1 + 1e-9)
+    # breakaway amplitude B (mu_s N - c V)
+    assert np.allclose(res.event_amplitude, 0.3 * (1.4 - r.device.pad.damping * 0.02))
+
+
+def test_friction_scale_and_burst_gain_channels():
+    t = make_table({"normal_force": 2.0, "friction_scale": 0.5, "burst_gain": 2.0})
+    r = Renderer(t, device=quiet_device(), tick_rate=2000)
+    res = r.render(parse_stroke("0,0 -> 40,0 @ 20mm/s", 2000))
+    mus = 0.5 * r.device.friction.mu_s
+    assert np.allclose(res.mu_s, mus)
+    assert np.allclose(res.event_amplitude, 0.3 * 2.0 * (mus * 2.0 - r.device.pad.damping * 0.02))

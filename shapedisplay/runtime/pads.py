@@ -311,6 +311,22 @@ def _sgn(x):
 
 @njit(cache=True)
 def _exact_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
+    # fast path: stuck for the whole tick (the stick force is linear in time,
+    # so both ends inside the static limit means no breakaway in between)
+    if S[S_PHASE] == 0.0 and P[P_TMAX] == 0.0:
+        k_ = P[P_K]
+        xe = S[S_X] + V * h
+        fa = k_ * S[S_X] + P[P_C] * V
+        fe = k_ * xe + P[P_C] * V
+        thr_ = mus * N
+        if abs(fa) < thr_ and abs(fe) < thr_:
+            S[S_WF] = fa * V * h + 0.5 * k_ * V * V * h * h
+            S[S_WD] = P[P_C] * V * V * h
+            S[S_X] = xe
+            S[S_V] = V
+            S[S_F] = fe
+            S[S_NEV] = 0.0
+            return n_ev
     m = P[P_M]
     k = P[P_K]
     c = P[P_C]
@@ -468,6 +484,20 @@ def jump_restick(m, c, k, s, xb, V, muk, N):
 
 @njit(cache=True)
 def _jump_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
+    # fast path: stuck for the whole tick (the stick force is linear in time,
+    # so both ends inside the static limit means no breakaway in between)
+    if S[S_PHASE] == 0.0 and P[P_TMAX] == 0.0:
+        k_ = P[P_K]
+        xe = S[S_X] + V * h
+        fa = k_ * S[S_X] + P[P_C] * V
+        fe = k_ * xe + P[P_C] * V
+        thr_ = mus * N
+        if abs(fa) < thr_ and abs(fe) < thr_:
+            S[S_X] = xe
+            S[S_V] = V
+            S[S_F] = fe
+            S[S_NEV] = 0.0
+            return n_ev
     m = P[P_M]
     k = P[P_K]
     c = P[P_C]
