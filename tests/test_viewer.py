@@ -544,3 +544,22 @@ def test_envelope_indices_keep_extremes_of_every_bin():
         inside = idx[(idx >= a) & (idx < b)]
         assert v[inside].max() == v[a:b].max() and v[inside].min() == v[a:b].min()
     np.testing.assert_array_equal(viewer.envelope_indices(v[:1000], 500), np.arange(1000))
+
+
+def test_trace_written_by_the_runtime_is_drawn_and_checked(tmp_path, table, capsys):
+    """End to end: compile a scene, play a stroke with the runtime, preview it; another table refuses it."""
+    from shapedisplay.scene import compile_scene
+    tab = tmp_path / "mp.npz"
+    compile_scene(os.path.join(SCENES, "media-player.toml")).table.save(tab)
+    trace = tmp_path / "mp-trace.npz"
+    assert run_cli(["play", str(tab), "--stroke", "0:100mm @ 100mm/s", "-o", str(tmp_path / "mp.wav"),
+                    "--trace-out", str(trace)]) == 0
+    out = tmp_path / "mp.png"
+    assert run_cli(["preview", str(tab), "--trace", str(trace), "-o", str(out), "--size", "400x300"]) == 0
+    tr = viewer.load_trace(trace)
+    assert tr.table_checksum == viewer.load_model(tab).checksum and tr.event_time.size > 0
+    other = tmp_path / "other.npz"
+    table.save(other)
+    capsys.readouterr()
+    assert run_cli(["preview", str(other), "--trace", str(trace), "-o", str(tmp_path / "x.png")]) == 2
+    assert "different table" in capsys.readouterr().err
