@@ -221,3 +221,13 @@ def test_cli_study_imaizumi(capsys):
     assert main(["study", "imaizumi", "--duration", "0.2s"]) == 0
     assert "#4 9 Hz 1.25 mm" in capsys.readouterr().out
     assert main(["study", "konyo"]) == 2
+
+
+def test_runtime_imports_nothing_from_the_authoring_side():
+    import subprocess
+    import sys
+    code = ("import sys, shapedisplay.runtime.renderer, shapedisplay.runtime.studies, shapedisplay.sinks\n"
+            "print(sorted(m for m in sys.modules if m.startswith('shapedisplay')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    mods = {m.split(".")[1] for m in eval(out) if m.count(".") >= 1}
+    assert mods <= {"runtime", "table", "devices", "units", "errors", "atomic", "sinks"}, mods
