@@ -5,6 +5,7 @@ import argparse
 
 _IMAGE_ONLY = ("size", "height")
 _MESH_ONLY = ("up", "units")
+_MAPPING_OPTS = ("n_base", "n_gain", "slope_gain", "lateral_gain", "skin_stretch", "perceptual")
 
 
 def register(sub) -> None:
@@ -126,6 +127,13 @@ def run(args) -> int:
         for opt in _IMAGE_ONLY + _MESH_ONLY + ("resolution",):
             if getattr(args, opt) is not None:
                 raise InputError(f"`--{opt}` applies to images and meshes; a scene sets its own geometry ({src})")
+        for opt in _MAPPING_OPTS:
+            if getattr(args, opt) is not None:
+                raise InputError(f"`--{opt.replace('_', '-')}` applies to images and meshes; a scene sets its "
+                                 f"mapping in its [mapping] table ({src})")
+        if args.mapping != "height":
+            raise InputError(f"`--mapping` applies to images and meshes; a scene sets its mapping in its "
+                             f"[mapping] table ({src})")
         from shapedisplay.scene import compile_scene
         result = compile_scene(src, device=device, options=options)
     else:

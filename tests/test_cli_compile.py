@@ -105,6 +105,7 @@ def _cases(tmp_path):
         "missing size": ([ok, "--height", "0:1mm"], "needs `--size`"),
         "mesh option on image": ([ok, *good, "--up", "y"], "`--up` applies to meshes"),
         "unknown source": ([tmp_path / "x.bmp", *good], "unknown source type '.bmp'"),
+        "mapping gain on a scene": ([ROOT / "assets/scenes/phone.toml", "--n-gain", "2N/mm"], "`--n-gain` applies to images and meshes"),
     }
 
 
@@ -162,3 +163,17 @@ def test_console_script_and_light_imports(tmp_path):
             "print([k for k in ('trimesh', 'pyvista', 'serial', 'matplotlib') if k in sys.modules])")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert r.stdout.strip() == "[]"
+
+
+def test_mesh_source_passes_mesh_options(tmp_path, capsys):
+    t = tmp_path / "k.npz"
+    code, out, err = run(["compile", ROOT / "assets/meshes/keycap.stl", "-o", t, "--resolution", "0.5mm",
+                          "--up", "z", "--units", "mm", "--device", "desktop-rig", "--mapping", "height+lateral",
+                          "--json"], capsys)
+    assert code == 0, err
+    rep = json.loads(out)
+    assert rep["grid"]["dx_m"] == pytest.approx(0.5e-3)
+    assert rep["kept"] == ["normal_force", "lateral_x", "lateral_y"]
+    code, _, err = run(["compile", ROOT / "assets/meshes/keycap.stl", "-o", tmp_path / "bad.npz",
+                        "--resolution", "-1mm"], capsys)
+    assert code == 2 and "`--resolution` must be a length > 0" in err and not (tmp_path / "bad.npz").exists()
