@@ -431,13 +431,12 @@ def _parse_canvas(raw, ctx: Ctx) -> Canvas:
         height = nums[1] * 0.0254 / dpi if len(nums) == 2 else 0.0
     elif "size" in raw:
         size = raw["size"]
-        if isinstance(size, str) and "x" in size.replace("px", ""):
-            width, height = pair(size, "x", "canvas.size", ctx)
-        elif isinstance(size, list):
+        two_d = isinstance(size, list) or (isinstance(size, str) and "x" in size.replace("px", ""))
+        if two_d:
             width, height = pair(size, "x", "canvas.size", ctx)
         else:
             width, height = length(size, "canvas.size", ctx), 0.0
-        if not width > 0 or height < 0 or (isinstance(size, (list,)) or "x" in str(size)) and not height > 0:
+        if not width > 0 or (two_d and not height > 0):
             raise ctx.error("", "canvas.size", f"must be lengths > 0 (got {size!r})")
     else:
         raise ctx.error("", "canvas.size", "is required (e.g. size = \"100x180 mm\"; a single length makes a 1-D strip)")

@@ -319,17 +319,20 @@ class Slider(WidgetType):
         else:
             tw = length(raw.get("track_width", f"{0.5 * C * 1e3!r} mm"), fp + "track_width", ctx, where, positive=True)
             if tw > C + 1e-12:
-                raise w.error("track_width", f"must fit the widget's {C * 1e3:g} mm cross size (got {raw['track_width']!r})")
+                raise w.error("track_width", f"must fit the widget's {C * 1e3:g} mm cross size "
+                                             f"(got {raw.get('track_width')!r})")
         td = length(raw.get("track_depth", "0.5 mm"), fp + "track_depth", ctx, where, nonneg=True)
         half = L / 2 if w.canvas.is_1d else min(tw, L) / 2
         tr = length(raw.get("track_ramp", f"{min(half, 2e-3) * 1e3!r} mm"), fp + "track_ramp", ctx, where,
                     positive=True)
         tr = _limit_ramp(tr, edge, half, w, "track_ramp")
         value = number(raw.get("value", 0.5), fp + "value", ctx, where, lo=0.0, hi=1.0)
-        default_thumb = min(C, 12e-3) if not w.canvas.is_1d else min(10e-3, L / 2)
+        default_thumb = min(C, 12e-3, L) if not w.canvas.is_1d else min(10e-3, L / 2)
         ts = length(raw.get("thumb_size", f"{default_thumb * 1e3!r} mm"), fp + "thumb_size", ctx, where, positive=True)
-        if ts > L:
-            raise w.error("thumb_size", f"must not exceed the slider length {L * 1e3:g} mm (got {raw['thumb_size']!r})")
+        if ts > L + 1e-12:
+            raise w.error("thumb_size", f"must not exceed the slider length {L * 1e3:g} mm "
+                                        f"(got {raw.get('thumb_size', f'{ts * 1e3:g} mm')!r})")
+        ts = min(ts, L)
         th = resolve_strength(raw, self.strength_keys, 1, "1.5 mm", fp, w)
         spacing = 0.0
         det = raw.get("detents", "off")
