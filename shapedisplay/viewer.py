@@ -689,12 +689,12 @@ def check_offscreen(env: dict | None = None) -> str:
 
 
 def _pyvista(off_screen: bool):
-    if off_screen:
-        check_offscreen()
-    elif not has_display():
+    if not off_screen and not has_display():
         raise ShapeDisplayError("interactive preview needs a display (DISPLAY is not set); "
                                 "render off-screen instead: -o shot.png")
     pv = require("pyvista", "viewer", "3D preview")
+    if off_screen:
+        check_offscreen()     # VTK reads VTK_DEFAULT_OPENGL_WINDOW when a window is made, not at import
     try:
         from vtkmodules.vtkCommonCore import vtkLogger
         vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)

@@ -563,3 +563,23 @@ def test_trace_written_by_the_runtime_is_drawn_and_checked(tmp_path, table, caps
     capsys.readouterr()
     assert run_cli(["preview", str(other), "--trace", str(trace), "-o", str(tmp_path / "x.png")]) == 2
     assert "different table" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------------- properties
+from hypothesis import given, settings, strategies as st  # noqa: E402
+from hypothesis.extra.numpy import arrays  # noqa: E402
+
+
+@settings(max_examples=40, deadline=None)
+@given(h=arrays(np.float64, st.tuples(st.integers(1, 6), st.integers(2, 7)),
+                elements=st.floats(-1e-2, 1e-2, allow_nan=False)),
+       px=st.floats(-0.05, 0.05), py=st.floats(-0.05, 0.05))
+def test_readout_and_exaggeration_finite_and_bounded(h, px, py):
+    """Finite heights give a finite read-out inside each field's range, anywhere; exaggeration in [1, 1000]."""
+    m = viewer.model_from_heightfield(HeightField(h, 1e-3, 2e-3))
+    r = m.readout(px, py)
+    for name, arr in m.fields.items():
+        assert np.isfinite(r[name])
+        assert arr.min() - 1e-12 <= r[name] <= arr.max() + 1e-12
+    ex = viewer.auto_exaggeration(m)
+    assert 1.0 <= ex <= viewer.MAX_AUTO_EXAGGERATION
