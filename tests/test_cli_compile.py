@@ -175,5 +175,5 @@ def test_mesh_source_passes_mesh_options(tmp_path, capsys):
     assert rep["grid"]["dx_m"] == pytest.approx(0.5e-3)
     assert rep["kept"] == ["normal_force", "lateral_x", "lateral_y"]
     code, _, err = run(["compile", ROOT / "assets/meshes/keycap.stl", "-o", tmp_path / "bad.npz",
-                        "--resolution", "-1mm"], capsys)
+                        "--resolution=-1mm"], capsys)
     assert code == 2 and "`--resolution` must be a length > 0" in err and not (tmp_path / "bad.npz").exists()
