@@ -10,11 +10,21 @@
 #   libgl1-mesa-dri Mesa's software rasterizer (swrast/llvmpipe DRI driver)
 # Nothing else (no Xvfb, no OSMesa) is needed.
 #
+#   --with-xvfb   also install xvfb (provides xvfb-run), used only by the test
+#                 of the interactive window (tests/test_viewer.py); off-screen
+#                 pictures never need it.
+#
 # Idempotent and non-interactive: does nothing when the packages are present,
 # and only prints what to install when it is not root or apt-get is absent.
 set -eu
 
 PACKAGES="libegl1 libegl-mesa0 libgl1-mesa-dri"
+for arg in "$@"; do
+    case "$arg" in
+        --with-xvfb) PACKAGES="$PACKAGES xvfb" ;;
+        *) echo "install-system-deps: unknown option '$arg' (valid: --with-xvfb)" >&2; exit 2 ;;
+    esac
+done
 
 missing=""
 if command -v dpkg-query >/dev/null 2>&1; then
