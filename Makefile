@@ -8,7 +8,8 @@ OUT    := out
 
 .PHONY: install test demo bench report clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml scripts/install-system-deps.sh
+	sh scripts/install-system-deps.sh --with-xvfb
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q -e '.[all,test]'
 	@touch $@
