@@ -38,7 +38,7 @@ from dataclasses import asdict, dataclass, field, fields
 import numpy as np
 
 from .errors import InputError, unknown_key
-from .gradients import GRADIENT_METHODS, detect_walls, gradient, limit_walls
+from .gradients import GRADIENT_METHODS, KERNEL_MIN_SIZE, detect_walls, gradient, limit_walls
 from .heightfield import HeightField
 from .profiles import MappingOptions, lateral_force, needed_channels, normal_force, skin_stretch
 from .table import CHANNELS, FrictionTable, Grid, Quantization
@@ -182,7 +182,7 @@ def _coding(dtype: str, lo: float, hi: float) -> Quantization:
 
 
 def _minmax(values: np.ndarray) -> tuple[float, float]:
-    if values.flags.c_contiguous and values.size > 4096:
+    if values.flags.c_contiguous and values.size >= KERNEL_MIN_SIZE:
         from . import _kernels
         lo, hi = _kernels.minmax(values.reshape(-1))
         return float(lo), float(hi)
@@ -192,7 +192,7 @@ def _minmax(values: np.ndarray) -> tuple[float, float]:
 def _encode(q: Quantization, values: np.ndarray) -> np.ndarray:
     """``q.encode(values)`` in one pass for large integer-coded channels (same codes)."""
     if q.dtype in _TOP and q.scale > 0 and values.flags.c_contiguous and values.dtype == np.float64 \
-            and values.size > 4096:
+            and values.size >= KERNEL_MIN_SIZE:
         from . import _kernels
         out = np.empty(values.shape, dtype=np.dtype(q.dtype))
         _kernels.encode(values.reshape(-1), q.offset, q.scale, float(_TOP[q.dtype]), out.reshape(-1))

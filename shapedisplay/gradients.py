@@ -222,9 +222,15 @@ def _check_max_slope(max_slope) -> float:
     return v
 
 
+#: Arrays at least this large go through the single-pass numba kernels (:mod:`._kernels`);
+#: smaller ones use numpy, which gives the same results without loading numba.
+KERNEL_MIN_SIZE = 1 << 16
+
+
 def _flat(a) -> np.ndarray | None:
-    """1-D view of a C-contiguous float64 array (for the numba kernels), else None."""
-    if isinstance(a, np.ndarray) and a.dtype == np.float64 and a.flags.c_contiguous:
+    """1-D view of a large C-contiguous float64 array (for the numba kernels), else None."""
+    if isinstance(a, np.ndarray) and a.dtype == np.float64 and a.flags.c_contiguous \
+            and a.size >= KERNEL_MIN_SIZE:
         return a.reshape(-1)
     return None
 

@@ -230,16 +230,21 @@ def test_fast_kernels_match_numpy_bit_for_bit():
     from shapedisplay.gradients import limit_walls
     from shapedisplay.table import Quantization
     rng = np.random.default_rng(5)
-    v = rng.uniform(0.5, 4.5, 20000)
+    v = rng.uniform(0.5, 4.5, 70000)          # above KERNEL_MIN_SIZE: the numba path
     v[:100] = 0.5 + (np.arange(100) + 0.5) * (4.0 / 255)       # exact ties between codes
     for dt, top in (("uint8", 255), ("uint16", 65535)):
         q = Quantization(dt, 4.0 / top, 0.5, 0.0)
         assert np.array_equal(_encode(q, v), q.encode(v))
     assert _minmax(v) == (v.min(), v.max())
-    gx, gy = rng.normal(0, 2, (100, 100)), rng.normal(0, 2, (100, 100))
+    gx, gy = rng.normal(0, 2, (300, 300)), rng.normal(0, 2, (300, 300))
     fast = limit_walls(gx, gy, 1.5)
     slow = limit_walls(gx[:, ::1].T.copy().T, gy.T.copy().T, 1.5)   # Fortran order: numpy path
     assert np.allclose(fast[0], slow[0], rtol=1e-14) and np.allclose(fast[1], slow[1], rtol=1e-14)
+    from shapedisplay.gradients import detect_walls
+    hf = sources.from_array(np.zeros((300, 300)), 1e-4)
+    a, b = detect_walls(hf, gx, gy, 1.5), detect_walls(hf, gx.T.copy().T, gy.T.copy().T, 1.5)
+    assert (a.count, a.steepest, a.regions, a.boxes_mm) == (b.count, b.steepest, b.regions, b.boxes_mm)
+    assert np.array_equal(a.mask, b.mask)
     inside = np.hypot(gx, gy) <= 1.5
     assert np.array_equal(fast[0][inside], gx[inside]) and np.array_equal(slow[0][inside], gx[inside])
 
