@@ -90,6 +90,11 @@ class CompileOptions:
         if self.gradient_method not in GRADIENT_METHODS:
             raise unknown_key("gradient method", self.gradient_method, GRADIENT_METHODS)
         object.__setattr__(self, "gradient_kw", dict(self.gradient_kw or {}))
+        from .gradients import _METHOD_KW
+        for k in self.gradient_kw:
+            if k not in _METHOD_KW[self.gradient_method]:
+                raise unknown_key(f"option of gradient method '{self.gradient_method}'", k,
+                                  _METHOD_KW[self.gradient_method] or ("(none)",))
         ms = float(self.max_slope)
         if math.isnan(ms) or ms <= 0:
             raise InputError(f"`max_slope` must be > 0 (got {self.max_slope!r})")

@@ -3,7 +3,7 @@
 Mappings (DESIGN 3.2-3.6), all on arrays of shape (rows, cols):
 
 height
-    ``N = n_base + n_gain * h`` (published: N1 = 0.5 N, G = k/slope), clamped to
+    ``N = n_base + n_gain * h`` (n_base is the published N1 = 0.5 N), clamped to
     the device's ``normal_force_range``. With ``perceptual_exponent`` beta the
     height increment is reshaped so equal height steps feel like equal steps:
     ``N = n_base + sign(h) * phi(|h|)`` with ``phi`` from :func:`perceptual_scale`

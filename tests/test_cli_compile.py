@@ -102,6 +102,7 @@ def _cases(tmp_path):
         "unknown channel": ([ok, *good, "--keep", "lateral_xx"], "unknown channel 'lateral_xx'"),
         "unknown mapping": ([ok, *good, "--mapping", "hieght"], "(did you mean 'height'?)"),
         "unknown gradient": ([ok, *good, "--gradient", "centrl"], "(did you mean 'central'?)"),
+        "option of another gradient method": ([ok, *good, "--sigma", "1mm"], "unknown option of gradient method 'central' 'sigma'"),
         "missing size": ([ok, "--height", "0:1mm"], "needs `--size`"),
         "mesh option on image": ([ok, *good, "--up", "y"], "`--up` applies to meshes"),
         "unknown source": ([tmp_path / "x.bmp", *good], "unknown source type '.bmp'"),
