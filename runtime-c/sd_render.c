@@ -131,7 +131,13 @@ static long synth(const double *ev_t, const double *ev_a, long n_ev, double t_or
 {
     double dur = rise + decay, w = 2.0 * SD_PI * carrier;
     double cd = cos(w / rate), sd = sin(w / rate), cr = 0.0, sr = 0.0;
-    long lo = 0, hi = 0, clipped = 0, cur = -1, j;
+    long lo = 0, hi = n_ev, clipped = 0, cur = -1, j;
+    /* Events are sorted, so counting those before the first sample from the end gives the same
+     * index as the forward scan of bursts.synth, in O(1) for a ring of finished bursts. */
+    if (j1 > j0) {
+        double t_first = t_origin + (double)j0 / rate;
+        while (hi > 0 && !(ev_t[hi - 1] < t_first)) hi -= 1;
+    }
     for (j = j0; j < j1; j++) {
         double t = t_origin + (double)j / rate, val;
         while (hi < n_ev && ev_t[hi] < t) hi += 1;
@@ -242,6 +248,7 @@ int sd_renderer_init(sd_renderer_t *R, const sd_table_t *table, const sd_config_
     if (cfg->policy < SD_RETRIGGER || cfg->policy > SD_MAX) return SD_ERR_PARAM;
     R->table = table;
     R->cfg = *cfg;
+    sd_pad_prepare(&R->cfg.pad);
     R->audio_cap = cfg->audio_rate > 0.0 ? (long)ceil(cfg->audio_rate / cfg->tick_rate) + 2 : 0;
     if (R->audio_cap > SD_AUDIO_BLOCK_MAX) return SD_ERR_PARAM;
     sd_renderer_reset(R, 0.0);
@@ -330,8 +337,8 @@ double sd_renderer_step(sd_renderer_t *R, double x, double y)
         R->next_j = j1;
         R->n_audio = j1 - j0 > 0 ? j1 - j0 : 0;
     }
-    hi = 0;
-    while (hi < nrec && R->ev_t[hi] < t) hi += 1;
+    hi = nrec;      /* sorted events: the backward count equals the forward scan of online_step */
+    while (hi > 0 && !(R->ev_t[hi - 1] < t)) hi -= 1;
     lo = R->cfg.policy == SD_RETRIGGER ? hi - 1 : 0;
     if (lo < 0) lo = 0;
     drive = burst_value(t, R->ev_t, R->ev_a, lo, hi, R->cfg.carrier_hz, R->cfg.rise_s, R->cfg.decay_s,

@@ -29,6 +29,9 @@ typedef struct {
     double damping;           /* N*s/m */
     double burst_gain;        /* B, output amplitude per newton of breakaway force */
     double max_stick_period;  /* s; 0 = off */
+    /* derived by sd_pad_prepare (call after setting the fields above; sd_renderer_init does) */
+    double sig, wn2, disc, wd, tp, e_tp;
+    int under, prepared;
 } sd_pad_params_t;
 
 typedef struct {
@@ -43,9 +46,13 @@ typedef struct {
     double f;        /* friction force at the end of the last tick, N */
     long truncated;  /* ticks cut at SD_MAX_EVENTS_PER_TICK */
     long n_events;   /* events in the last tick */
+    int memo_valid;  /* last re-stick inputs/outputs (a pure function; reused on exact repeats) */
+    double memo_in[5], memo_out[2];
 } sd_pad_state_t;
 
 void sd_pad_reset(sd_pad_state_t *S);
+/* Compute the derived pad constants; required before sd_jump_tick. */
+void sd_pad_prepare(sd_pad_params_t *P);
 
 /* Advance the jump model by one tick [t0, t0 + h] at surface velocity V (m/s), normal force N,
  * coefficients mus/muk and burst-gain multiplier gain. Stick-to-slip events (time s, burst

@@ -61,6 +61,7 @@ static int run_pad(void)
     P.damping = prm[2];
     P.burst_gain = prm[3];
     P.max_stick_period = prm[4];
+    sd_pad_prepare(&P);
     n = rd_i64();
     if (n < 1 || n > 100000000) die("bad tick count");
     t = rd_f64(n); V = rd_f64(n); N = rd_f64(n); mus = rd_f64(n); muk = rd_f64(n); gain = rd_f64(n);
