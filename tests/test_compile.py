@@ -262,3 +262,19 @@ def test_extruded_profile_stores_one_row():
     bumped[3, 7] += 1e-4
     dense = compile_heightfield(hf.with_heights(bumped), RIG, MappingOptions.parse("height+lateral"))
     assert len(dense.table.blocks) == 1 and dense.report["layout"].startswith("dense")
+
+
+@settings(max_examples=25, deadline=None)
+@given(heights=hnp.arrays(np.float64, st.tuples(st.integers(1, 6), st.integers(2, 9)),
+                          elements=st.floats(-2e-3, 2e-3)),
+       keep=st.sets(st.sampled_from(["grad_x", "lateral_x", "normal_force"])))
+def test_pruning_property(heights, keep):
+    hf = sources.from_array(heights, 0.2e-3)
+    m = MappingOptions.parse("height+slope+lateral")
+    full = compile_heightfield(hf, RIG, m).table
+    pruned = compile_heightfield(hf, RIG.with_(outputs=("burst",)), m, CompileOptions(keep=tuple(keep))).table
+    assert set(pruned.channels) <= set(full.channels)
+    assert not {"lateral_x", "lateral_y"} - set(keep) & set(pruned.channels)
+    for name in pruned.channels:
+        assert pruned.quant[name] == full.quant[name]
+        assert np.array_equal(pruned.dense(name), full.dense(name))
