@@ -21,6 +21,7 @@ COMMAND_MODULES = (
     "shapedisplay_cli.cmd_device",
     "shapedisplay_cli.cmd_play",
     "shapedisplay_cli.cmd_study",
+    "shapedisplay_cli.cmd_report",
 )
 
 

@@ -1,0 +1,262 @@
+"""Shared pieces of the reports: event matching, error measures, timing, JSON, progress, plots.
+
+Plain functions on arrays; no report logic. All times in seconds.
+"""
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+
+import numpy as np
+
+from ..atomic import write_text
+from ..errors import require
+
+
+# ================================================================ events and errors
+def match_events(ref, got, window):
+    """Pair events of ``got`` with events of ``ref`` one to one.
+
+    Parameters
+    ----------
+    ref, got : ndarray (n,), (m,), float64
+        Sorted event times, s.
+    window : float
+        Largest accepted time difference, s.
+
+    Returns
+    -------
+    pairs : ndarray (p, 2), int64
+        Indices (i into ``ref``, j into ``got``), sorted by ``i``.
+    missing : int
+        Reference events with no partner.
+    spurious : int
+        Events of ``got`` with no partner.
+    """
+    ref = np.asarray(ref, dtype=np.float64)
+    got = np.asarray(got, dtype=np.float64)
+    if ref.size == 0 or got.size == 0:
+        return np.zeros((0, 2), dtype=np.int64), int(ref.size), int(got.size)
+    pos = np.searchsorted(got, ref)
+    cand = []
+    for i, p in enumerate(pos):
+        for j in (p - 1, p):
+            if 0 <= j < got.size:
+                d = abs(got[j] - ref[i])
+                if d <= window:
+                    cand.append((d, i, j))
+    cand.sort()
+    used_i, used_j, pairs = set(), set(), []
+    for _, i, j in cand:
+        if i in used_i or j in used_j:
+            continue
+        used_i.add(i)
+        used_j.add(j)
+        pairs.append((i, j))
+    pairs.sort()
+    arr = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    return arr, int(ref.size - len(pairs)), int(got.size - len(pairs))
+
+
+def match_window(ref_times, duration):
+    """Matching window: a third of the shortest reference interval (or of the run if < 2 events), s."""
+    ref_times = np.asarray(ref_times)
+    if ref_times.size >= 2:
+        return float(np.min(np.diff(ref_times))) / 3.0
+    return duration / 3.0
+
+
+def event_errors(ref_t, ref_a, got_t, got_a, window):
+    """Errors of one run against the reference events.
+
+    Returns a dict: ``matched``, ``missing``, ``spurious``, ``event_rms_s``,
+    ``event_max_s`` (over matched events), ``period_rel_rms`` and
+    ``period_rel_max`` (relative error of the intervals between consecutive
+    matched events), ``amplitude_rel_rms`` (RMS amplitude error over matched
+    events, relative to the RMS reference amplitude). Values that cannot be
+    computed (no matched events, fewer than two) are ``None``.
+    """
+    pairs, missing, spurious = match_events(ref_t, got_t, window)
+    out = {"ref_events": int(len(ref_t)), "events": int(len(got_t)), "matched": int(len(pairs)),
+           "missing": missing, "spurious": spurious, "event_rms_s": None, "event_max_s": None,
+           "period_rel_rms": None, "period_rel_max": None, "amplitude_rel_rms": None}
+    if len(pairs) == 0:
+        return out
+    i, j = pairs[:, 0], pairs[:, 1]
+    d = np.asarray(got_t)[j] - np.asarray(ref_t)[i]
+    out["event_rms_s"] = float(np.sqrt(np.mean(d * d)))
+    out["event_max_s"] = float(np.max(np.abs(d)))
+    ra = np.asarray(ref_a)[i]
+    ga = np.asarray(got_a)[j]
+    den = math.sqrt(float(np.mean(ra * ra)))
+    if den > 0:
+        out["amplitude_rel_rms"] = float(math.sqrt(float(np.mean((ga - ra) ** 2))) / den)
+    consec = (np.diff(i) == 1) & (np.diff(j) == 1)
+    if np.any(consec):
+        dr = np.diff(np.asarray(ref_t)[i])[consec]
+        dg = np.diff(np.asarray(got_t)[j])[consec]
+        rel = np.abs(dg - dr) / dr
+        out["period_rel_rms"] = float(np.sqrt(np.mean(rel * rel)))
+        out["period_rel_max"] = float(np.max(rel))
+    return out
+
+
+def waveform_error(ref_t, ref_a, got_t, got_a, duration, scale, audio_rate=8000.0):
+    """Normalised RMS error of the burst waveform, ``rms(w - w_ref) / rms(w_ref)``.
+
+    Both event lists are rendered with the default burst (300 Hz carrier,
+    5 ms rise, 30 ms decay, retrigger) at ``audio_rate`` after dividing the
+    amplitudes by ``scale`` (so nothing clips). None if the reference is silent.
+    """
+    from ..runtime.bursts import render_bursts
+
+    def synth(t, a):
+        order = np.argsort(t, kind="stable")
+        w, _ = render_bursts(np.asarray(t)[order], np.asarray(a)[order] / scale, 0.0, duration, audio_rate)
+        return w
+
+    wr = synth(ref_t, ref_a)
+    wg = synth(got_t, got_a)
+    den = float(np.sqrt(np.mean(wr * wr)))
+    if den == 0:
+        return None
+    return float(np.sqrt(np.mean((wg - wr) ** 2)) / den)
+
+
+# ================================================================ timing
+def cpu_time(fn, repeats=3, warmup=True):
+    """Minimum CPU time (s, ``time.process_time``) of ``fn()`` over ``repeats`` runs after a warm-up.
+
+    Returns ``(seconds, last_result)``.
+    """
+    res = fn() if warmup else None
+    best = math.inf
+    for _ in range(max(1, repeats)):
+        t0 = time.process_time()
+        res = fn()
+        best = min(best, time.process_time() - t0)
+    return best, res
+
+
+def tick_percentiles(samples_ns):
+    """p50 and p99 of per-tick times (ns array) in seconds."""
+    a = np.asarray(samples_ns, dtype=np.float64) * 1e-9
+    return float(np.percentile(a, 50)), float(np.percentile(a, 99))
+
+
+# ================================================================ JSON
+def clean_json(obj, path="", notes=None):
+    """Copy of ``obj`` safe for strict JSON: non-finite floats become None (recorded in ``notes``)."""
+    if isinstance(obj, dict):
+        return {str(k): clean_json(v, f"{path}.{k}" if path else str(k), notes) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [clean_json(v, f"{path}[{i}]", notes) for i, v in enumerate(obj)]
+    if isinstance(obj, np.ndarray):
+        return clean_json(obj.tolist(), path, notes)
+    if isinstance(obj, (np.bool_, bool)):
+        return bool(obj)
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        f = float(obj)
+        if not math.isfinite(f):
+            if notes is not None:
+                notes.append(path)
+            return None
+        return f
+    return obj
+
+
+def write_json(path, obj):
+    """Write ``obj`` as strict JSON (no NaN/Infinity tokens), atomically."""
+    write_text(path, json.dumps(obj, indent=1, allow_nan=False) + "\n")
+
+
+# ================================================================ terminal
+class Progress:
+    """Plain-text progress bar on stderr (works without a TTY: one line per 10 %).
+
+    On a TTY the bar is redrawn in place with a carriage return.
+    """
+
+    def __init__(self, total, label, stream=None, enabled=True):
+        self.total = max(1, int(total))
+        self.label = label
+        self.n = 0
+        self.stream = stream if stream is not None else sys.stderr
+        self.enabled = enabled
+        self.tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        self._last_decile = -1
+        self.t0 = time.perf_counter()
+
+    def _bar(self, what=""):
+        frac = min(1.0, self.n / self.total)
+        filled = int(round(30 * frac))
+        el = time.perf_counter() - self.t0
+        return f"{self.label} [{'#' * filled}{'.' * (30 - filled)}] {self.n}/{self.total} {el:5.1f}s {what}"
+
+    def update(self, k=1, what=""):
+        self.n += k
+        if not self.enabled:
+            return
+        if self.tty:
+            self.stream.write("\r" + self._bar(what)[:120].ljust(120))
+            self.stream.flush()
+            return
+        dec = int(10 * min(1.0, self.n / self.total))
+        if dec != self._last_decile:
+            self._last_decile = dec
+            self.stream.write(self._bar(what) + "\n")
+            self.stream.flush()
+
+    def close(self):
+        if self.enabled and self.tty:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+def text_table(headers, rows):
+    """Fixed-width text table (list of str rows)."""
+    cells = [[str(h) for h in headers]] + [["" if c is None else str(c) for c in r] for r in rows]
+    w = [max(len(r[i]) for r in cells) for i in range(len(headers))]
+    lines = ["  ".join(c.ljust(w[i]) for i, c in enumerate(r)) for r in cells]
+    lines.insert(1, "  ".join("-" * x for x in w))
+    return "\n".join(lines)
+
+
+def md_table(headers, rows):
+    """Markdown table."""
+    out = ["| " + " | ".join(str(h) for h in headers) + " |", "|" + "---|" * len(headers)]
+    for r in rows:
+        out.append("| " + " | ".join("" if c is None else str(c) for c in r) + " |")
+    return "\n".join(out)
+
+
+def fmt(v, spec=".3g", none="—"):
+    """Format a number or None."""
+    if v is None:
+        return none
+    if isinstance(v, float) and not math.isfinite(v):
+        return none
+    return format(v, spec)
+
+
+# ================================================================ plots
+def pyplot():
+    """matplotlib.pyplot with the Agg backend (optional dependency)."""
+    require("matplotlib", "plot", "Report plots")
+    import matplotlib
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def save_figure(fig, path):
+    """Save a figure as PNG atomically and close it."""
+    from ..atomic import atomic_path
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=110)
+    import matplotlib.pyplot as plt
+    plt.close(fig)
