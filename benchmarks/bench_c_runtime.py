@@ -2,7 +2,7 @@
 
 Builds runtime-c/ with the system C compiler (-O2, C99, no fast-math, no FMA
 contraction: the flags that keep it bit-identical to the Python renderer) and
-runs ``sd_bench`` (see runtime-c/sd_bench.c for the workload: the published
+runs ``sd_bench`` (see runtime-c/tool_bench.c for the workload: the published
 tent, handheld-stick pad, a 100 mm/s back-and-forth stroke at 10 kHz):
 
 * pad      - the jump model kernel alone (sd_jump_tick), target >= 50 M ticks/s;
@@ -39,7 +39,7 @@ def build(out: Path) -> Path:
     if not cc:
         raise SystemExit("no C compiler found")
     exe = out / "sd_bench"
-    srcs = [str(CDIR / n) for n in ("sd_pad.c", "sd_render.c", "sd_bench.c")]
+    srcs = [str(CDIR / n) for n in ("sd_pad.c", "sd_render.c", "tool_bench.c")]
     subprocess.run([cc, "-std=c99", "-O2", "-ffp-contract=off", "-I", str(CDIR), *srcs, "-lm", "-o", str(exe)],
                    check=True)
     return exe

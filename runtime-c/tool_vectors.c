@@ -1,4 +1,4 @@
-/* sd_vectors.c -- host program that runs the C runtime on test vectors written by Python.
+/* tool_vectors.c -- host program that runs the C runtime on test vectors written by Python.
  *
  *   sd_vectors pad    IN OUT   run the jump pad model over per-tick inputs (as pads.run_ticks)
  *   sd_vectors render IN OUT   render a cursor stroke through a table (as Renderer, model jump)

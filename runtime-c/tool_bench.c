@@ -1,4 +1,4 @@
-/* sd_bench.c -- ticks per second of the C runtime on the host (jump model).
+/* tool_bench.c -- ticks per second of the C runtime on the host (jump model).
  *
  *   sd_bench [ticks]
  *
