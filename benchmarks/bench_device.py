@@ -58,21 +58,32 @@ def bench_upload(image: bytes, baud: int, repeats: int = 2) -> float:
 
 
 def bench_latency(n: int, baud: int, model: str = "jump"):
-    from shapedisplay.runtime import Renderer  # noqa: F401  (the emulator renders with it)
+    """Median latency with the emulator in its own process (as a device is), talking over a pty."""
+    import subprocess
     image = tutorial_image()
-    emu = DeviceEmulator(EmulatorConfig(baud=baud, model=model))
-    emu.start()
-    try:
-        with DeviceLink(emu.port, timeout=1.0) as link:
-            link.upload(image)
-            # warm-up (compiles the renderer kernels), then the measured stroke
-            link.stream(np.linspace(0.0, 0.01, 50), paced=True, monitor=True)
-            x = 0.005 + 0.03 * np.sin(np.linspace(0.0, 6.0, n)) ** 2
-            rep = link.stream(x, paced=True, monitor=True)
+    with tempfile.TemporaryDirectory() as d:
+        port_file = os.path.join(d, "port")
+        cmd = [sys.executable, "-m", "shapedisplay_cli.main", "device", "emulate", "--baud", str(baud),
+               "--model", model, "--timeout", "120", "--port-file", port_file]
+        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            t_end = time.monotonic() + 60
+            while not os.path.exists(port_file):
+                if time.monotonic() > t_end or proc.poll() is not None:
+                    raise RuntimeError("emulator did not start")
+                time.sleep(0.05)
+            port = open(port_file).read().strip()
+            with DeviceLink(port, timeout=2.0) as link:
+                link.upload(image)
+                # warm-up, then the measured stroke
+                link.stream(np.linspace(0.0, 0.01, 100), paced=True, monitor=True)
+                x = 0.005 + 0.03 * np.sin(np.linspace(0.0, 6.0, n)) ** 2
+                rep = link.stream(x, paced=True, monitor=True)
             lat = rep.latencies_s[np.isfinite(rep.latencies_s)]
             return lat, rep
-    finally:
-        emu.close()
+        finally:
+            proc.terminate()
+            proc.wait(10)
 
 
 def tutorial_image() -> bytes:

@@ -30,7 +30,8 @@ def register(sub) -> None:
     q.add_argument("table", help="table file (.npz)")
     q.add_argument("port", help="serial port or URL")
     q.add_argument("--stroke", required=True,
-                   help='cursor stroke, e.g. "0:60mm @ 50mm/s" (see `shapedisplay play --help`)')
+                   help='cursor stroke in mm on the table grid, e.g. "0,0 -> 60,0 @ 50 mm/s" or '
+                        '"0,2 <-> 60,2 @ 20 mm/s x3"')
     q.add_argument("--mode", default="cursor", choices=("cursor", "actuator"),
                    help="cursor: device renders (default); actuator: host renders and streams samples")
     q.add_argument("--model", default="jump", help="renderer model for --mode actuator (default jump)")
@@ -123,7 +124,7 @@ def run_play(args) -> int:
             raise InputError(f"device on '{args.port}' has no renderer; use --mode actuator")
         if args.mode == "cursor" and link.status().active_crc != crc32(image):
             _upload(link, image)
-        cursor = parse_stroke(args.stroke, rate_hz=float(caps.stream_rate_hz), table=table)
+        cursor = parse_stroke(args.stroke, float(caps.stream_rate_hz))
         if args.mode == "cursor":
             rep = link.stream(cursor.x, cursor.y, monitor=bool(args.output))
         else:
@@ -137,16 +138,16 @@ def run_play(args) -> int:
         from shapedisplay.atomic import atomic_path
         with atomic_path(args.output, suffix=".npz") as tmp:
             with open(tmp, "wb") as fh:
-                np.savez(fh, actuator=rep.outputs, latency_s=rep.latencies_s,
-                         tick_rate_hz=caps.tick_rate_hz)
+                np.savez(fh, drive=rep.outputs, latency_s=rep.latencies_s,
+                         tick_rate_hz=caps.tick_rate_hz, stream_rate_hz=caps.stream_rate_hz)
         print(f"wrote {args.output}")
     return 1 if rep.overruns else 0
 
 
 def device_blocks(renderer, cursor, per):
-    """Host-side rendering for --mode actuator: (n, per) actuator blocks."""
+    """Host-side rendering for --mode actuator: (n - 1, per) drive blocks (tick 0 carries no burst)."""
     from shapedisplay.device.emulator import render_stream
-    return render_stream(renderer, cursor.x, cursor.y, per)
+    return render_stream(renderer, cursor.x, cursor.y, per)[1:].reshape(-1, per)
 
 
 def run_emulate(args) -> int:
@@ -175,6 +176,7 @@ def run_emulate(args) -> int:
     cfg = EmulatorConfig(max_table_bytes=mem, queue_capacity=args.queue, stream_rate_hz=int(stream),
                          tick_rate_hz=int(tick), model=args.model, renderer=not args.no_renderer, baud=args.baud)
     emu = DeviceEmulator(cfg)
+    emu.prepare()                      # compile the renderer before the port is announced
     port = emu.open_pty()
     if args.port_file:
         write_text(args.port_file, port + "\n")

@@ -11,7 +11,7 @@ keeps the firmware's rules:
 * cursor samples go into a fixed queue of ``queue_capacity`` samples and are
   consumed at ``stream_rate_hz`` by the render thread, which runs the same
   renderer as the host (:mod:`shapedisplay.runtime`); a period with no sample
-  holds the last position and counts an underrun, a sample arriving at a
+  counts an underrun (the renderer waits for the sample), a sample arriving at a
   full queue is dropped and counts an overrun; both are reported in EVENT
   frames and in STATUS;
 * every bad frame is counted and answered with a NAK (``seq`` 0xFFFF), a
@@ -190,6 +190,17 @@ class RenderEngine:
         return self._buf[:m]
 
 
+def _warm_renderer(config: EmulatorConfig) -> None:
+    """Load and compile the runtime kernels once, on a one-sample table (not on the I/O path)."""
+    from ..table import FrictionTable, Grid, choose_quantization
+    z = np.full((1, 2), 1.0)
+    t = FrictionTable.from_dense(Grid(1, 2, 1e-3, 1e-3), {"normal_force": z},
+                                 {"normal_force": choose_quantization(z, "float32")})
+    eng = RenderEngine(t, config.model, config.tick_rate_hz, config.stream_rate_hz, P.Input.POSITION)
+    eng.render(0.0, 0.0)
+    eng.render(1e-4, 0.0)
+
+
 class _Fault:
     def __init__(self, kind: str, direction: str, count: int, after: int):
         self.kind, self.direction, self.count, self.after = kind, direction, count, after
@@ -227,6 +238,7 @@ class DeviceEmulator:
         self.record_outputs = False
         self.reset_after_chunks = None          # test hook: power-cycle after N accepted chunks
         self.counters = collections.Counter()
+        self._prepared = False
         self._power_on()
 
     # ------------------------------------------------------------ lifecycle
@@ -248,6 +260,12 @@ class DeviceEmulator:
             self._chunks_accepted = 0
             self._decoder.reset()
 
+    def prepare(self) -> None:
+        """Load and compile the renderer (firmware has it built in before it boots). Idempotent."""
+        if not self._prepared and self.config.renderer and self.engine_factory is RenderEngine:
+            _warm_renderer(self.config)
+        self._prepared = True
+
     def open_pty(self) -> str:
         """Create the pty pair; return the slave path a host should open."""
         master, slave = os.openpty()
@@ -258,6 +276,7 @@ class DeviceEmulator:
 
     def start(self) -> str:
         """Open the pty (if needed) and run the device in background threads; return the port."""
+        self.prepare()
         if self._master is None:
             self.open_pty()
         self._stop.clear()
@@ -720,7 +739,6 @@ class DeviceEmulator:
         period = 1.0 / self.config.stream_rate_hz
         per = self.config.samples_per_cursor
         next_due = None
-        hold = (0.0, 0.0)
         consumed_since_flow = 0
         while True:
             with self._lock:
@@ -740,27 +758,25 @@ class DeviceEmulator:
                 return
             now = time.monotonic()
             if item is None:
-                # A whole period without a sample: hold the last one.
+                # A whole period without a sample: the actuator holds (no new drive), the renderer
+                # does not advance, so its time stays locked to the cursor samples it rendered.
                 self.counters["underruns"] += 1
                 self._event(P.Err.UNDERRUN, self.counters["underruns"],
-                            f"{self.counters['underruns']} render periods without a cursor sample (held last)")
-                index, t_us = 0xFFFFFFFF, 0
-                x, y = hold
-                act = None
+                            f"{self.counters['underruns']} render periods without a cursor sample")
                 next_due = next_due + period
-            else:
-                if next_due is not None and now < next_due:
-                    time.sleep(next_due - now)
-                    now = next_due
-                index, t_us, x, y = item
-                act = x if self.mode == P.Mode.ACTUATOR else None
-                if act is None:
-                    hold = (x, y)
-                next_due = now + period
+                continue
+            if next_due is not None and now < next_due:
+                time.sleep(next_due - now)
+                now = next_due
+            index, t_us, x, y = item
+            # One sample per period on an absolute schedule that starts with the first sample, like
+            # a DAC clock: sleep overshoot or a stall of the render loop never slows the device down
+            # (it catches up), and it never renders faster than the schedule.
+            next_due = (now if next_due is None else next_due) + period
             if self.mode == P.Mode.CURSOR:
                 out = self._engine.render(x, y)
             else:
-                out = np.zeros(per) if act is None else np.asarray(act, dtype=np.float64)
+                out = np.asarray(x, dtype=np.float64)
             out = np.where(np.isfinite(out), out, 0.0)
             n_clip = int(np.count_nonzero(np.abs(out) > DAC_RANGE))
             if n_clip:
@@ -769,17 +785,14 @@ class DeviceEmulator:
                 self._event(P.Err.CLIPPED, self.counters["clipped"],
                             f"{self.counters['clipped']} actuator samples clipped to +/-{DAC_RANGE}")
             self.counters["ticks_rendered"] += out.size
-            if item is not None:
-                self.counters["samples_rendered"] += 1
-                self._session_consumed += 1
-                consumed_since_flow += 1
-                if self.record_outputs:
-                    self.outputs.append((index, out.copy()))
-                if self._monitor:
-                    self._send(P.Msg.OUTPUT, P.SEQ_UNSOLICITED, P.OUTPUT.pack(index, t_us) + P.pack_samples(out))
-            with self._lock:
-                empty = not self._queue
-            if consumed_since_flow >= self.config.flow_every or (empty and consumed_since_flow):
+            self.counters["samples_rendered"] += 1
+            self._session_consumed += 1
+            consumed_since_flow += 1
+            if self.record_outputs:
+                self.outputs.append((index, out.copy()))
+            if self._monitor:
+                self._send(P.Msg.OUTPUT, P.SEQ_UNSOLICITED, P.OUTPUT.pack(index, t_us) + P.pack_samples(out))
+            if consumed_since_flow >= self.config.flow_every:
                 consumed_since_flow = 0
                 self._send(P.Msg.FLOW, P.SEQ_UNSOLICITED,
                            P.FLOW.pack(self._session_consumed & 0xFFFFFFFF, len(self._queue),

@@ -193,6 +193,15 @@ class DeviceLink:
         """Open if needed, handshake (HELLO) and read the capabilities."""
         if self._ser is None:
             self.open()
+        for attempt in range(3):
+            try:
+                return self._handshake()
+            except DeviceResetError:
+                if attempt == 2:
+                    raise
+                # the device (re)booted during the handshake: greet it again
+
+    def _handshake(self) -> P.Caps:
         self._drain_replies()
         self._boot_flag.clear()
         f = self.request(P.Msg.HELLO, P.HELLO.pack(P.PROTOCOL_VERSION, P.PROTOCOL_MIN_VERSION), (P.Msg.HELLO_REPLY,))
@@ -507,8 +516,10 @@ class DeviceLink:
                     if code == P.Err.NO_UPLOAD:
                         raise DeviceResetError(f"device on '{self.port}' lost the upload at byte {acked}: {text}")
                     raise DeviceRefused(f"device refused upload chunk: {P.err_name(code)}: {text}", code, detail)
-        self.request(P.Msg.UPLOAD_END, P.UPLOAD_END.pack(uid, crc, size), (P.Msg.VERIFIED,))
-        self.request(P.Msg.COMMIT, P.UPLOAD_ID.pack(uid), (P.Msg.ACK,))
+        # Verification parses and checksums the whole table on the device: allow it more time.
+        slow = max(self.timeout, 2.0)
+        self.request(P.Msg.UPLOAD_END, P.UPLOAD_END.pack(uid, crc, size), (P.Msg.VERIFIED,), timeout=slow)
+        self.request(P.Msg.COMMIT, P.UPLOAD_ID.pack(uid), (P.Msg.ACK,), timeout=slow)
 
     # ------------------------------------------------------------ streaming
     def start(self, mode: str = "cursor", input: str = "position", monitor: bool = False) -> None:
