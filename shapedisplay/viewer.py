@@ -43,6 +43,8 @@ AUTO_RELIEF_FRACTION = 0.15
 MAX_AUTO_EXAGGERATION = 1000.0
 #: Width of the strip a 1-D profile is drawn as, as a fraction of its length.
 STRIP_FRACTION = 0.12
+#: Most surface samples drawn (larger grids are drawn at a stride; read-outs use every sample).
+MAX_DRAWN_SAMPLES = 1_000_000
 #: Most stroke points drawn (longer traces are subsampled for drawing only).
 MAX_STROKE_POINTS = 6000
 #: Height of the stroke chart strip below the 3D view, as a fraction of the window.
@@ -875,12 +877,14 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
     preview = Preview(pl, model, channel, ex, trace)
 
     # ---- surface --------------------------------------------------------------------------
-    xs, ys = np.meshgrid(model.x * 1e3, model.y * 1e3)
-    zs = preview.z_display(model.relief)
+    stride = draw_stride(*model.relief.shape)
+    rs, cs = _strided(model.relief.shape[0], stride), _strided(model.relief.shape[1], stride)
+    xs, ys = np.meshgrid(model.x[cs] * 1e3, model.y[rs] * 1e3)
+    zs = preview.z_display(model.relief[np.ix_(rs, cs)])
     grid = pv.StructuredGrid(xs, ys, zs)
     unit, factor = model.display(channel)
-    values = model.fields[channel] * factor
-    grid.point_data[channel] = values.ravel(order="F")    # points of (rows, cols) arrays: rows fastest
+    values = model.fields[channel] * factor           # colour range from every sample, drawn or not
+    grid.point_data[channel] = values[np.ix_(rs, cs)].ravel(order="F")   # (rows, cols) points: rows fastest
     title = f"{model.labels.get(channel, channel)}" + (f" [{unit}]" if unit else "")
     bar_title = f"{model.labels.get(channel, channel)}" + (f"\n[{unit}]" if unit else "")
     bar_args = dict(title=bar_title, vertical=True, position_x=0.85, position_y=0.25, width=0.05, height=0.55,
@@ -893,7 +897,7 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
                        scalar_bar_args=bar_args, lighting=lighting, smooth_shading=lighting,
                        n_colors=2 if channel == "walls" else 256, pickable=True)
     if model.stored is not None:
-        stored_cells = _cell_mask(model.stored)
+        stored_cells = _cell_mask(model.stored[np.ix_(rs, cs)])
         keep = np.flatnonzero(stored_cells)
         drop = np.flatnonzero(~stored_cells)
         if keep.size:
@@ -947,6 +951,9 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
         lines += [n for n in model.notes if n.startswith((channel, "height", "relief", "flat"))]
         if model.strip:
             lines.append("1-D profile drawn as a strip")
+        if stride > 1:
+            lines.append(f"drawn with 1 in {stride} samples per axis of the {model.relief.shape[0]}x"
+                         f"{model.relief.shape[1]} grid; read-out uses all")
         if model.stored is not None:
             lines.append("grey: left out by the compiler")
         if trace is not None:
@@ -981,6 +988,17 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
         hint = "click/hover: read-out    space: replay stroke" if trace is not None else "click/hover: read-out"
         pl.add_text(hint, position="lower_right", font_size=9, color="black", name="hint")
     return preview
+
+
+def draw_stride(rows: int, cols: int) -> int:
+    """Sample stride that keeps a drawn grid within :data:`MAX_DRAWN_SAMPLES` points."""
+    return max(1, math.ceil(math.sqrt(rows * cols / MAX_DRAWN_SAMPLES)))
+
+
+def _strided(n: int, stride: int) -> np.ndarray:
+    """0, stride, 2*stride, ... and always the last index (the surface keeps its full extent)."""
+    idx = np.arange(0, n, stride)
+    return idx if idx[-1] == n - 1 else np.append(idx, n - 1)
 
 
 def _hover(preview: Preview) -> None:

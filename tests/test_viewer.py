@@ -583,3 +583,15 @@ def test_readout_and_exaggeration_finite_and_bounded(h, px, py):
         assert arr.min() - 1e-12 <= r[name] <= arr.max() + 1e-12
     ex = viewer.auto_exaggeration(m)
     assert 1.0 <= ex <= viewer.MAX_AUTO_EXAGGERATION
+
+
+def test_large_grid_drawn_at_a_stride_with_full_colour_range(monkeypatch):
+    monkeypatch.setattr(viewer, "MAX_DRAWN_SAMPLES", 1000)
+    hf = gaussian_field()                                   # 61 x 81 = 4941 samples -> stride 3
+    m = viewer.model_from_heightfield(hf)
+    assert viewer.draw_stride(61, 81) == 3
+    p = viewer.render(m, "height", size=(W, H))
+    assert "drawn with 1 in 3 samples per axis of the 61x81 grid" in p.info
+    assert p.surface_actor.mapper.dataset.n_points == 21 * 28   # 0,3,..,60 and 0,3,..,78,80
+    assert p.surface_actor.mapper.scalar_range == pytest.approx((hf.heights.min() * 1e3, hf.heights.max() * 1e3))
+    p.close()
