@@ -51,11 +51,47 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
+def _source_options(args) -> dict:
+    """Options of an image or mesh source, parsed with the flag names in errors."""
+    from pathlib import Path
+
+    from shapedisplay.errors import InputError
+    from shapedisplay.sources import IMAGE_SUFFIXES, MESH_SUFFIXES
+    from shapedisplay.units import parse_pair, parse_quantity
+
+    src = args.input
+    suffix = Path(src).suffix.lower()
+    given = [f"--{k}" for k in ("extent", "height", "resolution") if getattr(args, k) is not None]
+    opts = {}
+    if args.resolution is not None:
+        opts["resolution"] = parse_quantity(args.resolution, "m", "--resolution")
+        if not opts["resolution"] > 0:
+            raise InputError(f"`--resolution` must be > 0 (got {args.resolution!r})")
+    if suffix in IMAGE_SUFFIXES:
+        if args.extent is not None:
+            w, h = opts["size"] = parse_pair(args.extent, "x", "m", "--extent")
+            if not (w > 0 and h > 0):
+                raise InputError(f"`--extent` must be positive (got {args.extent!r})")
+        if args.height is not None:
+            opts["height_range"] = parse_pair(args.height, ":", "m", "--height")
+        if args.extent is None and args.resolution is None:
+            raise InputError(f"image '{src}' needs `--extent` (physical width x height, e.g. 60x40mm) "
+                             f"or `--resolution`")
+        if args.height is None and suffix == ".png":
+            raise InputError(f"image '{src}' needs `--height` (heights of gray 0 and full scale, e.g. 0:2mm)")
+    elif suffix in MESH_SUFFIXES:
+        bad = [g for g in given if g != "--resolution"]
+        if bad:
+            raise InputError(f"`{bad[0]}` applies to images; mesh '{src}' takes --resolution")
+    elif given:
+        raise InputError(f"`{given[0]}` applies to image and mesh sources, not to '{src}'")
+    return opts
+
+
 def run(args) -> int:
     from shapedisplay import viewer
 
-    model = viewer.load_model(args.input, scene=args.scene, size=args.extent, height_range=args.height,
-                              resolution=args.resolution)
+    model = viewer.load_model(args.input, scene=args.scene, **_source_options(args))
     trace = viewer.load_trace(args.trace) if args.trace else None
     preview = viewer.render(model, args.color, trace=trace, exaggeration=args.exaggeration, size=args.size,
                             off_screen=bool(args.output), view=args.view, cmap=args.cmap,

@@ -364,6 +364,9 @@ def test_annotations_state_exaggeration_and_chart_adds_pixels(table, trace_path)
 
 
 # --------------------------------------------------------------------------------- command line
+MAPS = os.path.join(os.path.dirname(__file__), os.pardir, "assets", "maps")
+
+
 def run_cli(argv):
     from shapedisplay_cli import main as cli_main
     return cli_main.main(argv)
@@ -393,6 +396,12 @@ def test_cli_bad_inputs_one_line_exit_2(tmp_path, table, capsys):
         (["preview", str(bad), "-o", str(tmp_path / "a.png")], "is a trace"),
         (["preview", str(tpath), "-o", str(tmp_path / "a.jpg")], "PNG"),
         (["preview", str(tpath), "--exaggeration", "-2", "-o", str(tmp_path / "a.png")], "exaggeration"),
+        (["preview", str(tpath), "--resolution", "1mm", "-o", str(tmp_path / "a.png")], "--resolution"),
+        (["preview", os.path.join(MAPS, "buttons.png"), "-o", str(tmp_path / "a.png")], "--extent"),
+        (["preview", os.path.join(MAPS, "buttons.png"), "--extent", "80x50mm", "-o", str(tmp_path / "a.png")],
+         "--height"),
+        (["preview", str(tpath), "--size", "10x10", "-o", str(tmp_path / "a.png")], "64..8192"),
+        (["preview", str(tpath), "--view", "below", "-o", str(tmp_path / "a.png")], "valid: iso, side, top"),
     ]
     for argv, words in cases:
         assert run_cli(argv) == 2
