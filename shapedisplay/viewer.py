@@ -69,11 +69,11 @@ ALIASES = {
     "stretch": "skin_stretch", "wall": "walls",
 }
 
-#: Labels avoid "|": VTK's text renderer drops it.
 #: Display unit of each SI unit: (label, factor from SI).
 _DISPLAY_UNITS = {"m": ("mm", 1e3), "N": ("N", 1.0), "1": ("", 1.0)}
 
-#: Meaning of derived (non-table) channels: name -> (SI unit, label).
+#: Meaning of derived (non-table) channels: name -> (SI unit, label). Labels avoid "|",
+#: which VTK's text renderer drops.
 DERIVED = {
     "height": ("m", "height"),
     "slope": ("1", "slope magnitude"),
@@ -561,15 +561,13 @@ def check_trace(trace: Trace, model: PreviewModel) -> None:
                          f"(trace table_checksum {trace.table_checksum}, table {model.checksum})")
 
 
-def nice_number(value: float, mode: str = "floor") -> float:
-    """The 1-2-5 series number at or below (``floor``) / nearest to ``value`` > 0."""
+def nice_number(value: float) -> float:
+    """The largest 1-2-5 series number (..., 0.5, 1, 2, 5, 10, ...) <= ``value``; 1 for a bad value."""
     if not value > 0 or not math.isfinite(value):
         return 1.0
     e = math.floor(math.log10(value))
     cands = [m * 10.0 ** k for k in (e - 1, e, e + 1) for m in (1, 2, 5)]
-    if mode == "floor":
-        return max(c for c in cands if c <= value * (1 + 1e-12))
-    return min(cands, key=lambda c: abs(math.log(c / value)))
+    return max(c for c in cands if c <= value * (1 + 1e-12))
 
 
 def auto_exaggeration(model: PreviewModel) -> float:
@@ -658,9 +656,8 @@ def check_offscreen(env: dict | None = None) -> str:
         No off-screen OpenGL is available; names the packages to install.
     """
     probe_env = dict(os.environ if env is None else env)
-    key = "default"
-    if env is None and key in _offscreen_cache:
-        return _offscreen_cache[key]
+    if env is None and "window" in _offscreen_cache:
+        return _offscreen_cache["window"]
     display = bool(probe_env.get("DISPLAY") or probe_env.get("WAYLAND_DISPLAY")) \
         or not sys.platform.startswith("linux")
     wanted = probe_env.get("VTK_DEFAULT_OPENGL_WINDOW")
@@ -681,13 +678,14 @@ def check_offscreen(env: dict | None = None) -> str:
             if env is None:
                 if cls:
                     os.environ["VTK_DEFAULT_OPENGL_WINDOW"] = cls
-                _offscreen_cache[key] = words[0]
+                _offscreen_cache["window"] = words[0]
             return words[0]
         tried.append(f"{cls or 'default'}: " + ("crashed" if res.returncode < 0 else f"exit {res.returncode}"))
+    where = "the display's OpenGL" if display and not wanted else "EGL/OSMesa OpenGL"
     raise ShapeDisplayError(
-        "off-screen rendering is not available: no display and no working EGL/OSMesa OpenGL "
-        f"({'; '.join(tried)}); install libegl1 libegl-mesa0 libgl1-mesa-dri "
-        "(scripts/install-system-deps.sh) or run on a machine with a display")
+        f"off-screen rendering is not available: {where} does not work here ({'; '.join(tried)}); "
+        "install libegl1 libegl-mesa0 libgl1-mesa-dri (scripts/install-system-deps.sh), "
+        "or unset DISPLAY to render through EGL")
 
 
 def _pyvista(off_screen: bool):
@@ -733,7 +731,6 @@ class Preview:
         self.last_readout: dict | None = None
         self.info = ""                                  # text shown in the upper left corner
         self._picker = None
-        self.has_chart = False
 
     # -- coordinates ------------------------------------------------------------------------
     def z_display(self, relief) -> np.ndarray:
@@ -913,16 +910,20 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
     lift = 0.004 * extent
 
     # ---- widgets --------------------------------------------------------------------------
-    if model.widgets:
+    if model.widgets:   # outlines draped on the surface, all in one mesh
+        s_ = np.linspace(0.0, 1.0, 60)[:-1]
+        rings = []
         for w in model.widgets:
             x0, y0, x1, y1 = (w[k] * 1e3 for k in ("x0", "y0", "x1", "y1"))
             corners = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]])
-            s_ = np.linspace(0.0, 1.0, 60)[:-1]
-            ring = np.concatenate([a + s_[:, None] * (b - a) for a, b in zip(corners[:-1], corners[1:])]
-                                  + [corners[:1]])
-            zr = preview.z_display(model.relief_at(ring[:, 0] * 1e-3, ring[:, 1] * 1e-3)) + lift
-            pl.add_mesh(pv.lines_from_points(np.column_stack([ring, zr])), color=WIDGET_COLOR, line_width=3,
-                        pickable=False)
+            rings.append(np.concatenate([a + s_[:, None] * (b - a) for a, b in zip(corners[:-1], corners[1:])]
+                                        + [corners[:1]]))
+        ring = np.concatenate(rings)
+        zr = preview.z_display(model.relief_at(ring[:, 0] * 1e-3, ring[:, 1] * 1e-3)) + lift
+        starts = np.cumsum([0] + [len(r) for r in rings[:-1]])
+        cells = np.concatenate([np.concatenate([[len(r)], np.arange(len(r)) + a]) for r, a in zip(rings, starts)])
+        pl.add_mesh(pv.PolyData(np.column_stack([ring, zr]), lines=cells), color=WIDGET_COLOR, line_width=3,
+                    pickable=False)
         if annotations:
             pts = np.array([[w["x0"] * 1e3, w["y1"] * 1e3,
                              float(preview.z_display(model.relief_at(w["x0"], w["y1"]))) + 2 * lift]
@@ -939,7 +940,6 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
             pl.set_background("white")
             _draw_chart(pv, pl, trace)
             pl.subplot(0, 0)
-            preview.has_chart = True
 
     # ---- annotations ----------------------------------------------------------------------
     if annotations:
