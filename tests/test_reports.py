@@ -1,0 +1,265 @@
+"""Reports: accuracy (work-precision) and stability, their JSON claims, and the pieces they are built from."""
+from __future__ import annotations
+
+import io
+import json
+import math
+
+import numpy as np
+import pytest
+
+from shapedisplay.reports import common
+from shapedisplay.reports.peers import konyo_ivp, stribeck_ivp
+from shapedisplay.reports.stability import energy_bound, stribeck_slope, theory_limit, theory_stable
+from shapedisplay_cli.main import main
+
+
+def _strict_load(path):
+    """Load JSON refusing NaN/Infinity tokens."""
+    def bad(tok):
+        raise AssertionError(f"non-finite token {tok} in {path}")
+    with open(path) as fh:
+        return json.load(fh, parse_constant=bad)
+
+
+# ================================================================ the two reports, through the CLI
+@pytest.fixture(scope="module")
+def accuracy_report(tmp_path_factory):
+    out = tmp_path_factory.mktemp("acc")
+    assert main(["report", "accuracy", "--quick", "-o", str(out)]) == 0
+    return out, _strict_load(out / "accuracy.json")
+
+
+@pytest.fixture(scope="module")
+def stability_report(tmp_path_factory):
+    out = tmp_path_factory.mktemp("stab")
+    assert main(["report", "stability", "--quick", "-o", str(out)]) == 0
+    return out, _strict_load(out / "stability.json")
+
+
+def test_accuracy_files(accuracy_report):
+    out, rep = accuracy_report
+    assert (out / "accuracy.md").read_text().startswith("# Accuracy report")
+    names = {c["name"] for c in rep["cases"]}
+    assert {"reversal", "bump_table", "stribeck_contactor", "belt_coulomb"} <= names
+    assert any(n.startswith("konyo_") for n in names)
+    for c in rep["cases"]:
+        assert (out / f"accuracy_{c['name']}.png").stat().st_size > 1000
+    assert rep["non_finite_replaced"] == [] or all(isinstance(p, str) for p in rep["non_finite_replaced"])
+
+
+def test_accuracy_methods_and_peers(accuracy_report):
+    _, rep = accuracy_report
+    models = {s["model"] for c in rep["cases"] for s in c["settings"] if s["family"] == "renderer"}
+    assert {"exact", "jump", "karnopp", "stribeck", "euler", "rk4"} <= models
+    peers = {s["method"] for c in rep["cases"] for s in c["settings"] if s["family"] == "scipy"}
+    assert peers == {"Radau", "BDF", "LSODA"}
+    table = [s for c in rep["cases"] if c["name"] == "bump_table" for s in c["settings"] if s["family"] == "renderer"]
+    assert len({s["table_dx_m"] for s in table}) >= 2 and len({s["quantize"] for s in table}) >= 2
+
+
+def test_accuracy_exact_event_time_error(accuracy_report):
+    _, rep = accuracy_report
+    checked = 0
+    for c in rep["cases"]:
+        if c["kind"] != "konyo" or c["name"] == "bump_table":
+            continue
+        for s in c["settings"]:
+            if s.get("model") == "exact":
+                assert s["status"] == "ok"
+                assert s["missing"] == 0 and s["spurious"] == 0
+                assert s["event_max_s"] <= 1e-9, (c["name"], s["label"], s["event_max_s"])
+                checked += 1
+    assert checked >= 4
+    assert rep["headline"]["exact_event_max_s"] <= 1e-9
+    # the reference agrees with Radau at rtol 1e-12 (cross-check reported, here checked)
+    for c in rep["cases"]:
+        cc = c["reference"]["cross_check"]
+        assert cc["events_compared"] >= 2 and cc["missing"] == 0
+        assert cc["max_abs_s"] < 1e-6
+
+
+def test_accuracy_belt_closed_form(accuracy_report):
+    _, rep = accuracy_report
+    belt = next(c for c in rep["cases"] if c["name"] == "belt_coulomb")
+    cf = belt["reference"]["closed_form"]
+    assert cf["period_s"] == pytest.approx(5.0 + math.pi + 2 * math.atan(0.4), rel=1e-15)
+    assert cf["event_max_abs_s"] < 1e-9 and cf["period_rel_error"] < 1e-10
+
+
+def test_accuracy_speedup_is_measured_ratio(accuracy_report):
+    _, rep = accuracy_report
+    n = 0
+    for c in rep["cases"]:
+        s = c["summary"]
+        if s["speedup_vs_scipy"] is None:
+            continue
+        fast, peer = s["fastest_within_1pct"], s["best_scipy_within_1pct"]
+        assert fast["period_rel_max"] <= 0.01 and peer["period_rel_max"] <= 0.01
+        # the ratio is the one of the two recorded timings, which are themselves recorded per setting
+        assert s["speedup_vs_scipy"] == pytest.approx(peer["cpu_s_per_sim_s"] / fast["cpu_s_per_sim_s"], rel=1e-12)
+        labels = {x["label"]: x["cpu_s_per_sim_s"] for x in c["settings"]}
+        assert labels[fast["label"]] == fast["cpu_s_per_sim_s"] and labels[peer["label"]] == peer["cpu_s_per_sim_s"]
+        assert fast["cpu_s_per_sim_s"] > 0
+        n += 1
+    assert n >= 3
+
+
+def test_accuracy_failures_are_kept(accuracy_report):
+    _, rep = accuracy_report
+    konyo = next(c for c in rep["cases"] if c["name"].startswith("konyo_"))
+    bad = [s for s in konyo["settings"] if s.get("model") == "euler" and s["tick_rate"] == 1000.0]
+    assert bad and bad[0]["status"] == "diverged" and bad[0]["event_rms_s"] is None
+    assert bad[0]["cpu_s_per_sim_s"] is not None     # plotted as a marked failure point
+    online = [s for s in konyo["settings"] if s.get("model") == "exact"]
+    assert all(s["step_p99_s"] > 0 and s["tick_budget_s"] == pytest.approx(1 / s["tick_rate"]) for s in online)
+
+
+def test_stability_summary_and_cases(stability_report):
+    out, rep = stability_report
+    assert (out / "stability.md").read_text().startswith("# Stability report")
+    s = rep["summary"]
+    cases = rep["cases"]
+    assert s["cases"] == len(cases) >= 200
+    assert sum(s["verdicts"].values()) == len(cases)
+    assert set(s["verdicts"]) == {"stable", "physically self-excited", "numerically unstable", "rejected"}
+    for c in cases:
+        assert c["verdict"] in s["verdicts"] and isinstance(c["params"], dict)
+    assert list(out.glob("stability_*.png"))
+
+
+def test_stability_default_models_never_nan(stability_report):
+    _, rep = stability_report
+    dm = [c for c in rep["cases"] if c["model"] in ("exact", "jump") and c["kind"] != "bad"]
+    assert dm and all(c["finite"] is True for c in dm)
+    assert rep["summary"]["default_model_nonfinite"] == 0
+    assert all(c["verdict"] == "stable" for c in dm)
+
+
+def test_stability_euler_unstable_on_konyo_pad_at_1khz(stability_report):
+    _, rep = stability_report
+    c = next(c for c in rep["cases"] if c["sweep"] == "konyo_rate" and c["model"] == "euler"
+             and c["params"]["rate"] == 1000.0)
+    assert c["verdict"] == "numerically unstable"
+    assert "euler" in c["reason"] and c["step_s"] == pytest.approx(1e-3)
+    assert c["theory_stable"] is False
+
+
+def test_stability_explicit_matches_theory(stability_report):
+    _, rep = stability_report
+    ex = [c for c in rep["cases"] if c["sweep"] == "explicit_step"]
+    assert {c["theory_stable"] for c in ex} == {True, False}
+    agree = sum(1 for c in ex if c["theory_stable"] != c["linear_instability_detected"])
+    assert agree >= 0.9 * len(ex)
+
+
+def test_stability_verdict_kinds(stability_report):
+    _, rep = stability_report
+    stri = [c for c in rep["cases"] if c["sweep"] == "stribeck"]
+    self_ex = [c for c in stri if c["verdict"] == "physically self-excited"]
+    assert self_ex and all(c["stribeck_slope_Ns_per_m"] < 0 for c in self_ex)
+    assert all(c["verdict"] != "physically self-excited" for c in stri if c["stribeck_slope_Ns_per_m"] >= 0)
+    bad = [c for c in rep["cases"] if c["kind"] == "bad"]
+    assert bad and all(c["verdict"] == "rejected" and "\n" not in c["reason"] and c["reason"] for c in bad)
+
+
+# ================================================================ building blocks
+def test_match_events_counts_missing_and_spurious():
+    ref = np.array([1.0, 2.0, 3.0, 4.0])
+    got = np.array([1.01, 2.5, 3.0, 3.02, 9.0])
+    pairs, missing, spurious = common.match_events(ref, got, window=0.1)
+    assert pairs.tolist() == [[0, 0], [2, 2]]
+    assert missing == 2 and spurious == 3
+    e = common.event_errors(ref, ref, got, got, 0.1)
+    assert e["event_max_s"] == pytest.approx(0.01) and e["event_rms_s"] == pytest.approx(0.01 / math.sqrt(2))
+
+
+def test_event_errors_exact_period():
+    ref = np.arange(1, 11) * 0.5
+    got = ref * 1.002                      # every interval 0.2 % long
+    e = common.event_errors(ref, np.ones(10), got, 1.1 * np.ones(10), 0.1)
+    assert e["period_rel_max"] == pytest.approx(0.002, rel=1e-9)
+    assert e["amplitude_rel_rms"] == pytest.approx(0.1, rel=1e-12)
+    assert e["missing"] == e["spurious"] == 0
+
+
+def test_waveform_error_zero_for_identical_and_one_for_silence():
+    t = np.array([0.01, 0.05])
+    a = np.array([1.0, 0.5])
+    assert common.waveform_error(t, a, t, a, 0.1, 1.0) == 0.0
+    assert common.waveform_error(t, a, np.zeros(0), np.zeros(0), 0.1, 1.0) == pytest.approx(1.0)
+
+
+def test_clean_json_replaces_non_finite():
+    notes = []
+    out = common.clean_json({"a": [1.0, float("nan")], "b": {"c": np.float64(np.inf)}, "d": np.int64(3)}, notes=notes)
+    assert out == {"a": [1.0, None], "b": {"c": None}, "d": 3}
+    assert notes == ["a[1]", "b.c"]
+    json.dumps(out, allow_nan=False)
+
+
+def test_progress_without_tty():
+    buf = io.StringIO()
+    p = common.Progress(20, "demo", stream=buf)
+    for _ in range(20):
+        p.update(1, "x")
+    p.close()
+    lines = buf.getvalue().splitlines()
+    assert 5 <= len(lines) <= 11 and "\r" not in buf.getvalue()
+    assert lines[-1].startswith("demo [##############################] 20/20")
+
+
+def test_theory_limits():
+    # forward Euler: h omega_n < 2 zeta; RK4 on the imaginary axis: 2 sqrt(2)
+    assert theory_limit("euler", 0.11) == pytest.approx(0.22, rel=1e-9)
+    assert theory_limit("rk4", 0.0) == pytest.approx(2 * math.sqrt(2), rel=1e-6)
+    wn = math.sqrt(2000 / 1e-6)
+    assert not theory_stable("euler", 1e-3, wn, 0.11) and not theory_stable("rk4", 1e-3, wn, 0.11)
+    assert theory_stable("rk4", 1 / 96000, wn, 0.11)
+
+
+def test_stribeck_slope_sign():
+    # published Imaizumi pad: c = 1, (mu_s - mu_k) a = 38.5 > c + b near v = 0: self-excited; not at high speed
+    assert stribeck_slope(1.0, 1.0, 2.1, 1.4, 55.0, 1.9, 0.0) == pytest.approx(1.0 - 38.5 + 1.9)
+    assert stribeck_slope(1.0, 1.0, 2.1, 1.4, 55.0, 1.9, 0.2) > 0
+
+
+def test_energy_bound_holds_for_exact_model():
+    from shapedisplay.runtime.models import simulate_pad
+    r = simulate_pad("exact", V=0.05, N=2.0, tick_rate=96000, duration=0.05)
+    E = 0.5 * 2000 * r.x ** 2 + 0.5 * 1e-6 * r.v ** 2
+    assert E.max() <= energy_bound(1e-6, 2000.0, 0.01, 0.5, 2.0, 0.05)
+
+
+def test_konyo_peer_matches_exact_and_belt_closed_form():
+    from shapedisplay.devices import FrictionParams, PadParams
+    from shapedisplay.runtime.models import simulate_pad
+    r = simulate_pad("exact", V=0.05, N=2.0, tick_rate=10000, duration=0.03)
+    p = konyo_ivp("LSODA", 1e-10, m=1e-6, k=2000.0, c=0.01, mu_s=0.5, mu_k=0.3, V=lambda t: 0.05,
+                  N=lambda t: 2.0, t_end=0.03)
+    assert p.status == "ok" and p.event_time.size == r.event_time.size >= 3
+    assert np.max(np.abs(p.event_time - r.event_time)) < 1e-8
+    # block on a belt: closed-form period (pi + 2 atan(V k / (omega dmu N))) / omega + 2 dmu N / (k V)
+    b = simulate_pad("exact", V=0.2, N=1.0, pad=PadParams(1.0, 1.0, 0.0), friction=FrictionParams(1.0, 0.5),
+                     tick_rate=100, duration=30.0)
+    T = 5.0 + math.pi + 2 * math.atan(0.4)
+    assert np.allclose(b.event_time, 5.0 + T * np.arange(b.event_time.size), rtol=0, atol=1e-9)
+
+
+def test_stribeck_peer_agrees_with_kernel():
+    from shapedisplay.devices import FrictionParams, PadParams
+    from shapedisplay.runtime.models import simulate_pad
+    r = simulate_pad("stribeck", V=0.1, N=1.0, pad=PadParams(1e-4, 1e3, 1.0), friction=FrictionParams(2.1, 1.4),
+                     tick_rate=1000, duration=0.12, contactor_hz=9.0, contactor_amplitude_m=1.25e-3, substep_s=5e-7)
+    p = stribeck_ivp("LSODA", 1e-9, m=1e-4, k=1e3, c=1.0, mu_s=2.1, mu_k=1.4, a=55.0, b=1.9, W=1.0, V=0.1,
+                     amp=1.25e-3, omega=2 * math.pi * 9.0, t_end=0.12)
+    assert p.event_time.size == r.event_time.size >= 2
+    assert np.max(np.abs(p.event_time - r.event_time)) < 1e-6
+
+
+def test_cli_output_must_be_directory(tmp_path, capsys):
+    f = tmp_path / "file.txt"
+    f.write_text("x")
+    assert main(["report", "stability", "--quick", "-o", str(f)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--output" in err[0]
