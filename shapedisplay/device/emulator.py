@@ -367,13 +367,18 @@ class DeviceEmulator:
         return wire
 
     # ------------------------------------------------------------ wire
-    def _pace(self, n: int, which: str) -> None:
+    def _pace(self, n: int, which: str, since: float | None = None) -> None:
+        """Sleep until ``n`` bytes have crossed the line (8N1) after ``since`` (default now).
+
+        The line is busy back to back: a transfer starts when the previous one ended or when
+        its bytes became available, whichever is later, so a late wake-up loses no capacity.
+        """
         baud = self.config.baud
         if baud <= 0:
             return
         now = time.monotonic()
         attr = "_rx_t" if which == "rx" else "_tx_t"
-        t = max(getattr(self, attr), now) + n * 10.0 / baud
+        t = max(getattr(self, attr), now if since is None else since) + n * 10.0 / baud
         setattr(self, attr, t)
         if t > now:
             time.sleep(t - now)
@@ -392,7 +397,7 @@ class DeviceEmulator:
             self._write_now(wire)
             return
         with self._txcond:
-            self._txq.append(wire)
+            self._txq.append((time.monotonic(), wire))
             self._txcond.notify()
 
     def _write_now(self, wire: bytes) -> None:
@@ -418,8 +423,8 @@ class DeviceEmulator:
                     self._txcond.wait(0.05)
                 if self._stop.is_set():
                     return
-                wire = self._txq.popleft()
-            self._pace(len(wire), "tx")      # the last byte leaves the UART at the paced time
+                t_enq, wire = self._txq.popleft()
+            self._pace(len(wire), "tx", t_enq)   # the last byte leaves the UART at the paced time
             self._write_now(wire)
 
     def _io_loop(self) -> None:
@@ -736,17 +741,27 @@ class DeviceEmulator:
         self._render_thread = None
 
     def _render_loop(self) -> None:
+        """Render queued samples at their timestamps (the host's clock), like a DAC clocked by the stream.
+
+        The first sample anchors the host clock to the device clock; sample i is due at
+        ``anchor + t_i`` (CURSOR: its ``t_us``; ACTUATOR: ``index / stream_rate``) and is never
+        rendered before it is due, so a host sending faster than its timestamps fills the queue
+        (overrun at a full queue). A late sample is rendered on arrival (lateness never
+        accumulates); every whole period that passes with no sample due is an underrun. The
+        anchor slews earlier (2 % of a period per sample) when samples arrive ahead of it.
+        """
         period = 1.0 / self.config.stream_rate_hz
-        per = self.config.samples_per_cursor
-        next_due = None
+        anchor = None         # device time of the host's t = 0
+        expect = None         # when the next sample is due if the stream keeps its rate
+        t_first = None
         consumed_since_flow = 0
         while True:
             with self._lock:
                 while self._streaming and not self._queue:
-                    if next_due is None:
+                    if expect is None:
                         self._qcond.wait(0.05)
                         continue
-                    left = next_due + period - time.monotonic()
+                    left = expect + period - time.monotonic()
                     if left <= 0:
                         break
                     self._qcond.wait(left)
@@ -756,23 +771,30 @@ class DeviceEmulator:
             if item is not None and item[0] == "stop":
                 self._finish_stop(item[1])
                 return
-            now = time.monotonic()
             if item is None:
-                # A whole period without a sample: the actuator holds (no new drive), the renderer
-                # does not advance, so its time stays locked to the cursor samples it rendered.
+                # A whole period past the next sample's due time: the actuator holds (no new drive),
+                # the renderer does not advance, so its time stays locked to the samples rendered.
                 self.counters["underruns"] += 1
                 self._event(P.Err.UNDERRUN, self.counters["underruns"],
                             f"{self.counters['underruns']} render periods without a cursor sample")
-                next_due = next_due + period
+                expect += period
                 continue
-            if next_due is not None and now < next_due:
-                time.sleep(next_due - now)
-                now = next_due
             index, t_us, x, y = item
-            # One sample per period on an absolute schedule that starts with the first sample, like
-            # a DAC clock: sleep overshoot or a stall of the render loop never slows the device down
-            # (it catches up), and it never renders faster than the schedule.
-            next_due = (now if next_due is None else next_due) + period
+            stamp = t_us if self.mode == P.Mode.CURSOR else int(round(index * period * 1e6))
+            if t_first is None:
+                t_first = stamp
+                anchor = time.monotonic()
+            rel = ((stamp - t_first) & 0xFFFFFFFF) * 1e-6     # u32 microseconds wrap
+            now = time.monotonic()
+            if now - rel < anchor:
+                # Samples arrive earlier than the first one suggested (it was delayed): slew the
+                # anchor earlier by at most 2 % of a period per sample, so a late first sample adds
+                # no lasting latency while a host sending ahead of its timestamps still waits.
+                anchor = max(now - rel, anchor - 0.02 * period)
+            due = anchor + rel
+            if now < due:
+                time.sleep(due - now)
+            expect = due + period if expect is None else max(expect, due + period)
             if self.mode == P.Mode.CURSOR:
                 out = self._engine.render(x, y)
             else:
