@@ -356,3 +356,29 @@ def test_silent_port_times_out(tmp_path):
     finally:
         os.close(master)
         os.close(slave)
+
+
+def test_port_disappearing_mid_upload(link, emu, image):
+    emu.vanish_after_chunks = 4
+    t0 = time.monotonic()
+    with pytest.raises((DeviceDisconnected, LinkTimeout)) as exc:
+        link.upload(image)
+    assert time.monotonic() - t0 < 20
+    assert emu.activations == [] and emu.active_table is None
+    assert "disappeared" in str(exc.value) or "no new table is active" in str(exc.value)
+    link.close()
+
+
+def test_device_without_renderer_plays_actuator_streams_only(image):
+    e = DeviceEmulator(EmulatorConfig(renderer=False), engine_factory=ProbeEngine)
+    e.start()
+    try:
+        with DeviceLink(e.port, timeout=0.5) as ln:
+            assert not ln.caps.has_renderer and ln.caps.models == ()
+            ln.upload(image)                            # it still stores and verifies tables
+            with pytest.raises(DeviceRefused, match="no renderer"):
+                ln.start()
+            rep = ln.stream(np.full((20, 10), 0.25), mode="actuator", paced=False, monitor=True)
+            assert rep.rendered == 20 and np.all(rep.outputs == 0.25)
+    finally:
+        e.close()

@@ -237,6 +237,7 @@ class DeviceEmulator:
         self.outputs: list = []                 # (index, samples) rendered, when record_outputs
         self.record_outputs = False
         self.reset_after_chunks = None          # test hook: power-cycle after N accepted chunks
+        self.vanish_after_chunks = None         # test hook: the port disappears after N accepted chunks
         self.counters = collections.Counter()
         self._prepared = False
         self._power_on()
@@ -582,6 +583,9 @@ class DeviceEmulator:
         if self.reset_after_chunks is not None and self._chunks_accepted >= self.reset_after_chunks:
             self.reset_after_chunks = None
             self.reset()
+        if self.vanish_after_chunks is not None and self._chunks_accepted >= self.vanish_after_chunks:
+            self.vanish_after_chunks = None
+            threading.Thread(target=self.vanish, daemon=True).start()
 
     def _on_end(self, f: Frame) -> None:
         if len(f.body) != P.UPLOAD_END.size:
