@@ -382,3 +382,18 @@ def test_device_without_renderer_plays_actuator_streams_only(image):
             assert rep.rendered == 20 and np.all(rep.outputs == 0.25)
     finally:
         e.close()
+
+
+@pytest.mark.parametrize("kw, field", [({"stream_rate_hz": 0}, "stream_rate_hz"), ({"chunk_size": 5000}, "chunk_size"),
+                                       ({"tick_rate_hz": 10_000, "stream_rate_hz": 3000}, "multiple"),
+                                       ({"queue_capacity": 0}, "queue_capacity")])
+def test_emulator_config_checked(kw, field):
+    from shapedisplay.errors import InputError
+    with pytest.raises(InputError, match=field):
+        EmulatorConfig(**kw)
+
+
+def test_link_arguments_checked():
+    from shapedisplay.errors import InputError
+    with pytest.raises(InputError, match="timeout"):
+        DeviceLink("loop://", timeout=0)

@@ -67,6 +67,20 @@ class EmulatorConfig:
     flow_every: int = 8                  # send FLOW after this many consumed samples
     event_interval_s: float = 0.05       # at most one EVENT of a kind per interval
 
+    def __post_init__(self):
+        from ..errors import InputError
+        from .framing import MAX_FRAME
+        ints = {"max_table_bytes": (1, 2**31), "chunk_size": (1, MAX_FRAME - 64), "upload_window": (1, 255),
+                "queue_capacity": (1, 65535), "stream_rate_hz": (1, 65535), "tick_rate_hz": (100, 192_000),
+                "baud": (0, 100_000_000), "flow_every": (1, 65535), "protocol_version": (1, 255)}
+        for name, (lo, hi) in ints.items():
+            v = getattr(self, name)
+            if not (isinstance(v, int) and lo <= v <= hi):
+                raise InputError(f"emulator `{name}` must be an integer in {lo}..{hi} (got {v!r})")
+        if self.tick_rate_hz % self.stream_rate_hz:
+            raise InputError(f"emulator `tick_rate_hz` must be a multiple of `stream_rate_hz` "
+                             f"(got {self.tick_rate_hz}, {self.stream_rate_hz})")
+
     @property
     def samples_per_cursor(self) -> int:
         return max(1, self.tick_rate_hz // self.stream_rate_hz)
