@@ -207,6 +207,11 @@ class WallReport:
 
     MAX_BOXES = 20
 
+    @property
+    def boxes(self) -> list:
+        """Same as :attr:`boxes_mm` ([x_min, x_max, y_min, y_max] in mm)."""
+        return self.boxes_mm
+
     def to_json(self) -> dict:
         """JSON-safe summary (no mask)."""
         return {"count": self.count, "fraction": self.fraction,
