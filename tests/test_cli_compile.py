@@ -178,3 +178,21 @@ def test_mesh_source_passes_mesh_options(tmp_path, capsys):
     code, _, err = run(["compile", ROOT / "assets/meshes/keycap.stl", "-o", tmp_path / "bad.npz",
                         "--resolution=-1mm"], capsys)
     assert code == 2 and "`--resolution` must be a length > 0" in err and not (tmp_path / "bad.npz").exists()
+
+
+def test_stretch_perceptual_and_coding_options(tmp_path, capsys):
+    from shapedisplay.table import FrictionTable
+    t = tmp_path / "s.npz"
+    code, out, err = run(["compile", TENT, "-o", t, "--size", "60x4mm", "--height", "0:0.4mm",
+                          "--device", "skin-stretch-tactor", "--mapping", "height+stretch+perceptual",
+                          "--n-base", "1N", "--n-gain", "1N/mm", "--skin-stretch", "0.4mm",
+                          "--perceptual", "bumpiness", "--quantize", "uint16", "--json"], capsys)
+    assert code == 0, err
+    rep = json.loads(out)
+    assert rep["kept"] == ["normal_force", "skin_stretch"]
+    assert rep["quantization"]["normal_force"]["dtype"] == "uint16"
+    table = FrictionTable.load(t)
+    n, s = table.dense("normal_force"), table.dense("skin_stretch")
+    assert n.min() == pytest.approx(1.0) and n.max() == pytest.approx(1.4, abs=2e-3)   # 1 N + 1 N/mm * 0.4 mm (apex between samples)
+    assert np.allclose(s, 0.4e-3 * n / 1.0, atol=2 * rep["quantization"]["skin_stretch"]["max_error"] + 1e-9)
+    assert table.meta["mapping"]["perceptual_exponent"] == 0.76
