@@ -389,7 +389,8 @@ def compile_heightfield(hf: HeightField, device=None, mapping: MappingOptions = 
 
     grid = Grid(hf.rows, hf.cols, hf.dx, hf.dy, hf.x0, hf.y0)
     # an extruded profile (every row identical in every stored channel) keeps one row
-    repeated = hf.rows > 1 and all(bool((c == c[:1]).all()) for c in codes.values())
+    repeated = hf.rows > 1 and all(bool((c[1] == c[0]).all()) for c in codes.values()) \
+        and all(bool((c == c[:1]).all()) for c in codes.values())
     if repeated:
         layout = f"one {hf.cols}-sample row stored once and placed on all {hf.rows} rows (rows identical)"
         stored = int(sum(c[0].nbytes for c in codes.values()))
