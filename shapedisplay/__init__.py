@@ -26,6 +26,10 @@ _LAZY = {
     "DeviceProfile": "devices",
     "load_device": "devices",
     "parse_quantity": "units",
+    "load_source": "sources",
+    "MappingOptions": "profiles",
+    "CompileOptions": "compile",
+    "compile_heightfield": "compile",
 }
 
 
