@@ -6,6 +6,7 @@ runs ``sd_bench`` (see runtime-c/tool_bench.c for the workload: the published
 tent, handheld-stick pad, a 100 mm/s back-and-forth stroke at 10 kHz):
 
 * pad      - the jump model kernel alone (sd_jump_tick), target >= 50 M ticks/s;
+* exact    - the exact model kernel alone (sd_exact_tick), for comparison;
 * drive    - the full renderer tick without audio (lookup, model, burst drive);
 * audio48k - the full renderer tick with 48 kHz burst synthesis.
 
@@ -39,7 +40,7 @@ def build(out: Path) -> Path:
     if not cc:
         raise SystemExit("no C compiler found")
     exe = out / "sd_bench"
-    srcs = [str(CDIR / n) for n in ("sd_pad.c", "sd_render.c", "tool_bench.c")]
+    srcs = [str(CDIR / n) for n in ("sd_pad.c", "sd_exact.c", "sd_render.c", "tool_bench.c")]
     subprocess.run([cc, "-std=c99", "-O2", "-ffp-contract=off", "-I", str(CDIR), *srcs, "-lm", "-o", str(exe)],
                    check=True)
     return exe
@@ -86,6 +87,7 @@ def main() -> int:
     print(f"Python Renderer.step (online, numba): {py['online'] / 1e6:8.3f} Mticks/s   (baseline)")
     print(f"Python Renderer.render (offline):     {py['offline'] / 1e6:8.3f} Mticks/s")
     for key, what in (("pad", "C jump model kernel (sd_jump_tick)"),
+                      ("exact", "C exact model kernel (sd_exact_tick)"),
                       ("drive", "C renderer tick, drive only"),
                       ("audio48k", "C renderer tick + 48 kHz audio")):
         v = rates.get(key, float("nan"))

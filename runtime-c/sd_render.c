@@ -246,6 +246,7 @@ int sd_renderer_init(sd_renderer_t *R, const sd_table_t *table, const sd_config_
         return SD_ERR_PARAM;
     if (!(cfg->carrier_hz > 0.0) || !(cfg->rise_s > 0.0) || !(cfg->decay_s > 0.0)) return SD_ERR_PARAM;
     if (cfg->policy < SD_RETRIGGER || cfg->policy > SD_MAX) return SD_ERR_PARAM;
+    if (cfg->model != SD_MODEL_JUMP && cfg->model != SD_MODEL_EXACT) return SD_ERR_PARAM;
     R->table = table;
     R->cfg = *cfg;
     sd_pad_prepare(&R->cfg.pad);
@@ -314,8 +315,11 @@ double sd_renderer_step(sd_renderer_t *R, double x, double y)
         nrec -= drop;
     }
     if (h > 0.0) {
-        long n1 = sd_jump_tick(&R->pad, &R->cfg.pad, t - h, h, V, N, mus, muk, gain, R->ev_t, R->ev_a, (int)cap,
-                               (int)nrec);
+        long n1 = R->cfg.model == SD_MODEL_EXACT
+                      ? sd_exact_tick(&R->pad, &R->cfg.pad, t - h, h, V, N, mus, muk, gain, R->ev_t, R->ev_a,
+                                      (int)cap, (int)nrec)
+                      : sd_jump_tick(&R->pad, &R->cfg.pad, t - h, h, V, N, mus, muk, gain, R->ev_t, R->ev_a,
+                                     (int)cap, (int)nrec);
         nev = n1 - nrec;
         if (n1 > cap) {
             R->events_dropped += n1 - cap;

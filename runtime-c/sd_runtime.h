@@ -61,6 +61,10 @@ void sd_pad_prepare(sd_pad_params_t *P);
 int sd_jump_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double t0, double h, double V, double N,
                  double mus, double muk, double gain, double *ev_t, double *ev_a, int cap, int n_ev);
 
+/* The exact event-driven pad model (pads._exact_tick), same calling convention. */
+int sd_exact_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double t0, double h, double V, double N,
+                  double mus, double muk, double gain, double *ev_t, double *ev_a, int cap, int n_ev);
+
 /* Closed-form slip outcome (see pads.jump_restick): slip time (inf = steady sliding) and the
  * spring stretch at re-stick. */
 void sd_jump_restick(double m, double c, double k, double s, double xb, double V, double muk, double N,
@@ -110,6 +114,7 @@ double sd_envelope(double tau, double rise, double decay);
 #endif
 
 enum { SD_RETRIGGER = 0, SD_ADD = 1, SD_MAX = 2 };               /* burst overlap policies */
+enum { SD_MODEL_JUMP = 0, SD_MODEL_EXACT = 1 };                  /* pad models */
 enum { SD_OK = 0, SD_ERR_ARG = -1, SD_ERR_TABLE = -2, SD_ERR_PARAM = -3 };
 
 /* Per-tick outputs, indices into sd_renderer_t.out (same as renderer.OUT_NAMES). */
@@ -127,6 +132,7 @@ typedef struct {
     double audio_rate;       /* Hz, 1000 .. 384000; 0 = no audio, drive per tick only */
     double carrier_hz, rise_s, decay_s;
     int policy;              /* SD_RETRIGGER, SD_ADD, SD_MAX */
+    int model;               /* SD_MODEL_JUMP (default, 0) or SD_MODEL_EXACT */
 } sd_config_t;
 
 typedef struct {

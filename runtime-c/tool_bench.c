@@ -6,7 +6,8 @@
  * 0.25 mm, uint16 codes); pad and burst of the bundled handheld-stick profile; cursor going
  * back and forth over the tent at 100 mm/s, 10 kHz ticks. Rates are ticks per second of CPU
  * time (CLOCK_PROCESS_CPUTIME_ID). Prints one line per configuration:
- *   pad      sd_jump_tick alone at the stroke's V and N (the model kernel)
+ *   pad      sd_jump_tick alone at 100 mm/s, N = 1.5 N (the model kernel)
+ *   exact    sd_exact_tick alone, same inputs
  *   drive    sd_renderer_step with audio_rate 0: lookup + model + burst drive per tick
  *   audio48k sd_renderer_step with 48 kHz audio synthesis (about 5 audio samples per tick)
  */
@@ -103,6 +104,7 @@ int main(int argc, char **argv)
     C.rise_s = 0.005;
     C.decay_s = 0.030;
     C.policy = SD_RETRIGGER;
+    C.model = SD_MODEL_JUMP;
 
     /* the model kernel alone: 100 mm/s, N = 1.5 N */
     sd_pad_prepare(&C.pad);
@@ -114,6 +116,14 @@ int main(int argc, char **argv)
     rate = (double)n / (now_s() - t0);
     sink = S.x + n_ev;
     printf("pad      %.1f Mticks/s\n", rate / 1e6);
+    sd_pad_reset(&S);
+    t0 = now_s();
+    for (i = 0; i < n / 10; i++) {
+        n_ev = sd_exact_tick(&S, &C.pad, (double)i * 1e-4, 1e-4, 0.1, 1.5, 0.5, 0.3, 1.0, ev_t, ev_a, 4096, 0);
+    }
+    rate = (double)(n / 10) / (now_s() - t0);
+    sink = S.x + n_ev;
+    printf("exact    %.1f Mticks/s\n", rate / 1e6);
 
     C.audio_rate = 0.0;
     rate = bench_render(&T, &C, n);

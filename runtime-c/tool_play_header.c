@@ -137,6 +137,7 @@ int main(int argc, char **argv)
     C.rise_s = sd_table_burst_rise_s;
     C.decay_s = sd_table_burst_decay_s;
     C.policy = SD_RETRIGGER;
+    C.model = SD_MODEL_JUMP;
     rc = sd_renderer_init(&R, &T, &C);
     if (rc != SD_OK) {
         fprintf(stderr, "sd_play_header: sd_renderer_init failed (%d)\n", rc);

@@ -1,7 +1,7 @@
 /* tool_vectors.c -- host program that runs the C runtime on test vectors written by Python.
  *
- *   sd_vectors pad    IN OUT   run the jump pad model over per-tick inputs (as pads.run_ticks)
- *   sd_vectors render IN OUT   render a cursor stroke through a table (as Renderer, model jump)
+ *   sd_vectors pad    IN OUT   run a pad model (jump or exact) over per-tick inputs (as pads.run_ticks)
+ *   sd_vectors render IN OUT   render a cursor stroke through a table (as Renderer.step)
  *
  * File layouts (little-endian; f64 = double, i64 = int64) are documented next to the writers
  * in tests/test_c_runtime.py. This program is a test tool: it allocates freely; the runtime
@@ -52,7 +52,7 @@ static int run_pad(void)
     double prm[5];
     sd_pad_params_t P;
     sd_pad_state_t S;
-    int64_t n, i;
+    int64_t n, i, model;
     double *t, *V, *N, *mus, *muk, *gain, *of, *ox, *ophase, *ev_t, *ev_a;
     int cap, n_ev = 0;
     rd(prm, sizeof(double), 5);
@@ -62,6 +62,7 @@ static int run_pad(void)
     P.burst_gain = prm[3];
     P.max_stick_period = prm[4];
     sd_pad_prepare(&P);
+    model = rd_i64();
     n = rd_i64();
     if (n < 1 || n > 100000000) die("bad tick count");
     t = rd_f64(n); V = rd_f64(n); N = rd_f64(n); mus = rd_f64(n); muk = rd_f64(n); gain = rd_f64(n);
@@ -78,7 +79,9 @@ static int run_pad(void)
         for (i = 0; i < n; i++) {
             double h = i > 0 ? t[i] - t[i - 1] : 0.0;
             double t0 = i > 0 ? t[i - 1] : t[0];
-            if (h > 0.0)
+            if (h > 0.0 && model == SD_MODEL_EXACT)
+                n_ev = sd_exact_tick(&S, &P, t0, h, V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, cap, n_ev);
+            else if (h > 0.0)
                 n_ev = sd_jump_tick(&S, &P, t0, h, V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, cap, n_ev);
             of[i] = S.f;
             ophase[i] = S.phase;
@@ -124,6 +127,7 @@ static int run_render(void)
     int rc;
     rd(c, sizeof(double), 14);
     policy = rd_i64();
+    C.model = (int)rd_i64();
     C.pad.mass = c[0]; C.pad.stiffness = c[1]; C.pad.damping = c[2]; C.pad.burst_gain = c[3];
     C.pad.max_stick_period = c[4]; C.mu_s = c[5]; C.mu_k = c[6]; C.k_mu = c[7]; C.skin_target = c[8];
     C.tick_rate = c[9]; C.audio_rate = c[10]; C.carrier_hz = c[11]; C.rise_s = c[12]; C.decay_s = c[13];

@@ -21,6 +21,7 @@ from shapedisplay.runtime.models import get_model, run_kernel
 from shapedisplay.devices import BurstParams, FrictionParams, PadParams, load_device
 
 ROOT = Path(__file__).resolve().parent.parent
+C_MODELS = {"jump": 0, "exact": 1}
 CDIR = ROOT / "runtime-c"
 CFLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-pedantic", "-Werror", "-ffp-contract=off"]
 
@@ -35,7 +36,7 @@ def _cc():
 @pytest.fixture(scope="module")
 def sd_vectors(tmp_path_factory):
     out = tmp_path_factory.mktemp("c-runtime") / "sd_vectors"
-    srcs = [str(CDIR / "sd_pad.c"), str(CDIR / "sd_render.c"), str(CDIR / "tool_vectors.c")]
+    srcs = [str(CDIR / n) for n in ("sd_pad.c", "sd_exact.c", "sd_render.c", "tool_vectors.c")]
     cmd = [_cc(), *CFLAGS, "-I", str(CDIR), *srcs, "-lm", "-o", str(out)]
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, f"C runtime failed to build:\n{' '.join(cmd)}\n{res.stderr}"
@@ -51,12 +52,13 @@ def _run(exe, mode, payload: bytes, tmp_path) -> bytes:
 
 
 # ------------------------------------------------------------------ pad kernel vectors
-# Input:  f64 params[5] (m, k, c, B, max_stick_period), i64 n, f64 t[n], V[n], N[n], mus[n], muk[n], gain[n]
+# Input:  f64 params[5] (m, k, c, B, max_stick_period), i64 model (0 jump, 1 exact), i64 n,
+#         f64 t[n], V[n], N[n], mus[n], muk[n], gain[n]
 # Output: f64 f[n], phase[n], x[n], i64 n_ev, f64 ev_t[n_ev], ev_a[n_ev]
 def pad_vectors(exe, tmp_path, model, t, V, N, mus, muk, gain):
     P = model.params
     payload = (np.array([P[pads.P_M], P[pads.P_K], P[pads.P_C], P[pads.P_B], P[pads.P_TMAX]], "<f8").tobytes()
-               + struct.pack("<q", t.size)
+               + struct.pack("<qq", C_MODELS[model.name], t.size)
                + b"".join(np.asarray(a, "<f8").tobytes() for a in (t, V, N, mus, muk, gain)))
     raw = _run(exe, "pad", payload, tmp_path)
     n = t.size
@@ -66,11 +68,11 @@ def pad_vectors(exe, tmp_path, model, t, V, N, mus, muk, gain):
     return arr[0], arr[1], arr[2], ev[0], ev[1]
 
 
-def _jump(pad=None, friction=None, max_stick=0.0, gain=0.25):
+def _jump(pad=None, friction=None, max_stick=0.0, gain=0.25, name="jump"):
     dev = load_device(None)
     dev = dev.with_(pad=pad or dev.pad, friction=friction or dev.friction,
                     burst=BurstParams(gain=gain, max_stick_period_s=max_stick))
-    return get_model("jump", dev)
+    return get_model(name, dev)
 
 
 CASES = {
@@ -88,9 +90,10 @@ CASES = {
 
 @pytest.mark.parametrize("case", list(CASES))
 @pytest.mark.parametrize("rate", [1000.0, 10000.0, 96000.0])
-def test_jump_kernel_bit_exact(sd_vectors, tmp_path, case, rate):
+@pytest.mark.parametrize("name", ["jump", "exact"])
+def test_pad_kernel_bit_exact(sd_vectors, tmp_path, case, rate, name):
     spec = dict(CASES[case])
-    model = _jump(spec.pop("pad", None), spec.pop("friction", None), spec.pop("max_stick", 0.0))
+    model = _jump(spec.pop("pad", None), spec.pop("friction", None), spec.pop("max_stick", 0.0), name=name)
     n = int(0.2 * rate) + 1
     t = np.arange(n) / rate
     rng = np.random.default_rng(abs(hash(case)) % 2**32)
@@ -141,7 +144,7 @@ def test_restick_closed_form_matches_python(sd_vectors, tmp_path):
 
 # ------------------------------------------------------------------ renderer vectors
 # Input:  f64 cfg[14] (m, k, c, B, max_stick, mu_s, mu_k, K_mu, skin_target, tick_rate, audio_rate,
-#         carrier, rise, decay), i64 policy; table: i64 rows, cols, f64 dx, dy, x0, y0, i64 n_blocks,
+#         carrier, rise, decay), i64 policy, i64 model (0 jump, 1 exact); table: i64 rows, cols, f64 dx, dy, x0, y0, i64 n_blocks,
 #         i64 blocks[n_blocks][5], i64 n_values, per slot (renderer.SLOTS order): i64 dtype (-1 absent;
 #         0 u8, 1 u16, 2 f32, 3 f64) then f64 scale, offset, background and the codes;
 #         i64 n, f64 x[n], y[n].
@@ -161,7 +164,7 @@ def render_payload(r: Renderer, x, y) -> bytes:
     head = np.array([P[pads.P_M], P[pads.P_K], P[pads.P_C], P[pads.P_B], P[pads.P_TMAX],
                      cfg[R_.CFG_MUS], cfg[R_.CFG_MUK], cfg[R_.CFG_KMU], cfg[R_.CFG_SST],
                      r.tick_rate, r.audio_rate, b.carrier_hz, b.rise_s, b.decay_s], "<f8").tobytes()
-    head += struct.pack("<q", r._policy)
+    head += struct.pack("<qq", r._policy, C_MODELS[r.model.name])
     t = r.table
     g = t.grid
     off = t.patch_offsets()
@@ -238,18 +241,20 @@ def stroke(n, kind):
 
 
 RENDER_CASES = [
-    ("uint16", "diagonal", "retrigger", 10_000.0, None),
-    ("uint8", "circles", "retrigger", 10_000.0, None),
-    ("float32", "circles", "add", 4_000.0, 48_000.0),
-    ("uint16", "teleports", "max", 10_000.0, 44_100.0),
-    ("float64", "diagonal", "retrigger", 96_000.0, 96_000.0),
+    ("uint16", "diagonal", "retrigger", 10_000.0, None, "jump"),
+    ("uint16", "diagonal", "retrigger", 10_000.0, None, "exact"),
+    ("float32", "teleports", "max", 4_000.0, 48_000.0, "exact"),
+    ("uint8", "circles", "retrigger", 10_000.0, None, "jump"),
+    ("float32", "circles", "add", 4_000.0, 48_000.0, "jump"),
+    ("uint16", "teleports", "max", 10_000.0, 44_100.0, "jump"),
+    ("float64", "diagonal", "retrigger", 96_000.0, 96_000.0, "jump"),
 ]
 
 
-@pytest.mark.parametrize("dtype, kind, policy, tick, audio", RENDER_CASES)
-def test_renderer_bit_exact(sd_vectors, tmp_path, dtype, kind, policy, tick, audio):
+@pytest.mark.parametrize("dtype, kind, policy, tick, audio, model", RENDER_CASES)
+def test_renderer_bit_exact(sd_vectors, tmp_path, dtype, kind, policy, tick, audio, model):
     table = widget_table(dtype)
-    r = Renderer(table, model="jump", tick_rate=tick, audio_rate=audio, burst_policy=policy)
+    r = Renderer(table, model=model, tick_rate=tick, audio_rate=audio, burst_policy=policy)
     n = int(0.25 * tick)
     x, y = stroke(n, kind)
     po, pa, (pclip, pev) = py_render(r, x, y)
@@ -290,7 +295,7 @@ def test_table_from_c_header_export(tmp_path, sparse, kmu):
     if kmu:
         defs.append("-DSD_TABLE_K_MU=sd_table_slope_friction_gain")
     cmd = [_cc(), *CFLAGS, *defs, "-I", str(CDIR), str(CDIR / "tool_play_header.c"), str(CDIR / "sd_render.c"),
-           str(CDIR / "sd_pad.c"), "-lm", "-o", str(exe)]
+           str(CDIR / "sd_pad.c"), str(CDIR / "sd_exact.c"), "-lm", "-o", str(exe)]
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stderr
     r = Renderer(table, model="jump", tick_rate=10_000.0, audio_rate=48_000.0)

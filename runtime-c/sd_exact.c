@@ -1,0 +1,292 @@
+/* sd_exact.c -- the exact event-driven Konyo pad (model "exact"), one renderer tick at a time.
+ *
+ * A port of shapedisplay/runtime/pads.py (_exact_tick, slip_search, _polish, _w, osc,
+ * _next_acc_zero), operation for operation in IEEE double precision (rules in sd_pad.c).
+ * Stick phases are linear in time; slip phases are closed-form damped oscillations under
+ * kinetic friction; re-stick is bracketed between the closed-form extrema of the pad velocity
+ * and polished by safeguarded Newton. The work diagnostics of the Python kernel (energy
+ * dissipated by friction and damper) are not computed: the renderer does not output them.
+ * No allocation; bounded work per phase change.
+ */
+#include <math.h>
+#include "sd_runtime.h"
+
+#define SD_PI 3.141592653589793
+#define ADMIT (1.0 - 1e-9)
+
+static double sgn(double x) { return x > 0.0 ? 1.0 : (x < 0.0 ? -1.0 : 0.0); }
+static double py_max(double a, double b) { return b > a ? b : a; }
+static double py_min(double a, double b) { return b < a ? b : a; }
+
+static double py_mod(double a, double b)
+{
+    double r = fmod(a, b);
+    if (r != 0.0) {
+        if ((b < 0.0) != (r < 0.0)) r += b;
+    } else {
+        r = copysign(0.0, b);
+    }
+    return r;
+}
+
+/* Free damped oscillator m y'' + c y' + k y = 0 from (y0, v0) at time t (all damping cases). */
+static void osc(double m, double c, double k, double y0, double v0, double t, double *y, double *v)
+{
+    double sig = 0.5 * c / m, wn2 = k / m, disc = sig * sig - wn2;
+    if (disc < -1e-10 * wn2) {
+        double wd = sqrt(-disc), e = exp(-sig * t), cs = cos(wd * t), sn = sin(wd * t);
+        *y = e * (y0 * cs + (v0 + sig * y0) / wd * sn);
+        *v = e * (v0 * cs - (wn2 * y0 + sig * v0) / wd * sn);
+        return;
+    }
+    if (disc > 1e-10 * wn2) {
+        double sq = sqrt(disc), r1, r2, p, q, e1, e2;
+        if (sig >= 0.0) {
+            r2 = -sig - sq;
+            r1 = wn2 / r2;
+        } else {
+            r1 = -sig + sq;
+            r2 = wn2 / r1;
+        }
+        p = (v0 - r2 * y0) / (r1 - r2);
+        q = y0 - p;
+        e1 = exp(r1 * t);
+        e2 = exp(r2 * t);
+        *y = p * e1 + q * e2;
+        *v = r1 * p * e1 + r2 * q * e2;
+        return;
+    }
+    {
+        double w = sig, a = y0, b = v0 + w * y0, e = exp(-w * t);
+        *y = (a + b * t) * e;
+        *v = (b - w * a - w * b * t) * e;
+    }
+}
+
+static double acc(double m, double c, double k, double y, double v) { return -(c * v + k * y) / m; }
+
+static double next_acc_zero(double m, double c, double k, double y0, double v0, double after)
+{
+    double sig = 0.5 * c / m, wn2 = k / m, disc = sig * sig - wn2;
+    double a0 = -2.0 * sig * v0 - wn2 * y0;
+    double j0 = -2.0 * sig * a0 - wn2 * v0;
+    if (disc < -1e-10 * wn2) {
+        double wd = sqrt(-disc), bb = (j0 + sig * a0) / wd, phi, th1, tz;
+        if (a0 == 0.0 && bb == 0.0) return INFINITY;
+        phi = atan2(bb, a0);
+        th1 = py_mod(phi + 0.5 * SD_PI, SD_PI);
+        if (th1 < 1e-9 || th1 > SD_PI - 1e-9) {
+            th1 = th1 > 1.0 ? SD_PI : th1 + SD_PI;
+            if (th1 < SD_PI) th1 = SD_PI;
+        }
+        tz = th1 / wd;
+        if (tz <= after) {
+            double nper = floor((after - tz) * wd / SD_PI) + 1.0;
+            tz = (th1 + nper * SD_PI) / wd;
+            while (tz <= after) tz += SD_PI / wd;
+        }
+        return tz;
+    }
+    if (disc > 1e-10 * wn2) {
+        double sq = sqrt(disc), r1, r2, p, q, num, den, tz;
+        if (sig >= 0.0) {
+            r2 = -sig - sq;
+            r1 = wn2 / r2;
+        } else {
+            r1 = -sig + sq;
+            r2 = wn2 / r1;
+        }
+        p = (v0 - r2 * y0) / (r1 - r2);
+        q = y0 - p;
+        num = -r2 * r2 * q;
+        den = r1 * r1 * p;
+        if (den == 0.0 || num / den <= 0.0) return INFINITY;
+        tz = log(num / den) / (r1 - r2);
+        return (tz > after && tz > 1e-15) ? tz : INFINITY;
+    }
+    {
+        double w = sig, b = v0 + w * y0, tz;
+        if (b == 0.0) return INFINITY;
+        tz = (2.0 * b - w * y0) / (w * b);
+        return (tz > after && tz > 1e-15) ? tz : INFINITY;
+    }
+}
+
+static double wrel(double m, double c, double k, double y0, double v0, double V, double s, double t)
+{
+    double y, v;
+    osc(m, c, k, y0, v0, t, &y, &v);
+    return -s * (v - V);
+}
+
+static double polish(double m, double c, double k, double y0, double v0, double V, double s, double lo, double hi)
+{
+    double wlo = wrel(m, c, k, y0, v0, V, s, lo), whi = wrel(m, c, k, y0, v0, V, s, hi), t;
+    int it;
+    if (wlo - whi > 0.0) t = lo + (hi - lo) * wlo / (wlo - whi);
+    else t = 0.5 * (lo + hi);
+    if (!(lo < t && t < hi)) t = 0.5 * (lo + hi);
+    for (it = 0; it < 200; it++) {
+        double y, v, wt, dw, tn;
+        osc(m, c, k, y0, v0, t, &y, &v);
+        wt = -s * (v - V);
+        if (wt == 0.0) return t;
+        if (wt > 0.0) lo = t;
+        else hi = t;
+        dw = -s * acc(m, c, k, y, v);
+        tn = dw != 0.0 ? t - wt / dw : 0.5 * (lo + hi);
+        if (!(lo < tn && tn < hi)) tn = 0.5 * (lo + hi);
+        if (fabs(tn - t) <= 1e-16 + 1e-15 * t || hi - lo <= 1e-16 + 1e-15 * hi) return tn;
+        t = tn;
+    }
+    return 0.5 * (lo + hi);
+}
+
+/* First re-stick candidate of a slip within rem seconds: kind 0 none (t = rem), 1 crossing,
+ * 2 near-tangent touch. */
+static int slip_search(double m, double c, double k, double y0, double v0, double V, double s, double rem,
+                       double *t_out)
+{
+    double tol = 1e-12 * (fabs(V) + fabs(v0)) + 1e-300;
+    double sig = 0.5 * c / m, wn2 = k / m, disc = sig * sig - wn2, ta = 0.0;
+    if (sig >= 0.0 && disc < -1e-10 * wn2) {
+        double wd = sqrt(-disc), bv = (wn2 * y0 + sig * v0) / wd, amp = sqrt(v0 * v0 + bv * bv);
+        if (s * V - amp > 2.0 * tol) {
+            *t_out = rem;
+            return 0;
+        }
+    }
+    for (;;) {
+        double tz = next_acc_zero(m, c, k, y0, v0, ta), tb, wb;
+        int interior = tz < rem;
+        tb = interior ? tz : rem;
+        wb = wrel(m, c, k, y0, v0, V, s, tb);
+        if (wb < 0.0) {
+            double tr = polish(m, c, k, y0, v0, V, s, ta, tb);
+            *t_out = tr;
+            if (interior && wb >= -tol) return 2;
+            return 1;
+        }
+        if (wb == 0.0) {
+            *t_out = tb;
+            return interior ? 2 : 1;
+        }
+        if (interior && wb <= tol) {
+            *t_out = tb;
+            return 2;
+        }
+        if (!interior) {
+            *t_out = rem;
+            return 0;
+        }
+        ta = tb;
+    }
+}
+
+static int record(double *ev_t, double *ev_a, int cap, int n_ev, double t, double a)
+{
+    if (n_ev < cap) {
+        ev_t[n_ev] = t;
+        ev_a[n_ev] = a;
+    }
+    return n_ev + 1;
+}
+
+int sd_exact_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double t0, double h, double V, double N,
+                  double mus, double muk, double gain, double *ev_t, double *ev_a, int cap, int n_ev)
+{
+    const double m = P->mass, k = P->stiffness, c = P->damping;
+    const double B = P->burst_gain * gain;
+    const double tmax = P->max_stick_period;
+    double x = S->x, v = S->v, phase = S->phase, s = S->s, age = S->age, ncap = S->ncap;
+    double t = 0.0, Neff;
+    int nev0 = n_ev;
+    long it = 0;
+    while (t < h) {
+        double rem, F, xeq, y0, tr, y1, v1, fst;
+        int kind;
+        it += 1;
+        if (it > SD_MAX_EVENTS_PER_TICK) {
+            S->truncated += 1;
+            break;
+        }
+        rem = h - t;
+        if (phase == 0.0) {
+            double thr = mus * N, f = k * x + c * V;
+            int brk = 0, forced = 0;
+            v = V;
+            if (fabs(f) > thr * (1.0 + 1e-12) || (fabs(f) >= thr && f * V > 0.0 && thr > 0.0)
+                || (thr == 0.0 && f != 0.0)) {
+                brk = 1;
+            } else {
+                double tb = INFINITY, tf = INFINITY, tn;
+                if (V != 0.0) {
+                    tb = (sgn(V) * thr - f) / (k * V);
+                    if (tb < 0.0) tb = 0.0;
+                }
+                if (tmax > 0.0) tf = py_max(tmax - age, 0.0);
+                tn = py_min(tb, tf);
+                if (tn >= rem) {
+                    x += V * rem;
+                    age += rem;
+                    t = h;
+                    break;
+                }
+                x += V * tn;
+                age += tn;
+                t += tn;
+                f = k * x + c * V;
+                brk = 1;
+                forced = tf < tb;
+            }
+            if (brk) {
+                s = sgn(f);
+                if (s == 0.0) s = V != 0.0 ? sgn(V) : 1.0;
+                if (forced && mus > 0.0) ncap = fabs(f) / mus;
+                n_ev = record(ev_t, ev_a, cap, n_ev, t0 + t, B * fabs(k * x));
+                phase = 1.0;
+                age = 0.0;
+                continue;
+            }
+        }
+        /* slip */
+        Neff = N < ncap ? N : ncap;
+        F = s * muk * Neff;
+        xeq = F / k;
+        y0 = x - xeq;
+        kind = slip_search(m, c, k, y0, v, V, s, rem, &tr);
+        osc(m, c, k, y0, v, tr, &y1, &v1);
+        x = y1 + xeq;
+        v = v1;
+        t += tr;
+        if (kind == 0) {
+            t = h;
+            break;
+        }
+        fst = k * x + c * V;
+        if (fabs(fst) <= ADMIT * mus * N) {
+            phase = 0.0;
+            v = V;
+            ncap = INFINITY;
+            age = 0.0;
+        } else if (kind == 1) {
+            s = -s;
+        } else if (tr <= 0.0) {
+            t += py_min(1e-12, h - t);
+        }
+    }
+    S->x = x;
+    S->v = v;
+    S->phase = phase;
+    S->s = s;
+    S->age = age;
+    S->ncap = ncap;
+    S->n_events = n_ev - nev0;
+    if (phase == 0.0) {
+        S->f = k * x + c * V;
+    } else {
+        Neff = N < ncap ? N : ncap;
+        S->f = s * muk * Neff;
+    }
+    return n_ev;
+}
