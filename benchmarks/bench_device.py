@@ -102,7 +102,8 @@ def tutorial_image() -> bytes:
 
 def main() -> int:
     image = table_image(60_000)
-    print(f"table image: {len(image)} bytes; line rate at {BAUD} baud 8N1 = {LINE_RATE / 1e3:.2f} kB/s")
+    print(f"table image: {len(image)} bytes; line rate at {BAUD} baud 8N1 = {LINE_RATE / 1e3:.2f} kB/s; "
+          f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
     fast = bench_upload(image, 0)
     paced = bench_upload(image, BAUD)
     print(f"upload, unpaced pty (memory speed): {fast / 1e3:9.1f} kB/s  = {fast / LINE_RATE:6.2f} x line rate")
