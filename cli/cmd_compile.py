@@ -26,7 +26,7 @@ def register(sub) -> None:
     g.add_argument("--height", help="heights of gray 0 and full scale, e.g. 0:2mm (float .npy: omit = metres)")
     g.add_argument("--resolution", help="sample spacing, e.g. 0.1mm (images: instead of --size; meshes: grid step)")
     g = p.add_argument_group("mesh sources")
-    g.add_argument("--up", help="mesh axis that points up: x, y or z (default z)")
+    g.add_argument("--up", help="mesh axis that points up: x, y, z, -x, -y, -z or a vector dx,dy,dz (default z)")
     g.add_argument("--units", help="length unit of the mesh coordinates, e.g. mm (default mm)")
     g = p.add_argument_group("mapping (DESIGN 3.2-3.6)")
     g.add_argument("--mapping", default="height",
@@ -122,7 +122,6 @@ def run(args) -> int:
     src = Path(args.source)
     suffix = src.suffix.lower()
     mapping, options = build_options(args)
-    device = load_device(args.device)
     if suffix == ".toml":
         for opt in _IMAGE_ONLY + _MESH_ONLY + ("resolution",):
             if getattr(args, opt) is not None:
@@ -135,8 +134,11 @@ def run(args) -> int:
             raise InputError(f"`--mapping` applies to images and meshes; a scene sets its mapping in its "
                              f"[mapping] table ({src})")
         from shapedisplay.scene import compile_scene
+        # Without --device the scene's own [device] applies.
+        device = load_device(args.device) if args.device else None
         result = compile_scene(src, device=device, options=options)
     else:
+        device = load_device(args.device)
         opts = {}
         if suffix in MESH_SUFFIXES:
             for opt in _IMAGE_ONLY:
@@ -168,5 +170,8 @@ def run(args) -> int:
         print(json.dumps(result.report, indent=2, allow_nan=False))
     elif not args.quiet:
         print(format_report(result.report))
+        if "widgets" in result.report:
+            from shapedisplay.scene import format_widget_report
+            print(format_widget_report(result.report))
         print(f"wrote {out}")
     return 0

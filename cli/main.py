@@ -56,6 +56,11 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("shapedisplay: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # The reader closed the pipe (e.g. `| head`): stop quietly.
+        import os
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 if __name__ == "__main__":  # pragma: no cover
