@@ -21,8 +21,15 @@ test: $(STAMP)
 
 demo: $(STAMP)
 	@mkdir -p $(OUT)
+	# 1. a height map -> friction-envelope table (the published tent profile)
 	$(SD) compile assets/maps/tent_profile.png -o $(OUT)/tent.npz --size 60x4mm --height 0:2mm --mapping height --n-base 0.5N --n-gain 2N/mm
 	$(SD) inspect $(OUT)/tent.npz
+	# 2. the phone screen scene -> table, played by the exact stick-slip renderer
+	$(SD) compile assets/scenes/phone.toml -o $(OUT)/phone.npz
+	$(SD) play $(OUT)/phone.npz --stroke "62,2 -> 62,156 @ 30mm/s" --model exact --rate 10kHz -o $(OUT)/phone.wav --trace-out $(OUT)/phone-trace.npz --plot $(OUT)/phone-trace.png
+	# 3. a 3D preview of the scene with the played stroke (off-screen)
+	$(SD) preview $(OUT)/phone.npz --trace $(OUT)/phone-trace.npz --color N -o $(OUT)/phone-preview.png
+	@echo "demo outputs in $(OUT)/: tent.npz phone.npz phone.wav phone-trace.npz phone-trace.png phone-preview.png"
 
 bench: $(STAMP)
 	for b in benchmarks/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
