@@ -1,6 +1,5 @@
 """Framing of the device link: COBS, CRC-32, the incremental decoder, message bodies."""
 import struct
-import zlib
 
 import numpy as np
 import pytest

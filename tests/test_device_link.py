@@ -167,7 +167,6 @@ def test_duplicated_request_runs_once(link, emu, image):
 
 
 def make_table_bytes(seed, cols=128):
-    import io
     import tempfile
     with tempfile.TemporaryDirectory() as d:
         return make_table(cols, seed).save(os.path.join(d, "t.npz")).read_bytes()
