@@ -44,6 +44,9 @@ def register(sub) -> None:
                    help="pace the pty to this line rate (bit/s, 8N1); 0 = memory speed (default)")
     q.add_argument("--memory", default="256 KiB", help="table memory, e.g. '64 KiB' (default 256 KiB)")
     q.add_argument("--model", default="jump", help="renderer model (default jump)")
+    q.add_argument("--engine", default="python", choices=("python", "c"),
+                   help="render with the Python runtime (default) or the C99 runtime of runtime-c/ "
+                        "(built with the system C compiler)")
     q.add_argument("--tick-rate", default="10 kHz", help="renderer tick rate (default 10 kHz)")
     q.add_argument("--stream-rate", default="1 kHz", help="cursor sample rate (default 1 kHz)")
     q.add_argument("--queue", type=int, default=64, help="cursor queue capacity, samples (default 64)")
@@ -175,7 +178,12 @@ def run_emulate(args) -> int:
             raise unknown_key("model", args.model, MODELS)
     cfg = EmulatorConfig(max_table_bytes=mem, queue_capacity=args.queue, stream_rate_hz=int(stream),
                          tick_rate_hz=int(tick), model=args.model, renderer=not args.no_renderer, baud=args.baud)
-    emu = DeviceEmulator(cfg)
+    engine = None
+    if args.engine == "c" and not args.no_renderer:
+        from shapedisplay.device.c_engine import CEngine, library
+        library()                      # build once, up front: one-line error if it cannot be built
+        engine = CEngine
+    emu = DeviceEmulator(cfg, engine_factory=engine)
     emu.prepare()                      # compile the renderer before the port is announced
     port = emu.open_pty()
     if args.port_file:

@@ -230,6 +230,8 @@ static void derive(const sd_renderer_t *R, const double *vals, double vx, double
 }
 
 /* ------------------------------------------------------------------ renderer */
+size_t sd_renderer_size(void) { return sizeof(sd_renderer_t); }
+
 int sd_renderer_init(sd_renderer_t *R, const sd_table_t *table, const sd_config_t *cfg)
 {
     const sd_pad_params_t *p = &cfg->pad;

@@ -13,6 +13,7 @@
 #ifndef SD_RUNTIME_H
 #define SD_RUNTIME_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 #ifdef __cplusplus
@@ -146,6 +147,8 @@ typedef struct {
     double out[SD_NOUT];                /* outputs of the last tick */
 } sd_renderer_t;
 
+/* sizeof(sd_renderer_t), for bindings that allocate it from another language. */
+size_t sd_renderer_size(void);
 /* Validate and bind; returns SD_OK or an SD_ERR_* code. No allocation here or later. */
 int sd_renderer_init(sd_renderer_t *R, const sd_table_t *table, const sd_config_t *cfg);
 /* Start a new run at cursor time t0 (s). */

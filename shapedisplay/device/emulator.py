@@ -180,12 +180,14 @@ class RenderEngine:
     with the table's device cursor gain.
     """
 
-    def __init__(self, table, model: str, tick_rate_hz: int, stream_rate_hz: int, input_kind: int):
+    def __init__(self, table, model: str, tick_rate_hz: int, stream_rate_hz: int, input_kind: int,
+                 renderer=None):
         from ..errors import InputError
         from ..runtime import Renderer
         self.per = max(1, tick_rate_hz // stream_rate_hz)
         self.input_kind = input_kind
-        self.renderer = Renderer(table, model=model, tick_rate=float(tick_rate_hz))
+        self.renderer = renderer if renderer is not None else Renderer(table, model=model,
+                                                                        tick_rate=float(tick_rate_hz))
         self.alpha = float(self.renderer.device.cursor_gain)
         if input_kind == P.Input.FORCE and not self.alpha > 0:
             raise InputError(f"force input needs a cursor gain; the table's device profile "
@@ -204,13 +206,13 @@ class RenderEngine:
         return self._buf[:m]
 
 
-def _warm_renderer(config: EmulatorConfig) -> None:
+def _warm_renderer(config: EmulatorConfig, engine=None) -> None:
     """Load and compile the runtime kernels once, on a one-sample table (not on the I/O path)."""
     from ..table import FrictionTable, Grid, choose_quantization
     z = np.full((1, 2), 1.0)
     t = FrictionTable.from_dense(Grid(1, 2, 1e-3, 1e-3), {"normal_force": z},
                                  {"normal_force": choose_quantization(z, "float32")})
-    eng = RenderEngine(t, config.model, config.tick_rate_hz, config.stream_rate_hz, P.Input.POSITION)
+    eng = (engine or RenderEngine)(t, config.model, config.tick_rate_hz, config.stream_rate_hz, P.Input.POSITION)
     eng.render(0.0, 0.0)
     eng.render(1e-4, 0.0)
 
@@ -277,8 +279,9 @@ class DeviceEmulator:
 
     def prepare(self) -> None:
         """Load and compile the renderer (firmware has it built in before it boots). Idempotent."""
-        if not self._prepared and self.config.renderer and self.engine_factory is RenderEngine:
-            _warm_renderer(self.config)
+        if (not self._prepared and self.config.renderer and isinstance(self.engine_factory, type)
+                and issubclass(self.engine_factory, RenderEngine)):
+            _warm_renderer(self.config, self.engine_factory)
         self._prepared = True
 
     def open_pty(self) -> str:

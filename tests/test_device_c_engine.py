@@ -1,0 +1,72 @@
+"""The emulator rendering with the C runtime (ctypes): same samples as the Python renderer, over a pty."""
+import numpy as np
+import pytest
+
+pytest.importorskip("serial")
+
+from shapedisplay.device.c_engine import CEngine, CRenderer
+from shapedisplay.device.emulator import DeviceEmulator, EmulatorConfig, render_stream
+from shapedisplay.device.host import DeviceLink
+from shapedisplay.runtime import Renderer
+from test_device_render import f32, tent_table
+
+
+@pytest.fixture(scope="module", autouse=True)
+def private_cache(tmp_path_factory):
+    """Build the shared library into a temporary cache, not the user's."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("XDG_CACHE_HOME", str(tmp_path_factory.mktemp("cache")))
+        yield
+
+
+@pytest.mark.parametrize("model", ["jump", "exact"])
+def test_c_renderer_steps_like_python(model):
+    table = tent_table()
+    x = np.concatenate([np.linspace(0.0, 0.06, 3000), np.linspace(0.06, 0.02, 1500)])
+    c = render_stream(CRenderer(table, model=model, tick_rate=10_000.0), x, None, 10)
+    py = render_stream(Renderer(table, model=model, tick_rate=10_000.0), x, None, 10)
+    assert np.count_nonzero(py) > 1000
+    np.testing.assert_array_equal(c, py)
+
+
+def test_emulator_with_c_engine_over_pty(tmp_path):
+    table = tent_table()
+    emu = DeviceEmulator(EmulatorConfig(model="jump"), engine_factory=CEngine)
+    emu.start()
+    try:
+        with DeviceLink(emu.port, timeout=2.0) as link:
+            link.upload(table.save(tmp_path / "t.npz").read_bytes())
+            x = np.linspace(0.003, 0.057, 300)
+            rep = link.stream(x, paced=False, monitor=True)
+            assert rep.rendered == 300 and rep.missing_outputs == 0
+        host = render_stream(Renderer(table, model="jump", tick_rate=10_000.0), f32(x), None, 10)
+        np.testing.assert_array_equal(rep.outputs, f32(host))
+    finally:
+        emu.close()
+
+
+def test_cli_emulate_with_c_engine(tmp_path, capsys):
+    import os
+    import subprocess
+    import sys
+    import time
+    from shapedisplay_cli.main import main
+    port_file = tmp_path / "port"
+    proc = subprocess.Popen([sys.executable, "-m", "shapedisplay_cli.main", "device", "emulate", "--engine", "c",
+                             "--timeout", "60", "--port-file", str(port_file)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=dict(os.environ))
+    try:
+        t_end = time.monotonic() + 90
+        while not port_file.exists():
+            assert proc.poll() is None and time.monotonic() < t_end, proc.stderr.read() if proc.poll() else "slow"
+            time.sleep(0.05)
+        table = str(tent_table().save(tmp_path / "t.npz"))
+        out = tmp_path / "played.npz"
+        assert main(["device", "play", table, port_file.read_text().strip(), "--stroke",
+                     "5,0 -> 45,0 @ 100 mm/s", "-o", str(out)]) == 0
+        with np.load(out) as z:
+            drive = z["drive"]
+        assert drive.size == 1 + 400 * 10 and np.count_nonzero(drive) > 1000
+    finally:
+        proc.terminate()
+        proc.wait(10)
