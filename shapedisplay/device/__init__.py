@@ -6,7 +6,9 @@
 * :mod:`.host` — :class:`~.host.DeviceLink`, the host end (needs pyserial,
   the ``serial`` extra);
 * :mod:`.emulator` — :class:`~.emulator.DeviceEmulator`, firmware behaviour
-  on a pseudo-terminal, rendering with :mod:`shapedisplay.runtime`.
+  on a pseudo-terminal, rendering with :mod:`shapedisplay.runtime`;
+* :mod:`.c_engine` — the emulator's optional engine running the C99
+  runtime of ``runtime-c/`` through ctypes.
 
 Nothing here opens a port or imports pyserial at import time.
 """
