@@ -545,8 +545,9 @@ def _plots(rep, out_dir):
             key = r.get("model") or r.get("method")
             groups.setdefault(key, []).append(r)
         for key, rs in groups.items():
-            good = [r for r in rs if r.get("event_rms_rel") is not None and r["cpu_s_per_sim_s"]]
-            bad = [r for r in rs if r.get("event_rms_rel") is None and r.get("cpu_s_per_sim_s")]
+            good = [r for r in rs if r["status"] == "ok" and r.get("event_rms_rel") is not None
+                    and r["cpu_s_per_sim_s"]]
+            bad = [r for r in rs if r not in good and r.get("cpu_s_per_sim_s")]
             if good:
                 ax.loglog([r["cpu_s_per_sim_s"] for r in good], [max(r["event_rms_rel"], floor) for r in good],
                           markers.get(key, "o"), label=key, alpha=0.8,

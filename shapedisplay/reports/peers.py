@@ -68,6 +68,24 @@ def _tolerances(rtol, scales):
     return float(rtol), np.asarray([float(rtol) * s for s in scales], dtype=np.float64)
 
 
+class _Failed:
+    """Stands in for a solve_ivp result when the solver raised (e.g. a non-finite Jacobian)."""
+
+    def __init__(self, exc):
+        self.status = -1
+        self.message = f"solver raised {type(exc).__name__}: {exc}"
+        self.nfev = 0
+
+
+def _solve(solve_ivp, *args, **kw):
+    """``solve_ivp`` that reports numerical breakdowns as a failed result instead of raising."""
+    try:
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            return solve_ivp(*args, **kw)
+    except (ValueError, FloatingPointError, OverflowError, ZeroDivisionError, np.linalg.LinAlgError) as exc:
+        return _Failed(exc)
+
+
 def _next_break(breaks, t, t_end):
     for b in breaks:
         if b > t * (1 + 1e-15) + 1e-15:
@@ -136,11 +154,11 @@ def konyo_ivp(method, rtol, *, m, k, c, mu_s, mu_k, V, N, t_end, breaks=(), x_sc
                 ev_a.append(abs(k * x))
                 v = V(t)
                 continue
-            sol = solve_ivp(stick_rhs, (t, tb), [x], method=method, rtol=rt, atol=at1, events=brk)
+            sol = _solve(solve_ivp, stick_rhs, (t, tb), [x], method=method, rtol=rt, atol=at1, events=brk)
             calls += 1
             nfev += sol.nfev
             if sol.status < 0:
-                status, msg = "failed", str(sol.message)
+                status, msg = "failed", f"{method}: {sol.message}"
                 break
             if sol.status == 1 and len(sol.t_events[0]):
                 t = float(sol.t_events[0][0])
@@ -163,11 +181,11 @@ def konyo_ivp(method, rtol, *, m, k, c, mu_s, mu_k, V, N, t_end, breaks=(), x_sc
             return -ss * (y[1] - V(tt))
         restick.terminal = True
         restick.direction = -1
-        sol = solve_ivp(slip_rhs, (t, tb), [x, v], method=method, rtol=rt, atol=at2, events=restick)
+        sol = _solve(solve_ivp, slip_rhs, (t, tb), [x, v], method=method, rtol=rt, atol=at2, events=restick)
         calls += 1
         nfev += sol.nfev
         if sol.status < 0:
-            status, msg = "failed", str(sol.message)
+            status, msg = "failed", f"{method}: {sol.message}"
             break
         if sol.status == 1 and len(sol.t_events[0]):
             t = float(sol.t_events[0][0])
@@ -254,11 +272,11 @@ def stribeck_ivp(method, rtol, *, m, k, c, mu_s, mu_k, a, b, W, V, amp, omega, t
                 ev_a.append(abs(k * u))
                 phase, sr, du = 1, (-1.0 if F > 0 else 1.0), dxc(t) - V
                 continue
-            sol = solve_ivp(stick_rhs, (t, t_end), [u], method=method, rtol=rt, atol=at2[:1], events=brk)
+            sol = _solve(solve_ivp, stick_rhs, (t, t_end), [u], method=method, rtol=rt, atol=at2[:1], events=brk)
             calls += 1
             nfev += sol.nfev
             if sol.status < 0:
-                status, msg = "failed", str(sol.message)
+                status, msg = "failed", f"{method}: {sol.message}"
                 break
             if sol.status == 1 and len(sol.t_events[0]):
                 t = float(sol.t_events[0][0])
@@ -283,11 +301,11 @@ def stribeck_ivp(method, rtol, *, m, k, c, mu_s, mu_k, a, b, W, V, amp, omega, t
             return s_ * (y[1] + V - dxc(tt))
         restick.terminal = True
         restick.direction = -1
-        sol = solve_ivp(slip_rhs, (t, t_end), [u, du], method=method, rtol=rt, atol=at2, events=restick)
+        sol = _solve(solve_ivp, slip_rhs, (t, t_end), [u, du], method=method, rtol=rt, atol=at2, events=restick)
         calls += 1
         nfev += sol.nfev
         if sol.status < 0:
-            status, msg = "failed", str(sol.message)
+            status, msg = "failed", f"{method}: {sol.message}"
             break
         if sol.status == 1 and len(sol.t_events[0]):
             t = float(sol.t_events[0][0])
