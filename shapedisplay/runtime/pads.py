@@ -399,7 +399,10 @@ def _exact_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
         F = s * muk * Neff
         xeq = F / k
         y0 = x - xeq
-        kind, tr = slip_search(m, c, k, y0, v, V, s, rem, tmin)
+        if mus * N > 0.0:
+            kind, tr = slip_search(m, c, k, y0, v, V, s, rem, tmin)
+        else:
+            kind, tr = 0, rem      # no static friction: nothing to stick to
         tmin = 0.0
         y1, v1 = osc(m, c, k, y0, v, tr)
         wdmp += osc_damping_work(m, c, k, y0, v, tr)
@@ -411,7 +414,8 @@ def _exact_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
             t = h
             break
         fst = k * x + c * V
-        if abs(fst) <= (_ADMIT if kind == 1 else _ADMIT_TOUCH) * mus * N:
+        # no static friction at all (N = 0 or mu_s = 0): the pad never sticks again
+        if mus * N > 0.0 and abs(fst) <= (_ADMIT if kind == 1 else _ADMIT_TOUCH) * mus * N:
             phase = 0.0
             # re-stick: the pad takes the surface velocity (|v - V| ~ 1e-15 m/s)
             v = V
@@ -420,8 +424,9 @@ def _exact_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
         elif kind == 1:
             s = -s
         else:
-            # grazing touch that is not a re-stick: keep slipping past it
-            tmin = 1e-9
+            # grazing touch that is not a re-stick: keep slipping past it; the
+            # next touch or crossing is at least one extremum (pi / omega_d) away
+            tmin = 0.5 * math.pi * math.sqrt(m / k)
     S[S_X] = x
     S[S_V] = v
     S[S_PHASE] = phase
@@ -548,6 +553,8 @@ def _jump_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
             n_ev = _record(ev_t, ev_a, n_ev, t0 + t, B * abs(k * x))
             Neff = N if N < ncap else ncap
             tsl, xr = jump_restick(m, c, k, s, x, V, muk, Neff)
+            if thr <= 0.0 or abs(k * xr + c * V) > thr:
+                tsl = np.inf
             S[S_XR] = xr
             phase = 1.0
             age = 0.0
