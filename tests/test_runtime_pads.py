@@ -240,3 +240,33 @@ def test_stribeck_premax_variant_is_finite_and_has_no_stick_state():
     assert np.abs(r.friction_force).max() <= 2.1 + 2.0 * 0.2
     with pytest.raises(InputError, match="variant"):
         simulate_pad("stribeck", variant="tanh")
+
+
+@pytest.mark.parametrize("m,k,c,N,V,mus,muk,rate", [
+    # undamped pad without normal force: free oscillation, grazes the surface speed every period
+    (0.0028598650146535636, 306.77299536664776, 0.0, 0.0, -1.444e-4, 0.4785, 0.4785, 192_000),
+    # nearly undamped stiff pad, tiny delta_mu
+    (4.04e-05, 3.58e8, 1.42e-05, 0.152, -0.029, 0.43874, 0.43830, 10_000),
+    # critically damped pad
+    (1e-6, 2000.0, 2 * math.sqrt(2000.0 * 1e-6), 2.0, 0.05, 0.5, 0.3, 1000),
+    # heavily over-damped pad
+    (1e-6, 2000.0, 5.0, 2.0, 0.05, 0.5, 0.3, 1000),
+])
+def test_extreme_pads_finish_with_bounded_output(m, k, c, N, V, mus, muk, rate):
+    for model in ("exact", "jump"):
+        r = simulate_pad(model, V=V, N=N, pad=PadParams(m, k, c), friction=FrictionParams(mus, muk),
+                         tick_rate=rate, duration=0.05)
+        assert np.all(np.isfinite(r.friction_force))
+        assert np.all(np.abs(r.friction_force[1:]) <= mus * N * (1 + 1e-9) + abs(c * V) * (N == 0))
+
+
+@settings(max_examples=30, deadline=None)
+@given(logm=st.floats(-8, -2), logk=st.floats(1, 6), zeta=st.floats(0, 3), N=st.floats(0, 10),
+       V=st.floats(-1, 1), mus=st.floats(0.05, 1.0), ratio=st.sampled_from([0.0, 0.5, 0.99, 1.0]))
+def test_exact_bounded_for_random_pads(logm, logk, zeta, N, V, mus, ratio):
+    m, k = 10.0 ** logm, 10.0 ** logk
+    c = zeta * 2 * math.sqrt(k * m)
+    r = simulate_pad("exact", V=V, N=N, pad=PadParams(m, k, c), friction=FrictionParams(mus, mus * ratio),
+                     tick_rate=1000, duration=0.02)
+    assert np.all(np.isfinite(r.friction_force)) and np.all(np.isfinite(r.event_amplitude))
+    assert np.all(np.abs(r.friction_force[1:]) <= mus * N * (1 + 1e-9) + (abs(c * V) if N == 0 else 0.0))
