@@ -318,7 +318,7 @@ def run_kernel(model: PadModel, t, V, N, mus, muk, gain, state=None):
     Returns ``(state, friction, phase, x, v, wf, wd, ev_t, ev_a)``.
     """
     n = t.shape[0]
-    cap = 2 * n + 64
+    cap = n // 8 + 1024          # grown and re-run if a path has more events
     S0 = model.new_state() if state is None else state
     while True:
         S = S0.copy()

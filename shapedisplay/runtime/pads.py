@@ -926,14 +926,55 @@ def run_ticks(model, S, P, t, V, N, mus, muk, gain, out_f, out_state, out_x, out
     S[S_WF] = 0.0
     S[S_WD] = 0.0
     _store(S, 0, out_f, out_state, out_x, out_v, out_wf, out_wd)
-    if model == MODEL_EXACT:
+    if model == MODEL_EXACT or model == MODEL_JUMP:
+        # Stuck ticks (the common case) are handled inline with the stretch in a
+        # register; the model's tick function runs when a breakaway may happen
+        # or the pad slips. Same arithmetic as the fast path inside the ticks.
+        k = P[P_K]
+        c = P[P_C]
+        fast_ok = P[P_TMAX] == 0.0
+        x = S[S_X]
+        phase = S[S_PHASE]
+        synced = True
         for i in range(1, n):
-            n_ev = _exact_tick(S, P, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
+            Vi = V[i]
+            h = t[i] - t[i - 1]
+            if fast_ok and phase == 0.0:
+                xe = x + Vi * h
+                fa = k * x + c * Vi
+                fe = k * xe + c * Vi
+                thr = mus[i] * N[i]
+                if abs(fa) < thr and abs(fe) < thr:
+                    x = xe
+                    out_f[i] = fe
+                    out_state[i] = 0.0
+                    out_x[i] = xe
+                    out_v[i] = Vi
+                    if model == MODEL_EXACT:
+                        out_wf[i] = fa * Vi * h + 0.5 * k * Vi * Vi * h * h
+                        out_wd[i] = c * Vi * Vi * h
+                    else:
+                        out_wf[i] = 0.0
+                        out_wd[i] = 0.0
+                    synced = False
+                    continue
+            if not synced:
+                S[S_X] = x
+            if model == MODEL_EXACT:
+                n_ev = _exact_tick(S, P, t[i - 1], h, Vi, N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
+            else:
+                n_ev = _jump_tick(S, P, t[i - 1], h, Vi, N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
             _store(S, i, out_f, out_state, out_x, out_v, out_wf, out_wd)
-    elif model == MODEL_JUMP:
-        for i in range(1, n):
-            n_ev = _jump_tick(S, P, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
-            _store(S, i, out_f, out_state, out_x, out_v, out_wf, out_wd)
+            x = S[S_X]
+            phase = S[S_PHASE]
+            synced = True
+        if not synced:
+            S[S_X] = x
+            S[S_V] = V[n - 1]
+            S[S_F] = out_f[n - 1]
+            S[S_WF] = out_wf[n - 1]
+            S[S_WD] = out_wd[n - 1]
+            S[S_NEV] = 0.0
     elif model == MODEL_KARNOPP:
         for i in range(1, n):
             n_ev = _karnopp_tick(S, P, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a,
