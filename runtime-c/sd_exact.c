@@ -12,7 +12,8 @@
 #include "sd_runtime.h"
 
 #define SD_PI 3.141592653589793
-#define ADMIT (1.0 - 1e-9)
+#define ADMIT (1.0 - 1e-9)        /* re-stick admissible if |f| <= ADMIT * mu_s N */
+#define ADMIT_TOUCH (1.0 - 1e-6)  /* stricter for tangent touches (grazing the limit is no re-stick) */
 
 static double sgn(double x) { return x > 0.0 ? 1.0 : (x < 0.0 ? -1.0 : 0.0); }
 static double py_max(double a, double b) { return b > a ? b : a; }
@@ -143,9 +144,10 @@ static double polish(double m, double c, double k, double y0, double v0, double 
 }
 
 /* First re-stick candidate of a slip within rem seconds: kind 0 none (t = rem), 1 crossing,
- * 2 near-tangent touch. */
+ * 2 near-tangent touch. Touches before tmin are ignored (stepping past a grazing touch that
+ * was not a re-stick). */
 static int slip_search(double m, double c, double k, double y0, double v0, double V, double s, double rem,
-                       double *t_out)
+                       double tmin, double *t_out)
 {
     double tol = 1e-12 * (fabs(V) + fabs(v0)) + 1e-300;
     double sig = 0.5 * c / m, wn2 = k / m, disc = sig * sig - wn2, ta = 0.0;
@@ -158,9 +160,14 @@ static int slip_search(double m, double c, double k, double y0, double v0, doubl
     }
     for (;;) {
         double tz = next_acc_zero(m, c, k, y0, v0, ta), tb, wb;
-        int interior = tz < rem;
+        int interior = tz < rem, graze;
         tb = interior ? tz : rem;
         wb = wrel(m, c, k, y0, v0, V, s, tb);
+        graze = interior && wb >= -tol && wb <= tol;
+        if (graze && tb < tmin) {
+            ta = tb;
+            continue;
+        }
         if (wb < 0.0) {
             double tr = polish(m, c, k, y0, v0, V, s, ta, tb);
             *t_out = tr;
@@ -171,7 +178,7 @@ static int slip_search(double m, double c, double k, double y0, double v0, doubl
             *t_out = tb;
             return interior ? 2 : 1;
         }
-        if (interior && wb <= tol) {
+        if (graze) {
             *t_out = tb;
             return 2;
         }
@@ -195,13 +202,37 @@ static int record(double *ev_t, double *ev_a, int cap, int n_ev, double t, doubl
 int sd_exact_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double t0, double h, double V, double N,
                   double mus, double muk, double gain, double *ev_t, double *ev_a, int cap, int n_ev)
 {
-    const double m = P->mass, k = P->stiffness, c = P->damping;
-    const double B = P->burst_gain * gain;
-    const double tmax = P->max_stick_period;
-    double x = S->x, v = S->v, phase = S->phase, s = S->s, age = S->age, ncap = S->ncap;
-    double t = 0.0, Neff;
-    int nev0 = n_ev;
-    long it = 0;
+    double m, k, c, B, tmax, x, v, phase, s, age, ncap, t, Neff, tmin;
+    int nev0;
+    long it;
+    /* fast path: stuck for the whole tick (the stick force is linear in time, so both ends
+     * inside the static limit means no breakaway in between) -- as pads._exact_tick */
+    if (S->phase == 0.0 && P->max_stick_period == 0.0) {
+        double k_ = P->stiffness, xe = S->x + V * h;
+        double fa = k_ * S->x + P->damping * V, fe = k_ * xe + P->damping * V, thr_ = mus * N;
+        if (fabs(fa) < thr_ && fabs(fe) < thr_) {
+            S->x = xe;
+            S->v = V;
+            S->f = fe;
+            S->n_events = 0;
+            return n_ev;
+        }
+    }
+    m = P->mass;
+    k = P->stiffness;
+    c = P->damping;
+    B = P->burst_gain * gain;
+    tmax = P->max_stick_period;
+    x = S->x;
+    v = S->v;
+    phase = S->phase;
+    s = S->s;
+    age = S->age;
+    ncap = S->ncap;
+    t = 0.0;
+    nev0 = n_ev;
+    it = 0;
+    tmin = 0.0;
     while (t < h) {
         double rem, F, xeq, y0, tr, y1, v1, fst;
         int kind;
@@ -254,7 +285,13 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double t0, double
         F = s * muk * Neff;
         xeq = F / k;
         y0 = x - xeq;
-        kind = slip_search(m, c, k, y0, v, V, s, rem, &tr);
+        if (mus * N > 0.0) {
+            kind = slip_search(m, c, k, y0, v, V, s, rem, tmin, &tr);
+        } else {
+            kind = 0;            /* no static friction: nothing to stick to */
+            tr = rem;
+        }
+        tmin = 0.0;
         osc(m, c, k, y0, v, tr, &y1, &v1);
         x = y1 + xeq;
         v = v1;
@@ -264,15 +301,18 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double t0, double
             break;
         }
         fst = k * x + c * V;
-        if (fabs(fst) <= ADMIT * mus * N) {
+        /* no static friction at all (N = 0 or mu_s = 0): the pad never sticks again */
+        if (mus * N > 0.0 && fabs(fst) <= (kind == 1 ? ADMIT : ADMIT_TOUCH) * mus * N) {
             phase = 0.0;
             v = V;
             ncap = INFINITY;
             age = 0.0;
         } else if (kind == 1) {
             s = -s;
-        } else if (tr <= 0.0) {
-            t += py_min(1e-12, h - t);
+        } else {
+            /* grazing touch that is not a re-stick: keep slipping past it; the next touch or
+             * crossing is at least one extremum (pi / omega_d) away */
+            tmin = 0.5 * SD_PI * sqrt(m / k);
         }
     }
     S->x = x;

@@ -150,13 +150,35 @@ static int record(double *ev_t, double *ev_a, int cap, int n_ev, double t, doubl
 int sd_jump_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double t0, double h, double V, double N,
                  double mus, double muk, double gain, double *ev_t, double *ev_a, int cap, int n_ev)
 {
-    const double k = P->stiffness, c = P->damping;
-    const double B = P->burst_gain * gain;
-    const double tmax = P->max_stick_period;
-    double x = S->x, phase = S->phase, s = S->s, age = S->age, ncap = S->ncap, tsl = S->tsl;
-    double t = 0.0, Neff;
-    int nev0 = n_ev;
-    long it = 0;
+    double x, phase, s, age, ncap, tsl, t, Neff, k, c, B, tmax;
+    int nev0;
+    long it;
+    /* fast path: stuck for the whole tick (the stick force is linear in time, so both ends
+     * inside the static limit means no breakaway in between) -- as pads._jump_tick */
+    if (S->phase == 0.0 && P->max_stick_period == 0.0) {
+        double k_ = P->stiffness, xe = S->x + V * h;
+        double fa = k_ * S->x + P->damping * V, fe = k_ * xe + P->damping * V, thr_ = mus * N;
+        if (fabs(fa) < thr_ && fabs(fe) < thr_) {
+            S->x = xe;
+            S->v = V;
+            S->f = fe;
+            S->n_events = 0;
+            return n_ev;
+        }
+    }
+    k = P->stiffness;
+    c = P->damping;
+    B = P->burst_gain * gain;
+    tmax = P->max_stick_period;
+    x = S->x;
+    phase = S->phase;
+    s = S->s;
+    age = S->age;
+    ncap = S->ncap;
+    tsl = S->tsl;
+    t = 0.0;
+    nev0 = n_ev;
+    it = 0;
     while (t < h) {
         double rem;
         it += 1;
@@ -212,6 +234,8 @@ int sd_jump_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double t0, double 
                 S->memo_out[0] = tsl;
                 S->memo_out[1] = xr;
             }
+            /* a re-stick force beyond the static limit (or no static friction) is no re-stick */
+            if (thr <= 0.0 || fabs(k * xr + c * V) > thr) tsl = INFINITY;
             S->xr = xr;
             phase = 1.0;
             age = 0.0;
