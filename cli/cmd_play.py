@@ -23,6 +23,8 @@ def register(sub) -> None:
     p.add_argument("--audio-rate", help="audio sample rate, e.g. 48kHz (default: the device's)")
     p.add_argument("--format", default="float32", help="WAV sample format: float32 | int16 (default float32)")
     p.add_argument("--burst-policy", default="retrigger", help="retrigger | add | max (default retrigger)")
+    p.add_argument("--burst-gain", help="burst gain B in 1/N (full scale per newton of breakaway force), "
+                                        "e.g. 0.25; overrides the device's")
     p.add_argument("--max-stick-period", help="force a slip after this long stuck, e.g. 50ms (default off)")
     p.add_argument("-o", "--output", required=True, help="WAV file to write")
     p.add_argument("--trace-out", help="write the per-tick trace (.npz)")
@@ -47,6 +49,13 @@ def run(args) -> int:
         raise unknown_key("--format", args.format, SAMPLE_FORMATS)
     table = FrictionTable.load(args.table)
     device = load_device(args.device) if args.device else None
+    if args.burst_gain is not None:
+        from dataclasses import replace
+
+        from shapedisplay.runtime.renderer import device_for_table
+        gain = parse_quantity(args.burst_gain, "1/N", "--burst-gain", bare_ok=True)
+        base = device if device is not None else device_for_table(table)
+        device = base.with_(burst=replace(base.burst, gain=gain))
     rate = parse_quantity(args.rate, "Hz", "--rate") if args.rate else None
     arate = parse_quantity(args.audio_rate, "Hz", "--audio-rate") if args.audio_rate else None
     msp = parse_quantity(args.max_stick_period, "s", "--max-stick-period") if args.max_stick_period else None

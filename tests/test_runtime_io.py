@@ -172,6 +172,20 @@ def test_cli_play_int16_trace_and_force(tiny_table, tmp_path):
                  "-o", str(out), "--json"]) == 0
 
 
+def test_cli_burst_gain_scales_the_audio(tiny_table, tmp_path, capsys):
+    _, path, dev = tiny_table
+    peaks = []
+    for gain in ("0.1", "0.2"):
+        out = tmp_path / f"g{gain}.wav"
+        assert main(["play", str(path), "--device", str(dev), "--stroke", "0,2 -> 60,2 @ 20mm/s",
+                     "--burst-gain", gain, "-o", str(out)]) == 0
+        peaks.append(np.abs(read_wav(out)[0]).max())
+    assert np.isclose(peaks[1], 2 * peaks[0], rtol=1e-6)
+    assert main(["play", str(path), "--stroke", "0,2 -> 60,2 @ 20mm/s", "--burst-gain", "-1",
+                 "-o", str(tmp_path / "x.wav")]) == 2
+    assert "gain" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("extra,match", [
     (["--stroke", "0,2 -> 0,2 @ 20mm/s"], "zero length"),
     (["--stroke", "0,2 -> 60,2 @ 0mm/s"], "speed must be > 0"),

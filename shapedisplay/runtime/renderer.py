@@ -305,7 +305,9 @@ class RenderResult:
         }
 
 
-def _device_for(table: FrictionTable, device) -> DeviceProfile:
+def device_for_table(table: FrictionTable, device=None) -> DeviceProfile:
+    """The profile a renderer uses: ``device`` (profile, path or bundled name) if given,
+    else ``table.meta["device"]``, else the built-in Konyo profile."""
     if isinstance(device, DeviceProfile):
         return device.validate()
     if device is not None:
@@ -344,7 +346,7 @@ class Renderer:
                  burst_policy="retrigger", max_stick_period=None, **model_options):
         if not isinstance(table, FrictionTable):
             raise InputError(f"`table` must be a FrictionTable (got {type(table).__name__})")
-        dev = _device_for(table, device)
+        dev = device_for_table(table, device)
         if max_stick_period is not None:
             msp = float(max_stick_period)
             if not (math.isfinite(msp) and msp >= 0):
