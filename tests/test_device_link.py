@@ -396,3 +396,20 @@ def test_link_arguments_checked():
     from shapedisplay.errors import InputError
     with pytest.raises(InputError, match="timeout"):
         DeviceLink("loop://", timeout=0)
+
+
+def test_missing_pyserial_is_one_line_install_hint(monkeypatch):
+    import sys
+    from shapedisplay.errors import MissingDependencyError
+    monkeypatch.setitem(sys.modules, "serial", None)      # import serial -> ImportError
+    with pytest.raises(MissingDependencyError, match=r"The device link needs serial: pip install 'shapedisplay\[serial\]'"):
+        DeviceLink("loop://").connect()
+
+
+def test_import_does_not_load_pyserial():
+    import subprocess
+    import sys
+    code = ("import sys, shapedisplay.device.host, shapedisplay.device.emulator, shapedisplay.device.protocol; "
+            "print('serial' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60).stdout.strip()
+    assert out == "False"
