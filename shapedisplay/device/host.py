@@ -249,7 +249,11 @@ class DeviceLink:
         self._reader = None
 
     def __enter__(self) -> "DeviceLink":
-        self.connect()
+        try:
+            self.connect()
+        except BaseException:
+            self.close()            # a failed handshake leaves no port open
+            raise
         return self
 
     def __exit__(self, *exc) -> None:
