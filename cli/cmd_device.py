@@ -53,6 +53,7 @@ def register(sub) -> None:
     q.add_argument("--no-renderer", action="store_true", help="emulate a device that only plays actuator streams")
     q.add_argument("--timeout", type=float, default=None, help="stop after this many seconds (default: Ctrl-C)")
     q.add_argument("--port-file", help="also write the port path to this file")
+    q.add_argument("--link", help="also create a symbolic link of this name to the pty (a stable port name)")
     q.set_defaults(func=run_emulate)
 
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
@@ -185,7 +186,7 @@ def run_emulate(args) -> int:
         engine = CEngine
     emu = DeviceEmulator(cfg, engine_factory=engine)
     emu.prepare()                      # compile the renderer before the port is announced
-    port = emu.open_pty()
+    port = emu.open_pty(link=args.link)
     if args.port_file:
         write_text(args.port_file, port + "\n")
     print(f"device emulator on {port}  (connect with: shapedisplay device info {port}; Ctrl-C stops)", flush=True)

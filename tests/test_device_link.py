@@ -413,3 +413,30 @@ def test_import_does_not_load_pyserial():
             "print('serial' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60).stdout.strip()
     assert out == "False"
+
+
+def test_reconnect_after_device_reenumerates(tmp_path, image):
+    """A USB device that resets disappears and comes back under its stable name; the host reconnects."""
+    e = DeviceEmulator(EmulatorConfig(), engine_factory=ProbeEngine)
+    stable = str(tmp_path / "ttySHAPE0")
+    e.open_pty(link=stable)
+    e.start()
+    try:
+        ln = DeviceLink(stable, timeout=0.3, retries=2)
+        ln.connect()
+        ln.upload(image)
+        old_tty, boots = e.tty, e.boots
+        t = threading.Timer(0.05, e.replug, kwargs={"gone_s": 0.3})
+        t.start()
+        with pytest.raises((DeviceDisconnected, LinkTimeout, DeviceResetError)):
+            ln.stream(np.linspace(0, 0.1, 3000), paced=True)
+        t.join()
+        caps = ln.reconnect(wait_s=5.0)
+        assert e.tty != old_tty and e.boots == boots + 1 and caps.version == P.PROTOCOL_VERSION
+        st = ln.status()
+        assert st.active_crc == crc32(image) and st.state == P.State.IDLE   # the committed table survived
+        rep = ln.stream(np.linspace(0, 0.1, 50), paced=False)
+        assert rep.rendered == 50
+        ln.close()
+    finally:
+        e.close()

@@ -284,12 +284,23 @@ class DeviceEmulator:
             _warm_renderer(self.config, self.engine_factory)
         self._prepared = True
 
-    def open_pty(self) -> str:
-        """Create the pty pair; return the slave path a host should open."""
+    def open_pty(self, link: str | None = None) -> str:
+        """Create the pty pair; return the path a host should open.
+
+        With ``link``, a symbolic link of that name points at the pty (a stable
+        device name, as udev's ``/dev/serial/by-id/...``) and is returned; it is
+        moved to the new pty when the device re-enumerates (:meth:`replug`).
+        """
         master, slave = os.openpty()
         tty.setraw(slave)          # no echo, no line editing, before any host opens it
         self._master, self._slave = master, slave
-        self.port = os.ttyname(slave)
+        self.tty = os.ttyname(slave)
+        if link is not None:
+            tmp = f"{link}.{os.getpid()}.tmp"
+            os.symlink(self.tty, tmp)
+            os.replace(tmp, link)
+            self._link = link
+        self.port = link or getattr(self, "_link", None) or self.tty
         return self.port
 
     def start(self) -> str:
@@ -337,6 +348,21 @@ class DeviceEmulator:
         """Test hook: the port disappears (USB unplugged) while the host may be using it."""
         self.log.append("port vanished")
         self.close()
+
+    def replug(self, gone_s: float = 0.2) -> str:
+        """Test hook: a USB device resets and re-enumerates.
+
+        The port disappears, the device reboots (RAM lost, committed table kept),
+        and after ``gone_s`` seconds a new port appears (the stable link, if any,
+        follows it). Returns the new port.
+        """
+        self.log.append("replug")
+        self.close()
+        self._power_on()
+        time.sleep(gone_s)
+        self._master = None
+        self.open_pty(getattr(self, "_link", None))
+        return self.start()
 
     def reset(self) -> None:
         """Power-cycle: RAM (staging buffer, queue, reply cache) is lost, the committed table kept."""
