@@ -194,7 +194,10 @@ class StribeckModel(PadModel):
     contactor_hz, contactor_amplitude_m : float, optional
         Override the contactor stimulus.
     substep_s : float
-        Largest substep (default 2 us).
+        Largest substep (default 2 us). Where the negative friction slope
+        self-excites the pad (``W dmu/dv < -c``) steps are further limited to
+        ``0.5 m / |c + W dmu/dv|``: cheap for the Imaizumi pad (m = 1e-4 kg),
+        slow (about 15x real time) on the 1e-6 kg Konyo pad.
     """
 
     name = "stribeck"

@@ -470,9 +470,9 @@ class Renderer:
     def step(self, x: float, y: float) -> float:
         """Advance one tick with the cursor at (x, y) metres; return the burst drive in [-1, 1].
 
-        Outputs of the tick are in :attr:`last` (indexed by ``O_*``; also
-        :meth:`outputs`) and the tick's audio samples in
-        ``audio_block[:int(last[O_NAUDIO])]``. Allocation-free; see the
+        Outputs of the tick are in :attr:`last` (indexed by ``O_*``, names in
+        ``OUT_NAMES``; also :meth:`outputs`) and the tick's audio samples in
+        ``audio_block[:audio_samples]``. Allocation-free; see the
         real-time rules in the module docstring.
         """
         drive = online_step(self._model_id, self._W, self._blocks, self._data, self._ev, self._audio, x, y)
@@ -483,6 +483,11 @@ class Renderer:
     def outputs(self) -> dict:
         """The last tick's outputs as a dict (allocates; not for the real-time loop)."""
         return {name: float(v) for name, v in zip(OUT_NAMES, self.last)}
+
+    @property
+    def audio_samples(self) -> int:
+        """Number of valid samples in :attr:`audio_block` after the last :meth:`step`."""
+        return int(self._W[W_OUT + O_NAUDIO])
 
     @property
     def clipped(self) -> int:
