@@ -252,3 +252,25 @@ def test_friction_scale_and_burst_gain_channels():
     mus = 0.5 * r.device.friction.mu_s
     assert np.allclose(res.mu_s, mus)
     assert np.allclose(res.event_amplitude, 0.3 * 2.0 * (mus * 2.0 - r.device.pad.damping * 0.02))
+
+
+def test_step_allocates_nothing_per_tick():
+    import tracemalloc
+    t = ramp_table()
+    r = Renderer(t, device=quiet_device(), model="exact", tick_rate=10_000)
+    xs = parse_stroke("0,0 <-> 60,0 @ 40 mm/s", 10_000).x.tolist()
+    r.reset()
+    step = r.step
+    for i in range(200):
+        step(xs[i], 0.0)
+    tracemalloc.start()
+    try:
+        base, _ = tracemalloc.get_traced_memory()
+        tracemalloc.reset_peak()
+        for i in range(200, 20_000):
+            step(xs[i], 0.0)
+        cur, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert r.event_count > 10
+    assert cur - base <= 256 and peak - base < 2048   # bytes, over 19800 ticks
