@@ -219,6 +219,9 @@ def test_missing_channel_and_bad_options():
         Renderer(t, burst_policy="loudest")
     with pytest.raises(InputError, match="model"):
         Renderer(t, model="verlet")
+    t = make_table({"normal_force": 1.0}, meta={"mapping": {"slope_friction_gain": 0.3}})
+    with pytest.raises(TableError, match="grad_x"):
+        Renderer(t)
 
 
 @settings(max_examples=15, deadline=None)

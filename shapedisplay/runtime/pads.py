@@ -23,6 +23,11 @@ the same code:
     Stick-to-slip event times (s) and burst amplitudes; events beyond the
     capacity are counted but not written (the caller re-runs with more room).
 
+Inputs change only at tick boundaries. In stick the pad then takes the new
+surface velocity at once (static friction supplies the impulse; the kinetic
+energy changes by m (V1^2 - V0^2) / 2, negligible for a 1e-6 kg pad); in
+slip the pad velocity is continuous and only the forcing changes.
+
 Sign conventions
 ----------------
 ``x`` is the pad displacement from its rest position relative to the

@@ -50,7 +50,7 @@ import numpy as np
 from numba import njit
 
 from ..devices import DeviceProfile, load_device
-from ..errors import InputError, ModelError
+from ..errors import InputError, ModelError, TableError
 from ..table import FrictionTable
 from ..units import parse_quantity
 from . import pads
@@ -368,6 +368,10 @@ class Renderer:
         kmu = float(mapping.get("slope_friction_gain", 0.0) or 0.0)
         if not (math.isfinite(kmu) and kmu >= 0):
             raise InputError(f"table mapping `slope_friction_gain` must be >= 0 (got {kmu!r})")
+        if kmu > 0 and "grad_x" not in self.present:
+            raise TableError(f"table mapping sets slope_friction_gain={kmu:g} but the table lacks channel "
+                             f"'grad_x' (and 'grad_y') needed for direction-dependent friction; "
+                             f"it holds {table.channels}")
         sst = 0.0
         if "skin_stretch" in dev.extra and "target" in dev.extra["skin_stretch"]:
             sst = parse_quantity(dev.extra["skin_stretch"]["target"], "m", "skin_stretch.target")
