@@ -12,7 +12,7 @@ from shapedisplay.errors import InputError, ModelError, TableError
 from shapedisplay.runtime.bursts import envelope, render_bursts
 from shapedisplay.runtime.cursor import CursorPath, parse_stroke
 from shapedisplay.runtime.models import simulate_pad
-from shapedisplay.runtime.renderer import O_F, O_NAUDIO, O_SS, Renderer
+from shapedisplay.runtime.renderer import O_F, O_LX, O_NAUDIO, Renderer
 from shapedisplay.table import FrictionTable, Grid, choose_quantization
 
 
@@ -277,3 +277,28 @@ def test_step_allocates_nothing_per_tick():
         tracemalloc.stop()
     assert r.event_count > 10
     assert cur - base <= 256 and peak - base < 2048   # bytes, over 19800 ticks
+
+
+@settings(max_examples=10, deadline=None)
+@given(pts=st.lists(st.tuples(st.floats(-0.01, 0.07), st.floats(-0.001, 0.005)), min_size=3, max_size=30),
+       model=st.sampled_from(["exact", "jump", "karnopp"]), policy=st.sampled_from(["retrigger", "add", "max"]))
+def test_online_equals_offline_on_random_2d_paths(pts, model, policy):
+    kmu = 0.3
+    xs = np.arange(121) * 0.5e-3
+    N = 0.5 + np.clip(100.0 * (xs - 0.02), 0.0, 2.0)
+    t = make_table({"normal_force": N, "grad_x": np.gradient(N), "grad_y": 0.1, "lateral_x": 0.2 * N},
+                   rows=11, meta={"mapping": {"slope_friction_gain": kmu}})
+    n = len(pts)
+    cp = CursorPath(np.arange(n) / 2000.0, np.array([p[0] for p in pts]), np.array([p[1] for p in pts]),
+                    2000.0, "random")
+    r = Renderer(t, device=quiet_device(), model=model, tick_rate=2000, burst_policy=policy)
+    res = r.render(cp)
+    r.reset()
+    F, LX = [], []
+    for x, y in zip(cp.x, cp.y):
+        r.step(x, y)
+        F.append(r.last[O_F])
+        LX.append(r.last[O_LX])
+    assert np.allclose(F, res.friction_force, rtol=1e-9, atol=1e-12)
+    assert np.allclose(LX, res.lateral_x, rtol=1e-9, atol=1e-12)
+    assert r.event_count == res.event_time.size
