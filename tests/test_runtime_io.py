@@ -107,6 +107,9 @@ def test_wav_float32_round_trip_and_errors(tmp_path):
     p = write_wav(tmp_path / "f.wav", x, 44100)
     y, rate = read_wav(p)
     assert rate == 44100 and y.size == 1001 and np.allclose(y, x, atol=1e-7)
+    from scipy.io import wavfile   # an independent reader
+    r2, y2 = wavfile.read(p)
+    assert r2 == 44100 and y2.dtype == np.float32 and np.allclose(y2, x, atol=1e-7)
     with pytest.raises(InputError, match="NaN"):
         write_wav(tmp_path / "n.wav", np.array([0.0, np.nan]), 48000)
     with pytest.raises(InputError, match="sample format"):
