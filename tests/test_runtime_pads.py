@@ -231,11 +231,14 @@ def test_stribeck_converges_with_substep_and_tick_rate():
             assert ev.size == runs[0][1].size and np.max(np.abs(ev - runs[0][1])) <= 1e-5
 
 
-def test_stribeck_premax_variant_is_finite_and_has_no_stick_state():
+def test_stribeck_premax_variant_is_finite_and_counts_region_exits():
     from shapedisplay.runtime.studies import IMAIZUMI_FRICTION, IMAIZUMI_PAD
     r = simulate_pad("stribeck", V=0.04, N=1.0, pad=IMAIZUMI_PAD, friction=IMAIZUMI_FRICTION, tick_rate=1000,
                      duration=0.3, variant="premax", contactor_hz=6.0, contactor_amplitude_m=1.25e-3)
-    assert np.all(np.isfinite(r.friction_force)) and np.all(r.state[1:] == 1)
+    assert np.all(np.isfinite(r.friction_force))
+    # "stick" = inside the pre-maximum region; each exit from it is an event
+    exits = np.sum((r.state[1:] == 1) & (r.state[:-1] == 0))
+    assert abs(r.event_time.size - exits) <= 1
     # mu(v) never exceeds its maximum: p d = 2.0 at the corner, Stribeck part <= mu_s + b*v
     assert np.abs(r.friction_force).max() <= 2.1 + 2.0 * 0.2
     with pytest.raises(InputError, match="variant"):

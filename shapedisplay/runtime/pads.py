@@ -768,10 +768,24 @@ def _stribeck_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
     if nsub < 1:
         nsub = 1
     hs = h / nsub
-    if int(P[P_SVAR]) == 1:
-        phase = 1.0      # no set-valued stick in the pre-maximum variant
+    premax = int(P[P_SVAR]) == 1
     for i in range(nsub):
         ta = t0 + i * hs
+        if premax:
+            # friction is continuous through zero: no set-valued stick. The
+            # pre-maximum region counts as "stick" (state 0): entered when
+            # |vr| <= d W, left (the stick-to-slip event, located to one
+            # substep) when |vr| >= 2 d W, clear of the jump of mu at d W
+            # (the hysteresis keeps round-off from chattering there).
+            u, du, s, _, F = _stribeck_slip(P, u, du, s, V, W, mus, muk, ta, hs)
+            _, dxc, _ = _contactor(P, ta + hs)
+            avr = abs(du + V - dxc)
+            if phase == 0.0 and avr >= 2.0 * P[P_SD] * W:
+                n_ev = _record(ev_t, ev_a, n_ev, ta + hs, B * abs(k * u))
+                phase = 1.0
+            elif phase == 1.0 and avr <= P[P_SD] * W:
+                phase = 0.0
+            continue
         if phase == 0.0:
             xca, dxca, ddxca = _contactor(P, ta)
             xcb, dxcb, ddxcb = _contactor(P, ta + hs)
