@@ -135,8 +135,9 @@ class JumpModel(PadModel):
     over the slip-velocity amplitude). The relative stick-slip period error
     is at most ``0.02 r`` for ``r <= 0.25`` and ``zeta <= 0.6`` (measured:
     1e-3 at r = 0.22, 3e-5 at r = 0.056, 4e-8 on the published pad at
-    N = 2 N, delta_mu = 0.2, V = 50 mm/s where r = 0.006), and ``jump``
-    predicts re-stick exactly when ``exact`` does (no re-stick for
+    N = 2 N, delta_mu = 0.2, V = 50 mm/s where r = 0.006), and in every
+    tested case ``jump`` predicts re-stick when, and only when, ``exact``
+    does (no re-stick for
     over-damped pads, for delta_mu = 0 with c > 0, or when the overshoot
     cannot bring the pad back to the surface speed: steady sliding).
     Event times inherit the period error cumulatively; changes of N or V
