@@ -41,7 +41,7 @@ def test_accuracy_files(accuracy_report):
     out, rep = accuracy_report
     assert (out / "accuracy.md").read_text().startswith("# Accuracy report")
     names = {c["name"] for c in rep["cases"]}
-    assert {"reversal", "bump_table", "stribeck_contactor", "belt_coulomb"} <= names
+    assert {"reversal", "bump_table", "stribeck_contactor", "belt_coulomb", "belt_stribeck"} <= names
     assert any(n.startswith("konyo_") for n in names)
     for c in rep["cases"]:
         assert (out / f"accuracy_{c['name']}.png").stat().st_size > 1000
