@@ -78,7 +78,7 @@ class BurstParams:
     carrier_hz: float = 300.0     # Hz; > 200 Hz targets Pacinian receptors
     rise_s: float = 0.005         # s, linear rise
     decay_s: float = 0.030        # s, quadratic decay
-    gain: float = 1.0             # B, output amplitude per newton of breakaway force
+    gain: float = 0.25            # B, output amplitude per newton of breakaway force (full scale 1 at 4 N)
     max_stick_period_s: float = 0.0  # s; 0 = off (published fix for long periods at high N)
 
     def validate(self) -> "BurstParams":
