@@ -314,6 +314,63 @@ size = "{hf.size_m[0] * 1e3:g}x{hf.size_m[1] * 1e3:g} mm"
     assert np.all(n[:, : int(20e-3 / 5e-4) - 2] == t.background["normal_force"])
 
 
+PYRAMID_OBJ = """\
+v 0 0 0
+v 20 0 0
+v 20 20 0
+v 0 20 0
+v 10 10 2
+f 1 2 5
+f 2 3 5
+f 3 4 5
+f 4 1 5
+f 1 3 2
+f 1 4 3
+"""
+
+
+@pytest.mark.parametrize("size, position", [("20x20 mm", "20,10 mm"), ("30x10 mm", "15.5,12 mm")])
+def test_mesh_widget_is_the_analytic_pyramid_at_every_sample(tmp_path, size, position):
+    """A 20x20x2 mm pyramid (mm units) stretched to the box: N = n_base + n_gain h at every canvas sample."""
+    pytest.importorskip("trimesh")
+    (tmp_path / "pyr.obj").write_text(PYRAMID_OBJ)
+    p = write(tmp_path, f"""
+[[widget]]
+id = "p"
+type = "mesh"
+file = "pyr.obj"
+position = "{position}"
+size = "{size}"
+""", extra='[device]\nprofile = "desktop-rig"\n')
+    t = compile_scene(p, options=CompileOptions(quantize="float64")).table
+    g = t.grid
+    X, Y = np.meshgrid(np.arange(g.cols) * g.dx, np.arange(g.rows) * g.dy)
+    (x0, y0), (bw, bh) = [float(v) * 1e-3 for v in position[:-3].split(",")], \
+        [float(v) * 1e-3 for v in size[:-3].split("x")]
+    u, v = (X - x0) / bw, (Y - y0) / bh                  # 0..1 over the box
+    h = np.where((u >= 0) & (u <= 1) & (v >= 0) & (v <= 1),
+                 2e-3 * (1 - 2 * np.maximum(np.abs(u - 0.5), np.abs(v - 0.5))), 0.0)
+    # half a sample off would leave errors of slope * 0.25 mm = 0.05 N and more
+    np.testing.assert_allclose(t.dense("normal_force"), 0.5 + 1000.0 * h, atol=1e-9)
+
+
+def test_mesh_widget_on_a_1d_canvas_follows_the_centre_line(tmp_path):
+    pytest.importorskip("trimesh")
+    (tmp_path / "pyr.obj").write_text(PYRAMID_OBJ)
+    p = write(tmp_path, """
+[[widget]]
+id = "p"
+type = "mesh"
+file = "pyr.obj"
+position = "10 mm"
+size = "20 mm"
+""", size="40 mm")
+    t = compile_scene(p, options=CompileOptions(quantize="float64")).table
+    x = np.arange(t.grid.cols) * t.grid.dx
+    h = np.clip(2e-3 * (1 - np.abs(x - 20e-3) / 10e-3), 0, None)   # the tent through the apex
+    np.testing.assert_allclose(t.dense("normal_force")[0], 0.5 + 1000.0 * h, atol=1e-9)
+
+
 def test_data_layer_perceptual_scaling(tmp_path):
     p = write(tmp_path, """
 [[widget]]

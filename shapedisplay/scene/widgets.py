@@ -610,7 +610,11 @@ class Mesh(WidgetType):
     """A 3D model (STL/OBJ/PLY/...) whose top surface is placed in the box.
 
     ``units`` of the model file ("mm" default), ``up`` axis, ``height_scale``
-    multiplies the heights. The footprint is stretched to ``size``.
+    multiplies the heights. The footprint is stretched to ``size``: the mesh
+    is rasterised on the widget's own sample grid (one sample per canvas
+    sample of the box, the first and last on the footprint's edges), so each
+    canvas sample reads the model's surface at exactly its place in the box.
+    On a 1-D canvas the centre line of the footprint is used.
     """
 
     name = "mesh"
@@ -621,19 +625,21 @@ class Mesh(WidgetType):
         scale = number(raw.get("height_scale", 1.0), w.fp + "height_scale", w.ctx, w.where, lo=0.0)
         from ..mesh import mesh_to_heightfield
         from ..errors import ShapeDisplayError
+        s = w.canvas.spacing
+        cols = int(round(W / s)) + 1
+        rows = 3 if w.canvas.is_1d else int(round(H / s)) + 1   # 1-D: the middle row is the centre line
         try:
-            hf = mesh_to_heightfield(path, resolution=w.canvas.spacing / 2, up=str(raw.get("up", "z")),
+            hf = mesh_to_heightfield(path, grid=(rows, cols), up=str(raw.get("up", "z")),
                                      units=str(raw.get("units", "mm")), background=0.0)
         except ShapeDisplayError as exc:
             raise SceneError(f"scene '{w.ctx.path}': {w.where}: `{w.fp}file`: {exc}") from None
-        hts = np.asarray(hf.heights) * scale
-        return {"file": str(path), "values": hts - 0.0, "height_scale": scale}
+        return {"file": str(path), "values": np.asarray(hf.heights) * scale, "height_scale": scale}
 
     def describe(self, p):
         return {"file": p["file"], "height_scale": p["height_scale"], "source_shape": list(p["values"].shape)}
 
     def heights(self, p, u, v, W, H, is_1d, state=None):
-        return _resample(p["values"], u, v, W, H, is_1d, centred=True)
+        return _resample(p["values"], u, v, W, H, is_1d, centred=False)   # edge-aligned grid
 
 
 DATA_CHANNELS = ("friction_scale", "burst_gain")
