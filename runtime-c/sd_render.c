@@ -238,7 +238,8 @@ int sd_renderer_init(sd_renderer_t *R, const sd_table_t *table, const sd_config_
     if (!R || !table || !cfg) return SD_ERR_ARG;
     if (table->rows < 1 || table->cols < 1 || !(table->dx > 0.0) || !(table->dy > 0.0) || table->n_blocks < 0)
         return SD_ERR_TABLE;
-    if (!table->slot[SD_SLOT_NORMAL_FORCE]) return SD_ERR_TABLE;     /* the jump model needs N */
+    if (!table->slot[SD_SLOT_NORMAL_FORCE]) return SD_ERR_TABLE;     /* the pad models need N */
+    if (cfg->k_mu > 0.0 && !table->slot[SD_SLOT_GRAD_X]) return SD_ERR_TABLE;  /* slope friction needs grad */
     if (!(p->mass > 0.0) || !(p->stiffness > 0.0) || !(p->damping >= 0.0) || !(p->burst_gain >= 0.0)
         || !(p->max_stick_period >= 0.0) || !(cfg->mu_s > 0.0) || !(cfg->mu_k >= 0.0) || cfg->mu_k > cfg->mu_s
         || !(cfg->k_mu >= 0.0))
