@@ -312,3 +312,19 @@ def test_table_from_c_header_export(tmp_path, sparse, kmu):
     assert pev > 20 and na == pa.size
     np.testing.assert_array_equal(drive, po[:, R_.O_DRIVE])
     np.testing.assert_array_equal(audio, pa)
+
+
+def test_c_renderer_init_refuses_bad_parameters(sd_vectors, tmp_path):
+    """sd_renderer_init validates before binding: mu_k > mu_s, a 50 Hz tick, no normal force."""
+    table = widget_table("uint16", kmu=0.0)
+    r = Renderer(table, model="jump", tick_rate=10_000.0)
+    good = render_payload(r, [0.0, 1e-4], [0.0, 0.0])
+    cfg = np.frombuffer(good[:14 * 8], "<f8").copy()
+    for idx, value in ((6, 0.9), (9, 50.0), (0, 0.0)):       # mu_k, tick_rate, mass
+        bad = cfg.copy()
+        bad[idx] = value
+        fin, fout = tmp_path / "bad.in", tmp_path / "bad.out"
+        fin.write_bytes(bad.tobytes() + good[14 * 8:])
+        res = subprocess.run([str(sd_vectors), "render", str(fin), str(fout)], capture_output=True, text=True,
+                             timeout=60)
+        assert res.returncode == 3 and "sd_renderer_init failed (-3)" in res.stderr
