@@ -20,10 +20,13 @@ colour channels: height, normal_force (N), breakaway_force, kinetic_force,
 lateral (|F_lat|), slope, walls, and any other channel the table stores.
 
 examples:
-  shapedisplay preview out/tent.npz --color N -o tent.png
-  shapedisplay preview out/phone.npz --trace out/stroke.npz --scene assets/scenes/phone.toml -o shot.png
-  shapedisplay preview assets/meshes/keycap.stl --resolution 0.1mm --color slope
-  shapedisplay preview map.png --extent 60x40mm --height 0:2mm -o map.png --size 1200x800
+  shapedisplay compile assets/scenes/phone.toml -o out/phone.npz
+  shapedisplay play out/phone.npz --stroke "62,2 -> 62,156 @ 30mm/s" -o out/phone.wav --trace-out out/phone-trace.npz
+  shapedisplay preview out/phone.npz --color N -o phone.png
+  shapedisplay preview out/phone.npz --trace out/phone-trace.npz -o shot.png
+  shapedisplay preview assets/scenes/phone.toml --color slope
+  shapedisplay preview assets/meshes/keycap.stl --resolution 0.1mm -o keycap.png
+  shapedisplay preview assets/scenes/terrain.png --extent 120x80mm --height 0:2mm -o map.png --size 1200x800
 """
 
 

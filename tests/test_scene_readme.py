@@ -1,0 +1,84 @@
+"""The README sections on scenes and the 3D preview: every command shown runs as written.
+
+Each ``shapedisplay`` line of their ``sh`` blocks must parse with the real
+command-line parser, and every file it reads must be in the repository or
+written by a command shown before it (in reading order).
+"""
+from __future__ import annotations
+
+import re
+import shlex
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+SECTIONS = ("## Designing a tactile screen", "## 3D preview")
+FILE_SUFFIXES = (".toml", ".npz", ".png", ".npy", ".stl", ".obj", ".ply", ".wav", ".json")
+OUTPUT_FLAGS = ("-o", "--output", "--trace-out")
+
+
+def section(text: str, heading: str) -> str:
+    start = text.index(heading + "\n")
+    end = text.find("\n## ", start + len(heading))
+    return text[start:end if end >= 0 else len(text)]
+
+
+def commands() -> list[list[str]]:
+    """argv of every `shapedisplay` line in the sh blocks of the sections, in reading order."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    out = []
+    for heading in SECTIONS:
+        for block in re.findall(r"```sh\n(.*?)```", section(text, heading), flags=re.S):
+            for line in block.splitlines():
+                if line.startswith("shapedisplay "):
+                    out.append(shlex.split(line, comments=True)[1:])
+    return out
+
+
+def files_of(argv: list[str]) -> tuple[list[str], list[str]]:
+    """(files read, files written) by one command line."""
+    reads, writes = [], []
+    if argv[:2] == ["new", "scene"]:
+        rest = [a for a in argv[2:] if not a.startswith("-")]
+        writes.append(argv[argv.index("-o") + 1] if "-o" in argv else f"{rest[0]}.toml")
+        return reads, writes
+    for i, arg in enumerate(argv):
+        if not arg.lower().endswith(FILE_SUFFIXES):
+            continue
+        (writes if i > 0 and argv[i - 1] in OUTPUT_FLAGS else reads).append(arg)
+    return reads, writes
+
+
+def test_sections_show_commands():
+    argvs = commands()
+    assert len(argvs) >= 10
+    assert {a[0] for a in argvs} >= {"new", "check", "compile", "inspect", "play", "preview"}
+
+
+def test_every_command_parses_and_reads_only_files_that_exist_or_were_written_before():
+    from shapedisplay_cli.main import build_parser
+    parser = build_parser()
+    written: set = set()
+    for argv in commands():
+        try:
+            args = parser.parse_args(argv)
+        except SystemExit:
+            pytest.fail(f"README command does not parse: shapedisplay {shlex.join(argv)}")
+        assert getattr(args, "func", None) is not None, argv
+        reads, writes = files_of(argv)
+        for f in reads:
+            assert f in written or (ROOT / f).is_file(), \
+                f"`shapedisplay {shlex.join(argv)}` reads '{f}', which neither exists nor is written before"
+        written.update(writes)
+
+
+def test_the_pictures_are_written_by_a_command_shown():
+    """Each picture of the two sections is the output of a `preview` command shown in the README."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    for heading in SECTIONS:
+        body = section(text, heading)
+        for picture in re.findall(r"!\[[^\]]*\]\(([^)]+\.png)\)", body):
+            assert (ROOT / picture).is_file() and (ROOT / picture).stat().st_size < 300_000, picture
+            shown = re.findall(r"shapedisplay preview [^`\n]*-o " + re.escape(picture), body)
+            assert shown, f"no `shapedisplay preview ... -o {picture}` in section {heading!r}"
