@@ -176,6 +176,8 @@ def test_data_layer_errors(tmp_path):
     assert "did you mean 'burst_gain'" in err(tmp_path, base + 'channel = "burst_gan"\nvalues = [1, 2]\n')
     assert "exactly one of `values`" in err(tmp_path, base + 'channel = "burst_gain"\n')
     assert "must be finite" in err(tmp_path, base + 'channel = "burst_gain"\nvalues = [1, nan]\n')
+    msg = err(tmp_path, base + 'channel = "burst_gain"\nvalues = [1, 2]\nexponent = "abc"\n')
+    assert "widget[0] 'd'" in msg and "`widget[0].exponent` must be a number (got 'abc')" in msg
 
 
 def test_cli_errors_are_one_line_exit_2(tmp_path, capsys):

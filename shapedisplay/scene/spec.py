@@ -255,7 +255,10 @@ def pair(value, sep: str, field_path: str, ctx: Ctx, where: str = "") -> tuple[f
 def number(value, field_path: str, ctx: Ctx, where: str = "", lo=None, hi=None, integer=False) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, str)):
         raise ctx.error(where, field_path, f"must be a number (got {value!r})")
-    v = quantity(value, "1", field_path, ctx, where, bare_ok=True)
+    try:
+        v = parse_quantity(value, "1", field_path, bare_ok=True)
+    except UnitError:
+        raise ctx.error(where, field_path, f"must be a number (got {value!r})") from None
     if integer and (float(v) != int(v)):
         raise ctx.error(where, field_path, f"must be a whole number (got {value!r})")
     if (lo is not None and v < lo) or (hi is not None and v > hi):
