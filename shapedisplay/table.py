@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from .atomic import atomic_path
-from .errors import TableError, InputError, unknown_key
+from .errors import TableError, InputError, did_you_mean, unknown_key
 
 FORMAT_NAME = "shapedisplay-friction-table"
 FORMAT_VERSION = 1
@@ -375,6 +375,15 @@ class FrictionTable:
 
     @classmethod
     def from_header(cls, header: dict, arrays: dict, where: str = "table") -> "FrictionTable":
+        """Verify a parsed header and its channel arrays; build the table.
+
+        Raises :class:`TableError` (one line naming ``where``) for a wrong
+        format or version, a checksum mismatch, or a header whose structure
+        does not match the format (possible only for a file written by
+        something else with a recomputed checksum).
+        """
+        if not isinstance(header, dict):
+            raise TableError(f"table '{where}': header must be a JSON object (got {type(header).__name__})")
         if header.get("format") != FORMAT_NAME:
             raise TableError(f"table '{where}': format is {header.get('format')!r}, expected {FORMAT_NAME!r}")
         ver = header.get("format_version")
@@ -386,19 +395,18 @@ class FrictionTable:
         if stored != actual:
             raise TableError(f"table '{where}': checksum mismatch (stored {stored}, computed {actual}); file is corrupt")
         try:
-            grid = Grid.from_json(header["grid"])
-            quant, background, codes = {}, {}, {}
-            for n, c in header["channels"].items():
-                quant[n] = Quantization(c["dtype"], float(c["scale"]), float(c["offset"]), float(c["max_error"]))
-                background[n] = float(c["background"])
-                codes[n] = np.asarray(arrays[n])
-            meta = {k: v for k, v in body.items()
-                    if k not in ("format", "format_version", "grid", "patches", "blocks", "channels")}
-            t = cls(grid, [tuple(s) for s in header["patches"]], [tuple(b) for b in header["blocks"]],
-                    codes, quant, background, meta)
-        except (KeyError, TypeError, ValueError) as exc:
+            grid, patches, blocks, quant, background, codes = _parse_layout(header, arrays)
+        except TableError as exc:
+            raise TableError(f"table '{where}': {exc}") from None
+        except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as exc:
             raise TableError(f"table '{where}': malformed header ({exc!r})") from None
-        t._check_layout()
+        meta = {k: v for k, v in body.items()
+                if k not in ("format", "format_version", "grid", "patches", "blocks", "channels")}
+        t = cls(grid, patches, blocks, codes, quant, background, meta)
+        try:
+            t._check_layout()
+        except TableError as exc:
+            raise TableError(f"table '{where}': {exc}") from None
         return t
 
     # -------------------------------------------------------------- exports
@@ -431,6 +439,54 @@ class FrictionTable:
             "dense_bytes": self.dense_bytes,
             "meta": self.meta,
         }
+
+
+#: Largest canvas a table file may declare (same bound as a height field).
+MAX_CANVAS_SAMPLES = 16384 * 16384
+_META_DICTS = ("device", "mapping", "source", "compile", "report")
+
+
+def _int_list(value, n: int, what: str) -> tuple:
+    if not (isinstance(value, (list, tuple)) and len(value) == n
+            and all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in value)):
+        raise TableError(f"{what} must be {n} non-negative integers (got {value!r})")
+    return tuple(value)
+
+
+def _parse_layout(header: dict, arrays: dict):
+    """Grid, patches, blocks and channels of a header whose checksum matched."""
+    grid = Grid.from_json(header["grid"])
+    if not (grid.rows >= 1 and grid.cols >= 1 and grid.dx > 0 and grid.dy > 0
+            and all(math.isfinite(v) for v in (grid.dx, grid.dy, grid.x0, grid.y0))):
+        raise TableError(f"grid must have rows, cols >= 1 and finite spacing > 0 (got {header['grid']!r})")
+    if grid.rows * grid.cols > MAX_CANVAS_SAMPLES:
+        raise TableError(f"grid of {grid.rows}x{grid.cols} samples exceeds the limit of {MAX_CANVAS_SAMPLES}")
+    patches = [_int_list(s, 2, "each patch shape") for s in header["patches"]]
+    blocks = [_int_list(b, 3, "each block [row0, col0, patch]") for b in header["blocks"]]
+    channels = header["channels"]
+    if not isinstance(channels, dict):
+        raise TableError(f"'channels' must be an object (got {type(channels).__name__})")
+    quant, background, codes = {}, {}, {}
+    for n, c in channels.items():
+        if n not in CHANNELS:
+            raise TableError(f"unknown channel '{n}'{did_you_mean(n, CHANNELS)}")
+        if c.get("dtype") not in _DTYPES:
+            raise TableError(f"channel '{n}': dtype must be one of {list(_DTYPES)} (got {c.get('dtype')!r})")
+        if n not in arrays:
+            raise TableError(f"channel '{n}' has no array in the file")
+        a = np.asarray(arrays[n])
+        if a.dtype != np.dtype(_DTYPES[c["dtype"]]):
+            raise TableError(f"channel '{n}': array dtype is {a.dtype}, the header says {c['dtype']}")
+        nums = [float(c[k]) for k in ("scale", "offset", "max_error", "background")]
+        if not all(math.isfinite(v) for v in nums):
+            raise TableError(f"channel '{n}': scale, offset, max_error and background must be finite (got {nums})")
+        quant[n] = Quantization(c["dtype"], nums[0], nums[1], nums[2])
+        background[n] = nums[3]
+        codes[n] = a
+    for key in _META_DICTS:
+        if key in header and not isinstance(header[key], dict):
+            raise TableError(f"'{key}' must be an object (got {header[key]!r})")
+    return grid, patches, blocks, quant, background, codes
 
 
 def _checksum(header: dict, arrays: dict) -> str:

@@ -107,6 +107,49 @@ def test_checksum_mismatch_rejected(tmp_path):
         FrictionTable.load(tmp_path / "m.npz")
 
 
+def _set_channel(h, **kw):
+    h["channels"]["normal_force"].update(kw)
+
+
+def _rename_channel(h):
+    h["channels"]["normal_forse"] = h["channels"].pop("normal_force")
+
+
+@pytest.mark.parametrize("edit, array_edit, match", [
+    (lambda h: h.clear() or h.update(format="shapedisplay-friction-table", format_version=1), None,
+     r"malformed header \(KeyError\('grid'\)\)"),
+    (_rename_channel, None, r"unknown channel 'normal_forse' \(did you mean 'normal_force'\?\)"),
+    (lambda h: _set_channel(h, dtype="int7"), None, r"channel 'normal_force': dtype must be one of .* \(got 'int7'\)"),
+    (lambda h: _set_channel(h, scale=None), None, r"malformed header"),
+    (lambda h: _set_channel(h, offset=float("nan")), None, r"must be finite"),
+    (None, lambda a: a.update(normal_force=a["normal_force"].astype(np.float64)),
+     r"array dtype is float64, the header says uint8"),
+    (None, lambda a: a.pop("normal_force"), r"channel 'normal_force' has no array in the file"),
+    (lambda h: h.update(blocks=[[0, 0]]), None, r"each block \[row0, col0, patch\] must be 3 non-negative integers"),
+    (lambda h: h.update(blocks=[[0, 0, 7]]), None, r"block at \(0, 0\) names patch 7"),
+    (lambda h: h.update(patches=[[4]]), None, r"each patch shape must be 2 non-negative integers \(got \[4\]\)"),
+    (lambda h: h.update(channels=["normal_force"]), None, r"'channels' must be an object \(got list\)"),
+    (lambda h: h["grid"].update(rows=10 ** 9, cols=10 ** 9), None, r"grid of 1000000000x1000000000 samples exceeds"),
+    (lambda h: h["grid"].update(dx_m=-1.0), None, r"finite spacing > 0"),
+    (lambda h: h["grid"].update(rows="four"), None, r"malformed header"),
+    (lambda h: h.update(device="handheld"), None, r"'device' must be an object \(got 'handheld'\)"),
+])
+def test_malformed_header_with_valid_checksum_is_one_clear_error(tmp_path, edit, array_edit, match):
+    """A foreign writer can recompute the checksum; the structure is still checked."""
+    t, _ = _table()
+    t.save(tmp_path / "t.npz")
+    _rewrite(tmp_path / "t.npz", tmp_path / "bad.npz", edit, array_edit, fix_checksum=True)
+    with pytest.raises(TableError, match=match) as info:
+        FrictionTable.load(tmp_path / "bad.npz")
+    assert str(info.value).startswith(f"table '{tmp_path / 'bad.npz'}'") and "\n" not in str(info.value)
+
+
+def test_header_that_is_not_an_object(tmp_path):
+    np.savez(tmp_path / "l.npz", header=np.frombuffer(b"[1, 2]", np.uint8))
+    with pytest.raises(TableError, match=r"header must be a JSON object \(got list\)"):
+        FrictionTable.load(tmp_path / "l.npz")
+
+
 def test_truncated_and_foreign_files(tmp_path):
     t, _ = _table()
     t.save(tmp_path / "t.npz")
