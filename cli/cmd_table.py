@@ -19,6 +19,13 @@ def register(sub) -> None:
     p.set_defaults(func=run_export)
 
 
+def _g(value) -> str:
+    """A header number as ``%g``; anything else (absent, malformed) as written."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return f"{value:g}"
+    return "?" if value is None else repr(value)
+
+
 def format_summary(s: dict) -> str:
     """Readable multi-line summary of :meth:`FrictionTable.summary`."""
     g = s["grid"]
@@ -34,23 +41,23 @@ def format_summary(s: dict) -> str:
         lines.append(f"source: {src.get('description', '')} (sha256 {str(src.get('sha256', ''))[:16]}...)")
     dev = meta.get("device", {})
     if dev:
-        lines.append(f"device: {dev.get('name')} outputs={dev.get('outputs')} tick {dev.get('tick_rate_hz', 0):g} Hz, "
+        lines.append(f"device: {dev.get('name')} outputs={dev.get('outputs')} tick {_g(dev.get('tick_rate_hz'))} Hz, "
                      f"N range {dev.get('normal_force_range')} N")
     mp = meta.get("mapping", {})
     if mp:
-        lines.append(f"mapping: {mp.get('spec')} (n_base {mp.get('n_base'):g} N, n_gain {mp.get('n_gain'):g} N/m, "
-                     f"K_mu {mp.get('slope_friction_gain'):g})")
+        lines.append(f"mapping: {mp.get('spec')} (n_base {_g(mp.get('n_base'))} N, n_gain {_g(mp.get('n_gain'))} N/m, "
+                     f"K_mu {_g(mp.get('slope_friction_gain'))})")
     lines.append("channels:")
     for name, c in s["channels"].items():
         lines.append(f"  {name:<16} {c['dtype']:<8} [{c['min']:.6g}, {c['max']:.6g}] {c['unit']}, "
                      f"max error {c['max_error']:.3g} {c['unit']}")
     left = meta.get("report", {}).get("left_out", {})
-    if left:
+    if isinstance(left, dict) and left:
         lines.append("left out:")
         for name, why in left.items():
             lines.append(f"  {name:<16} {why}")
     walls = meta.get("report", {}).get("walls")
-    if walls and walls.get("count"):
+    if isinstance(walls, dict) and walls.get("count"):
         lines.append(f"walls: {walls['count']} samples in {walls.get('regions', '?')} region(s); "
                      f"{walls.get('limited', '')}")
     saved = s["dense_bytes"] - s["stored_bytes"]

@@ -151,6 +151,41 @@ def test_bad_tables(tmp_path, capsys):
     assert code == 2 and "unknown export format 'yaml'" in err and not (tmp_path / "x.yaml").exists()
 
 
+def test_foreign_tables_with_recomputed_checksum_never_trace_back(tmp_path, capsys):
+    """inspect/export on headers that pass the checksum but not the format: one line, exit 2."""
+    from shapedisplay.table import _checksum
+    t = _table_file(tmp_path, capsys)
+    with np.load(t) as z:
+        header = json.loads(bytes(z["header"]).decode())
+        codes = z["normal_force"].copy()
+
+    def write(name, edit):
+        h = json.loads(json.dumps(header))
+        edit(h)
+        h.pop("checksum")
+        h["checksum"] = _checksum(h, {"normal_force": codes})
+        np.savez(tmp_path / name, header=np.frombuffer(json.dumps(h).encode(), np.uint8), normal_force=codes)
+        return tmp_path / name
+
+    cases = {
+        write("blocks.npz", lambda h: h.update(blocks=[[0, 0]])): "each block",
+        write("chan.npz", lambda h: h["channels"].update(bogus=h["channels"].pop("normal_force"))): "unknown channel",
+        write("dev.npz", lambda h: h.update(device="x")): "'device' must be an object",
+        write("grid.npz", lambda h: h["grid"].update(rows=10 ** 6, cols=10 ** 6)): "exceeds the limit",
+    }
+    for path, message in cases.items():
+        for cmd in (["inspect"], ["inspect", "--json"], ["export", "--format", "c", "-o", tmp_path / "x.h"]):
+            code, _, err = run([cmd[0], path, *cmd[1:]], capsys)
+            assert code == 2 and message in err and len(err.strip().split("\n")) == 1, (path, cmd, err)
+    assert not (tmp_path / "x.h").exists()
+    # a header without mapping gains or a numeric tick rate still prints
+    sparse = write("sparse.npz", lambda h: (h.update(mapping={"spec": "height"}), h["device"].pop("tick_rate_hz")))
+    code, out, err = run(["inspect", sparse], capsys)
+    assert code == 0 and "mapping: height (n_base ? N" in out and "tick ? Hz" in out, err
+    code, _, err = run(["export", sparse, "--format", "c", "-o", tmp_path / "s.h"], capsys)
+    assert code == 0 and "n_base_n" not in (tmp_path / "s.h").read_text()
+
+
 def test_console_script_and_light_imports(tmp_path):
     exe = Path(sys.executable).parent / "shapedisplay"
     r = subprocess.run([str(exe), "compile", str(TENT), "-o", str(tmp_path / "t.npz"), *DEMO],

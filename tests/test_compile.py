@@ -218,6 +218,17 @@ def test_c_header_compiles_and_decodes_the_same_values(tmp_path):
     assert [float(v) for v in lines[-1]] == [2000.0, 0.5, t.grid.dx]
 
 
+@pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler on this machine")
+def test_c_header_alone_compiles_warning_free(tmp_path):
+    """The header as its own translation unit (nothing used) passes -Wall -Wextra -Werror."""
+    hf = sources.gaussian_bump("1mm", "2mm", "10x6mm", "0.25mm")
+    t = compile_heightfield(hf, RIG, MappingOptions.parse("height+slope+lateral")).table
+    export_c(t, tmp_path / "t.h")
+    r = subprocess.run(["cc", "-std=c99", "-Wall", "-Wextra", "-pedantic", "-Werror", "-x", "c", "-c",
+                        str(tmp_path / "t.h"), "-o", str(tmp_path / "t.o")], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+
+
 def test_c_header_rejects_bad_names():
     t = compile_heightfield(_rand_field(4), RIG, MappingOptions()).table
     with pytest.raises(InputError, match="must be a C identifier"):
