@@ -8,7 +8,7 @@ import pytest
 
 from shapedisplay.runtime.cursor import parse_stroke
 from shapedisplay.runtime.renderer import Renderer
-from shapedisplay.scene import compile_scene, select_state
+from shapedisplay.scene import compile_scene, load_scene, select_state
 from shapedisplay.table import FrictionTable
 
 SCENES = Path(__file__).resolve().parent.parent / "assets" / "scenes"
@@ -20,10 +20,18 @@ PHONE_STROKES = ("62,2 -> 62,156 @ 30mm/s",
                  "2,36 -> 78,36 -> 78,100 -> 2,100 @ 60mm/s")
 
 
-def dense_equivalent(table: FrictionTable) -> FrictionTable:
-    """One block covering the canvas with the same values at every sample and the same coding."""
-    return FrictionTable.from_dense(table.grid, {n: table.dense(n) for n in table.channels}, dict(table.quant),
-                                    table.meta)
+def dense_equivalent(table: FrictionTable, name: str) -> FrictionTable:
+    """The scene compiled densely, without pruning, coded like ``table``.
+
+    Heights of the whole canvas, slopes and forces computed on the whole canvas
+    (``test_scene._dense_reference``, independent of the compiler's blocks,
+    margins and shared patches), stored as one block with the same
+    quantization. Pruning must not change one code of it.
+    """
+    from test_scene import _dense_reference
+    ref = _dense_reference(load_scene(SCENES / f"{name}.toml"))
+    return FrictionTable.from_dense(table.grid, {n: np.atleast_2d(ref[n]) for n in table.channels},
+                                    dict(table.quant), table.meta)
 
 
 def assert_same_play(a, b):
@@ -37,7 +45,7 @@ def assert_same_play(a, b):
 @pytest.fixture(scope="module")
 def phone():
     res = compile_scene(SCENES / "phone.toml")
-    return res.table, dense_equivalent(res.table)
+    return res.table, dense_equivalent(res.table, "phone")
 
 
 def test_dense_equivalent_holds_the_same_values_and_is_big(phone):
@@ -99,7 +107,9 @@ def test_toggle_state_selected_at_runtime_plays_like_the_compiled_state(tmp_path
                                           ("map", "2,40 -> 118,40 @ 40mm/s")])
 def test_other_scenes_play_the_same_as_dense(name, stroke):
     t = compile_scene(SCENES / f"{name}.toml").table
-    d = dense_equivalent(t)
+    d = dense_equivalent(t, name)
+    for n in t.channels:
+        np.testing.assert_array_equal(t.dense(n), d.dense(n), err_msg=n)
     ra, rb = Renderer(t, model="jump"), Renderer(d, model="jump")
     cp = parse_stroke(stroke, ra.tick_rate)
     a, b = ra.render(cp), rb.render(cp)
