@@ -271,6 +271,31 @@ size = "20x20 mm"
         select_state(t, "sw", "of")
 
 
+def test_toggle_profile_of_both_states_is_exact(tmp_path):
+    """Centre line of a 24x12 mm toggle: a 0.3 mm stadium well (cosine edge over the default 2 mm ramp)
+    plus a raised-cosine knob 9.6 mm across (0.8 x half the length) at 1/4 (off) or 3/4 (on) of the length."""
+    p = write(tmp_path, """
+[[widget]]
+id = "sw"
+type = "toggle"
+position = "20,10 mm"
+size = "24x12 mm"
+state = "off"
+height = "1 mm"
+track_depth = "0.3 mm"
+""", n_base="1 N")
+    t = compile_scene(p, options=CompileOptions(quantize="float64")).table
+    u = np.arange(t.grid.cols) * t.grid.dx - 20e-3
+    inside = (u >= 0) & (u <= 24e-3)
+    d = np.where(inside, np.minimum(u, 24e-3 - u), 0.0)
+    well = np.where(inside & (d > 0), -0.3 * (0.5 - 0.5 * np.cos(np.pi * np.clip(d / 2e-3, 0, 1))), 0.0)
+    for state, uc in (("off", 6e-3), ("on", 18e-3)):
+        r = np.abs(u - uc)
+        knob = np.where(r < 4.8e-3, 0.5 + 0.5 * np.cos(np.pi * np.minimum(r / 4.8e-3, 1)), 0.0)
+        n = select_state(t, "sw", state).dense("normal_force")[int(round(16e-3 / t.grid.dy))]
+        np.testing.assert_allclose(n, 1.0 + well + 1.0 * knob, atol=1e-12, err_msg=state)
+
+
 def test_image_widget_places_the_height_map(tmp_path):
     from shapedisplay.imageio import write_png
     gray = np.array([[0, 1000, 2000, 3000], [4000, 5000, 6000, 65535]], dtype=np.uint16)
