@@ -514,7 +514,11 @@ def load_model(path: str | os.PathLike, scene: str | os.PathLike | None = None, 
                 raise InputError(f"input '{path}' is a trace; give the table as input and the trace with --trace")
         from .table import FrictionTable
         table = FrictionTable.load(path)
-        widgets = widgets_of_scene(_load_scene(scene)) if scene else None
+        widgets = None
+        if scene:
+            sc = _load_scene(scene)
+            _check_scene_fits(sc, table, path)
+            widgets = widgets_of_scene(sc)
         return model_from_table(table, title=path.name, widgets=widgets)
     if suffix == ".toml":
         if opts:
@@ -542,6 +546,19 @@ def _load_scene(path):
         raise FileFormatError(f"scene '{path}': no such file")
     from .scene import load_scene
     return load_scene(path)
+
+
+def _check_scene_fits(scene, table, path) -> None:
+    """Refuse to draw the outlines of a scene whose canvas is not the table's grid."""
+    g, c = table.grid, scene.canvas
+    same = (g.rows, g.cols) == (c.rows, c.cols) and math.isclose(g.dx, c.spacing, rel_tol=1e-9) \
+        and math.isclose(g.dy, c.spacing, rel_tol=1e-9) and g.x0 == 0.0 and g.y0 == 0.0
+    if not same:
+        raise InputError(
+            f"`--scene` '{scene.path}' does not fit table '{path}': the scene's canvas is "
+            f"{c.rows}x{c.cols} samples of {c.spacing * 1e3:g} mm from (0, 0), the table's grid "
+            f"{g.rows}x{g.cols} samples of {g.dx * 1e3:g} x {g.dy * 1e3:g} mm from "
+            f"({g.x0 * 1e3:g}, {g.y0 * 1e3:g}) mm; give the scene the table was compiled from")
 
 
 def _strip_widgets(widgets: list, model: PreviewModel) -> list:

@@ -402,6 +402,8 @@ def test_cli_bad_inputs_one_line_exit_2(tmp_path, table, capsys):
          "--height"),
         (["preview", str(tpath), "--size", "10x10", "-o", str(tmp_path / "a.png")], "64..8192"),
         (["preview", str(tpath), "--view", "below", "-o", str(tmp_path / "a.png")], "valid: iso, side, top"),
+        (["preview", str(tpath), "--scene", os.path.join(SCENES, "phone.toml"), "-o", str(tmp_path / "a.png")],
+         "does not fit table"),
     ]
     for argv, words in cases:
         assert run_cli(argv) == 2
