@@ -438,16 +438,25 @@ def scene_forces(scene, hf) -> tuple[dict, list]:
     """Force channels of a scene's height field as its device and mapping make them (SI).
 
     Returns ``({name: ndarray (rows, cols)}, notes)``: the channels the
-    compiler would keep, computed densely, plus ``breakaway_force`` and
-    ``kinetic_force`` from the device's friction.
+    compiler would keep, computed densely, including the data layers the
+    device renders (``friction_scale``, ``burst_gain``), plus
+    ``breakaway_force`` and ``kinetic_force`` from the device's friction
+    (scaled by ``friction_scale``, as the runtime does).
     """
     import dataclasses
 
     from .profiles import MappingOptions, force_channels
+    from .scene.compiler import _channels, composite
     known = {f.name for f in dataclasses.fields(MappingOptions)}
     mapping = MappingOptions(**{k: v for k, v in scene.mapping.items() if k in known and k != "height"})
     chans = force_channels(hf, scene.device, mapping)
     fields = {name: np.asarray(a, dtype=np.float64) for name, a in chans.items()}
+    kept, _ = _channels(scene, scene.device, mapping)
+    layers = [ch for ch in ("friction_scale", "burst_gain") if ch in kept]
+    if layers:
+        c = scene.canvas
+        _, data = composite(scene, (0, 0, c.rows - 1, c.cols - 1))
+        fields.update({ch: data[ch] for ch in layers})
     friction = {"mu_s": scene.device.friction.mu_s, "mu_k": scene.device.friction.mu_k}
     notes: list = []
     _derive_forces(fields, {}, {}, notes, friction)

@@ -492,6 +492,21 @@ def test_scene_file_preview_has_scene_heights_and_widget_ids():
     assert m.resolve_channel("N") == "normal_force"
 
 
+def test_scene_file_preview_has_its_data_layers():
+    """The map's rainfall layer (friction_scale) is colourable and scales breakaway force, as in its table."""
+    from shapedisplay.scene import compile_scene, load_scene
+    path = os.path.join(SCENES, "map.toml")
+    m = viewer.load_model(path)
+    t = compile_scene(path).table
+    assert m.resolve_channel("friction_scale") == "friction_scale" and m.units["friction_scale"] == "1"
+    np.testing.assert_allclose(m.fields["friction_scale"], t.dense("friction_scale"),
+                               atol=t.quant["friction_scale"].max_error + 1e-12)
+    assert np.ptp(m.fields["friction_scale"]) > 0.3
+    mu_s = load_scene(path).device.friction.mu_s
+    np.testing.assert_allclose(m.fields["breakaway_force"],
+                               mu_s * m.fields["friction_scale"] * m.fields["normal_force"], rtol=1e-12)
+
+
 def test_compiled_scene_table_shows_outlines_and_left_out(tmp_path):
     from shapedisplay.scene import compile_scene
     res = compile_scene(os.path.join(SCENES, "phone.toml"))
