@@ -7,7 +7,7 @@ import tempfile
 from pathlib import Path
 from typing import Iterator
 
-from .errors import FileFormatError
+from .errors import FileFormatError, ShapeDisplayError
 
 
 @contextlib.contextmanager
@@ -19,11 +19,16 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     file is removed and the final name is left untouched.
     """
     final = Path(path)
+    if not str(path).strip() or final.is_dir():
+        raise FileFormatError(f"output '{final}': is a directory or empty; give a file name")
     parent = final.parent if str(final.parent) else Path(".")
     if not parent.is_dir():
         raise FileFormatError(f"output '{final}': directory '{parent}' does not exist")
     suffix = final.suffix if suffix is None else suffix
-    fd, tmp = tempfile.mkstemp(prefix=f".{final.stem}.", suffix=f".part{suffix}", dir=parent)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{final.stem}.", suffix=f".part{suffix}", dir=parent)
+    except OSError as exc:
+        raise FileFormatError(f"output '{final}': cannot write in '{parent}' ({exc.strerror or exc})") from None
     os.close(fd)
     tmp_path = Path(tmp)
     try:
@@ -31,9 +36,12 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
         # mkstemp creates 0600; give the file the permissions a plain open() would
         os.chmod(tmp_path, 0o666 & ~_umask())
         os.replace(tmp_path, final)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             tmp_path.unlink()
+        if isinstance(exc, OSError) and not isinstance(exc, ShapeDisplayError):
+            # disk full, permissions, a name that cannot be replaced: one line, no partial file
+            raise FileFormatError(f"output '{final}': cannot write ({exc.strerror or exc})") from None
         raise
 
 

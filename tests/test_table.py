@@ -179,6 +179,22 @@ def test_save_is_atomic(tmp_path, monkeypatch):
         t.save(tmp_path / "nodir" / "t.npz")
 
 
+def test_write_failures_are_one_clear_error_without_partial_files(tmp_path, monkeypatch):
+    import os
+    t, _ = _table()
+    (tmp_path / "sub").mkdir()
+    for target in (tmp_path / "sub", ""):
+        with pytest.raises(FileFormatError, match="is a directory or empty; give a file name"):
+            t.save(target)
+
+    def full(src, dst):
+        raise OSError(28, "No space left on device")
+    monkeypatch.setattr(os, "replace", full)
+    with pytest.raises(FileFormatError, match=r"output '.*t.npz': cannot write \(No space left on device\)"):
+        t.save(tmp_path / "t.npz")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["sub"]
+
+
 def test_identical_patches_stored_once_and_sampled():
     grid = Grid(10, 30, 1e-3, 1e-3)
     patch = {"normal_force": np.full((4, 5), 2.0)}
