@@ -606,7 +606,7 @@ def markdown(rep) -> str:
         cc = r["cross_check"]
         rows.append([c["name"], r["description"], r["events"], cc["method"], cc["events_compared"],
                      common.fmt(cc["max_abs_s"])])
-    L.append(common.md_table(["case", "reference", "events", "cross-check", "compared", "max |dt| s"], rows))
+    L.append(common.md_table(["case", "reference", "events", "cross-check", "compared", "max abs dt, s"], rows))
     for c in rep["cases"]:
         cf = c["reference"].get("closed_form")
         if cf:
@@ -620,7 +620,7 @@ def markdown(rep) -> str:
         rows = []
         for r in c["settings"]:
             rows.append([r["label"], r["status"], common.fmt(r.get("cpu_s_per_sim_s")),
-                         common.fmt(r.get("step_p99_s")), common.fmt(r.get("step_p99_over_budget"), ".2f"),
+                         common.fmt(r.get("step_p99_s")), common.fmt(r.get("step_p99_over_budget"), ".2g"),
                          common.fmt(r.get("event_rms_s")), common.fmt(r.get("event_max_s")),
                          r.get("missing"), r.get("spurious"), common.fmt(r.get("period_rel_max")),
                          common.fmt(r.get("amplitude_rel_rms")), common.fmt(r.get("waveform_nrmse"))])
