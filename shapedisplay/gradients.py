@@ -72,6 +72,11 @@ def gaussian(hf: HeightField, sigma=None) -> tuple[np.ndarray, np.ndarray]:
 
     s = 1.5 * hf.dx if sigma is None else _positive_length(sigma, "sigma")
     sx, sy = s / hf.dx, s / hf.dy
+    if sx > hf.cols or (hf.rows > 1 and sy > hf.rows):
+        # the filter would smooth the map away, and its kernel (8 sigma) costs time in proportion
+        raise InputError(
+            f"gaussian `sigma` must not exceed the map extent ({hf.cols * hf.dx:g} m x {hf.rows * hf.dy:g} m; "
+            f"got sigma={s:g} m)")
     h = hf.heights
     if hf.rows == 1:
         gx = ndimage.gaussian_filter1d(h[0], sx, order=1, mode="nearest")[None, :] / hf.dx
@@ -96,9 +101,9 @@ def savgol(hf: HeightField, window=7, order: int = 2) -> tuple[np.ndarray, np.nd
             w = int(round(_positive_length(window, "window") / step))
         else:
             w = int(window)
-            if w != window:
+            if w != window or w % 2 == 0:
                 raise InputError(f"savgol `window` must be an odd number of samples or a length (got {window!r})")
-        w = w + 1 if w % 2 == 0 else w
+        w = w + 1 if w % 2 == 0 else w   # a length rounds up to an odd window
         if w <= order:
             raise InputError(f"savgol `window` ({w} samples) must exceed `order` ({order})")
         if w > n:
