@@ -20,6 +20,11 @@ Stroke syntax (coordinates in mm on the table grid; unit optional)
 The speed is required and must be > 0; the path must have positive length.
 The cursor is sampled at ``t_i = i / tick_rate`` until it reaches the end
 (it rests on the end point for the remainder of the last tick).
+
+One offline path holds at most :data:`MAX_TICKS` ticks (1000 s at 10 kHz,
+about 2.5 GB of per-tick arrays in a render); a longer stroke or trace is
+refused before anything is allocated (split it, or play it tick by tick
+with :meth:`~shapedisplay.runtime.renderer.Renderer.step`).
 """
 from __future__ import annotations
 
@@ -34,6 +39,18 @@ import numpy as np
 from ..errors import FileFormatError, InputError
 from ..units import parse_quantity
 from .models import check_tick_rate
+
+#: Most ticks one offline cursor path may hold.
+MAX_TICKS = 10_000_000
+
+
+def check_ticks(duration: float, rate: float, what: str) -> int:
+    """Number of ticks ``floor(duration * rate + 1e-9) + 1`` of a path, refused beyond :data:`MAX_TICKS`."""
+    n = duration * rate
+    if not (math.isfinite(n) and math.ceil(n) + 1 <= MAX_TICKS):
+        raise InputError(f"{what} lasts {duration:.4g} s: {n:.4g} ticks at {rate:g} Hz, more than the "
+                         f"{MAX_TICKS:,} ticks of one offline render (split it or lower the tick rate)")
+    return int(math.floor(n + 1e-9)) + 1
 
 
 @dataclass(frozen=True)
@@ -80,7 +97,7 @@ class CursorPath:
     def resample(self, tick_rate: float) -> "CursorPath":
         """Linear interpolation onto ``t0 + i / tick_rate`` covering the path."""
         rate = check_tick_rate(tick_rate)
-        n = int(math.floor(self.duration * rate + 1e-9)) + 1
+        n = check_ticks(self.duration, rate, f"cursor path '{self.source}'")
         if n < 2:
             raise InputError(f"cursor path '{self.source}' lasts {self.duration:.3g} s, "
                              f"less than one tick at {rate:g} Hz")
@@ -142,6 +159,7 @@ def parse_stroke(text: str, tick_rate: float) -> CursorPath:
     if not length > 0:
         raise InputError(f"stroke {text!r} has zero length")
     duration = length / speed
+    check_ticks(duration, rate, f"stroke {text!r}")
     n = int(math.ceil(duration * rate - 1e-9)) + 1
     t = np.arange(n) / rate
     s = np.minimum(t * speed, length)
