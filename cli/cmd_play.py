@@ -35,18 +35,22 @@ def register(sub) -> None:
 
 def run(args) -> int:
     import json
+    from contextlib import ExitStack
 
+    from shapedisplay.atomic import atomic_path
     from shapedisplay.devices import load_device
     from shapedisplay.errors import InputError
     from shapedisplay.runtime.cursor import load_force_csv, load_trace_csv, parse_stroke
     from shapedisplay.runtime.renderer import Renderer
-    from shapedisplay.sinks import SAMPLE_FORMATS, plot_trace, write_trace, write_wav
+    from shapedisplay.sinks import SAMPLE_FORMATS, check_plot_path, plot_trace, write_trace, write_wav
     from shapedisplay.errors import unknown_key
     from shapedisplay.table import FrictionTable
     from shapedisplay.units import parse_quantity
 
     if args.format not in SAMPLE_FORMATS:
         raise unknown_key("--format", args.format, SAMPLE_FORMATS)
+    if args.plot:
+        check_plot_path(args.plot)          # before any work: format known, matplotlib installed
     table = FrictionTable.load(args.table)
     device = load_device(args.device) if args.device else None
     if args.burst_gain is not None:
@@ -61,9 +65,9 @@ def run(args) -> int:
     msp = parse_quantity(args.max_stick_period, "s", "--max-stick-period") if args.max_stick_period else None
     r = Renderer(table, device=device, model=args.model, tick_rate=rate, audio_rate=arate,
                  burst_policy=args.burst_policy, max_stick_period=msp)
-    if args.stroke:
+    if args.stroke is not None:
         cursor = parse_stroke(args.stroke, r.tick_rate)
-    elif args.trace:
+    elif args.trace is not None:
         cursor = load_trace_csv(args.trace)
     else:
         try:
@@ -71,12 +75,18 @@ def run(args) -> int:
         except ValueError:
             raise InputError(f"`--start` must be 'x,y' in mm (got {args.start!r})") from None
         cursor = load_force_csv(args.force, r.device.cursor_gain, r.tick_rate, (sx, sy))
-    res = r.render(cursor)
-    write_wav(args.output, res.audio, res.audio_rate, args.format)
-    if args.trace_out:
-        write_trace(args.trace_out, res, table.checksum())
-    if args.plot:
-        plot_trace(args.plot, res)
+    # all outputs or none: each is written to a temporary file beside its final
+    # name and renamed only once every one of them has been written
+    with ExitStack() as outputs:
+        wav_tmp = outputs.enter_context(atomic_path(args.output))
+        trace_tmp = outputs.enter_context(atomic_path(args.trace_out, suffix=".npz")) if args.trace_out else None
+        plot_tmp = outputs.enter_context(atomic_path(args.plot)) if args.plot else None
+        res = r.render(cursor)
+        write_wav(wav_tmp, res.audio, res.audio_rate, args.format)
+        if trace_tmp is not None:
+            write_trace(trace_tmp, res, table.checksum())
+        if plot_tmp is not None:
+            plot_trace(plot_tmp, res)
     s = res.summary()
     if args.json:
         print(json.dumps(s, indent=2))

@@ -32,6 +32,8 @@ SAMPLE_FORMATS = ("float32", "int16")
 TRACE_ARRAYS = ("t", "x", "y", "vx", "vy", "normal_force", "friction_force", "state", "lateral_x", "lateral_y",
                 "skin_stretch", "event_time", "event_amplitude")
 TRACE_FORMAT = "shapedisplay-trace-1"
+#: File suffixes :func:`plot_trace` writes (matplotlib back ends without extra packages).
+PLOT_FORMATS = ("png", "pdf", "svg", "eps", "ps")
 
 
 def write_wav(path, samples, rate, sample_format: str = "float32") -> Path:
@@ -160,14 +162,27 @@ def read_trace(path) -> dict:
     return out
 
 
+def check_plot_path(path) -> str:
+    """Check that a plot can be written to ``path``: a suffix from :data:`PLOT_FORMATS` and matplotlib installed.
+
+    Returns the format (the suffix without the dot). Cheap enough to call before a long render.
+    """
+    fmt = Path(path).suffix.lstrip(".").lower()
+    if fmt not in PLOT_FORMATS:
+        raise InputError(f"plot '{path}': the file suffix must be one of "
+                         f"{', '.join('.' + f for f in PLOT_FORMATS)} (got {Path(path).suffix or 'none'!r})")
+    from .errors import require
+    require("matplotlib", "plot", "plotting")
+    return fmt
+
+
 def plot_trace(path, result, title: str | None = None) -> Path:
     """Plot N(x), friction force, stick/slip state and bursts along the stroke (PNG/PDF/SVG by suffix).
 
     ``result`` is a RenderResult or a dict from :func:`read_trace`.
     Needs matplotlib (``pip install 'shapedisplay[plot]'``).
     """
-    from .errors import require
-    require("matplotlib", "plot", "plotting")
+    fmt = check_plot_path(path)
     import matplotlib
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
@@ -196,6 +211,6 @@ def plot_trace(path, result, title: str | None = None) -> Path:
     fig.suptitle(title or f"{model}: {et.size} bursts over {s[-1]:.3g} mm, {t[-1] - t[0]:.3g} s")
     fig.tight_layout()
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=100, format=Path(path).suffix.lstrip(".") or "png")
+        fig.savefig(tmp, dpi=100, format=fmt)
     plt.close(fig)
     return Path(path)

@@ -47,6 +47,10 @@ def test_back_and_forth_and_repeat():
     ("0,2 @ 20 mm/s", "at least two points"),
     ("0,2 -> 60,2 @ 20 mm/s x3", "closed"),
     ("a,b -> 60,2 @ 20 mm/s", "cannot read point"),
+    ("", "needs a speed"),
+    ("-1e308,2 -> 1e308,2 @ 20 mm/s", "more than the 10,000,000 ticks"),
+    ("0,2 -> 60,2 @ 1e-300 mm/s", "more than the 10,000,000 ticks"),
+    ("0,2 -> 6e4,2 @ 1 mm/s", "more than the 10,000,000 ticks"),   # 6e8 ticks: refused before allocation
 ])
 def test_bad_strokes(text, match):
     with pytest.raises(InputError, match=match):
@@ -73,6 +77,9 @@ def test_trace_csv(tmp_path):
     p.write_text("0,0\n0.01,0.2\n")
     with pytest.raises(FileFormatError, match="columns"):
         load_trace_csv(p)
+    p.write_text("0,0,0\n1e9,0.2,0\n")                # 1e13 ticks at 10 kHz
+    with pytest.raises(InputError, match="more than the 10,000,000 ticks"):
+        load_trace_csv(p, tick_rate=10_000)
 
 
 def test_force_input_integrates_alpha_f():
@@ -197,14 +204,23 @@ def test_cli_burst_gain_scales_the_audio(tiny_table, tmp_path, capsys):
     (["--stroke", "0,2 -> 60,2 @ 20mm/s", "--model", "verlet"], "unknown model"),
     (["--stroke", "0,2 -> 60,2 @ 20mm/s", "--format", "mp3"], "--format"),
     (["--stroke", "0,2 -> 60,2 @ 20mm/s", "--model", "euler", "--rate", "1kHz"], "diverged"),
+    (["--stroke", ""], "needs a speed"),
+    (["--stroke", "0,2 -> 6e4,2 @ 1mm/s"], "ticks"),
+    (["--trace", ""], "no such file"),
+    (["--stroke", "0,2 -> 60,2 @ 20mm/s", "--plot", "PLOT.xyz"], "suffix"),
+    (["--stroke", "0,2 -> 60,2 @ 20mm/s", "--plot", "/nonexistent-dir/p.png"], "does not exist"),
+    (["--stroke", "0,2 -> 60,2 @ 20mm/s", "--trace-out", "/nonexistent-dir/t.npz"], "does not exist"),
 ])
 def test_cli_play_bad_inputs(tiny_table, tmp_path, capsys, extra, match):
     _, path, dev = tiny_table
-    rc = main(["play", str(path), "--device", str(dev), "-o", str(tmp_path / "x.wav"), *extra])
+    extra = [str(tmp_path / a) if a.startswith("PLOT") else a for a in extra]
+    rc = main(["play", str(path), "--device", str(dev), "-o", str(tmp_path / "x.wav"),
+               "--trace-out", str(tmp_path / "x.npz"), *extra])
     err = capsys.readouterr().err
     assert rc == 2 and match in err and "Traceback" not in err
     assert len(err.strip().splitlines()) == 1
-    assert not (tmp_path / "x.wav").exists()
+    # no output at all, not even a temporary file: all outputs are written or none
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dev.toml", "t.npz"]
 
 
 def test_cli_play_missing_channel_and_bad_mu(tmp_path, capsys):
