@@ -286,3 +286,32 @@ def test_exact_event_times_tick_rate_invariant_random(V, N, dmu, zeta):
     n = min(a.event_time.size, b.event_time.size)
     assert abs(a.event_time.size - b.event_time.size) <= 1      # an event may fall past the shorter end
     assert np.all(np.abs(a.event_time[:n] - b.event_time[:n]) <= 1e-9)
+
+
+def test_v_to_zero_sticks_exactly_until_the_closed_form_breakaway():
+    """V = 0.2 mm/s: the spring stretches as V t (no creep, no slip) until k V t + c V = mu_s N."""
+    V, N = 2e-4, 2.0
+    t_b = (0.5 * N - KONYO.damping * V) / (KONYO.stiffness * V)          # 2.499995 s
+    for model in ("exact", "jump"):
+        r = simulate_pad(model, V=V, N=N, pad=KONYO, friction=FrictionParams(0.5, 0.3), tick_rate=1000,
+                         duration=3.0)
+        assert r.event_time.size == 1 and abs(r.event_time[0] - t_b) <= 1e-12, model
+        before = r.t < t_b
+        assert np.all(r.state[before] == 0)
+        assert np.allclose(r.x[before], V * r.t[before], rtol=1e-12, atol=1e-18)
+
+
+def test_imaizumi_study_matches_quasi_static_sliding_and_rises_as_relative_speed_nears_zero():
+    """At 100 mm/s stimuli #0-#3 never stick: the pad follows the finger and the mean friction is the
+    cycle average of mu(|V - x_c'|) W. #4 (contactor peak 71 mm/s) brings the relative speed close to zero,
+    the negative Stribeck slope makes the pad stick-slip, and the friction rises most."""
+    from shapedisplay.runtime.studies import imaizumi_study
+    rows = [r for r in imaizumi_study(duration=1.0) if r["finger_speed_m_s"] == 0.1]
+    th = np.linspace(0.0, 2 * np.pi, 200_001)[:-1]
+    for r in rows[:4]:
+        vr = np.abs(0.1 - r["amplitude_m"] * 2 * np.pi * r["frequency_hz"] * np.cos(th))
+        mu = 1.4 + 0.7 * np.exp(-55 * vr) + 1.9 * vr
+        assert r["events"] == 0 and abs(r["mean_friction_n"] - mu.mean()) <= 2e-4 * mu.mean(), r
+    mean = [r["mean_friction_n"] for r in rows]
+    assert mean[0] < mean[1] and abs(mean[1] - mean[2]) <= 1e-4 < mean[3] - mean[2] and mean[3] < mean[4]
+    assert rows[4]["events"] > 0 and rows[4]["max_friction_n"] == pytest.approx(2.1, rel=1e-3)
