@@ -247,9 +247,10 @@ def _flat(a) -> np.ndarray | None:
 
 def _magnitude_sq(gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
     """gx^2 + gy^2 with one float64 temporary (no hypot: several times slower)."""
-    m2 = np.multiply(gx, gx)
-    t = np.multiply(gy, gy)
-    m2 += t
+    with np.errstate(over="ignore"):   # an overflow shows as inf; callers refuse it
+        m2 = np.multiply(gx, gx)
+        t = np.multiply(gy, gy)
+        m2 += t
     return m2
 
 
@@ -288,6 +289,11 @@ def detect_walls(hf: HeightField, gx: np.ndarray, gy: np.ndarray, max_slope: flo
             return WallReport(np.zeros(gx.shape, dtype=bool), 0, 0.0, limit, steepest)
         mask = np.greater(m2, limit * limit, out=np.empty(gx.shape, dtype=bool))
         del m2
+    if not math.isfinite(steepest):
+        lo, hi = float(hf.heights.min()), float(hf.heights.max())
+        raise InputError(
+            f"slopes overflow float64 (|grad h| beyond 1e154): heights {lo:g}..{hi:g} m over spacing "
+            f"dx={hf.dx:g} m, dy={hf.dy:g} m; check the units of the size and height range ({hf.source})")
     count = int(np.count_nonzero(mask))
     from scipy import ndimage
     labels, n = ndimage.label(mask)
@@ -310,6 +316,11 @@ def detect_walls(hf: HeightField, gx: np.ndarray, gy: np.ndarray, max_slope: flo
     return WallReport(mask, count, count / mask.size, limit, steepest, boxes, int(n))
 
 
+def _check_finite_peak(peak: float) -> None:
+    if not math.isfinite(peak):   # |g|^2 overflowed: the direction cannot be kept, limiting would give 0
+        raise InputError("slopes overflow float64 (|grad h| beyond 1e154); check the units of the spacing and heights")
+
+
 def limit_walls(gx: np.ndarray, gy: np.ndarray, max_slope: float, *, out=None) -> tuple[np.ndarray, np.ndarray]:
     """Clip the slope magnitude to ``max_slope``, keeping its direction.
 
@@ -330,10 +341,13 @@ def limit_walls(gx: np.ndarray, gy: np.ndarray, max_slope: float, *, out=None) -
     fx, fy = _flat(ox), _flat(oy)
     if fx is not None and fy is not None and ox.shape == oy.shape and ox.size:
         from . import _kernels
-        _kernels.clip_magnitude(fx, fy, float(limit))
+        _, peak = _kernels.clip_magnitude(fx, fy, float(limit))
+        _check_finite_peak(peak)
         return ox, oy
     f = _magnitude_sq(ox, oy)
-    if float(f.max(initial=0.0)) <= limit * limit:
+    peak2 = float(f.max(initial=0.0))
+    _check_finite_peak(peak2)
+    if peak2 <= limit * limit:
         return ox, oy
     # factor min(1, limit/|g|): exactly 1 (values unchanged) where |g| <= limit
     with np.errstate(divide="ignore"):

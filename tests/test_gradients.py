@@ -146,3 +146,21 @@ def test_limit_walls_clips_magnitude_keeps_direction(pairs, limit):
 def test_max_slope_must_be_positive():
     with pytest.raises(InputError, match="`max_slope` must be > 0"):
         limit_walls(np.zeros((1, 2)), np.zeros((1, 2)), 0.0)
+
+
+@pytest.mark.parametrize("cols", [8, 512])   # numpy path and numba kernel path
+def test_overflowing_slopes_are_refused_not_zeroed(cols):
+    """|g|^2 overflowing to inf used to clip the wall slopes to 0 (direction lost)."""
+    from shapedisplay.heightfield import HeightField
+    h = np.zeros((max(2, (1 << 16) // cols + 1), cols))
+    h[:, cols // 2:] = 1e-3
+    hf = HeightField(h, 1e-300, 1e-300)
+    gx, gy = gradient(hf)
+    with pytest.raises(InputError, match=r"slopes overflow float64 .* dx=1e-300 m"):
+        detect_walls(hf, gx, gy, 1.0)
+    with pytest.raises(InputError, match="slopes overflow float64"):
+        limit_walls(gx, gy, 1.0)
+    # a steep but representable wall keeps its direction at the limit
+    gx, gy = gradient(HeightField(h, 1e-9, 1e-9))
+    lx, ly = limit_walls(gx, gy, 1.0)
+    assert lx.max() == pytest.approx(1.0) and np.all(np.isfinite(lx))
