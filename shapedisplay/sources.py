@@ -501,6 +501,9 @@ def load_image(path, size, height_range, *, resolution=None) -> HeightField:
     rows, cols = gray.shape
     if rows * cols < 2:
         raise InputError(f"image '{path}': {rows}x{cols} pixels; a height map needs at least 2 samples")
+    if size is not None and resolution is not None:
+        raise InputError(f"image '{path}': give `size` or `resolution`, not both (got size={size!r}, "
+                         f"resolution={resolution!r})")
     if size is None:
         if resolution is None:
             raise InputError(f"image '{path}': give `size` (physical width x height) or `resolution`")
@@ -557,4 +560,5 @@ def load_source(path, **opts) -> HeightField:
             if k not in valid:
                 raise unknown_key("image option", k, valid)
         return load_image(path, opts.get("size"), opts.get("height_range"), resolution=opts.get("resolution"))
-    raise unknown_key("source type", suffix or "(no suffix)", IMAGE_SUFFIXES + MESH_SUFFIXES)
+    err = unknown_key("source type", suffix or "(no suffix)", IMAGE_SUFFIXES + MESH_SUFFIXES)
+    raise InputError(f"source '{path}': {err}")
