@@ -34,5 +34,10 @@ demo: $(STAMP)
 bench: $(STAMP)
 	for b in benchmarks/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
 
+report: $(STAMP)
+	@mkdir -p $(OUT)/report
+	$(SD) report accuracy -o $(OUT)/report
+	$(SD) report stability -o $(OUT)/report
+
 clean:
 	rm -rf $(OUT) build *.egg-info
