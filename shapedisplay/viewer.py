@@ -1004,6 +1004,15 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
         right *= 0.06 * np.linalg.norm(fwd) / max(np.linalg.norm(right), 1e-12)
         cam.focal_point = tuple(np.add(cam.focal_point, right))
         cam.position = tuple(np.add(cam.position, right))
+    # never crop: zoom out until the surface and the scale bar fit the free part of the frame
+    edge_pts = [np.column_stack([xs[i], ys[i], zs[i]]) for i in (0, -1)]
+    edge_pts += [np.column_stack([xs[:, j], ys[:, j], zs[:, j]]) for j in (0, -1)]
+    k = max(1, zs.size // 20000)
+    edge_pts.append(np.column_stack([xs.ravel()[::k], ys.ravel()[::k], zs.ravel()[::k]]))
+    y_bar = float(ys.min()) - 0.08 * extent          # the scale bar and its label
+    edge_pts.append(np.array([[float(xs.min()), y_bar, 0.0], [float(xs.min()) + extent / 5, y_bar, 0.0]]))
+    fit_in_frame(pl, np.concatenate(edge_pts), right=0.68 if scalar_bar else 0.97,
+                 top=0.76 if annotations else 0.97)
 
     if not off_screen:
         pl.enable_surface_point_picking(callback=preview._show_readout, show_message=False,
@@ -1014,6 +1023,34 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
         hint = "click/hover: read-out    space: replay stroke" if trace is not None else "click/hover: read-out"
         pl.add_text(hint, position="lower_right", font_size=9, color="black", name="hint")
     return preview
+
+
+def frame_coordinates(pl, points: np.ndarray) -> np.ndarray:
+    """Normalized device coordinates (n, 2) in -1..1 of display points (n, 3) in the active view."""
+    ren = pl.renderer
+    aspect = ren.GetTiledAspectRatio()
+    m = ren.GetActiveCamera().GetCompositeProjectionTransformMatrix(aspect, -1.0, 1.0)
+    mat = np.array([[m.GetElement(i, j) for j in range(4)] for i in range(4)])
+    h = np.column_stack([points, np.ones(len(points))]) @ mat.T
+    return h[:, :2] / h[:, 3:4]
+
+
+def fit_in_frame(pl, points: np.ndarray, left=-0.97, right=0.97, bottom=-0.95, top=0.97) -> float:
+    """Zoom the camera out (never in) until ``points`` lie inside the given part of the frame.
+
+    Returns the total zoom factor applied (1 when everything already fits).
+    """
+    total = 1.0
+    for _ in range(4):      # a perspective zoom scales the view angle, not its tangent: a few passes
+        ndc = frame_coordinates(pl, points)
+        (x0, y0), (x1, y1) = ndc.min(axis=0), ndc.max(axis=0)
+        f = min(1.0, left / x0 if x0 < left else 1.0, right / x1 if x1 > right else 1.0,
+                bottom / y0 if y0 < bottom else 1.0, top / y1 if y1 > top else 1.0)
+        if f >= 0.999:
+            break
+        pl.camera.zoom(f * 0.99)
+        total *= f * 0.99
+    return total
 
 
 def draw_stride(rows: int, cols: int) -> int:

@@ -288,6 +288,25 @@ def test_height_colours_span_the_channel_range():
     assert v_edge.max() < lo + 0.1 * span
 
 
+@pytest.mark.parametrize("view", ["side", "iso", "top"])
+@pytest.mark.parametrize("size_mm", [(60, 40), (120, 20), (20, 120)])
+def test_every_view_keeps_the_whole_surface_in_the_frame(view, size_mm):
+    """Wide, long or square: the surface never touches the frame's edges (nothing cropped)."""
+    w, d = size_mm
+    x = np.linspace(0, w * 1e-3, 2 * w + 1)
+    y = np.linspace(0, d * 1e-3, 2 * d + 1)
+    X, Y = np.meshgrid(x, y)
+    h = 2e-3 * np.exp(-((X - w * 5e-4) ** 2 + (Y - d * 5e-4) ** 2) / (2 * (5e-3) ** 2))
+    m = viewer.model_from_heightfield(HeightField(h, x[1] - x[0], y[1] - y[0]))
+    p = viewer.render(m, "height", size=(W, H), view=view, annotations=False)
+    img = p.screenshot()
+    p.close()
+    mask = surface_pixels(img)
+    mask[:, int(0.8 * W):] = False                                     # the colour bar and its title
+    assert mask.mean() > 0.02
+    assert not mask[:, :2].any() and not mask[:2, :].any() and not mask[-2:, :].any()
+
+
 def test_channel_choice_changes_colours_and_units(table):
     m = viewer.model_from_table(table)
     p = flat_top(m, "breakaway_force")
