@@ -354,9 +354,8 @@ f 1 4 3
 """
 
 
-@pytest.mark.parametrize("size, position", [("20x20 mm", "20,10 mm"), ("30x10 mm", "15.5,12 mm")])
-def test_mesh_widget_is_the_analytic_pyramid_at_every_sample(tmp_path, size, position):
-    """A 20x20x2 mm pyramid (mm units) stretched to the box: N = n_base + n_gain h at every canvas sample."""
+def pyramid_table(tmp_path, position: str, size: str, canvas: str):
+    """The pyramid as a mesh widget, compiled unquantized (float64) for the desktop rig (N up to 8 N)."""
     pytest.importorskip("trimesh")
     (tmp_path / "pyr.obj").write_text(PYRAMID_OBJ)
     p = write(tmp_path, f"""
@@ -366,8 +365,14 @@ type = "mesh"
 file = "pyr.obj"
 position = "{position}"
 size = "{size}"
-""", extra='[device]\nprofile = "desktop-rig"\n')
-    t = compile_scene(p, options=CompileOptions(quantize="float64")).table
+""", size=canvas, extra='[device]\nprofile = "desktop-rig"\n')
+    return compile_scene(p, options=CompileOptions(quantize="float64")).table
+
+
+@pytest.mark.parametrize("size, position", [("20x20 mm", "20,10 mm"), ("30x10 mm", "15.5,12 mm")])
+def test_mesh_widget_is_the_analytic_pyramid_at_every_sample(tmp_path, size, position):
+    """A 20x20x2 mm pyramid (mm units) stretched to the box: N = n_base + n_gain h at every canvas sample."""
+    t = pyramid_table(tmp_path, position, size, "80x40 mm")
     g = t.grid
     X, Y = np.meshgrid(np.arange(g.cols) * g.dx, np.arange(g.rows) * g.dy)
     (x0, y0), (bw, bh) = [float(v) * 1e-3 for v in position[:-3].split(",")], \
@@ -380,17 +385,7 @@ size = "{size}"
 
 
 def test_mesh_widget_on_a_1d_canvas_follows_the_centre_line(tmp_path):
-    pytest.importorskip("trimesh")
-    (tmp_path / "pyr.obj").write_text(PYRAMID_OBJ)
-    p = write(tmp_path, """
-[[widget]]
-id = "p"
-type = "mesh"
-file = "pyr.obj"
-position = "10 mm"
-size = "20 mm"
-""", size="40 mm")
-    t = compile_scene(p, options=CompileOptions(quantize="float64")).table
+    t = pyramid_table(tmp_path, "10 mm", "20 mm", "40 mm")
     x = np.arange(t.grid.cols) * t.grid.dx
     h = np.clip(2e-3 * (1 - np.abs(x - 20e-3) / 10e-3), 0, None)   # the tent through the apex
     np.testing.assert_allclose(t.dense("normal_force")[0], 0.5 + 1000.0 * h, atol=1e-9)

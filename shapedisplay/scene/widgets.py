@@ -243,6 +243,11 @@ def _limit_ramp(ramp: float, edge: str, half: float, w: PlaceCtx, what: str = "r
     return ramp
 
 
+def _sunk(keys: dict) -> dict:
+    """The keys of a sunk variant (dent, groove): ``depth`` in place of ``height``."""
+    return {("depth" if k == "height" else k): kind for k, kind in keys.items()}
+
+
 class Button(WidgetType):
     """Raised rounded rectangle: flat top, edges rising over ``ramp`` with profile ``edge``."""
 
@@ -276,8 +281,7 @@ class Dent(Button):
     sign = -1
     strength_keys = DEPTH_KEYS
     default_strength = "1 mm"
-    own_keys = {"depth": "len", "force": "force", "force_step": "force", "level": "num",
-                "ramp": "len", "edge": "choice", "corner_radius": "len"}
+    own_keys = _sunk(Button.own_keys)
 
 
 class Well(Dent):
@@ -512,8 +516,7 @@ class Groove(Ridge):
     name = "groove"
     sign = -1
     strength_keys = DEPTH_KEYS
-    own_keys = {"from": "point", "to": "point", "at": "len", "width": "len", "profile": "choice",
-                "depth": "len", "force": "force", "force_step": "force", "level": "num"}
+    own_keys = _sunk(Ridge.own_keys)
 
 
 def _resample(values: np.ndarray, u, v, W: float, H: float, is_1d: bool, centred: bool = False):
