@@ -208,3 +208,11 @@ def test_added_heights_beyond_device_range_warn(tmp_path):
     # 1 N + 6 mm * 1 N/mm = 7 N, 1 N above the handheld stick's 6 N
     assert "'ok'" in w and "'two'" in w and "6 mm" in w and "by 1 mm (1 N)" in w and "clamped to 5 mm" in w
     assert res.table.dense("normal_force").max() == pytest.approx(6.0, abs=res.table.quant["normal_force"].max_error)
+
+
+@pytest.mark.parametrize("wtype", ["slider", "toggle"])
+def test_vertical_widget_on_a_1d_canvas(tmp_path, wtype):
+    head = HEAD.replace('"80x40 mm"', '"80 mm"')
+    msg = err(tmp_path, f'[[widget]]\nid = "v"\ntype = "{wtype}"\nposition = "10 mm"\nsize = "30 mm"\n'
+                        'orientation = "vertical"\n', head=head)
+    assert "widget[0] 'v'" in msg and "`widget[0].orientation` must be horizontal on a 1-D canvas" in msg

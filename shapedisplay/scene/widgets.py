@@ -288,6 +288,21 @@ class Well(Dent):
     name = "well"
 
 
+def _orientation(raw: dict, W: float, H: float, w: PlaceCtx) -> tuple[bool, float, float]:
+    """(vertical, length L along the widget, cross size C) from ``orientation`` auto|horizontal|vertical.
+
+    ``auto`` runs along the longer side; a 1-D canvas only has horizontal widgets.
+    """
+    orient = choice(raw.get("orientation", "auto"), ("auto", "horizontal", "vertical"),
+                    w.fp + "orientation", w.ctx, w.where)
+    if w.canvas.is_1d:
+        if orient == "vertical":
+            raise w.error("orientation", "must be horizontal on a 1-D canvas (got 'vertical')")
+        return False, W, H
+    vertical = orient == "vertical" or (orient == "auto" and H > W)
+    return (vertical, H, W) if vertical else (vertical, W, H)
+
+
 class Slider(WidgetType):
     """Track (groove or ridge) along the long axis, a thumb bump, optional detents.
 
@@ -307,15 +322,7 @@ class Slider(WidgetType):
 
     def finish(self, raw, W, H, w):
         fp, ctx, where = w.fp, w.ctx, w.where
-        orient = choice(raw.get("orientation", "auto"), ("auto", "horizontal", "vertical"),
-                        fp + "orientation", ctx, where)
-        if w.canvas.is_1d:
-            if orient == "vertical":
-                raise w.error("orientation", "must be horizontal on a 1-D canvas (got 'vertical')")
-            vertical = False
-        else:
-            vertical = orient == "vertical" or (orient == "auto" and H > W)
-        L, C = (H, W) if vertical else (W, H)
+        vertical, L, C = _orientation(raw, W, H, w)
         track = choice(raw.get("track", "groove"), ("groove", "ridge"), fp + "track", ctx, where)
         edge = choice(raw.get("edge", "cosine"), ("linear", "cosine"), fp + "edge", ctx, where)
         if w.canvas.is_1d:
@@ -410,10 +417,7 @@ class Toggle(WidgetType):
 
     def finish(self, raw, W, H, w):
         fp, ctx, where = w.fp, w.ctx, w.where
-        orient = choice(raw.get("orientation", "auto"), ("auto", "horizontal", "vertical"),
-                        fp + "orientation", ctx, where)
-        vertical = (not w.canvas.is_1d) and (orient == "vertical" or (orient == "auto" and H > W))
-        L, C = (H, W) if vertical else (W, H)
+        vertical, L, C = _orientation(raw, W, H, w)
         state = choice(raw.get("state", "off"), self.states, fp + "state", ctx, where)
         edge = choice(raw.get("edge", "cosine"), ("linear", "cosine"), fp + "edge", ctx, where)
         half = L / 2 if w.canvas.is_1d else min(L, C) / 2
