@@ -206,6 +206,7 @@ def test_cli_burst_gain_scales_the_audio(tiny_table, tmp_path, capsys):
     (["--stroke", "0,2 -> 60,2 @ 20mm/s", "--model", "euler", "--rate", "1kHz"], "diverged"),
     (["--stroke", ""], "needs a speed"),
     (["--stroke", "0,2 -> 6e4,2 @ 1mm/s"], "ticks"),
+    (["--stroke", "0,2 -> 60,2 @ 0.01mm/s", "--rate", "100Hz"], "audio of 6000 s"),  # 2.9e8 samples at 48 kHz
     (["--trace", ""], "no such file"),
     (["--stroke", "0,2 -> 60,2 @ 20mm/s", "--plot", "PLOT.xyz"], "suffix"),
     (["--stroke", "0,2 -> 60,2 @ 20mm/s", "--plot", "/nonexistent-dir/p.png"], "does not exist"),

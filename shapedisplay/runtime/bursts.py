@@ -23,9 +23,20 @@ import math
 import numpy as np
 from numba import njit
 
-from ..errors import unknown_key
+from ..errors import InputError, unknown_key
 
 BURST_POLICIES = {"retrigger": 0, "add": 1, "max": 2}
+#: Most audio samples one offline render writes (1000 s at 48 kHz; 384 MB as float64).
+MAX_AUDIO_SAMPLES = 48_000_001
+
+
+def audio_length(duration: float, rate: float) -> int:
+    """Samples ``floor(duration * rate + 1e-9) + 1`` of an offline stream; refused beyond :data:`MAX_AUDIO_SAMPLES`."""
+    n = duration * rate
+    if not (math.isfinite(n) and math.floor(n + 1e-9) + 1 <= MAX_AUDIO_SAMPLES):
+        raise InputError(f"audio of {duration:.4g} s at {rate:g} Hz needs {n:.4g} samples, more than the "
+                         f"{MAX_AUDIO_SAMPLES:,} of one offline render (shorten the path or lower the audio rate)")
+    return int(math.floor(n + 1e-9)) + 1
 
 
 def policy_id(name: str) -> int:
@@ -148,7 +159,7 @@ def render_bursts(event_time, event_amplitude, t_start, duration, rate, carrier_
     clipped : int
     """
     pid = policy_id(policy)
-    n = int(math.floor(duration * rate + 1e-9)) + 1
+    n = audio_length(duration, rate)
     out = np.zeros(n)
     et = np.ascontiguousarray(event_time, dtype=np.float64)
     ea = np.ascontiguousarray(event_amplitude, dtype=np.float64)

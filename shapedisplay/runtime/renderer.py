@@ -54,7 +54,7 @@ from ..errors import InputError, ModelError, TableError
 from ..table import FrictionTable
 from ..units import parse_quantity
 from . import pads
-from .bursts import burst_value, policy_id, render_bursts, synth
+from .bursts import audio_length, burst_value, policy_id, render_bursts, synth
 from .cursor import CursorPath
 from .lookup import sample_all
 from .models import PadModel, check_tick_rate, divergence_message, get_model, run_kernel
@@ -411,11 +411,13 @@ class Renderer:
         """Render a whole cursor path offline (the fast path).
 
         A path not on this renderer's tick grid is resampled to ``tick_rate``.
-        Raises :class:`ModelError` if an explicit baseline diverges.
+        Raises :class:`ModelError` if an explicit baseline diverges, :class:`InputError` if the
+        audio would exceed :data:`~shapedisplay.runtime.bursts.MAX_AUDIO_SAMPLES`.
         """
         if not isinstance(cursor, CursorPath):
             raise InputError(f"`cursor` must be a CursorPath (got {type(cursor).__name__})")
         cp = cursor if cursor.tick_rate == self.tick_rate else cursor.resample(self.tick_rate)
+        audio_length(cp.duration, self.audio_rate)     # refuse an impossible stream before the work
         vals, V, vx, vy, N, mus, muk, gain = self._inputs(cp)
         S, f, st, _, _, _, _, et, ea = run_kernel(self.model, cp.t, V, N, mus, muk, gain)
         if S[pads.S_BLOW] != 0:
