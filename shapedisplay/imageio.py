@@ -295,7 +295,8 @@ def _chunk(ctype: bytes, body: bytes) -> bytes:
     return struct.pack(">I", len(body)) + ctype + body + struct.pack(">I", zlib.crc32(ctype + body) & 0xFFFFFFFF)
 
 
-def encode_png(gray: np.ndarray, filter_type: int | str | np.ndarray = "up", level: int = 6) -> bytes:
+def encode_png(gray: np.ndarray, filter_type: int | str | np.ndarray = "up", level: int = 6,
+               text: dict | None = None) -> bytes:
     """Encode a grayscale image as PNG bytes.
 
     Parameters
@@ -307,6 +308,8 @@ def encode_png(gray: np.ndarray, filter_type: int | str | np.ndarray = "up", lev
         "paeth"), or one per row.
     level : int
         zlib compression level 0-9.
+    text : dict, optional
+        ``{keyword: value}`` written as PNG ``tEXt`` chunks (Latin-1).
     """
     gray = np.asarray(gray)
     if gray.ndim != 2 or gray.size == 0:
@@ -331,7 +334,9 @@ def encode_png(gray: np.ndarray, filter_type: int | str | np.ndarray = "up", lev
     scan[:, 0] = ftypes
     scan[:, 1:] = filtered
     ihdr = struct.pack(">IIBBBBB", cols, rows, depth, 0, 0, 0, 0)
-    return (PNG_SIGNATURE + _chunk(b"IHDR", ihdr) + _chunk(b"IDAT", zlib.compress(scan.tobytes(), level))
+    texts = b"".join(_chunk(b"tEXt", str(k).encode("latin-1") + b"\0" + str(v).encode("latin-1"))
+                     for k, v in (text or {}).items())
+    return (PNG_SIGNATURE + _chunk(b"IHDR", ihdr) + texts + _chunk(b"IDAT", zlib.compress(scan.tobytes(), level))
             + _chunk(b"IEND", b""))
 
 

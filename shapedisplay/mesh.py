@@ -55,7 +55,6 @@ import math
 import os
 import struct
 import warnings
-import zlib
 from pathlib import Path
 
 import numpy as np
@@ -569,7 +568,7 @@ def save_mesh(vertices, faces, path, units: str = "mm") -> None:
 
 
 def save_heightfield_mesh(hf: HeightField, path, units: str = "mm", solid: bool = True,
-                          base_thickness: float = 1e-3) -> None:
+                          base_thickness: float = 1e-3) -> int:
     """Export a height field as a mesh (``.stl`` binary or ``.ply``), atomically.
 
     Coordinates are written in ``units`` (mm by default, so that reading the
@@ -577,10 +576,11 @@ def save_heightfield_mesh(hf: HeightField, path, units: str = "mm", solid: bool 
     round-trips). See :func:`heightfield_to_mesh` for ``solid`` and
     ``base_thickness``; reading a solid back gives heights shifted by
     ``base_thickness - min(heights)`` (heights are measured from the mesh's
-    lowest point).
+    lowest point). Returns the number of triangles written.
     """
     v, f = heightfield_to_mesh(hf, solid=solid, base_thickness=base_thickness)
     save_mesh(v, f, path, units=units)
+    return len(f)
 
 
 # ---------------------------------------------------------------------------
@@ -588,21 +588,6 @@ def save_heightfield_mesh(hf: HeightField, path, units: str = "mm", solid: bool 
 
 #: Height-map output suffixes handled by :func:`save_heightmap`.
 HEIGHTMAP_SUFFIXES = (".npy", ".npz", ".png", ".stl", ".ply")
-
-
-def _png16(gray: np.ndarray, text: dict) -> bytes:
-    """Encode a (rows, cols) uint16 array as a 16-bit grayscale PNG."""
-    rows, cols = gray.shape
-
-    def chunk(kind: bytes, body: bytes) -> bytes:
-        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body) & 0xFFFFFFFF)
-
-    raw = np.zeros((rows, 1 + 2 * cols), dtype=np.uint8)
-    raw[:, 1:] = gray.astype(">u2").view(np.uint8).reshape(rows, 2 * cols)
-    out = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", cols, rows, 16, 0, 0, 0, 0))
-    for key, value in text.items():
-        out += chunk(b"tEXt", key.encode("latin-1") + b"\x00" + str(value).encode("latin-1"))
-    return out + chunk(b"IDAT", zlib.compress(raw.tobytes(), 6)) + chunk(b"IEND", b"")
 
 
 def save_heightmap(hf: HeightField, path, **mesh_options) -> str:
@@ -627,6 +612,7 @@ def save_heightmap(hf: HeightField, path, **mesh_options) -> str:
         One-line description of what was written.
     """
     from .atomic import atomic_path
+    from .imageio import encode_png
 
     path = Path(path)
     suffix = path.suffix.lower()
@@ -636,8 +622,11 @@ def save_heightmap(hf: HeightField, path, **mesh_options) -> str:
         )
     h = hf.heights
     if suffix in (".stl", ".ply"):
-        save_heightfield_mesh(hf, path, **mesh_options)
-        return f"mesh of {2 * (hf.rows - 1) * (hf.cols - 1)} top triangles"
+        n_faces = save_heightfield_mesh(hf, path, **mesh_options)
+        n_top = 2 * (hf.rows - 1) * (hf.cols - 1)
+        if n_faces == n_top:
+            return f"top surface of {n_top} triangles (open mesh)"
+        return f"closed solid of {n_faces} triangles ({n_top} on top, side walls and a flat base)"
     with atomic_path(path) as tmp:
         if suffix == ".npy":
             with open(tmp, "wb") as fh:
@@ -656,7 +645,7 @@ def save_heightmap(hf: HeightField, path, **mesh_options) -> str:
             text = {"height_min_m": repr(lo), "height_max_m": repr(hi), "dx_m": repr(hf.dx), "dy_m": repr(hf.dy),
                     "size_m": f"{hf.cols * hf.dx!r}x{hf.rows * hf.dy!r}",
                     "Software": "shapedisplay"}
-            tmp.write_bytes(_png16(gray, text))
+            tmp.write_bytes(encode_png(gray, text=text))
             desc = (f"16-bit PNG; read it back with --size {w * 1e3:.6g}x{ht * 1e3:.6g}mm "
                     f"--height {lo * 1e3:.6g}:{hi * 1e3:.6g}mm")
     return desc

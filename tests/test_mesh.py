@@ -321,6 +321,13 @@ def test_save_heightmap_png_npy_npz(tmp_path):
     assert gray.dtype == np.uint16 and gray.shape == hf.shape
     lo, hi = hf.heights.min(), hf.heights.max()
     np.testing.assert_allclose(lo + gray / 65535 * (hi - lo), hf.heights, atol=(hi - lo) / 65535)
+    data = (tmp_path / "h.png").read_bytes()
+    size = f"{hf.cols * hf.dx!r}x{hf.rows * hf.dy!r}".encode()
+    assert b"tEXtheight_max_m\0" + repr(float(hi)).encode() in data and b"tEXtsize_m\0" + size in data
+    desc = mesh.save_heightmap(hf, tmp_path / "h.stl")
+    n_top = 2 * (hf.rows - 1) * (hf.cols - 1)
+    assert desc.startswith("closed solid of") and f"({n_top} on top" in desc
+    assert mesh.save_heightmap(hf, tmp_path / "s.stl", solid=False) == f"top surface of {n_top} triangles (open mesh)"
     with pytest.raises(mesh.FileFormatError, match="unsupported suffix '.txt'"):
         mesh.save_heightmap(hf, tmp_path / "h.txt")
 
