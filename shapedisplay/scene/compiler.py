@@ -298,17 +298,45 @@ def height_warnings(scene: Scene) -> list[str]:
     return out
 
 
+def combined_height_warnings(scene: Scene, grps: list[dict], warned: list[str]) -> list[str]:
+    """Groups whose combined heights (overlap rule ``add``) go beyond the device when no single
+    widget of the group does (those are in ``warned`` already), stating by how much."""
+    lo, hi = height_limits(scene)
+    gain = scene.mapping["n_gain"]
+    out = []
+    for g in grps:
+        ids = [scene.widgets[i].id for i in g["members"]]
+        if len(ids) < 2 or any(f"'{i}'" in w for i in ids for w in warned):
+            continue
+        h, _ = composite(scene, g["rect"], members=g["members"])
+        for v, lim, side in ((float(h.max()), hi, "above"), (float(h.min()), lo, "below")):
+            if (v - lim) * (1 if side == "above" else -1) > 1e-12:
+                out.append(f"widgets {', '.join(repr(i) for i in ids)}: combined height "
+                           f"{v * 1e3:.4g} mm is {side} what the device renders by "
+                           f"{abs(v - lim) * 1e3:.4g} mm ({abs(v - lim) * gain:.4g} N); "
+                           f"clamped to {lim * 1e3:.4g} mm")
+    return out
+
+
+def scene_warnings(scene: Scene, grps: list[dict]) -> list[str]:
+    """Every warning of a scene: placement (clipping, snapping, detents, ramps) and heights the device
+    cannot render, alone or combined."""
+    warned = list(scene.warnings) + height_warnings(scene)
+    return warned + combined_height_warnings(scene, grps, warned)
+
+
 def check_scene(path, device=None) -> list[str]:
     """Validate a scene without compiling it.
 
     Raises :class:`SceneError` (an ``InputError``) on the first error; returns
     the warnings (clipping, snapping, detents too dense to feel apart, heights
-    the device cannot render, ramps shortened).
+    the device cannot render alone or combined, ramps shortened), the same
+    as the compile report lists.
     """
     scene = path if isinstance(path, Scene) else load_scene(path, device=device)
     grps = groups(scene, 1)
     check_groups(scene, grps)
-    return list(scene.warnings) + height_warnings(scene)
+    return scene_warnings(scene, grps)
 
 
 # --------------------------------------------------------------- compiling
@@ -372,8 +400,6 @@ def _group_channels(scene, rect, reach, states, device, mapping, options, kept, 
     c = scene.canvas
     calc = _grow(rect, reach, c.rows, c.cols)
     h, data = composite(scene, calc, states)
-    if clamped is not None:
-        clamped.setdefault("_heights", []).append((float(h.min()), float(h.max())))
     np.clip(h, lims[0], lims[1], out=h)
     s = c.spacing
     hf_calc = HeightField(h, s, s, calc[1] * s, calc[0] * s, f"scene {scene.name}")
@@ -464,7 +490,7 @@ def compile_scene(path, device=None, options=None):
     reach = gradient_reach(options, canvas.spacing)
     grps = groups(scene, reach)
     check_groups(scene, grps)
-    warnings = list(scene.warnings) + height_warnings(scene)
+    warnings = scene_warnings(scene, grps)
     kept, left_out = _channels(scene, dev, mapping)
     for k in options.keep:
         if k not in kept:
@@ -501,17 +527,6 @@ def compile_scene(path, device=None, options=None):
             steepest = max(steepest, sp)
         wall_blocks += bool(wc)
         blocks.append({"group": g, "main": main, "toggle": toggle, "variants": variants})
-
-    # -- combined heights (overlap rule "add") beyond the device, when no single widget is
-    for b, (hmin, hmax) in zip(blocks, clamped.pop("_heights", [])):
-        ids = [scene.widgets[i].id for i in b["group"]["members"]]
-        if len(ids) > 1 and not any(f"'{i}'" in w for i in ids for w in warnings):
-            for v, lim, side in ((hmax, lims[1], "above"), (hmin, lims[0], "below")):
-                if (v - lim) * (1 if side == "above" else -1) > 1e-12:
-                    warnings.append(f"widgets {', '.join(repr(i) for i in ids)}: combined height "
-                                    f"{v * 1e3:.4g} mm is {side} what the device renders by "
-                                    f"{abs(v - lim) * 1e3:.4g} mm ({abs(v - lim) * mapping.n_gain:.4g} N); "
-                                    f"clamped to {lim * 1e3:.4g} mm")
 
     # -- quantization over every stored value and the background
     background = _background(scene, dev, mapping, kept)
