@@ -26,17 +26,16 @@ def register(subparsers) -> None:
                    help="output file; suffix picks the format: .npy .npz .png .stl .ply")
     p.add_argument("--resolution", help="sample spacing, e.g. 0.1mm (exclusive with --grid)")
     p.add_argument("--grid", help="grid size ROWSxCOLS, e.g. 512x512 (exclusive with --resolution)")
-    p.add_argument("--up", default="z", help="axis pointing up: x, y, z, -x, -y, -z (default z) "
-                                             "or a direction 'dx,dy,dz'")
-    p.add_argument("--units", default="mm", help="unit of the mesh coordinates: mm, cm, m, in (default mm)")
-    p.add_argument("--supersample", type=int, default=1,
+    p.add_argument("--up", help="axis pointing up: x, y, z, -x, -y, -z (default z) or a direction 'dx,dy,dz'")
+    p.add_argument("--units", help="unit of the mesh coordinates: mm, cm, m, in (default mm)")
+    p.add_argument("--supersample", type=int,
                    help="k: k x k sub-samples per sample (anti-aliasing; default 1)")
-    p.add_argument("--supersample-mode", default="mean", help="reduce sub-samples by mean (default) or max")
-    p.add_argument("--background", default="0mm", help="height where the mesh does not reach (default 0mm)")
-    p.add_argument("--margin", default="0mm", help="background border around the footprint (default 0mm)")
+    p.add_argument("--supersample-mode", help="reduce sub-samples by mean (default) or max")
+    p.add_argument("--background", help="height where the mesh does not reach (default 0mm)")
+    p.add_argument("--margin", help="background border around the footprint (default 0mm)")
     p.add_argument("--size", help="image sources only: physical size WxH, e.g. 60x40mm")
     p.add_argument("--height", help="image sources only: height range LO:HI, e.g. 0:2mm")
-    p.add_argument("--method", default="numba", help="rasteriser: numba (default) or numpy (same answer)")
+    p.add_argument("--method", help="rasteriser: numba (default) or numpy (same answer)")
     p.add_argument("--base-thickness", default="1mm",
                    help="for .stl/.ply output: solid base below the lowest point (default 1mm)")
     p.add_argument("--surface-only", action="store_true",
@@ -89,20 +88,28 @@ def run(args) -> int:
     return 0
 
 
+#: Mesh-only options and their defaults (None on the command line = not given).
+MESH_DEFAULTS = {"up": "z", "units": "mm", "supersample": 1, "supersample_mode": "mean", "background": "0mm",
+                 "margin": "0mm", "method": "numba"}
+
+
 def _load(args, src, mesh):
-    from shapedisplay.errors import FileFormatError
+    from shapedisplay.errors import InputError
 
     if src.suffix.lower() in mesh.MESH_SUFFIXES:
+        for opt in ("size", "height"):
+            if getattr(args, opt) is not None:
+                raise InputError(f"`--{opt}` applies to image sources; mesh '{src}' takes --resolution or --grid")
+        o = {k: (d if getattr(args, k) is None else getattr(args, k)) for k, d in MESH_DEFAULTS.items()}
         return mesh.mesh_to_heightfield(
-            src, resolution=args.resolution, grid=args.grid, up=_up(args.up), units=args.units,
-            background=args.background, supersample=args.supersample,
-            supersample_mode=args.supersample_mode, margin=args.margin, method=args.method,
+            src, resolution=args.resolution, grid=args.grid, up=_up(o["up"]), units=o["units"],
+            background=o["background"], supersample=o["supersample"],
+            supersample_mode=o["supersample_mode"], margin=o["margin"], method=o["method"],
         )
-    else:
-        try:
-            from shapedisplay.sources import load_source
-        except ImportError:
-            raise FileFormatError(f"source '{src}': not a mesh ({', '.join(mesh.MESH_SUFFIXES)})") from None
-        opts = {k: v for k, v in (("resolution", args.resolution), ("grid", args.grid),
-                                  ("size", args.size), ("height_range", args.height)) if v is not None}
-        return load_source(src, **opts)
+    for k in MESH_DEFAULTS:
+        if getattr(args, k) is not None:
+            raise InputError(f"`--{k.replace('_', '-')}` applies to meshes, not to '{src}'")
+    from shapedisplay.sources import load_source
+    opts = {k: v for k, v in (("resolution", args.resolution), ("grid", args.grid),
+                              ("size", args.size), ("height_range", args.height)) if v is not None}
+    return load_source(src, **opts)

@@ -115,6 +115,8 @@ def test_heightmap_command_options(tmp_path, capsys):
     (["--units", "yd"], "unknown mesh units 'yd'"),
     (["--up", "q"], "`up` must be one of x, y, z"),
     (["--up", "1,a,0"], "`--up` direction must be three numbers"),
+    (["--size", "1x1mm"], "`--size` applies to image sources"),   # was silently ignored
+    (["--height", "0:1mm"], "`--height` applies to image sources"),
 ])
 def test_heightmap_command_errors_exit_2_without_output(tmp_path, capsys, argv, pattern):
     out = tmp_path / "map.npy"
@@ -135,6 +137,20 @@ def test_heightmap_command_bad_files(tmp_path, capsys):
     rc = main(["heightmap", str(KEYCAP), "-o", str(tmp_path / "m.bmp")])
     assert rc == 2 and "unsupported suffix '.bmp'" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cut.stl"]
+
+
+@pytest.mark.parametrize("opt, value", [("--up", "y"), ("--units", "m"), ("--supersample", "2"),
+                                        ("--supersample-mode", "max"), ("--background", "1mm"),
+                                        ("--margin", "1mm"), ("--method", "numpy")])
+def test_heightmap_mesh_options_on_an_image_are_refused(tmp_path, capsys, opt, value):
+    """Mesh options used to be silently ignored for image sources."""
+    from shapedisplay.imageio import write_png
+    write_png(tmp_path / "a.png", np.arange(12, dtype=np.uint8).reshape(3, 4))
+    rc = main(["heightmap", str(tmp_path / "a.png"), "-o", str(tmp_path / "m.npy"), "--size", "4x3mm",
+               "--height", "0:1mm", opt, value])
+    err = capsys.readouterr().err
+    assert rc == 2 and f"`{opt}` applies to meshes, not to '{tmp_path / 'a.png'}'" in err
+    assert not (tmp_path / "m.npy").exists()
 
 
 def test_heightmap_command_prints_the_unit_warning_before_the_error(tmp_path, capsys):
