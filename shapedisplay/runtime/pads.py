@@ -315,23 +315,89 @@ def _sgn(x):
 
 
 @njit(cache=True)
+def _stuck_whole_tick(S, P, h, V, N, mus, work):
+    """Fast path shared by the exact and jump ticks: True if the pad stays stuck for the whole tick.
+
+    The stick force is linear in time, so both ends inside the static limit
+    means no breakaway in between; the state is then advanced (with the
+    friction and damper work of the tick if ``work``). Off while a maximum
+    stick period is set.
+    """
+    if S[S_PHASE] != 0.0 or P[P_TMAX] != 0.0:
+        return False
+    k = P[P_K]
+    xe = S[S_X] + V * h
+    fa = k * S[S_X] + P[P_C] * V
+    fe = k * xe + P[P_C] * V
+    thr = mus * N
+    if not (abs(fa) < thr and abs(fe) < thr):
+        return False
+    if work:
+        S[S_WF] = fa * V * h + 0.5 * k * V * V * h * h
+        S[S_WD] = P[P_C] * V * V * h
+    S[S_X] = xe
+    S[S_V] = V
+    S[S_F] = fe
+    S[S_NEV] = 0.0
+    return True
+
+
+@njit(cache=True)
+def _stick_span(f, V, thr, k, tmax, age, rem):
+    """Stuck with stick force ``f`` (N): time to the next breakaway within ``rem`` seconds.
+
+    Returns ``(dt, breaks, forced)``: ``breaks`` False means stuck for all of
+    ``rem`` (``dt = rem``); ``forced`` means the maximum stick period, not
+    the static limit, ended the stick. ``dt = 0`` for a breakaway at once.
+    """
+    if abs(f) > thr * (1.0 + 1e-12) or (abs(f) >= thr and f * V > 0.0 and thr > 0.0) \
+            or (thr == 0.0 and f != 0.0):
+        return 0.0, True, False
+    tb = np.inf
+    if V != 0.0:
+        tb = (_sgn(V) * thr - f) / (k * V)
+        if tb < 0.0:
+            tb = 0.0
+    tf = np.inf
+    if tmax > 0.0:
+        tf = max(tmax - age, 0.0)
+    tn = min(tb, tf)
+    if tn >= rem:
+        return rem, False, False
+    return tn, True, tf < tb
+
+
+@njit(cache=True)
+def _breakaway(f, V, forced, mus, ncap):
+    """Slip direction ``s`` and normal-force cap after a breakaway with stick force ``f``."""
+    s = _sgn(f)
+    if s == 0.0:
+        s = _sgn(V) if V != 0.0 else 1.0
+    if forced and mus > 0.0:
+        ncap = abs(f) / mus          # a forced slip keeps to the force it broke away at
+    return s, ncap
+
+
+@njit(cache=True)
+def _finish_tick(S, x, phase, s, age, ncap, k, c, V, N, muk, nev):
+    """Write the end-of-tick state shared by the exact and jump ticks (friction force included)."""
+    S[S_X] = x
+    S[S_PHASE] = phase
+    S[S_S] = s
+    S[S_AGE] = age
+    S[S_NCAP] = ncap
+    S[S_NEV] = nev
+    if phase == 0.0:
+        S[S_F] = k * x + c * V
+    else:
+        Neff = N if N < ncap else ncap
+        S[S_F] = s * muk * Neff
+
+
+@njit(cache=True)
 def _exact_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
-    # fast path: stuck for the whole tick (the stick force is linear in time,
-    # so both ends inside the static limit means no breakaway in between)
-    if S[S_PHASE] == 0.0 and P[P_TMAX] == 0.0:
-        k_ = P[P_K]
-        xe = S[S_X] + V * h
-        fa = k_ * S[S_X] + P[P_C] * V
-        fe = k_ * xe + P[P_C] * V
-        thr_ = mus * N
-        if abs(fa) < thr_ and abs(fe) < thr_:
-            S[S_WF] = fa * V * h + 0.5 * k_ * V * V * h * h
-            S[S_WD] = P[P_C] * V * V * h
-            S[S_X] = xe
-            S[S_V] = V
-            S[S_F] = fe
-            S[S_NEV] = 0.0
-            return n_ev
+    if _stuck_whole_tick(S, P, h, V, N, mus, True):
+        return n_ev
     m = P[P_M]
     k = P[P_K]
     c = P[P_C]
@@ -357,48 +423,23 @@ def _exact_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
         rem = h - t
         if phase == 0.0:
             v = V
-            thr = mus * N
             f = k * x + c * V
-            brk = False
-            forced = False
-            if abs(f) > thr * (1.0 + 1e-12) or (abs(f) >= thr and f * V > 0.0 and thr > 0.0) \
-                    or (thr == 0.0 and f != 0.0):
-                brk = True
-            else:
-                tb = np.inf
-                if V != 0.0:
-                    tb = (_sgn(V) * thr - f) / (k * V)
-                    if tb < 0.0:
-                        tb = 0.0
-                tf = np.inf
-                if tmax > 0.0:
-                    tf = max(tmax - age, 0.0)
-                tn = min(tb, tf)
-                if tn >= rem:
-                    wf += (f * V * rem + 0.5 * k * V * V * rem * rem)
-                    wdmp += c * V * V * rem
-                    x += V * rem
-                    age += rem
-                    t = h
-                    break
-                wf += (f * V * tn + 0.5 * k * V * V * tn * tn)
-                wdmp += c * V * V * tn
-                x += V * tn
-                age += tn
-                t += tn
-                f = k * x + c * V
-                brk = True
-                forced = tf < tb
-            if brk:
-                s = _sgn(f)
-                if s == 0.0:
-                    s = _sgn(V) if V != 0.0 else 1.0
-                if forced and mus > 0.0:
-                    ncap = abs(f) / mus
-                n_ev = _record(ev_t, ev_a, n_ev, t0 + t, B * abs(k * x))
-                phase = 1.0
-                age = 0.0
-                continue
+            dt, brk, forced = _stick_span(f, V, mus * N, k, tmax, age, rem)
+            if dt > 0.0:
+                wf += (f * V * dt + 0.5 * k * V * V * dt * dt)
+                wdmp += c * V * V * dt
+                x += V * dt
+                age += dt
+            if not brk:
+                t = h
+                break
+            t += dt
+            f = k * x + c * V
+            s, ncap = _breakaway(f, V, forced, mus, ncap)
+            n_ev = _record(ev_t, ev_a, n_ev, t0 + t, B * abs(k * x))
+            phase = 1.0
+            age = 0.0
+            continue
         # ---- slip
         Neff = N if N < ncap else ncap
         F = s * muk * Neff
@@ -432,20 +473,10 @@ def _exact_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
             # grazing touch that is not a re-stick: keep slipping past it; the
             # next touch or crossing is at least one extremum (pi / omega_d) away
             tmin = 0.5 * math.pi * math.sqrt(m / k)
-    S[S_X] = x
     S[S_V] = v
-    S[S_PHASE] = phase
-    S[S_S] = s
-    S[S_AGE] = age
-    S[S_NCAP] = ncap
     S[S_WF] = wf
     S[S_WD] = wdmp
-    S[S_NEV] = n_ev - nev0
-    if phase == 0.0:
-        S[S_F] = k * x + c * V
-    else:
-        Neff = N if N < ncap else ncap
-        S[S_F] = s * muk * Neff
+    _finish_tick(S, x, phase, s, age, ncap, k, c, V, N, muk, n_ev - nev0)
     return n_ev
 
 
@@ -494,20 +525,8 @@ def jump_restick(m, c, k, s, xb, V, muk, N):
 
 @njit(cache=True)
 def _jump_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
-    # fast path: stuck for the whole tick (the stick force is linear in time,
-    # so both ends inside the static limit means no breakaway in between)
-    if S[S_PHASE] == 0.0 and P[P_TMAX] == 0.0:
-        k_ = P[P_K]
-        xe = S[S_X] + V * h
-        fa = k_ * S[S_X] + P[P_C] * V
-        fe = k_ * xe + P[P_C] * V
-        thr_ = mus * N
-        if abs(fa) < thr_ and abs(fe) < thr_:
-            S[S_X] = xe
-            S[S_V] = V
-            S[S_F] = fe
-            S[S_NEV] = 0.0
-            return n_ev
+    if _stuck_whole_tick(S, P, h, V, N, mus, False):
+        return n_ev
     m = P[P_M]
     k = P[P_K]
     c = P[P_C]
@@ -531,30 +550,16 @@ def _jump_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
         if phase == 0.0:
             thr = mus * N
             f = k * x + c * V
-            if abs(f) > thr * (1.0 + 1e-12) or (abs(f) >= thr and f * V > 0.0 and thr > 0.0) \
-                    or (thr == 0.0 and f != 0.0):
-                forced = False
-            else:
-                tb = np.inf
-                if V != 0.0:
-                    tb = max((_sgn(V) * thr - f) / (k * V), 0.0)
-                tf = max(tmax - age, 0.0) if tmax > 0.0 else np.inf
-                tn = min(tb, tf)
-                if tn >= rem:
-                    x += V * rem
-                    age += rem
-                    t = h
-                    break
-                x += V * tn
-                age += tn
-                t += tn
-                f = k * x + c * V
-                forced = tf < tb
-            s = _sgn(f)
-            if s == 0.0:
-                s = _sgn(V) if V != 0.0 else 1.0
-            if forced and mus > 0.0:
-                ncap = abs(f) / mus
+            dt, brk, forced = _stick_span(f, V, thr, k, tmax, age, rem)
+            if dt > 0.0:
+                x += V * dt
+                age += dt
+            if not brk:
+                t = h
+                break
+            t += dt
+            f = k * x + c * V
+            s, ncap = _breakaway(f, V, forced, mus, ncap)
             n_ev = _record(ev_t, ev_a, n_ev, t0 + t, B * abs(k * x))
             Neff = N if N < ncap else ncap
             tsl, xr = jump_restick(m, c, k, s, x, V, muk, Neff)
@@ -585,19 +590,9 @@ def _jump_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
         phase = 0.0
         ncap = np.inf
         age = 0.0
-    S[S_X] = x
     S[S_V] = V
-    S[S_PHASE] = phase
-    S[S_S] = s
-    S[S_AGE] = age
-    S[S_NCAP] = ncap
     S[S_TSLIP] = tsl
-    S[S_NEV] = n_ev - nev0
-    if phase == 0.0:
-        S[S_F] = k * x + c * V
-    else:
-        Neff = N if N < ncap else ncap
-        S[S_F] = s * muk * Neff
+    _finish_tick(S, x, phase, s, age, ncap, k, c, V, N, muk, n_ev - nev0)
     return n_ev
 
 
