@@ -954,9 +954,10 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
             pts = np.array([[w["x0"] * 1e3, w["y1"] * 1e3,
                              float(preview.z_display(model.relief_at(w["x0"], w["y1"]))) + 2 * lift]
                             for w in model.widgets])
-            pl.add_point_labels(pts, [w["id"] for w in model.widgets], font_size=12, text_color="black",
-                                shape_opacity=0.6, shape_color="white", show_points=False,
-                                always_visible=True)
+            for pt, w in zip(pts, model.widgets):   # one label each: VTK drops labels that overlap others
+                pl.add_point_labels(pt[None, :], [w["id"]], font_size=12, text_color="black",
+                                    shape_opacity=0.6, shape_color="white", show_points=False,
+                                    always_visible=True)
 
     # ---- stroke ---------------------------------------------------------------------------
     if trace is not None:

@@ -551,6 +551,23 @@ def test_compiled_scene_table_shows_outlines_and_left_out(tmp_path):
     assert dark(img1).sum() > dark(img0).sum() + 200
 
 
+def test_every_widget_id_is_drawn_even_where_labels_overlap():
+    """Two widgets with label anchors 1 mm apart: the second id is drawn too (VTK's label placement
+    would drop it): changing only its text changes the picture."""
+    m = viewer.model_from_heightfield(gaussian_field())
+
+    def shot(second_id):
+        m.widgets = [{"id": "first", "x0": -10e-3, "y0": -5e-3, "x1": 0.0, "y1": 5e-3},
+                     {"id": second_id, "x0": -9e-3, "y0": -5e-3, "x1": 0.0, "y1": 5e-3}]
+        p = viewer.render(m, "height", size=(W, H), view="top", lighting=False, scalar_bar=False)
+        img = p.screenshot()
+        p.close()
+        return img
+
+    a, b = shot("second"), shot("XXXXXXXXXX")
+    assert np.any(np.abs(a.astype(int) - b.astype(int)) > 60, axis=2).sum() > 30
+
+
 def test_one_dimensional_scene_is_a_strip_with_full_width_outlines():
     from shapedisplay.scene import compile_scene
     res = compile_scene(os.path.join(SCENES, "media-player.toml"))
