@@ -13,21 +13,9 @@ from shapedisplay.compile import compile_heightfield  # noqa: E402
 from shapedisplay.profiles import MappingOptions  # noqa: E402
 from shapedisplay.runtime import Renderer, parse_stroke  # noqa: E402
 from shapedisplay.sources import raised_cosine_bump  # noqa: E402
+from test_mesh_pipeline import bump_mesh  # noqa: E402  (the same bump mesh as the pipeline tests)
 
 MM = 1e-3
-
-
-def bump_mesh(A, rho, lo, hi, n):
-    """Surface mesh (mm) of the raised-cosine bump A (1 + cos(pi r / rho)) / 2 centred on (10, 10),
-    vertices on an n x n grid spanning [lo, hi]^2; returns (vertices, faces, vertex spacing)."""
-    t = np.linspace(lo, hi, n)
-    X, Y = np.meshgrid(t, t)
-    r = np.hypot(X - 10, Y - 10)
-    Z = np.where(r < rho, A * 0.5 * (1 + np.cos(np.pi * np.minimum(r, rho) / rho)), 0.0)
-    idx = np.arange(n * n).reshape(n, n)
-    a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel()
-    faces = np.vstack([np.column_stack([a, b, d]), np.column_stack([a, d, c])])
-    return np.column_stack([X.ravel(), Y.ravel(), Z.ravel()]), faces, (hi - lo) / (n - 1)
 
 
 def test_stroke_over_mesh_and_primitive_gives_the_same_events():
