@@ -1,6 +1,7 @@
 """Reports: accuracy (work-precision) and stability, their JSON claims, and the pieces they are built from."""
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import math
@@ -23,17 +24,25 @@ def _strict_load(path):
 
 
 # ================================================================ the two reports, through the CLI
+def _run_cli(argv, out):
+    """Run the CLI, keeping what it printed to stdout in ``out/terminal.txt``."""
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        assert main(argv) == 0
+    (out / "terminal.txt").write_text(buf.getvalue())
+
+
 @pytest.fixture(scope="module")
 def accuracy_report(tmp_path_factory):
     out = tmp_path_factory.mktemp("acc")
-    assert main(["report", "accuracy", "--quick", "-o", str(out)]) == 0
+    _run_cli(["report", "accuracy", "--quick", "-o", str(out)], out)
     return out, _strict_load(out / "accuracy.json")
 
 
 @pytest.fixture(scope="module")
 def stability_report(tmp_path_factory):
     out = tmp_path_factory.mktemp("stab")
-    assert main(["report", "stability", "--quick", "-o", str(out)]) == 0
+    _run_cli(["report", "stability", "--quick", "-o", str(out)], out)
     return out, _strict_load(out / "stability.json")
 
 
@@ -87,6 +96,13 @@ def test_accuracy_belt_closed_form(accuracy_report):
     assert cf["event_max_abs_s"] < 1e-9 and cf["period_rel_error"] < 1e-10
 
 
+def test_terminal_tables_printed(accuracy_report, stability_report):
+    # the CLI prints a short table and the list of files written (captured by the fixtures)
+    for out, head in ((accuracy_report[0], "fastest within 1%"), (stability_report[0], "verdict")):
+        text = (out / "terminal.txt").read_text()
+        assert head in text and "wrote" in text and len(text.splitlines()) < 40
+
+
 def test_accuracy_speedup_is_measured_ratio(accuracy_report):
     _, rep = accuracy_report
     n = 0
@@ -101,6 +117,14 @@ def test_accuracy_speedup_is_measured_ratio(accuracy_report):
         labels = {x["label"]: x["cpu_s_per_sim_s"] for x in c["settings"]}
         assert labels[fast["label"]] == fast["cpu_s_per_sim_s"] and labels[peer["label"]] == peer["cpu_s_per_sim_s"]
         assert fast["cpu_s_per_sim_s"] > 0
+        same = s["best_scipy_at_same_error"]
+        if same is not None:
+            # the peer at the same error is at least as accurate as the renderer setting it is compared with
+            assert same["period_rel_max"] <= max(fast["period_rel_max"], 1e-15)
+            assert s["speedup_vs_scipy_same_error"] == pytest.approx(
+                same["cpu_s_per_sim_s"] / fast["cpu_s_per_sim_s"], rel=1e-12)
+        else:
+            assert s["speedup_vs_scipy_same_error"] is None and s["speedup_vs_scipy_same_error_note"]
         n += 1
     assert n >= 3
 
@@ -123,9 +147,32 @@ def test_stability_summary_and_cases(stability_report):
     assert s["cases"] == len(cases) >= 200
     assert sum(s["verdicts"].values()) == len(cases)
     assert set(s["verdicts"]) == {"stable", "physically self-excited", "numerically unstable", "rejected"}
+    for v, n in s["verdicts"].items():
+        assert n == s[v] == sum(1 for c in cases if c["verdict"] == v)
     for c in cases:
         assert c["verdict"] in s["verdicts"] and isinstance(c["params"], dict)
-    assert list(out.glob("stability_*.png"))
+    for sweep in {c["sweep"] for c in cases if c["kind"] != "bad"}:
+        assert (out / f"stability_{sweep}.png").stat().st_size > 1000
+
+
+def test_stability_sweep_covers_the_extremes(stability_report):
+    from shapedisplay.reports.stability import build_sweeps
+    assert len(build_sweeps(quick=False)) >= 1000
+    _, rep = stability_report
+    run = [c for c in rep["cases"] if c["kind"] != "bad"]
+
+    def values(key, kind=None):
+        return [c["params"][key] for c in run if key in c["params"] and (kind is None or c["kind"] == kind)]
+    assert min(values("m")) <= 1e-9 and max(values("k")) >= 1e5
+    z = [c["zeta"] for c in run if c.get("zeta") is not None]
+    assert min(z) == 0.0 and max(z) > 1.0
+    assert min(values("N")) == 0.0 and max(values("N")) >= 20.0
+    assert min(values("V")) <= 1e-6 and max(values("V")) >= 2.0
+    assert min(values("delta_mu")) == 0.0 and max(values("mu_s")) >= 3.0
+    assert min(values("rate")) <= 100.0 and max(values("rate")) >= 96000.0
+    tables = [c for c in run if c["kind"] == "table"]
+    assert any(c["params"]["cursor_jump"] for c in tables) and {"float64", "uint8"} <= set(values("quantize"))
+    assert all(c["walls"] >= 1 for c in tables)
 
 
 def test_stability_default_models_never_nan(stability_report):
@@ -157,8 +204,19 @@ def test_stability_verdict_kinds(stability_report):
     _, rep = stability_report
     stri = [c for c in rep["cases"] if c["sweep"] == "stribeck"]
     self_ex = [c for c in stri if c["verdict"] == "physically self-excited"]
-    assert self_ex and all(c["stribeck_slope_Ns_per_m"] < 0 for c in self_ex)
-    assert all(c["verdict"] != "physically self-excited" for c in stri if c["stribeck_slope_Ns_per_m"] >= 0)
+    stable = [c for c in stri if c["verdict"] == "stable"]
+    assert self_ex and stable and len(self_ex) + len(stable) == len(stri)
+    # self-excitation is observed, not assumed: steady sliding leaves on its own at every substep (the step-size
+    # convergence that tells it from a numerical blow-up), and only where c + W mu'(V) < 0
+    for c in self_ex:
+        assert c["stribeck_slope_Ns_per_m"] < 0
+        assert c["self_excitation_by_substep"] == [True] * len(c["substeps_s"])
+        assert c["perturbation_growth"] > 2 or min(c["event_counts"]) > 0
+    for c in stable:
+        assert c["stribeck_slope_Ns_per_m"] >= 0
+        assert c["self_excitation_by_substep"] == [False] * len(c["substeps_s"])
+        assert c["perturbation_growth"] < 1            # the 1 % perturbation decays
+    assert rep["summary"]["stribeck_agree_with_slope_criterion"] == rep["summary"]["stribeck_cases"] == len(stri)
     bad = [c for c in rep["cases"] if c["kind"] == "bad"]
     assert bad and all(c["verdict"] == "rejected" and "\n" not in c["reason"] and c["reason"] for c in bad)
 

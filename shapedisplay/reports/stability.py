@@ -41,6 +41,7 @@ import numpy as np
 
 from ..errors import ShapeDisplayError
 from . import common
+from .peers import stribeck_mu
 
 VERDICTS = ("stable", "physically self-excited", "numerically unstable", "rejected")
 #: Models the renderer uses by default for the Konyo pad (must never give NaN/inf).
@@ -209,7 +210,15 @@ def _duration(p, quick):
     return dur
 
 
-def _run_pad(p, model_name, rate, duration, stribeck=False):
+def _run_pad(p, model_name, rate, duration, stribeck=False, substep_s=None):
+    """Run a pad model at constant V and N.
+
+    Konyo-type models start stuck with the spring relaxed. The ``stribeck``
+    model starts in steady sliding at relative speed V (spring at
+    ``-mu(V) W / k``) with the pad speed perturbed by 1 % of V, so a
+    negative friction slope shows up as a growing oscillation that ends in
+    stick-slip, and a positive one as a decaying perturbation.
+    """
     from ..runtime import pads
     from ..runtime.models import get_model, run_kernel
     from ..errors import InputError
@@ -221,14 +230,26 @@ def _run_pad(p, model_name, rate, duration, stribeck=False):
     if p["N"] < 0:
         raise InputError(f"`N` must be >= 0 N (got {p['N']})")
     dev = _device(p, stribeck)
-    model = get_model(model_name, dev)
+    opts = {"substep_s": substep_s} if substep_s is not None else {}
+    model = get_model(model_name, dev, **opts)
     n = int(round(duration * rate)) + 1
     t = np.arange(n) / rate
     ones = np.ones(n)
     V = p["V"] * ones
-    V[0] = 0.0
+    state = None
+    if stribeck:
+        state = model.new_state()
+        mu = stribeck_mu(abs(p["V"]), p["N"], p["mu_s"], p["mu_k"], p["a"], p["b"]) if p["N"] > 0 else 0.0
+        sgn = 1.0 if p["V"] >= 0 else -1.0
+        state[pads.S_PHASE] = 1.0
+        state[pads.S_X] = -sgn * mu * p["N"] / p["k"]
+        state[pads.S_V] = 0.01 * p["V"]
+        state[pads.S_S] = -sgn
+        state[pads.S_F] = -sgn * mu * p["N"]
+    else:
+        V[0] = 0.0
     S, f, st, x, v, wf, wd, et, ea = run_kernel(model, t, V, p["N"] * ones, p["mu_s"] * ones, p["mu_k"] * ones,
-                                                ones)
+                                                ones, state=state)
     return {"f": f, "x": x, "v": v, "state": st, "events": int(et.size), "blow": float(S[pads.S_BLOW]),
             "blow_t": float(S[pads.S_BLOWT]), "ev_a": ea}
 
@@ -258,6 +279,22 @@ def slip_energy_growth(p, r) -> float:
             worst = max(worst, float(E[j] / E[i]))
         i = j + 1
     return worst
+
+
+#: Substeps of the ``stribeck`` model in the stability sweep (the step-size convergence check), s.
+STRIBECK_SUBSTEPS = (2e-6, 1e-6, 0.5e-6)
+
+
+def _perturbation_growth(r, p) -> float:
+    """Largest pad-speed deviation from steady sliding over the last quarter of a run / the initial 1 % of V."""
+    v = r["v"]
+    tail = v[3 * v.size // 4:]
+    return float(np.max(np.abs(tail))) / max(0.01 * abs(p["V"]), 1e-300)
+
+
+def _self_excited(r, p) -> bool:
+    """Steady sliding left on its own: the run reached stick-slip, or the 1 % perturbation at least doubled."""
+    return bool(r["events"] > 0 or _perturbation_growth(r, p) > 2.0)
 
 
 def _higher(rate):
@@ -314,7 +351,8 @@ def _run_pad_case(case, rec, quick):
     p = case.params
     stribeck = case.kind == "stribeck"
     rate = p["rate"]
-    dur = _duration(p, quick)
+    # the Stribeck pad starts in steady sliding: a fixed span shows the perturbation grow or decay
+    dur = (0.05 if quick else 0.1) if stribeck else _duration(p, quick)
     m, k, c = p["m"], p["k"], p["c"]
     wn = math.sqrt(k / m)
     zeta = c / (2 * math.sqrt(k * m))
@@ -322,16 +360,20 @@ def _run_pad_case(case, rec, quick):
     if case.model in ("euler", "rk4"):
         rec["theory_stable"] = theory_stable(case.model, 1.0 / rate, wn, zeta)
         rec["theory_limit_h_omega_n"] = theory_limit(case.model, zeta)
-    runs = [_run_pad(p, case.model, r, dur, stribeck) for r in [rate] + _higher(rate)]
+    if stribeck:
+        # the tick rate does not set the Stribeck model's step (its substeps do): refine the substep
+        subs = list(STRIBECK_SUBSTEPS)
+        runs = [_run_pad(p, case.model, rate, dur, True, substep_s=h) for h in subs]
+        rec.update(step_s=subs[0], substeps_s=subs)
+    else:
+        runs = [_run_pad(p, case.model, r, dur) for r in [rate] + _higher(rate)]
     r0 = runs[0]
     finite = all(np.all(np.isfinite(r["f"])) and np.all(np.isfinite(r["x"])) and np.all(np.isfinite(r["v"]))
                  for r in runs)
     W = p["N"]
     if stribeck:
         vmax = max(float(np.max(np.abs(r["v"] + p["V"]))) for r in runs) if finite else math.inf
-        from ..runtime.pads import stribeck_mu
-        mu_hi = max(p["mu_s"], stribeck_mu(vmax, W, p["mu_s"], p["mu_k"], p["a"], p["b"], 400.0, 0.005, 0)[0]) \
-            if W > 0 else 0.0
+        mu_hi = max(p["mu_s"], stribeck_mu(vmax, W, p["mu_s"], p["mu_k"], p["a"], p["b"])) if W > 0 else 0.0
         fbound = mu_hi * W
     else:
         fbound = p["mu_s"] * W
@@ -354,12 +396,20 @@ def _run_pad_case(case, rec, quick):
     rec["linear_instability_detected"] = bool(blow or grows)
     rec.update(finite=bool(finite), friction_bounded=bool(fb_ok), friction_max_N=fmax, friction_limit_N=fbound,
                energy_bounded=e_ok, energy_max_J=float(np.max(E)) if finite else None, energy_limit_J=eb,
-               event_counts=counts, event_count_rates=[rate] + _higher(rate), events_converge=bool(conv),
+               event_counts=counts, events_converge=bool(conv),
                event_count_rel_error=_count_error(counts),
                diverged=bool(blow), diverged_at_s=r0["blow_t"] if blow else None)
     if stribeck:
         sl = stribeck_slope(c, W, p["mu_s"], p["mu_k"], p["a"], p["b"], abs(p["V"]))
         rec["stribeck_slope_Ns_per_m"] = sl
+        growing = [_self_excited(r, p) for r in runs]
+        rec["self_excitation_by_substep"] = growing
+        rec["perturbation_growth"] = _perturbation_growth(r0, p) if finite else None
+        if finite and len(set(growing)) > 1:
+            conv = False
+            rec["events_converge"] = False
+    else:
+        rec["event_count_rates"] = [rate] + _higher(rate)
     fails = []
     if blow:
         fails.append(f"diverged at t = {r0['blow_t']:.3g} s")
@@ -372,13 +422,17 @@ def _run_pad_case(case, rec, quick):
     if grows:
         fails.append(f"slip energy grows x{growth:.3g} within a slip phase")
     if not conv:
-        fails.append(f"event counts {counts} do not converge as the tick rate rises")
+        fails.append(f"event counts {counts} (or growth of the sliding perturbation) do not converge as the "
+                     f"{'substep falls' if stribeck else 'tick rate rises'}")
+    h = rec["step_s"]
     if fails:
         rec["verdict"] = "numerically unstable"
-        rec["reason"] = (f"{case.model} at h = {1e6 / rate:.4g} us (h*omega_n = {wn / rate:.3g}): " + "; ".join(fails))
-    elif stribeck and rec["stribeck_slope_Ns_per_m"] < 0:
+        rec["reason"] = f"{case.model} at h = {1e6 * h:.4g} us (h*omega_n = {wn * h:.3g}): " + "; ".join(fails)
+    elif stribeck and growing[0]:
         rec["verdict"] = "physically self-excited"
-        rec["reason"] = f"c + W mu'(V) = {rec['stribeck_slope_Ns_per_m']:.3g} N s/m < 0; counts converge {counts}"
+        rec["reason"] = (f"steady sliding at V is unstable at every substep {subs} s (perturbation x"
+                         f"{rec['perturbation_growth']:.3g}, stick-slip events {counts}); "
+                         f"c + W mu'(V) = {sl:.3g} N s/m")
     else:
         rec["verdict"] = "stable"
     return rec
@@ -425,7 +479,7 @@ def _run_table_case(case, rec, quick):
     conv = _count_converged(counts)
     rec.update(finite=finite, friction_bounded=fb_ok, energy_bounded=None,
                energy_note="renderer outputs carry no pad state; |friction| bound checked instead",
-               event_counts=counts, event_count_rates=[rate] + _higher(rate), events_converge=bool(conv),
+               event_counts=counts, events_converge=bool(conv),
                event_count_rel_error=_count_error(counts),
                max_speed_m_s=float(np.max(np.abs(rr.vx))))
     fails = [w for w, ok in (("non-finite output", finite), ("|friction| above mu_s N", fb_ok),
@@ -459,6 +513,9 @@ def run(out_dir, quick=False, progress=True, plots=True, stream=None) -> dict:
     expl = [r for r in recs if r.get("theory_stable") is not None]
     agree = sum(1 for r in expl if r["theory_stable"] != r["linear_instability_detected"])
     bad = [r for r in recs if r["kind"] == "bad"]
+    strib = [r for r in recs if r["kind"] == "stribeck" and r.get("stribeck_slope_Ns_per_m") is not None]
+    strib_agree = sum(1 for r in strib if (r["stribeck_slope_Ns_per_m"] < 0)
+                      == (r["verdict"] == "physically self-excited"))
     konyo_expl = {f"{r['model']} {r['params']['rate'] / 1000:g} kHz": r["verdict"]
                   for r in recs if r["sweep"] == "konyo_rate"}
     report = {
@@ -469,6 +526,7 @@ def run(out_dir, quick=False, progress=True, plots=True, stream=None) -> dict:
                     "default_model_nonfinite": nonfinite_default,
                     "default_model_numerically_unstable": unstable_default,
                     "explicit_cases": len(expl), "explicit_agree_with_theory": agree,
+                    "stribeck_cases": len(strib), "stribeck_agree_with_slope_criterion": strib_agree,
                     "bad_inputs": len(bad), "bad_inputs_rejected": sum(1 for r in bad if r["verdict"] == "rejected"),
                     "konyo_pad_by_rate": konyo_expl,
                     "theory_limits_h_omega_n": {
@@ -498,6 +556,9 @@ _COLORS = {"stable": "#2a9d8f", "physically self-excited": "#e9c46a", "numerical
            "rejected": "#6c757d"}
 
 
+_DRAW_ORDER = ("stable", "rejected", "physically self-excited", "numerically unstable")
+
+
 def _plots(rep, out_dir):
     plt = common.pyplot()
     from matplotlib.lines import Line2D
@@ -511,7 +572,8 @@ def _plots(rep, out_dir):
         models = sorted({r["model"] for r in rs})
         fig, axes = plt.subplots(1, len(models), figsize=(4.2 * len(models) + 1, 4.2), squeeze=False)
         for ax, model in zip(axes[0], models):
-            sel = [r for r in rs if r["model"] == model]
+            # worst verdicts drawn last, so a failure is never hidden under a stable case at the same point
+            sel = sorted((r for r in rs if r["model"] == model), key=lambda r: _DRAW_ORDER.index(r["verdict"]))
             xs, ys, cs = [], [], []
             for r in sel:
                 x, y, xl, yl, logx, logy = _axes(sweep, r)
@@ -524,7 +586,8 @@ def _plots(rep, out_dir):
             if logy:
                 ax.set_yscale("log")
             if sweep == "explicit_step":
-                zz = np.linspace(min(ys), max(ys), 50)
+                # over a band around the swept damping ratios (one ratio alone would draw a single point)
+                zz = np.linspace(max(0.0, min(ys) - 0.05), max(ys) + 0.05, 50)
                 ax.plot([theory_limit(model, z) for z in zz], zz, "k--", lw=1, label="theory limit")
             ax.set_xlabel(xl)
             ax.set_ylabel(yl)
@@ -573,6 +636,9 @@ def markdown(rep) -> str:
          f"unstable.",
          f"* Explicit baselines: the verdict agrees with linear stability theory in "
          f"{s['explicit_agree_with_theory']} of {s['explicit_cases']} cases.",
+         f"* Stribeck pad started in steady sliding: the verdict (self-excited when the sliding perturbation grows "
+         f"at every substep {', '.join(f'{h * 1e6:g}' for h in STRIBECK_SUBSTEPS)} us) agrees with the linear "
+         f"criterion c + W mu'(V) < 0 in {s['stribeck_agree_with_slope_criterion']} of {s['stribeck_cases']} cases.",
          f"* Bad inputs rejected with a clear error: {s['bad_inputs_rejected']} of {s['bad_inputs']}.", "",
          "## The published Konyo pad by tick rate", "",
          f"omega_n = {s['konyo_pad']['omega_n']:.4g} rad/s, zeta = {s['konyo_pad']['zeta']:.3g}; theory: forward "
@@ -597,6 +663,7 @@ def terminal_summary(rep) -> str:
     rows = [[v, s["verdicts"][v]] for v in VERDICTS]
     rows.append(["default models NaN/inf", s["default_model_nonfinite"]])
     rows.append(["explicit agree w/ theory", f"{s['explicit_agree_with_theory']}/{s['explicit_cases']}"])
+    rows.append(["Stribeck agree w/ c+W mu'<0", f"{s['stribeck_agree_with_slope_criterion']}/{s['stribeck_cases']}"])
     rows.append(["bad inputs rejected", f"{s['bad_inputs_rejected']}/{s['bad_inputs']}"])
     for k, v in s["konyo_pad_by_rate"].items():
         if k.startswith(("euler 1 kHz", "rk4 1 kHz", "exact 1 kHz", "jump 1 kHz")):
