@@ -129,6 +129,9 @@ class DeviceProfile:
         for o in self.outputs:
             if o not in OUTPUTS:
                 raise unknown_key("device output", o, OUTPUTS)
+        if not self.burst.carrier_hz < self.audio_rate_hz / 2:
+            raise InputError(f"burst `carrier` must be below half the audio rate, {self.audio_rate_hz / 2:g} Hz "
+                             f"(got carrier={self.burst.carrier_hz:g} Hz, audio_rate={self.audio_rate_hz:g} Hz)")
         return self
 
     def to_json(self) -> dict:
@@ -208,6 +211,8 @@ def parse_device(data: dict, where: str = "device") -> DeviceProfile:
     for sec in data:
         if sec not in _SECTIONS:
             raise unknown_key("section", sec, _SECTIONS)
+        if not isinstance(data[sec], dict):
+            raise InputError(f"`{sec}` must be a [{sec}] table of keys (got {data[sec]!r})")
     kw: dict = {}
     for key, value in data.get("device", {}).items():
         if key not in _DEVICE_KEYS:
@@ -220,9 +225,13 @@ def parse_device(data: dict, where: str = "device") -> DeviceProfile:
                 raise InputError(f"`device.{key}` must be a list of two quantities (got {value!r})")
             kw[attr] = tuple(parse_quantity(v, unit, f"device.{key}") for v in value)
         elif kind == "l":
-            kw[attr] = tuple(str(v) for v in value)
+            if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+                raise InputError(f"`device.{key}` must be a list of names such as [\"burst\"] (got {value!r})")
+            kw[attr] = tuple(value)
         else:
-            kw[attr] = str(value)
+            if not isinstance(value, str):
+                raise InputError(f"`device.{key}` must be a string (got {value!r})")
+            kw[attr] = value
     pad = {}
     for key, value in data.get("pad", {}).items():
         if key not in _PAD_KEYS:

@@ -115,3 +115,27 @@ def test_default_device_is_konyo():
     d = load_device(None)
     assert d.pad.stiffness == 2000.0 and d.burst.carrier_hz == 300.0
     assert d.burst.rise_s == 0.005 and d.burst.decay_s == 0.030
+
+
+@pytest.mark.parametrize("text, match", [
+    ('outputs = "burst"', r"`device.outputs` must be a list of names such as \[\"burst\"\] \(got 'burst'\)"),
+    ("name = 5", r"`device.name` must be a string \(got 5\)"),
+])
+def test_device_keys_of_the_wrong_type(tmp_path, text, match):
+    """A string for the outputs list used to be split into letters ("unknown output 'b'")."""
+    p = _write(tmp_path, BASE.replace('name = "t"', text if text.startswith("name") else 'name = "t"\n' + text))
+    with pytest.raises(InputError, match=match):
+        load_device(p)
+
+
+def test_section_that_is_not_a_table(tmp_path):
+    p = _write(tmp_path, 'friction = "high"\n' + BASE)
+    with pytest.raises(InputError, match=r"`friction` must be a \[friction\] table of keys \(got 'high'\)"):
+        load_device(p)
+
+
+def test_burst_carrier_below_nyquist(tmp_path):
+    p = _write(tmp_path, BASE + '[burst]\ncarrier = "30 kHz"\n')
+    with pytest.raises(InputError, match=r"burst `carrier` must be below half the audio rate, 24000 Hz "
+                                         r"\(got carrier=30000 Hz, audio_rate=48000 Hz\)"):
+        load_device(p)
