@@ -137,6 +137,10 @@ def test_accuracy_failures_are_kept(accuracy_report):
     assert bad[0]["cpu_s_per_sim_s"] is not None     # plotted as a marked failure point
     online = [s for s in konyo["settings"] if s.get("model") == "exact"]
     assert all(s["step_p99_s"] > 0 and s["tick_budget_s"] == pytest.approx(1 / s["tick_rate"]) for s in online)
+    # the thread's CPU time of a tick is timed inside its wall time, tick by tick
+    assert all(0 < s["step_cpu_p99_s"] <= s["step_p99_s"] and s["step_cpu_max_s"] <= s["step_wall_max_s"]
+               for s in online)
+    assert all(s["step_p99_over_budget"] == pytest.approx(s["step_p99_s"] * s["tick_rate"]) for s in online)
 
 
 def test_stability_summary_and_cases(stability_report):
