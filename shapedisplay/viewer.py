@@ -930,6 +930,9 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
                         pickable=True)
     else:
         preview.surface_actor = pl.add_mesh(grid, **surf_kwargs)
+    if scalar_bar:
+        for bar in pl.scalar_bars.values():
+            bar.SetVerticalTitleSeparation(10)    # keep the unit line clear of the top value
 
     extent = max(float(np.ptp(xs)), float(np.ptp(ys)), 1e-9)
     top = float(zs.max())
