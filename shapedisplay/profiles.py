@@ -134,7 +134,10 @@ class MappingOptions:
         ``perceptual``       equal perceived steps (beta default 0.76, bumpiness)
 
         Keywords override fields (``n_base="0.5N"``, ``lateral_gain=2`` ...);
-        None values are ignored. A spec without ``height`` keeps N constant.
+        None values are ignored. A gain turns its term on (``lateral_gain``
+        adds ``lateral``, ``slope_friction_gain`` ``slope``, ``skin_stretch``
+        ``stretch``, ``perceptual_exponent`` ``perceptual``). A spec without
+        ``height`` keeps N constant.
         """
         terms = [t.strip().lower() for t in str(spec).replace(",", "+").split("+") if t.strip()]
         if not terms:
@@ -161,6 +164,15 @@ class MappingOptions:
                 opts["skin_stretch"] = DEFAULT_SKIN_STRETCH
             elif t == "perceptual":
                 opts["perceptual_exponent"] = EXPONENTS["bumpiness"]
+        if "lateral" in terms and "lateral-normal" in terms:
+            raise InputError(f"`mapping` may hold one lateral law, 'lateral' (F = -K grad h) or 'lateral-normal' "
+                             f"(F = -N grad h) (got {spec!r})")
+        if "lateral_gain" in kw and "lateral" not in kw:
+            if opts.get("lateral") == "normal":
+                raise InputError(f"`lateral_gain` is K of the 'lateral' law F = -K grad h; 'lateral-normal' uses N "
+                                 f"instead (got lateral_gain={kw['lateral_gain']!r} with mapping {spec!r})")
+            # like the other gains, giving K asks for its term (it was silently ignored)
+            opts["lateral"] = "gradient"
         opts.update(kw)
         return cls(**opts)
 

@@ -43,6 +43,18 @@ def test_parse_errors():
         MappingOptions(lateral="gradient")
     with pytest.raises(InputError, match="mapping `perceptual_exponent` must be > 0"):
         MappingOptions(perceptual_exponent=-1.0)
+    with pytest.raises(InputError, match=r"`mapping` may hold one lateral law, .* \(got 'lateral\+lateral-normal'\)"):
+        MappingOptions.parse("lateral+lateral-normal")
+    with pytest.raises(InputError, match=r"`lateral_gain` is K of the 'lateral' law .* mapping 'height\+lateral-normal'"):
+        MappingOptions.parse("height+lateral-normal", lateral_gain="2N")
+
+
+def test_a_gain_turns_its_term_on():
+    """--lateral-gain with `--mapping height` was silently ignored; every gain now asks for its term."""
+    m = MappingOptions.parse("height", lateral_gain="2N")
+    assert m.lateral == "gradient" and m.lateral_gain == 2.0 and m.spec == "height+lateral"
+    assert MappingOptions.parse("height", slope_friction_gain=0.3).spec == "height+slope"
+    assert MappingOptions.parse("height", skin_stretch="0.4mm").spec == "height+stretch"
 
 
 def test_height_mapping_and_clamping():
