@@ -216,3 +216,8 @@ def test_vertical_widget_on_a_1d_canvas(tmp_path, wtype):
     msg = err(tmp_path, f'[[widget]]\nid = "v"\ntype = "{wtype}"\nposition = "10 mm"\nsize = "30 mm"\n'
                         'orientation = "vertical"\n', head=head)
     assert "widget[0] 'v'" in msg and "`widget[0].orientation` must be horizontal on a 1-D canvas" in msg
+
+
+def test_type_defaults_must_be_a_table(tmp_path):
+    msg = err(tmp_path, '[defaults]\nbutton = "2 mm"\n' + BUTTON)
+    assert "`defaults.button` must be a table [defaults.button]" in msg and "'2 mm'" in msg

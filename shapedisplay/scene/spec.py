@@ -361,6 +361,10 @@ def parse_scene(data: dict, path: str = "<scene>", base_dir: Path | None = None,
     check_keys(common_defaults, sorted(all_keys | set(WIDGET_TYPES)), ctx, "", "defaults.")
     for t, d in type_defaults.items():
         check_keys(d, WIDGET_TYPES[t].keys, ctx, "", f"defaults.{t}.")
+    for t in WIDGET_TYPES:
+        if t in common_defaults:
+            raise ctx.error("", f"defaults.{t}", f"must be a table [defaults.{t}] of {t} keys "
+                                                 f"(got {common_defaults[t]!r})")
     for k in ("id", "type", "position", "center", "from", "to"):
         if k in common_defaults:
             raise ctx.error("", f"defaults.{k}", "cannot have a default; give it per widget")
