@@ -483,15 +483,7 @@ def run(out_dir, quick=False, progress=True, plots=True, stream=None) -> dict:
     bar.close()
     report["elapsed_s"] = time.perf_counter() - t_start
     report["headline"] = _headline(report)
-    notes = []
-    clean = common.clean_json(report, notes=notes)
-    clean["non_finite_replaced"] = notes
-    if plots:
-        clean["plots"] = _plots(clean, out_dir)
-    common.write_json(os.path.join(out_dir, "accuracy.json"), clean)
-    from ..atomic import write_text
-    write_text(os.path.join(out_dir, "accuracy.md"), markdown(clean))
-    return clean
+    return common.write_report(report, out_dir, "accuracy", markdown, _plots if plots else None)
 
 
 def _warm_peers():

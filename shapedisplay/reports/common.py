@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 import time
 
@@ -172,6 +173,24 @@ def clean_json(obj, path="", notes=None):
 def write_json(path, obj):
     """Write ``obj`` as strict JSON (no NaN/Infinity tokens), atomically."""
     write_text(path, json.dumps(obj, indent=1, allow_nan=False) + "\n")
+
+
+def write_report(report, out_dir, kind, markdown, plots=None):
+    """Write ``out_dir/<kind>.json`` (strict JSON), ``<kind>.md`` and, if ``plots`` is given, the PNGs.
+
+    ``report`` is cleaned first (non-finite numbers become None; their paths
+    are listed under ``non_finite_replaced``); ``plots(clean, out_dir)``
+    returns the PNG file names (stored under ``plots``) and
+    ``markdown(clean)`` the summary text. Returns the cleaned report.
+    """
+    notes = []
+    clean = clean_json(report, notes=notes)
+    clean["non_finite_replaced"] = notes
+    if plots is not None:
+        clean["plots"] = plots(clean, out_dir)
+    write_json(os.path.join(out_dir, f"{kind}.json"), clean)
+    write_text(os.path.join(out_dir, f"{kind}.md"), markdown(clean))
+    return clean
 
 
 # ================================================================ terminal

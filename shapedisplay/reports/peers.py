@@ -86,6 +86,50 @@ def _solve(solve_ivp, *args, **kw):
         return _Failed(exc)
 
 
+class _Phases:
+    """One ``solve_ivp`` call per phase: counts calls and evaluations, keeps the events and the status."""
+
+    def __init__(self, method, rtol, max_phases):
+        from scipy.integrate import solve_ivp
+        self._solve_ivp = solve_ivp
+        self.method, self.rtol, self.max_phases = method, rtol, max_phases
+        self.calls = self.nfev = 0
+        self.status, self.message = "ok", ""
+        self.ev_t, self.ev_a = [], []
+
+    def budget_left(self) -> bool:
+        """False (status "truncated") once ``max_phases`` calls have been made."""
+        if self.calls >= self.max_phases:
+            self.status, self.message = "truncated", f"more than {self.max_phases} phases"
+            return False
+        return True
+
+    def run(self, rhs, t, tb, y0, atol, event):
+        """Integrate from ``t`` to ``tb`` or to the first zero of the terminal ``event``.
+
+        Returns ``(hit, t_stop, y_stop)`` (``hit`` True at an event), or None
+        if the solver failed (status "failed").
+        """
+        sol = _solve(self._solve_ivp, rhs, (t, tb), y0, method=self.method, rtol=self.rtol, atol=atol,
+                     events=event)
+        self.calls += 1
+        self.nfev += sol.nfev
+        if sol.status < 0:
+            self.status, self.message = "failed", f"{self.method}: {sol.message}"
+            return None
+        if sol.status == 1 and len(sol.t_events[0]):
+            return True, float(sol.t_events[0][0]), [float(q) for q in sol.y_events[0][0]]
+        return False, tb, [float(q) for q in sol.y[:, -1]]
+
+    def record(self, t, amplitude):
+        self.ev_t.append(t)
+        self.ev_a.append(amplitude)
+
+    def result(self) -> PeerResult:
+        return PeerResult(np.asarray(self.ev_t, dtype=np.float64), np.asarray(self.ev_a, dtype=np.float64),
+                          self.calls, self.nfev, self.status, self.message)
+
+
 def _next_break(breaks, t, t_end):
     for b in breaks:
         if b > t * (1 + 1e-15) + 1e-15:
@@ -118,19 +162,15 @@ def konyo_ivp(method, rtol, *, m, k, c, mu_s, mu_k, V, N, t_end, breaks=(), x_sc
     -------
     PeerResult
     """
-    from scipy.integrate import solve_ivp
-
     breaks = sorted(float(b) for b in breaks if 0.0 < b < t_end)
     n0 = abs(N(0.0)) or 1.0
     xs = x_scale or mu_s * n0 / k
     vs = v_scale or (abs(V(0.0)) + (mu_s - mu_k) * n0 / math.sqrt(k * m) + 1e-6)
     rt, at2 = _tolerances(rtol, (xs, vs))
     at1 = at2[:1]
+    ph = _Phases(method, rt, max_phases)
     t, x, v = 0.0, 0.0, V(0.0)
     phase, s = 0, 1.0
-    ev_t, ev_a = [], []
-    calls = nfev = 0
-    status, msg = "ok", ""
 
     def stick_rhs(tt, y):
         return [V(tt)]
@@ -140,36 +180,25 @@ def konyo_ivp(method, rtol, *, m, k, c, mu_s, mu_k, V, N, t_end, breaks=(), x_sc
     brk.terminal = True
     brk.direction = 1
 
-    while t < t_end:
-        if calls >= max_phases:
-            status, msg = "truncated", f"more than {max_phases} phases"
-            break
+    while t < t_end and ph.budget_left():
         tb = _next_break(breaks, t, t_end)
         if phase == 0:
             f = k * x + c * V(t)
             thr = mu_s * N(t)
             if abs(f) > thr * (1 + 1e-12) or (abs(f) >= thr > 0 and f * V(t) > 0) or (thr == 0 and f != 0):
                 phase, s = 1, (1.0 if f > 0 else -1.0)
-                ev_t.append(t)
-                ev_a.append(abs(k * x))
+                ph.record(t, abs(k * x))
                 v = V(t)
                 continue
-            sol = _solve(solve_ivp, stick_rhs, (t, tb), [x], method=method, rtol=rt, atol=at1, events=brk)
-            calls += 1
-            nfev += sol.nfev
-            if sol.status < 0:
-                status, msg = "failed", f"{method}: {sol.message}"
+            out = ph.run(stick_rhs, t, tb, [x], at1, brk)
+            if out is None:
                 break
-            if sol.status == 1 and len(sol.t_events[0]):
-                t = float(sol.t_events[0][0])
-                x = float(sol.y_events[0][0][0])
-                f = k * x + c * V(t)
-                s = 1.0 if f > 0 else -1.0
-                ev_t.append(t)
-                ev_a.append(abs(k * x))
-                phase, v = 1, V(t)
-            else:
-                t, x, v = tb, float(sol.y[0, -1]), V(tb)
+            hit, t, (x,) = out
+            if hit:
+                s = 1.0 if k * x + c * V(t) > 0 else -1.0
+                ph.record(t, abs(k * x))
+                phase = 1
+            v = V(t)
             continue
         # ---- slip
         ss = s
@@ -181,23 +210,16 @@ def konyo_ivp(method, rtol, *, m, k, c, mu_s, mu_k, V, N, t_end, breaks=(), x_sc
             return -ss * (y[1] - V(tt))
         restick.terminal = True
         restick.direction = -1
-        sol = _solve(solve_ivp, slip_rhs, (t, tb), [x, v], method=method, rtol=rt, atol=at2, events=restick)
-        calls += 1
-        nfev += sol.nfev
-        if sol.status < 0:
-            status, msg = "failed", f"{method}: {sol.message}"
+        out = ph.run(slip_rhs, t, tb, [x, v], at2, restick)
+        if out is None:
             break
-        if sol.status == 1 and len(sol.t_events[0]):
-            t = float(sol.t_events[0][0])
-            x, v = (float(q) for q in sol.y_events[0][0])
+        hit, t, (x, v) = out
+        if hit:
             if abs(k * x + c * V(t)) <= mu_s * N(t):
                 phase, v = 0, V(t)
             else:
                 s = -s
-        else:
-            t, x, v = tb, float(sol.y[0, -1]), float(sol.y[1, -1])
-    return PeerResult(np.asarray(ev_t, dtype=np.float64), np.asarray(ev_a, dtype=np.float64), calls, nfev,
-                      status, msg)
+    return ph.result()
 
 
 def stribeck_mu(vr_abs, W, mu_s, mu_k, a, b):
@@ -230,8 +252,6 @@ def stribeck_ivp(method, rtol, *, m, k, c, mu_s, mu_k, a, b, W, V, amp, omega, t
     PeerResult
         Events are breakaways (stick to slip), amplitude ``|k u|``.
     """
-    from scipy.integrate import solve_ivp
-
     def xc(tt):
         return amp * math.sin(omega * tt)
 
@@ -244,11 +264,9 @@ def stribeck_ivp(method, rtol, *, m, k, c, mu_s, mu_k, a, b, W, V, amp, omega, t
     us = mu_s * W / k
     vs = abs(V) + amp * omega + mu_s * W / math.sqrt(k * m)
     rt, at2 = _tolerances(rtol, (us, vs))
+    ph = _Phases(method, rt, max_phases)
     t, u, du = 0.0, 0.0, dxc(0.0) - V
     phase, sr = 0, 1.0
-    ev_t, ev_a = [], []
-    calls = nfev = 0
-    status, msg = "ok", ""
 
     def need(tt, uu, duu):
         return m * ddxc(tt) + c * duu + k * uu
@@ -261,34 +279,23 @@ def stribeck_ivp(method, rtol, *, m, k, c, mu_s, mu_k, a, b, W, V, amp, omega, t
     brk.terminal = True
     brk.direction = 1
 
-    while t < t_end:
-        if calls >= max_phases:
-            status, msg = "truncated", f"more than {max_phases} phases"
-            break
+    while t < t_end and ph.budget_left():
         if phase == 0:
             F = need(t, u, dxc(t) - V)
             if abs(F) > mu_s * W:
-                ev_t.append(t)
-                ev_a.append(abs(k * u))
+                ph.record(t, abs(k * u))
                 phase, sr, du = 1, (-1.0 if F > 0 else 1.0), dxc(t) - V
                 continue
-            sol = _solve(solve_ivp, stick_rhs, (t, t_end), [u], method=method, rtol=rt, atol=at2[:1], events=brk)
-            calls += 1
-            nfev += sol.nfev
-            if sol.status < 0:
-                status, msg = "failed", f"{method}: {sol.message}"
+            out = ph.run(stick_rhs, t, t_end, [u], at2[:1], brk)
+            if out is None:
                 break
-            if sol.status == 1 and len(sol.t_events[0]):
-                t = float(sol.t_events[0][0])
-                u = float(sol.y_events[0][0][0])
+            hit, t, (u,) = out
+            if hit:
                 du = dxc(t) - V
                 F = need(t, u, du)
-                ev_t.append(t)
-                ev_a.append(abs(k * u))
+                ph.record(t, abs(k * u))
                 # the pad falls behind the needed force: vr takes the sign opposite to F
                 phase, sr = 1, (-1.0 if F > 0 else 1.0)
-            else:
-                t, u = t_end, float(sol.y[0, -1])
             continue
         s_ = sr
 
@@ -301,20 +308,13 @@ def stribeck_ivp(method, rtol, *, m, k, c, mu_s, mu_k, a, b, W, V, amp, omega, t
             return s_ * (y[1] + V - dxc(tt))
         restick.terminal = True
         restick.direction = -1
-        sol = _solve(solve_ivp, slip_rhs, (t, t_end), [u, du], method=method, rtol=rt, atol=at2, events=restick)
-        calls += 1
-        nfev += sol.nfev
-        if sol.status < 0:
-            status, msg = "failed", f"{method}: {sol.message}"
+        out = ph.run(slip_rhs, t, t_end, [u, du], at2, restick)
+        if out is None:
             break
-        if sol.status == 1 and len(sol.t_events[0]):
-            t = float(sol.t_events[0][0])
-            u, du = (float(q) for q in sol.y_events[0][0])
+        hit, t, (u, du) = out
+        if hit:
             if abs(need(t, u, dxc(t) - V)) <= mu_s * W:
                 phase, du = 0, dxc(t) - V
             else:
                 sr = -sr
-        else:
-            t, u, du = t_end, float(sol.y[0, -1]), float(sol.y[1, -1])
-    return PeerResult(np.asarray(ev_t, dtype=np.float64), np.asarray(ev_a, dtype=np.float64), calls, nfev,
-                      status, msg)
+    return ph.result()

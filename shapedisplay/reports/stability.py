@@ -541,15 +541,7 @@ def run(out_dir, quick=False, progress=True, plots=True, stream=None) -> dict:
                            "event_count_rel_error = |n(r) - n(4r)| / n(4r)",
             "null": "check not applicable (rejected input; renderer cases carry no pad energy)"},
         "cases": recs}
-    notes = []
-    clean = common.clean_json(report, notes=notes)
-    clean["non_finite_replaced"] = notes
-    if plots:
-        clean["plots"] = _plots(clean, out_dir)
-    common.write_json(os.path.join(out_dir, "stability.json"), clean)
-    from ..atomic import write_text
-    write_text(os.path.join(out_dir, "stability.md"), markdown(clean))
-    return clean
+    return common.write_report(report, out_dir, "stability", markdown, _plots if plots else None)
 
 
 _COLORS = {"stable": "#2a9d8f", "physically self-excited": "#e9c46a", "numerically unstable": "#e63946",
