@@ -18,7 +18,7 @@ def register(sub) -> None:
                                      "with alpha = the device's cursor_gain")
     p.add_argument("--start", default="0,0", help="start position for --force, 'x,y' in mm (default 0,0)")
     p.add_argument("--device", help="device profile (TOML path or bundled name); overrides the table's")
-    p.add_argument("--model", default="exact", help="exact | jump | karnopp | stribeck | euler | rk4 (default exact)")
+    p.add_argument("--model", default="exact", help="exact | jump | karnopp | stribeck | tanh | euler | rk4 (default exact)")
     p.add_argument("--rate", help="tick rate, e.g. 10kHz (default: the device's)")
     p.add_argument("--audio-rate", help="audio sample rate, e.g. 48kHz (default: the device's)")
     p.add_argument("--format", default="float32", help="WAV sample format: float32 | int16 (default float32)")

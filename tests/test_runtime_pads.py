@@ -198,7 +198,7 @@ def test_jump_restick_force_limit_formula():
 
 
 def test_registry_and_bad_inputs():
-    assert set(MODELS) == {"exact", "jump", "karnopp", "stribeck", "euler", "rk4"}
+    assert set(MODELS) == {"exact", "jump", "karnopp", "stribeck", "euler", "rk4", "tanh"}
     with pytest.raises(InputError, match="did you mean 'exact'"):
         simulate_pad("exakt")
     with pytest.raises(ModelError, match="mass"):
@@ -315,3 +315,29 @@ def test_imaizumi_study_matches_quasi_static_sliding_and_rises_as_relative_speed
     mean = [r["mean_friction_n"] for r in rows]
     assert mean[0] < mean[1] and abs(mean[1] - mean[2]) <= 1e-4 < mean[3] - mean[2] and mean[3] < mean[4]
     assert rows[4]["events"] > 0 and rows[4]["max_friction_n"] == pytest.approx(2.1, rel=1e-3)
+
+
+def test_tanh_regularised_friction_error_against_exact():
+    """tanh option (DESIGN 4): periods converge to exact as eps -> 0; creep below breakaway; |f| <= mu_s N."""
+    kw = dict(V=0.05, N=2.0, pad=KONYO, friction=FrictionParams(0.5, 0.3), tick_rate=10_000, duration=0.1)
+    ex = simulate_pad("exact", **kw)
+    p_ex = np.diff(ex.event_time)[1:].mean()
+    err = {}
+    for eps, hsub in ((1e-3, 1e-6), (1e-4, 1e-6), (1e-5, 1e-7)):
+        r = simulate_pad("tanh", eps_m_s=eps, substep_s=hsub, **kw)
+        assert r.event_time.size == ex.event_time.size
+        p = np.diff(r.event_time)[1:]
+        assert np.ptp(p) <= 1e-8                                  # a clean limit cycle, no chattering
+        err[eps] = abs(p.mean() - p_ex) / p_ex
+        assert np.all(np.abs(r.friction_force) <= 0.5 * 2.0 * (1 + 1e-6))
+        # creep: before the first breakaway the pad slips at 0 < V - v < 2 eps, the spring lags V t
+        before = r.t < r.event_time[0]
+        assert np.all(r.x[before][1:] < 0.05 * r.t[before][1:])
+        assert np.all((0.05 - r.v[before][1:] > 0) & (0.05 - r.v[before][1:] < 2 * eps))
+    assert err[1e-3] > 3e-3 and err[1e-3] > err[1e-4] > err[1e-5]      # measured 5.5e-3, 8e-4, 8e-5
+    assert err[1e-5] < 2e-4
+    # the first breakaway comes late by the creep: the spring lags V t by about the creep distance
+    late = simulate_pad("tanh", eps_m_s=1e-3, **kw).event_time[0] - ex.event_time[0]
+    assert 0 < late < 1e-3
+    with pytest.raises(InputError, match="eps_m_s"):
+        simulate_pad("tanh", eps_m_s=0.0)

@@ -64,6 +64,9 @@ P_M, P_K, P_C, P_B, P_TMAX, P_KK, P_VT, P_SA, P_SB, P_SP, P_SD, P_SVAR, P_CA, P_
 PARAM_SIZE = 16
 
 MODEL_EXACT, MODEL_JUMP, MODEL_KARNOPP, MODEL_STRIBECK, MODEL_EULER, MODEL_RK4 = range(6)
+MODEL_TANH = 6
+#: Regularisation width of the ``tanh`` model (breakaway slip speed, m/s), in the spare parameter slot.
+P_EPS = 15
 
 #: Safety cap on phase changes inside one tick (never reached by physical inputs).
 MAX_EVENTS_PER_TICK = 200_000
@@ -821,6 +824,107 @@ def _stribeck_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
     return n_ev
 
 
+# ================================================================ tanh-regularised Coulomb
+_SQRT2 = math.sqrt(2.0)
+_SQRT2E = math.sqrt(2.0 * math.e)
+
+
+@njit(cache=True)
+def tanh_friction(w, N, mus, muk, eps):
+    """Regularised friction on the pad at slip speed ``w = V - v`` (m/s); returns ``(f, df/dw)`` (N, N s/m).
+
+    ``f = N [(mu_s - mu_k) sqrt(2e) u exp(-u^2) + mu_k tanh(w / v_C)]`` with
+    ``u = w / v_St``, ``v_St = sqrt(2) eps``, ``v_C = eps / 10``: smooth and
+    odd, peaking at ``mu_s N`` (to 1e-6) at ``|w| = eps`` and falling to
+    ``mu_k N`` for ``|w| >> eps``; tends to Coulomb friction with a static
+    limit as ``eps -> 0``.
+    """
+    vst = _SQRT2 * eps
+    vc = 0.1 * eps
+    u = w / vst
+    e = math.exp(-u * u)
+    th = math.tanh(w / vc)
+    dmu = mus - muk
+    f = N * (dmu * _SQRT2E * u * e + muk * th)
+    df = N * (dmu * _SQRT2E * (1.0 - 2.0 * u * u) * e / vst + muk * (1.0 - th * th) / vc)
+    return f, df
+
+
+@njit(cache=True)
+def _tanh_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
+    """Konyo pad with tanh-regularised friction: no stick state, only creep inside ``|w| < eps``.
+
+    Linearly implicit exponential substeps: the friction is linearised about
+    the current slip speed and the resulting linear oscillator
+    ``m x'' + (c + f') x' + k x = f0 + f' v0`` solved in closed form in
+    increment form (stable and free of cancellation for the very stiff
+    ``f' ~ mu_k N / v_C``). A substep that would carry the
+    slip speed through zero from outside the band is cut at the crossing, so
+    the saturated friction cannot overshoot. ``S_PHASE`` reports slip while
+    ``|w| >= 2 eps`` (entered: the burst event, interpolated inside the
+    substep) and stick again once ``|w| <= eps``.
+    """
+    m = P[P_M]
+    k = P[P_K]
+    c = P[P_C]
+    B = P[P_B] * gain
+    eps = P[P_EPS]
+    hmax = P[P_HSUB]
+    x = S[S_X]
+    v = S[S_V]
+    phase = S[S_PHASE]
+    nev0 = n_ev
+    vc = 0.1 * eps
+    if phase == 0.0 and abs(V - v) > 2.0 * eps:
+        v = V        # a new surface speed while stuck: the pad takes it at once, as in ``exact``
+    t = 0.0
+    it = 0
+    while t < h:
+        it += 1
+        if it > MAX_EVENTS_PER_TICK:
+            S[S_TRUNC] += 1.0
+            break
+        w0 = V - v
+        f0, df = tanh_friction(w0, N, mus, muk, eps)
+        ceff = c + df
+        hs = min(hmax, h - t)
+        if ceff < 0.0:
+            hs = min(hs, 0.5 * m / (-ceff))
+        # exponential Euler in increment form, Y1 = Y0 + A^-1 (e^{hA} - I) Y0' with Y = (x, v):
+        # (e^{hA} - I) Y0' is the free oscillator started at (v0, a0), and
+        # A^-1 = [[-ceff/k, -m/k], [1, 0]]; no large equilibrium offset cancels
+        a0 = (f0 - c * v - k * x) / m
+        for _ in range(60):
+            yh, vh = osc(m, ceff, k, v, a0, hs)
+            dx = yh - v
+            v1 = v + dx
+            w1 = V - v1
+            if not (w0 * w1 < 0.0 and abs(w1) > vc and abs(w0) > vc) or hs <= 1e-15:
+                break
+            hs *= max(min(w0 / (w0 - w1), 0.5), 1e-3)
+        x1 = x - (ceff * dx + m * (vh - a0)) / k
+        if phase == 0.0 and abs(w1) >= 2.0 * eps:
+            a0 = abs(w0)
+            fr = (2.0 * eps - a0) / (abs(w1) - a0) if abs(w1) > a0 else 1.0
+            fr = min(max(fr, 0.0), 1.0)
+            n_ev = _record(ev_t, ev_a, n_ev, t0 + t + fr * hs, B * abs(k * (x + fr * (x1 - x))))
+            phase = 1.0
+        elif phase == 1.0 and abs(w1) <= eps:
+            phase = 0.0
+        x = x1
+        v = v1
+        t = t + hs if t + hs < h else h
+    f, _ = tanh_friction(V - v, N, mus, muk, eps)
+    S[S_X] = x
+    S[S_V] = v
+    S[S_PHASE] = phase
+    S[S_F] = f
+    S[S_WF] = 0.0
+    S[S_WD] = 0.0
+    S[S_NEV] = n_ev - nev0
+    return n_ev
+
+
 # ================================================================ naive baselines
 @njit(cache=True)
 def _explicit_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev, rk4):
@@ -909,6 +1013,8 @@ def model_tick(model, S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
         return _stribeck_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev)
     if model == MODEL_EULER:
         return _explicit_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev, False)
+    if model == MODEL_TANH:
+        return _tanh_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev)
     return _explicit_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev, True)
 
 
@@ -998,6 +1104,10 @@ def run_ticks(model, S, P, t, V, N, mus, muk, gain, out_f, out_state, out_x, out
         for i in range(1, n):
             n_ev = _stribeck_tick(S, P, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a,
                                   n_ev)
+            _store(S, i, out_f, out_state, out_x, out_v, out_wf, out_wd)
+    elif model == MODEL_TANH:
+        for i in range(1, n):
+            n_ev = _tanh_tick(S, P, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
             _store(S, i, out_f, out_state, out_x, out_v, out_wf, out_wd)
     else:
         rk4 = model == MODEL_RK4
