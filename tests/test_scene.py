@@ -554,6 +554,21 @@ def test_new_scene_template_is_valid(tmp_path):
     assert main(["new", "scene", "mine", "-o", str(out)]) == 2  # exists
 
 
+def test_template_commented_examples_compile_when_uncommented(tmp_path):
+    """The template's commented ridge, image and data widgets are valid as written (given the image)."""
+    import shutil
+    from shapedisplay.scene.template import render_template
+    lines, block = [], False
+    for line in render_template("t", "t.toml").splitlines():
+        block = line.startswith("# [[widget]]") or (block and line.startswith("# "))
+        lines.append(line[2:] if block else line)
+    (tmp_path / "t.toml").write_text("\n".join(lines) + "\n")
+    shutil.copy(SCENES / "terrain.png", tmp_path / "terrain.png")
+    res = compile_scene(tmp_path / "t.toml")
+    assert {w["type"] for w in res.report["widgets"]} == {"button", "dent", "slider", "toggle", "ridge",
+                                                          "image", "data"}
+
+
 def test_cli_compile_inspect_and_check(tmp_path, capsys):
     from shapedisplay_cli.main import main
     out = tmp_path / "phone.npz"
