@@ -446,12 +446,12 @@ def scene_forces(scene, hf) -> tuple[dict, list]:
     import dataclasses
 
     from .profiles import MappingOptions, force_channels
-    from .scene.compiler import _channels, composite
+    from .scene.compiler import composite, scene_channels
     known = {f.name for f in dataclasses.fields(MappingOptions)}
     mapping = MappingOptions(**{k: v for k, v in scene.mapping.items() if k in known and k != "height"})
     chans = force_channels(hf, scene.device, mapping)
     fields = {name: np.asarray(a, dtype=np.float64) for name, a in chans.items()}
-    kept, _ = _channels(scene, scene.device, mapping)
+    kept, _ = scene_channels(scene, scene.device, mapping)
     layers = [ch for ch in ("friction_scale", "burst_gain") if ch in kept]
     if layers:
         c = scene.canvas

@@ -361,7 +361,11 @@ def _mapping_options(scene: Scene):
         raise SceneError(f"scene '{scene.path}': [mapping]: {exc}") from None
 
 
-def _channels(scene: Scene, device, mapping):
+def scene_channels(scene: Scene, device, mapping) -> tuple[list, dict]:
+    """Channels a scene's table keeps on ``device`` with ``mapping``.
+
+    Returns ``(kept, left_out)``: channel names, and channel -> why it is not stored.
+    """
     from ..profiles import FRICTION_OUTPUTS, needed_channels
     from ..table import CHANNELS
     kept, left_out = needed_channels(device, mapping, scene.canvas.is_1d)
@@ -491,7 +495,7 @@ def compile_scene(path, device=None, options=None):
     grps = groups(scene, reach)
     check_groups(scene, grps)
     warnings = scene_warnings(scene, grps)
-    kept, left_out = _channels(scene, dev, mapping)
+    kept, left_out = scene_channels(scene, dev, mapping)
     for k in options.keep:
         if k not in kept:
             if k in ("grad_x", "grad_y") or (k == "normal_force" and mapping.height):
