@@ -359,8 +359,17 @@ class FrictionTable:
     def load(cls, path: str | os.PathLike) -> "FrictionTable":
         """Read and verify a table; raise :class:`TableError` on any defect."""
         path = Path(path)
+        if path.is_dir():
+            raise TableError(f"table '{path}': is a directory, not a table file")
         if not path.is_file():
             raise TableError(f"table '{path}': no such file")
+        try:
+            with open(path, "rb") as fh:
+                magic = fh.read(4)
+        except OSError as exc:
+            raise TableError(f"table '{path}': unreadable ({exc.strerror or exc})") from None
+        if magic != b"PK\x03\x04":
+            raise TableError(f"table '{path}': not a table (.npz zip archive); it starts with {magic!r}")
         try:
             with np.load(path, allow_pickle=False) as z:
                 if "header" not in z.files:

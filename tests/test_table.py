@@ -162,6 +162,11 @@ def test_truncated_and_foreign_files(tmp_path):
         FrictionTable.load(tmp_path / "other.npz")
     with pytest.raises(TableError, match="no such file"):
         FrictionTable.load(tmp_path / "missing.npz")
+    (tmp_path / "t.json").write_text('{"format": "shapedisplay-friction-table"}')
+    with pytest.raises(TableError, match=r"not a table \(.npz zip archive\); it starts with b'\{\"fo'"):
+        FrictionTable.load(tmp_path / "t.json")     # numpy would try to unpickle it and talk of allow_pickle
+    with pytest.raises(TableError, match="is a directory, not a table file"):
+        FrictionTable.load(tmp_path)
 
 
 def test_save_is_atomic(tmp_path, monkeypatch):
