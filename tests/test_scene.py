@@ -317,22 +317,26 @@ height = "0:2 mm"
             assert abs(val - (0.5 + 2.0 * gray[r, c] / 65535)) <= tol(t)
 
 
-def test_mesh_widget(tmp_path):
+def mesh_table(tmp_path, file, position: str, size: str, canvas: str = "80x40 mm", quantize: str = "auto"):
+    """One mesh widget compiled for the desktop rig (N up to 8 N)."""
     pytest.importorskip("trimesh")
-    src = Path(__file__).resolve().parent.parent / "assets" / "meshes" / "keycap.stl"
-    if not src.exists():
-        pytest.skip("keycap mesh asset not present")
-    from shapedisplay.mesh import mesh_to_heightfield
-    hf = mesh_to_heightfield(src, resolution=0.25e-3)
     p = write(tmp_path, f"""
 [[widget]]
-id = "cap"
+id = "m"
 type = "mesh"
-file = "{src}"
-position = "20,10 mm"
-size = "{hf.size_m[0] * 1e3:g}x{hf.size_m[1] * 1e3:g} mm"
-""", extra='[device]\nprofile = "desktop-rig"\n')
-    t = compile_scene(p).table
+file = "{file}"
+position = "{position}"
+size = "{size}"
+""", size=canvas, extra='[device]\nprofile = "desktop-rig"\n')
+    return compile_scene(p, options=CompileOptions(quantize=quantize)).table
+
+
+def test_mesh_widget(tmp_path):
+    src = Path(__file__).resolve().parent.parent / "assets" / "meshes" / "keycap.stl"
+    pytest.importorskip("trimesh")
+    from shapedisplay.mesh import mesh_to_heightfield
+    hf = mesh_to_heightfield(src, resolution=0.25e-3)
+    t = mesh_table(tmp_path, src, "20,10 mm", f"{hf.size_m[0] * 1e3:g}x{hf.size_m[1] * 1e3:g} mm")
     n = t.dense("normal_force")
     hmax = float(hf.heights.max())
     assert n.max() == pytest.approx(min(0.5 + 1000 * hmax, 8.0), abs=2 * tol(t))
@@ -355,18 +359,9 @@ f 1 4 3
 
 
 def pyramid_table(tmp_path, position: str, size: str, canvas: str):
-    """The pyramid as a mesh widget, compiled unquantized (float64) for the desktop rig (N up to 8 N)."""
-    pytest.importorskip("trimesh")
+    """The pyramid as a mesh widget, compiled unquantized (float64)."""
     (tmp_path / "pyr.obj").write_text(PYRAMID_OBJ)
-    p = write(tmp_path, f"""
-[[widget]]
-id = "p"
-type = "mesh"
-file = "pyr.obj"
-position = "{position}"
-size = "{size}"
-""", size=canvas, extra='[device]\nprofile = "desktop-rig"\n')
-    return compile_scene(p, options=CompileOptions(quantize="float64")).table
+    return mesh_table(tmp_path, "pyr.obj", position, size, canvas, quantize="float64")
 
 
 @pytest.mark.parametrize("size, position", [("20x20 mm", "20,10 mm"), ("30x10 mm", "15.5,12 mm")])
