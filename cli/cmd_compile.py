@@ -53,6 +53,31 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+class warnings_as_lines:
+    """Context manager: print each library warning as one line ``shapedisplay CMD: warning: ...``.
+
+    Printed on exit, also when an error follows (a unit warning often
+    explains the error).
+    """
+
+    def __init__(self, command: str):
+        self.command = command
+
+    def __enter__(self):
+        import warnings
+        self._ctx = warnings.catch_warnings(record=True)
+        self._caught = self._ctx.__enter__()
+        warnings.simplefilter("always")
+        return self
+
+    def __exit__(self, *exc):
+        import sys
+        self._ctx.__exit__(*exc)
+        for w in self._caught:
+            print(f"shapedisplay {self.command}: warning: {w.message}", file=sys.stderr)
+        return False
+
+
 def _float(text, name):
     from shapedisplay.errors import InputError
     try:
@@ -163,7 +188,8 @@ def run(args) -> int:
                 raise InputError(f"image '{src}' needs `--size` (physical width x height, e.g. 60x4mm)")
             if args.height is None and suffix == ".png":
                 raise InputError(f"image '{src}' needs `--height` (heights of gray 0 and full scale, e.g. 0:2mm)")
-        hf = load_source(src, **opts)
+        with warnings_as_lines("compile"):
+            hf = load_source(src, **opts)
         result = compile_heightfield(hf, device, mapping, options)
     out = result.table.save(args.output)
     if args.json:

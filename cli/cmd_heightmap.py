@@ -54,11 +54,10 @@ def _up(text: str):
 
 
 def run(args) -> int:
-    import sys
-    import warnings
     from pathlib import Path
 
     from shapedisplay import mesh
+    from shapedisplay_cli.cmd_compile import warnings_as_lines
     from shapedisplay.errors import FileFormatError
     from shapedisplay.units import parse_quantity
 
@@ -68,13 +67,8 @@ def run(args) -> int:
                               f"{', '.join(mesh.HEIGHTMAP_SUFFIXES)}")
     base = parse_quantity(args.base_thickness, "m", "--base-thickness")
     src = Path(args.source)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
-            hf = _load(args, src, mesh)
-        finally:  # a unit warning often explains the error that follows
-            for w in caught:
-                print(f"shapedisplay heightmap: warning: {w.message}", file=sys.stderr)
+    with warnings_as_lines("heightmap"):   # printed before an error that follows: it often explains it
+        hf = _load(args, src, mesh)
     desc = mesh.save_heightmap(hf, out, solid=not args.surface_only, base_thickness=base)
     m = hf.meta
     lo, hi = float(hf.heights.min()), float(hf.heights.max())

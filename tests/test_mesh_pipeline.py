@@ -164,6 +164,15 @@ def test_heightmap_command_prints_the_unit_warning_before_the_error(tmp_path, ca
     assert rc == 0 and "warning:" in capsys.readouterr().err
 
 
+def test_compile_command_prints_the_unit_warning_as_one_line(tmp_path, capsys):
+    """compile used to let Python print the warning with a source line under it."""
+    rc = main(["compile", str(KEYCAP), "-o", str(tmp_path / "k.npz"), "--units", "m", "-q"])
+    err = capsys.readouterr().err
+    assert rc == 0 and (tmp_path / "k.npz").is_file()
+    assert err.startswith("shapedisplay compile: warning: mesh ") and "looks implausible" in err
+    assert len(err.strip().splitlines()) == 1
+
+
 def test_compile_command_takes_a_mesh(tmp_path, capsys):
     out = tmp_path / "keycap.npz"
     rc = main(["compile", str(KEYCAP), "-o", str(out), "--resolution", "0.5mm", "--up", "z", "--units", "mm"])
