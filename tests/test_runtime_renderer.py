@@ -302,3 +302,49 @@ def test_online_equals_offline_on_random_2d_paths(pts, model, policy):
     assert np.allclose(F, res.friction_force, rtol=1e-9, atol=1e-12)
     assert np.allclose(LX, res.lateral_x, rtol=1e-9, atol=1e-12)
     assert r.event_count == res.event_time.size
+
+
+def test_online_step_allocates_nothing_per_tick_in_compiled_code():
+    """numba's own allocator: a compiled host loop over online_step allocates the same for 100 or 3000 ticks."""
+    from numba import njit
+    from numba.core.runtime import rtsys
+
+    from shapedisplay.runtime.renderer import online_step
+
+    @njit
+    def host_loop(model, W, blocks, data, ev, audio, xs, i0, i1):
+        acc = 0.0
+        for i in range(i0, i1):
+            acc += online_step(model, W, blocks, data, ev, audio, xs[i], 0.0)
+        return acc
+
+    r = Renderer(ramp_table(), device=quiet_device(), model="exact", tick_rate=10_000)
+    from numba.core.runtime import _nrt_python      # counts of numba's allocator (NUMBA_NRT_STATS at run time)
+    _nrt_python.memsys_enable_stats()
+    xs = parse_stroke("0,0 <-> 60,0 @ 40 mm/s", 10_000).x
+    args = (r._model_id, r._W, r._blocks, r._data, r._ev, r._audio, xs)
+    r.reset()
+    host_loop(*args, 0, 10)                        # compile
+    used = []
+    for i0, i1 in ((10, 110), (110, 3110)):
+        a = rtsys.get_allocation_stats().alloc
+        host_loop(*args, i0, i1)
+        used.append(rtsys.get_allocation_stats().alloc - a)
+    assert r.event_count > 10
+    assert used[0] == used[1] <= 8                 # the loop's array arguments, nothing per tick
+
+
+@pytest.mark.parametrize("model", ["stribeck", "tanh", "rk4"])
+def test_online_step_equals_offline_for_the_other_models(model):
+    t = ramp_table()
+    rate = 100_000 if model == "rk4" else 10_000            # rk4 is stable on the Konyo pad above ~45 kHz
+    r = Renderer(t, device=quiet_device(), model=model, tick_rate=rate)
+    cp = parse_stroke("0,0 -> 60,0 @ 200 mm/s", rate)
+    res = r.render(cp)
+    r.reset()
+    F = []
+    for x, y in zip(cp.x, cp.y):
+        r.step(x, y)
+        F.append(r.last[O_F])
+    assert np.max(np.abs(np.array(F) - res.friction_force)) <= 1e-12
+    assert r.event_count == res.event_time.size > (0 if model == "stribeck" else 10)

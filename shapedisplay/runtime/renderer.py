@@ -30,8 +30,14 @@ Real-time rules for :meth:`Renderer.step`
 -----------------------------------------
 * Build the renderer (and so compile and warm the kernels) before the
   real-time loop; :meth:`reset` also allocates nothing.
-* ``step`` allocates no memory: inputs are two floats, outputs go into
-  preallocated buffers (:attr:`Renderer.last` values, :attr:`audio_block`).
+* The tick itself allocates no memory: inputs are two floats, outputs go
+  into preallocated buffers (:attr:`Renderer.last` values,
+  :attr:`audio_block`), the event ring has a fixed size. Only the call from
+  Python allocates (and frees before returning) small objects: the float
+  returned, and numba's wrappers of the five workspace arrays. A hard
+  real-time host calls :func:`online_step` from its own compiled loop (with
+  ``Renderer._model_id, _W, _blocks, _data, _ev, _audio``; tested to
+  allocate nothing per tick) or uses the C runtime.
 * Work per call is one table lookup (a scan over the table's blocks), one
   model tick, and the audio samples of the tick; the exact model adds one
   closed-form root search per phase change.
