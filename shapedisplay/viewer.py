@@ -915,7 +915,10 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
     if channel == "walls":
         bar_args["n_labels"] = 2
     lo, hi = float(values.min()), float(values.max())
-    clim = (lo, hi) if hi > lo else (lo - 0.5, hi + 0.5)
+    if channel == "walls":     # 0 or 1: fixed, so a surface without walls is not drawn half as walls
+        clim = (0.0, 1.0)
+    else:
+        clim = (lo, hi) if hi > lo else (lo - 0.5, hi + 0.5)
     surf_kwargs = dict(scalars=channel, cmap=cmap, clim=clim, show_scalar_bar=scalar_bar,
                        scalar_bar_args=bar_args, lighting=lighting, smooth_shading=lighting,
                        n_colors=2 if channel == "walls" else 256, pickable=True)

@@ -307,6 +307,27 @@ def test_every_view_keeps_the_whole_surface_in_the_frame(view, size_mm):
     assert not mask[:, :2].any() and not mask[:2, :].any() and not mask[-2:, :].any()
 
 
+def test_walls_colours_are_fixed_no_wall_is_one_colour():
+    """A surface without walls is drawn all in the 'no wall' colour; a step shows its wall."""
+    m = viewer.model_from_heightfield(gaussian_field())                # slope < 1 everywhere
+    assert m.fields["walls"].max() == 0.0
+    p = flat_top(m, "walls")
+    img = p.screenshot()
+    p.close()
+    assert p.surface_actor.mapper.scalar_range == (0.0, 1.0)
+    values, dist = lut_values(p, img, surface_pixels(img))
+    values = values[dist < 3.0]                                        # not the anti-aliased rim
+    assert values.size > 1000 and values.max() < 0.5
+    h = np.zeros((40, 60))
+    h[:, 30:] = 2e-3                                                   # a 2 mm step: slope 1 at the step
+    q = flat_top(viewer.model_from_heightfield(HeightField(h, 1e-3, 1e-3)), "walls")
+    img = q.screenshot()
+    q.close()
+    values, dist = lut_values(q, img, surface_pixels(img))
+    values = values[dist < 3.0]
+    assert 0 < np.mean(values > 0.5) < 0.2
+
+
 def test_channel_choice_changes_colours_and_units(table):
     m = viewer.model_from_table(table)
     p = flat_top(m, "breakaway_force")
