@@ -428,7 +428,7 @@ def from_array(heights, dx, dy=None, *, x0=None, y0=None, source: str = "array")
 def gray_to_heights(gray: np.ndarray, full_scale: float, height_range) -> np.ndarray:
     """Map gray values linearly: 0 -> ``lo``, ``full_scale`` -> ``hi`` (metres), float64."""
     lo, hi = height_range
-    out = np.asarray(gray, dtype=np.float64)
+    out = np.array(gray, dtype=np.float64)   # a copy: the caller's array is never scaled in place
     out *= (hi - lo) / full_scale
     out += lo
     return out
@@ -523,6 +523,12 @@ def load_image(path, size, height_range, *, resolution=None) -> HeightField:
         if gray.dtype.kind == "f" and not np.all(np.isfinite(gray)):
             bad = np.argwhere(~np.isfinite(gray))[0]
             raise InputError(f"array '{path}': values must be finite (first NaN/inf at row {bad[0]}, col {bad[1]})")
+        if suffix == ".npy":
+            gmin, gmax = float(gray.min()), float(gray.max())
+            if gmin < 0 or gmax > full:
+                what = "normalised float values" if gray.dtype.kind == "f" else f"{gray.dtype} gray values"
+                raise InputError(f"array '{path}': with a height range, {what} must lie within 0..{full:g} "
+                                 f"(got {gmin:g}..{gmax:g}); omit the height range to read float heights in metres")
         heights = gray_to_heights(gray, full, hr)
     del gray
     desc = f"{path.name} {cols}x{rows} px, {w * 1e3:g}x{h * 1e3:g} mm"

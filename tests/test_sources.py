@@ -284,6 +284,16 @@ def test_npy_sources(tmp_path):
     (tmp_path / "junk.npy").write_bytes(b"garbage")
     with pytest.raises(FileFormatError, match="not a .npy file"):
         sources.load_image(tmp_path / "junk.npy", "2x1mm", None)
+    # with a height range, values must lie on the gray scale (they used to extrapolate silently)
+    np.save(tmp_path / "f5.npy", np.array([[0.0, 5.0]]))
+    with pytest.raises(InputError, match=r"normalised float values must lie within 0..1 \(got 0..5\)"):
+        sources.load_image(tmp_path / "f5.npy", "2x1mm", "0:1mm")
+    np.save(tmp_path / "i8.npy", np.array([[-5, 100]], dtype=np.int8))
+    with pytest.raises(InputError, match=r"int8 gray values must lie within 0..127 \(got -5..100\)"):
+        sources.load_image(tmp_path / "i8.npy", "2x1mm", "0:1mm")
+    half = np.array([[0.0, 0.5, 1.0]])
+    assert np.allclose(sources.gray_to_heights(half, 1.0, (0.0, 2e-3)), [[0.0, 1e-3, 2e-3]])
+    assert np.array_equal(half, [[0.0, 0.5, 1.0]])          # the input is not scaled in place
 
 
 def test_load_source_dispatch(tmp_path):
