@@ -915,6 +915,7 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
     if channel == "walls":
         bar_args["n_labels"] = 2
     lo, hi = float(values.min()), float(values.max())
+    lo, hi = (0.0 if abs(v) <= 1e-9 * (hi - lo) else v for v in (lo, hi))   # no "1.5e-32" on the bar
     if channel == "walls":     # 0 or 1: fixed, so a surface without walls is not drawn half as walls
         clim = (0.0, 1.0)
     else:

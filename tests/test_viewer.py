@@ -273,6 +273,7 @@ def test_height_colours_span_the_channel_range():
     assert 0.3 < mask.mean() < 0.95                                     # the surface fills most of the frame
     lo, hi = p.surface_actor.mapper.scalar_range
     assert (lo, hi) == pytest.approx((hf.heights.min() * 1e3, hf.heights.max() * 1e3))   # mm
+    assert 0 < hf.heights.min() < 1e-30 and lo == 0.0             # the bar reads 0, not 1.5e-32
     values, dist = lut_values(p, img, mask)
     assert np.median(dist) < 3.0                                        # unlit pixels are colour-map colours
     span = hi - lo
