@@ -118,6 +118,8 @@ class _Parser:
         if nxt is not None and nxt.startswith("^"):
             self.take()
             p = int(nxt[1:])
+            if abs(p) > 9:   # also keeps scale**p finite (1e3**999 overflows)
+                raise UnitError(f"`{self.field}`: unit power must be between -9 and 9 (got '^{p}' in '{self.text}')")
             scale, dim = scale ** p, tuple(d * p for d in dim)
         return scale, dim
 

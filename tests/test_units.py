@@ -47,6 +47,8 @@ def test_bare_number_allowed_when_asked():
     ("2 (N/mm", r"unbalanced"),
     ("two N", r"must be a number"),
     ("1e400 N", r"finite"),
+    ("2 kN^999 / kN^998", r"unit power must be between -9 and 9 \(got '\^999' in 'kN\^999 / kN\^998'\)"),
+    ("2 mN^-400 * mN^401", r"unit power must be between -9 and 9"),    # used to raise OverflowError
 ])
 def test_bad_units(text, match):
     with pytest.raises(UnitError, match=match):
