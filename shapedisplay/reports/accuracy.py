@@ -569,9 +569,12 @@ def _plots(rep, out_dir):
                           markers.get(key, "o"), label=key, alpha=0.8,
                           mfc="none" if key in PEER_METHODS else None)
             if bad:
-                ax.loglog([r["cpu_s_per_sim_s"] for r in bad], [top] * len(bad), "x", color="red", ms=9,
-                          label=f"{key}: failed/diverged" if key else "failed")
+                # the group's own marker, hollow and red, in the failure band: which model failed stays readable
+                ax.loglog([r["cpu_s_per_sim_s"] for r in bad], [top] * len(bad), markers.get(key, "o"), ls="",
+                          mfc="none", mec="red", mew=1.6, ms=9, label=f"{key}: failed/diverged")
         ax.axhline(top / 3, color="red", lw=0.5, ls=":")
+        ax.text(0.99, top / 2.2, "failed / diverged (CPU time until it stopped)", color="red", fontsize=7, ha="right",
+                transform=ax.get_yaxis_transform(), va="bottom")
         ax.set_xlabel("CPU seconds per simulated second")
         ax.set_ylabel("event-time RMS error / mean period  (floor 1e-16)")
         ax.set_title(case["title"], fontsize=9)
