@@ -408,9 +408,8 @@ class Renderer:
         for i, name in enumerate(SLOTS):
             if name in self.present:
                 vals[i] = self.table.sample(name, xm, ym)
-        arrs = [np.empty(n) for _ in range(7)]
+        V, vx, vy, N, mus, muk, gain = arrs = np.empty((7, n))       # one block: fewer page faults
         prepare_inputs(t, x, y, vals, self._cfg, *arrs)
-        V, vx, vy, N, mus, muk, gain = arrs
         return vals, V, vx, vy, N, mus, muk, gain
 
     def render(self, cursor: CursorPath) -> RenderResult:
@@ -435,7 +434,8 @@ class Renderer:
         b = self.device.burst
         audio, clipped = render_bursts(et, ea, cp.t[0], cp.duration, self.audio_rate, b.carrier_hz, b.rise_s,
                                        b.decay_s, self.burst_policy)
-        return RenderResult(cp.t.copy(), cp.x.copy(), cp.y.copy(), vx, vy, N, f, st.astype(np.int8),
+        # f is a row of the kernel's output block: copy it so the result does not hold the whole block
+        return RenderResult(cp.t.copy(), cp.x.copy(), cp.y.copy(), vx, vy, N, f.copy(), st.astype(np.int8),
                             vals[C_LX].copy(), vals[C_LY].copy(), ss, et, ea, audio, self.audio_rate, clipped,
                             self.model.name, self.tick_rate, self.burst_policy, mus)
 
