@@ -28,6 +28,18 @@ def ramp_table():
     return make_table({"normal_force": 0.5 + np.clip(100.0 * (xs - 0.02), 0.0, 2.0)})
 
 
+def step_through(r, cp):
+    """Play ``cp`` tick by tick through ``r.step`` from a reset; returns friction, lateral_x and audio arrays."""
+    r.reset()
+    F, LX, audio = [], [], []
+    for x, y in zip(cp.x, cp.y):
+        r.step(x, y)
+        F.append(r.last[O_F])
+        LX.append(r.last[O_LX])
+        audio.extend(r.audio_block[:int(r.last[O_NAUDIO])])
+    return np.array(F), np.array(LX), np.array(audio)
+
+
 def quiet_device():
     d = load_device(None)
     return d.with_(burst=BurstParams(gain=0.3))
@@ -48,13 +60,8 @@ def test_online_step_reproduces_offline_render():
         r = Renderer(t, device=quiet_device(), model=model, tick_rate=10_000, burst_policy=policy)
         cp = parse_stroke("0,0 <-> 60,0 @ 40 mm/s", 10_000)
         res = r.render(cp)
-        r.reset()
-        F, audio = [], []
-        for x, y in zip(cp.x, cp.y):
-            r.step(x, y)
-            F.append(r.last[O_F])
-            audio.extend(r.audio_block[:int(r.last[O_NAUDIO])])
-        assert np.max(np.abs(np.array(F) - res.friction_force)) <= 1e-12
+        F, _, audio = step_through(r, cp)
+        assert np.max(np.abs(F - res.friction_force)) <= 1e-12
         assert len(audio) == res.audio.size
         assert np.max(np.abs(np.array(audio) - res.audio)) <= 1e-12
         assert r.event_count == res.event_time.size > 0
@@ -293,12 +300,7 @@ def test_online_equals_offline_on_random_2d_paths(pts, model, policy):
                     2000.0, "random")
     r = Renderer(t, device=quiet_device(), model=model, tick_rate=2000, burst_policy=policy)
     res = r.render(cp)
-    r.reset()
-    F, LX = [], []
-    for x, y in zip(cp.x, cp.y):
-        r.step(x, y)
-        F.append(r.last[O_F])
-        LX.append(r.last[O_LX])
+    F, LX, _ = step_through(r, cp)
     assert np.allclose(F, res.friction_force, rtol=1e-9, atol=1e-12)
     assert np.allclose(LX, res.lateral_x, rtol=1e-9, atol=1e-12)
     assert r.event_count == res.event_time.size
@@ -341,10 +343,6 @@ def test_online_step_equals_offline_for_the_other_models(model):
     r = Renderer(t, device=quiet_device(), model=model, tick_rate=rate)
     cp = parse_stroke("0,0 -> 60,0 @ 200 mm/s", rate)
     res = r.render(cp)
-    r.reset()
-    F = []
-    for x, y in zip(cp.x, cp.y):
-        r.step(x, y)
-        F.append(r.last[O_F])
-    assert np.max(np.abs(np.array(F) - res.friction_force)) <= 1e-12
+    F, _, _ = step_through(r, cp)
+    assert np.max(np.abs(F - res.friction_force)) <= 1e-12
     assert r.event_count == res.event_time.size > (0 if model == "stribeck" else 10)

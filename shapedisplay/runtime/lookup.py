@@ -62,20 +62,25 @@ def _value(data, bg, ch, idx):
 
 
 @njit(cache=True)
+def _axis_cell(p, origin, spacing, count):
+    """Samples ``(i0, i1)`` around position ``p`` (m) on one axis and the weight of ``i1``; edge held outside."""
+    f = (p - origin) / spacing
+    if f < 0.0:
+        f = 0.0
+    if f > count - 1:
+        f = count - 1.0
+    i0 = int(np.floor(f))
+    if i0 > max(count - 2, 0):
+        i0 = max(count - 2, 0)
+    return i0, min(i0 + 1, count - 1), f - i0
+
+
+@njit(cache=True)
 def sample_all(blocks, data, bg, grid, x, y, out):
     """Bilinear values of every packed channel at (x, y) metres into ``out[:n_channels]``."""
     rows = int(grid[G_ROWS])
     cols = int(grid[G_COLS])
-    fc = (x - grid[G_X0]) / grid[G_DX]
-    if fc < 0.0:
-        fc = 0.0
-    if fc > cols - 1:
-        fc = cols - 1.0
-    c0 = int(np.floor(fc))
-    if c0 > max(cols - 2, 0):
-        c0 = max(cols - 2, 0)
-    tx = fc - c0
-    c1 = min(c0 + 1, cols - 1)
+    c0, c1, tx = _axis_cell(x, grid[G_X0], grid[G_DX], cols)
     nch = bg.shape[0]
     if rows == 1:
         i0 = cell_index(blocks, 0, c0)
@@ -83,16 +88,7 @@ def sample_all(blocks, data, bg, grid, x, y, out):
         for ch in range(nch):
             out[ch] = _value(data, bg, ch, i0) * (1 - tx) + _value(data, bg, ch, i1) * tx
         return
-    fr = (y - grid[G_Y0]) / grid[G_DY]
-    if fr < 0.0:
-        fr = 0.0
-    if fr > rows - 1:
-        fr = rows - 1.0
-    r0 = int(np.floor(fr))
-    if r0 > max(rows - 2, 0):
-        r0 = max(rows - 2, 0)
-    ty = fr - r0
-    r1 = min(r0 + 1, rows - 1)
+    r0, r1, ty = _axis_cell(y, grid[G_Y0], grid[G_DY], rows)
     i00 = cell_index(blocks, r0, c0)
     i01 = cell_index(blocks, r0, c1)
     i10 = cell_index(blocks, r1, c0)
