@@ -346,3 +346,16 @@ def test_online_step_equals_offline_for_the_other_models(model):
     F, _, _ = step_through(r, cp)
     assert np.max(np.abs(F - res.friction_force)) <= 1e-12
     assert r.event_count == res.event_time.size > (0 if model == "stribeck" else 10)
+
+
+def test_renderer_source_names_the_kernels_it_compiles_in():
+    """online_step is cached by numba keyed on renderer.py alone; renderer.py must change with its kernels."""
+    import hashlib
+    from pathlib import Path
+
+    from shapedisplay.runtime import renderer
+    here = Path(renderer.__file__).parent
+    blob = b"".join((here / n).read_bytes() for n in ("pads.py", "lookup.py", "bursts.py"))
+    assert renderer.KERNEL_SOURCES_SHA256 == hashlib.sha256(blob).hexdigest(), (
+        "pads.py, lookup.py or bursts.py changed: set renderer.KERNEL_SOURCES_SHA256 to "
+        f"{hashlib.sha256(blob).hexdigest()!r} so that numba recompiles the cached online_step")
