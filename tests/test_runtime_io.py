@@ -161,6 +161,11 @@ def test_cli_play_writes_wav_trace_plot(tiny_table, tmp_path, capsys):
     assert np.allclose(d["y"], 2e-3)
     samples, rate = read_wav(out)
     assert rate == 48000 and samples.size == int(3.0 * 48000) + 1
+    # audible: bursts on a 300 Hz carrier (the event train combs the spectrum: most energy within +-100 Hz)
+    assert np.sqrt(np.mean(samples ** 2)) > 0.01
+    power = np.abs(np.fft.rfft(samples * np.hanning(samples.size))) ** 2
+    freq = np.fft.rfftfreq(samples.size, 1 / rate)
+    assert power[(freq > 200) & (freq < 400)].sum() > 0.8 * power.sum()
     assert png.stat().st_size > 1000
     # raw npz is readable without this package
     with np.load(tr) as z:
