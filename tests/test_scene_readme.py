@@ -24,16 +24,26 @@ def section(text: str, heading: str) -> str:
     return text[start:end if end >= 0 else len(text)]
 
 
-def commands() -> list[list[str]]:
-    """argv of every `shapedisplay` line in the sh blocks of the sections, in reading order."""
+def commands(program: str = "shapedisplay") -> list[list[str]]:
+    """argv of every line of the sh blocks of the sections (in reading order) that runs ``program``."""
     text = (ROOT / "README.md").read_text(encoding="utf-8")
     out = []
     for heading in SECTIONS:
         for block in re.findall(r"```sh\n(.*?)```", section(text, heading), flags=re.S):
             for line in block.splitlines():
-                if line.startswith("shapedisplay "):
-                    out.append(shlex.split(line, comments=True)[1:])
+                argv = shlex.split(line, comments=True)
+                if argv and argv[0] in ("shapedisplay", "mkdir") and (program in (None, argv[0])):
+                    out.append(argv if program is None else argv[1:])
     return out
+
+
+def in_a_fresh_checkout(directory: str) -> bool:
+    """True when ``directory`` holds files git tracks (so it exists in a fresh clone)."""
+    import subprocess
+    res = subprocess.run(["git", "ls-files", "--", directory], cwd=ROOT, capture_output=True, text=True)
+    if res.returncode != 0:          # not a git checkout: what is on disk is what a reader has
+        return (ROOT / directory).is_dir()
+    return bool(res.stdout.strip())
 
 
 def files_of(argv: list[str]) -> tuple[list[str], list[str]]:
@@ -57,10 +67,16 @@ def test_sections_show_commands():
 
 
 def test_every_command_parses_and_reads_only_files_that_exist_or_were_written_before():
+    """Run in reading order from a fresh clone: inputs exist or were written, output folders exist."""
     from shapedisplay_cli.main import build_parser
     parser = build_parser()
     written: set = set()
-    for argv in commands():
+    made: set = set()
+    for line in commands(None):
+        if line[0] == "mkdir":
+            made.update(a.rstrip("/") for a in line[1:] if not a.startswith("-"))
+            continue
+        argv = line[1:]
         try:
             args = parser.parse_args(argv)
         except SystemExit:
@@ -70,6 +86,10 @@ def test_every_command_parses_and_reads_only_files_that_exist_or_were_written_be
         for f in reads:
             assert f in written or (ROOT / f).is_file(), \
                 f"`shapedisplay {shlex.join(argv)}` reads '{f}', which neither exists nor is written before"
+        for f in writes:
+            folder = str(Path(f).parent)
+            assert folder == "." or folder in made or in_a_fresh_checkout(folder), \
+                f"`shapedisplay {shlex.join(argv)}` writes into '{folder}/', which a fresh clone lacks (mkdir -p?)"
         written.update(writes)
 
 
