@@ -341,3 +341,14 @@ def test_tanh_regularised_friction_error_against_exact():
     assert 0 < late < 1e-3
     with pytest.raises(InputError, match="eps_m_s"):
         simulate_pad("tanh", eps_m_s=0.0)
+
+
+@settings(max_examples=15, deadline=None)
+@given(logm=st.floats(-8, -2), logk=st.floats(1, 6), zeta=st.floats(0, 3), N=st.floats(0, 10),
+       V=st.floats(-1, 1), mus=st.floats(0.05, 1.0), ratio=st.sampled_from([0.0, 0.5, 1.0]))
+def test_tanh_bounded_for_random_pads(logm, logk, zeta, N, V, mus, ratio):
+    m, k = 10.0 ** logm, 10.0 ** logk
+    r = simulate_pad("tanh", V=V, N=N, pad=PadParams(m, k, zeta * 2 * math.sqrt(k * m)),
+                     friction=FrictionParams(mus, mus * ratio), tick_rate=1000, duration=0.02)
+    assert np.all(np.isfinite(r.friction_force)) and np.all(np.isfinite(r.x))
+    assert np.all(np.abs(r.friction_force) <= mus * N * (1 + 1e-6) + 1e-15)
