@@ -118,6 +118,8 @@ def choose_quantization(values: np.ndarray, dtype: str = "auto", max_error: floa
     """
     v = np.asarray(values, dtype=np.float64)
     lo, hi = (float(v.min()), float(v.max())) if v.size else (0.0, 0.0)
+    if not (math.isfinite(lo) and math.isfinite(hi)):   # NaN propagates into min/max
+        raise InputError(f"channel values must be finite to be quantized (got range {lo!r}..{hi!r})")
     if dtype == "auto":
         if max_error is None or max_error <= 0:
             raise InputError(f"`max_error` must be > 0 for automatic quantization (got {max_error!r})")
@@ -204,6 +206,10 @@ class FrictionTable:
             if missing:
                 raise InputError(f"patch at row {r0}, col {c0} lacks channels {sorted(missing)}")
             arrs = {n: np.atleast_2d(np.asarray(chans[n], dtype=np.float64)) for n in names}
+            for n, a in arrs.items():
+                if not np.isfinite(a).all():
+                    raise InputError(f"patch at row {r0}, col {c0}: channel '{n}' must be finite "
+                                     f"({int(np.count_nonzero(~np.isfinite(a)))} NaN/inf values)")
             shape = next(iter(arrs.values())).shape
             if r0 < 0 or c0 < 0 or r0 + shape[0] > grid.rows or c0 + shape[1] > grid.cols:
                 raise InputError(f"patch {shape} at row {r0}, col {c0} lies outside the {grid.rows}x{grid.cols} canvas")

@@ -259,3 +259,15 @@ def test_sizes_reported():
     assert t.dense_bytes == 4 * 5 * len(CHANNELS) * 4
     s = t.summary()
     assert s["stored_bytes"] == 20 and s["dense_bytes"] == t.dense_bytes
+
+
+def test_non_finite_channel_values_are_refused():
+    """NaN used to give a NaN offset and error bound, and a table that decoded to NaN everywhere."""
+    g = Grid(2, 3, 1e-3, 1e-3)
+    v = np.array([[0.5, np.nan, 1.0], [1.0, 2.0, 3.0]])
+    for dtype in ("uint8", "float32", "auto"):
+        with pytest.raises(InputError, match=r"channel values must be finite to be quantized \(got range nan..nan\)"):
+            choose_quantization(v, dtype, max_error=0.01)
+    q = Quantization("float32", 1.0, 0.0, 1e-7)
+    with pytest.raises(InputError, match=r"patch at row 0, col 0: channel 'normal_force' must be finite \(1 NaN/inf"):
+        FrictionTable.from_dense(g, {"normal_force": np.where(np.isnan(v), np.inf, v)}, {"normal_force": q})
