@@ -8,7 +8,7 @@ written atomically (:func:`shapedisplay.atomic.atomic_path`).
 * :func:`write_trace` / :func:`read_trace` — the per-tick trace of a render
   as a plain ``.npz`` (readable with ``numpy.load``): ``t`` (s), ``x``,
   ``y`` (m), ``vx``, ``vy`` (m/s), ``normal_force``, ``friction_force`` (N),
-  ``state`` (0 stick, 1 slip), ``lateral_x``, ``lateral_y`` (N),
+  ``state`` (0 stick, 1 slip, at tick end), ``lateral_x``, ``lateral_y`` (N),
   ``skin_stretch`` (m), ``event_time`` (s), ``event_amplitude``, plus
   ``table_checksum``, ``model``, ``tick_rate``, ``audio_rate``, ``clipped``
   and ``burst_policy``.

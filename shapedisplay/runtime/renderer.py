@@ -266,7 +266,7 @@ class RenderResult:
     ----------
     t : s, tick times; ``x, y`` : m, cursor; ``vx, vy`` : m/s, cursor velocity
     normal_force : N; ``friction_force`` : N, on the pad, signed along the pad axis
-    state : int8, 0 stick / 1 slip
+    state : int8, 0 stick / 1 slip at the end of each tick (a slip shorter than a tick shows only as an event)
     lateral_x, lateral_y : N, lateral-force cue; ``skin_stretch`` : m
     event_time, event_amplitude : (n_events,), s and full-scale amplitude
     audio : (n_audio,), float64 in [-1, 1] at ``audio_rate`` Hz, first sample at ``t[0]``
