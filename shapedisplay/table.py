@@ -112,7 +112,8 @@ def choose_quantization(values: np.ndarray, dtype: str = "auto", max_error: floa
     """Pick a coding for ``values``.
 
     ``dtype`` "uint8"/"uint16" spreads the codes over [min, max] (worst-case
-    error scale/2); "float32"/"float64" keep floats; "auto" takes the
+    error scale/2; when the range straddles zero, zero gets a code of its own
+    so it decodes exactly); "float32"/"float64" keep floats; "auto" takes the
     smallest integer width whose worst-case error is <= ``max_error`` and
     falls back to float32 when none is.
     """
@@ -137,9 +138,16 @@ def choose_quantization(values: np.ndarray, dtype: str = "auto", max_error: floa
         raise unknown_key("quantization dtype", dtype, list(_DTYPES) + ["auto"])
     top = np.iinfo(_DTYPES[dtype]).max
     scale = (hi - lo) / top if hi > lo else 0.0
-    q = Quantization(dtype, scale, lo, 0.0)
+    offset = lo
+    if lo < 0.0 < hi:
+        # Signed channels (slopes, lateral forces): put zero exactly on a code so
+        # that flat ground decodes to 0, not to a small bias.
+        k = min(max(int(round(-lo / (hi - lo) * top)), 1), top - 1)
+        scale = max(-lo / k, hi / (top - k))
+        offset = -(k * scale)
+    q = Quantization(dtype, scale, offset, 0.0)
     err = float(np.max(np.abs(q.decode(q.encode(v)) - v), initial=0.0)) if v.size else 0.0
-    return Quantization(dtype, scale, lo, max(err, scale / 2 if scale > 0 else 0.0))
+    return Quantization(dtype, scale, offset, max(err, scale / 2 if scale > 0 else 0.0))
 
 
 @dataclass
