@@ -623,11 +623,12 @@ def _plots(rep, out_dir):
             continue
         sweeps.setdefault(r["sweep"], []).append(r)
     for sweep, rs in sweeps.items():
-        models = sorted({r["model"] for r in rs})
-        fig, axes = plt.subplots(1, len(models), figsize=(4.2 * len(models) + 1, 4.2), squeeze=False)
-        for ax, model in zip(axes[0], models):
+        panels = sorted({_panel(sweep, r) for r in rs})
+        fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels) + 1, 4.2), squeeze=False)
+        for ax, panel in zip(axes[0], panels):
+            model = panel[0]
             # worst verdicts drawn last, so a failure is never hidden under a stable case at the same point
-            sel = sorted((r for r in rs if r["model"] == model), key=lambda r: _DRAW_ORDER.index(r["verdict"]))
+            sel = sorted((r for r in rs if _panel(sweep, r) == panel), key=lambda r: _DRAW_ORDER.index(r["verdict"]))
             xs, ys, cs = [], [], []
             for r in sel:
                 x, y, xl, yl, logx, logy = _axes(sweep, r)
@@ -643,19 +644,34 @@ def _plots(rep, out_dir):
                 # over a band around the swept damping ratios (one ratio alone would draw a single point)
                 zz = np.linspace(max(0.0, min(ys) - 0.05), max(ys) + 0.05, 50)
                 ax.plot([theory_limit(model, z) for z in zz], zz, "k--", lw=1, label="theory limit")
+            if sweep == "stribeck":
+                # the linear criterion c + W mu'(V) = 0 (steady sliding unstable below the line)
+                p0 = sel[0]["params"]
+                vv = np.logspace(math.log10(min(xs)), math.log10(max(xs)), 200)
+                cc = (p0["mu_s"] - p0["mu_k"]) * p0["a"] * np.exp(-p0["a"] * vv / p0["N"]) - p0["b"]
+                ax.plot(vv[cc > 0], cc[cc > 0] + 1e-2, "k--", lw=1)
             ax.set_xlabel(xl)
             ax.set_ylabel(yl)
-            ax.set_title(f"{sweep}: {model}", fontsize=9)
+            ax.set_title(f"{sweep}: {model}" + (f", {panel[1]}" if panel[1] else ""), fontsize=9)
             ax.grid(True, which="both", alpha=0.3)
         handles = [Line2D([], [], marker="s", ls="", color=c, label=v) for v, c in _COLORS.items()]
         if sweep == "explicit_step":
             handles.append(Line2D([], [], ls="--", color="k", label="theory limit"))
+        if sweep == "stribeck":
+            handles.append(Line2D([], [], ls="--", color="k", label="c + W mu'(V) = 0"))
         fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=7)
         fig.tight_layout(rect=(0, 0.08, 1, 1))
         name = f"stability_{sweep}.png"
         common.save_figure(fig, os.path.join(out_dir, name))
         files.append(name)
     return files
+
+
+def _panel(sweep, r):
+    """Panel of a verdict map: the model, and for the Stribeck sweep the load (one map per W)."""
+    if sweep == "stribeck":
+        return (r["model"], f"W = {r['params']['N']:g} N")
+    return (r["model"], "")
 
 
 def _axes(sweep, r):
