@@ -344,6 +344,12 @@ def _clamp(a: np.ndarray, lo: float, hi: float, name: str, unit: str) -> dict:
             "raw_min": amin, "raw_max": amax}
 
 
+def _check_lateral_peak(peak: float) -> None:
+    if not math.isfinite(peak):   # |F|^2 overflowed: clipping would lose the direction (and give 0)
+        raise InputError("lateral forces overflow float64 (|F| beyond 1e154 N); check the lateral gain "
+                         "and the units of the heights and spacing")
+
+
 def lateral_force(gx: np.ndarray, gy: np.ndarray | None, device, mapping: MappingOptions,
                   n: np.ndarray | None = None, *, out=None) -> tuple[np.ndarray, np.ndarray | None, dict]:
     """Lateral cue ``F = -K grad h`` or ``-N grad h`` (newtons), magnitude clamped to the device.
@@ -381,25 +387,29 @@ def lateral_force(gx: np.ndarray, gy: np.ndarray | None, device, mapping: Mappin
     if flx is not None and fly is not None and fx.size:
         from . import _kernels
         cnt, peak = _kernels.clip_magnitude(flx, fly, fmax if fmax > 0 else math.inf)
+        _check_lateral_peak(peak)
         note = {"range": [0.0, fmax if fmax > 0 else None], "unit": "N", "below": 0, "above": int(cnt),
                 "fraction": int(cnt) / fx.size, "max_excess": max(peak - fmax, 0.0) if fmax > 0 else 0.0,
                 "raw_min": 0.0, "raw_max": float(peak), "rule": "magnitude clipped, direction kept"}
         return fx, fy, note
-    m2 = np.multiply(fx, fx)
-    if fy is not None:
-        t = np.multiply(fy, fy)
-        m2 += t
-        del t
+    with np.errstate(over="ignore"):   # an overflow shows as an infinite peak, refused below
+        m2 = np.multiply(fx, fx)
+        if fy is not None:
+            t = np.multiply(fy, fy)
+            m2 += t
+            del t
     peak = math.sqrt(float(m2.max(initial=0.0)))
+    _check_lateral_peak(peak)
     note = {"range": [0.0, fmax if fmax > 0 else None], "unit": "N", "below": 0, "above": 0, "fraction": 0.0,
             "max_excess": 0.0, "raw_min": 0.0, "raw_max": peak, "rule": "magnitude clipped, direction kept"}
     if fmax > 0 and peak > fmax:
         cnt = int(np.count_nonzero(m2 > fmax * fmax))
-        # factor min(1, fmax/|F|): exactly 1 where |F| <= fmax
-        with np.errstate(divide="ignore"):
-            np.divide(fmax * fmax, m2, out=m2)
-        np.minimum(m2, 1.0, out=m2)
+        # factor min(1, fmax/|F|), exactly 1 where |F| <= fmax; fmax/|F| as in the kernel, not
+        # sqrt(fmax^2/|F|^2): fmax^2 may underflow to 0 and 0/0 would be NaN (|F| = 0 gives inf -> 1)
         np.sqrt(m2, out=m2)
+        with np.errstate(divide="ignore"):
+            np.divide(fmax, m2, out=m2)
+        np.minimum(m2, 1.0, out=m2)
         fx *= m2
         if fy is not None:
             fy *= m2

@@ -97,6 +97,17 @@ def test_lateral_magnitude_clamped_direction_kept():
     assert note["above"] == 1 and note["max_excess"] == pytest.approx(3.5)
 
 
+@pytest.mark.parametrize("shape", [(1, 3), (300, 300)])   # numpy path and numba kernel path
+def test_lateral_clipping_never_gives_nan_or_loses_direction(shape):
+    """A tiny force limit squared underflowed to 0 and 0/0 made NaN; an overflowing |F|^2 clipped to 0."""
+    gx = np.resize(np.array([0.0, 1.0, 2.0]), shape)
+    tiny = RIG.with_(lateral_force_max=1e-170)
+    fx, fy, _ = lateral_force(gx, np.zeros(shape), tiny, MappingOptions(lateral="gradient", lateral_gain=1.0))
+    assert np.all(np.isfinite(fx)) and np.all(np.abs(fx) <= 1e-170) and np.all(fx[gx == 0] == 0)
+    with pytest.raises(InputError, match=r"lateral forces overflow float64"):
+        lateral_force(np.full(shape, 1e200), np.zeros(shape), RIG, MappingOptions(lateral="gradient", lateral_gain=1.0))
+
+
 def test_skin_stretch_follows_breakaway_force():
     tactor = load_device("skin-stretch-tactor")            # N range 1..1.5 N, stretch max 0.75 mm
     hf = sources.from_array(np.array([[0.0, 0.1e-3, 0.3e-3, 1e-3]]), 1e-3)
