@@ -350,7 +350,7 @@ def limit_walls(gx: np.ndarray, gy: np.ndarray, max_slope: float, *, out=None) -
     if peak2 <= limit * limit:
         return ox, oy
     # factor min(1, limit/|g|): exactly 1 (values unchanged) where |g| <= limit
-    with np.errstate(divide="ignore"):
+    with np.errstate(divide="ignore", over="ignore"):   # |g| = 0 or subnormal: factor inf -> 1 below
         np.divide(limit * limit, f, out=f)
     np.minimum(f, 1.0, out=f)
     np.sqrt(f, out=f)

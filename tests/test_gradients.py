@@ -164,3 +164,12 @@ def test_overflowing_slopes_are_refused_not_zeroed(cols):
     gx, gy = gradient(HeightField(h, 1e-9, 1e-9))
     lx, ly = limit_walls(gx, gy, 1.0)
     assert lx.max() == pytest.approx(1.0) and np.all(np.isfinite(lx))
+
+
+def test_limit_walls_with_subnormal_slopes_warns_nothing_and_keeps_them():
+    import warnings
+    gx = np.array([[1e-162, 0.0, 5.0]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")       # 1/|g|^2 overflowed with a RuntimeWarning
+        lx, _ = limit_walls(gx, np.zeros_like(gx), 1.0)
+    assert lx.tolist() == [[1e-162, 0.0, 1.0]]
