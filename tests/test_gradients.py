@@ -168,8 +168,8 @@ def test_overflowing_slopes_are_refused_not_zeroed(cols):
 
 def test_limit_walls_with_subnormal_slopes_warns_nothing_and_keeps_them():
     import warnings
-    gx = np.array([[1e-162, 0.0, 5.0]])
+    gx = np.array([[1e-160, 0.0, 5.0]])    # |g|^2 = 1e-320 is subnormal
     with warnings.catch_warnings():
         warnings.simplefilter("error")       # 1/|g|^2 overflowed with a RuntimeWarning
         lx, _ = limit_walls(gx, np.zeros_like(gx), 1.0)
-    assert lx.tolist() == [[1e-162, 0.0, 1.0]]
+    assert lx.tolist() == [[1e-160, 0.0, 1.0]]
