@@ -27,9 +27,12 @@ demo: $(STAMP)
 	# 2. the phone screen scene -> table, played by the exact stick-slip renderer
 	$(SD) compile assets/scenes/phone.toml -o $(OUT)/phone.npz
 	$(SD) play $(OUT)/phone.npz --stroke "62,2 -> 62,156 @ 30mm/s" --model exact --rate 10kHz -o $(OUT)/phone.wav --trace-out $(OUT)/phone-trace.npz --plot $(OUT)/phone-trace.png
-	# 3. a 3D preview of the scene with the played stroke (off-screen)
+	# 3. a 3D model (keycap mesh) -> table, and a stroke across it
+	$(SD) compile assets/meshes/keycap.stl -o $(OUT)/keycap.npz --resolution 0.1mm --up z
+	$(SD) play $(OUT)/keycap.npz --stroke "0,9 -> 18,9 @ 20mm/s" -o $(OUT)/keycap.wav
+	# 4. a 3D preview of the scene with the played stroke (off-screen)
 	$(SD) preview $(OUT)/phone.npz --trace $(OUT)/phone-trace.npz --color N -o $(OUT)/phone-preview.png
-	@echo "demo outputs in $(OUT)/: tent.npz phone.npz phone.wav phone-trace.npz phone-trace.png phone-preview.png"
+	@echo "demo outputs in $(OUT)/: tent.npz phone.npz phone.wav phone-trace.npz phone-trace.png phone-preview.png keycap.npz keycap.wav"
 
 bench: $(STAMP)
 	for b in benchmarks/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
