@@ -665,8 +665,9 @@ def terminal_summary(rep) -> str:
         s = c["summary"]
         f = s["fastest_within_1pct"] or {}
         b = s["best_scipy_within_1pct"] or {}
+        same = _same_error(s).replace(" (scipy never as accurate)", "")
         rows.append([c["name"], f.get("label", "none"), common.fmt(f.get("period_rel_max")),
-                     b.get("label", "none"), common.fmt(s["speedup_vs_scipy"], ".1f"),
+                     b.get("label", "none"), common.fmt(s["speedup_vs_scipy"], ".1f"), same,
                      common.fmt(c["reference"]["cross_check"]["max_abs_s"])])
     return common.text_table(["case", "fastest within 1%", "period err", "best scipy", "speed-up",
-                              "cross-check |dt| s"], rows)
+                              "at same err", "cross-check |dt| s"], rows)
