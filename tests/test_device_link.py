@@ -440,3 +440,22 @@ def test_reconnect_after_device_reenumerates(tmp_path, image):
         ln.close()
     finally:
         e.close()
+
+
+def test_host_gone_mid_stream_and_mid_upload_does_not_block_the_next_host(link, emu, image):
+    """A host killed while streaming (or uploading) leaves the device busy; the next HELLO ends that."""
+    link.upload(image)
+    link.start("cursor")
+    link.send_frame(P.Msg.CURSOR, P.pack_cursor(np.arange(3), np.arange(3) * 1000, np.zeros(3), np.zeros(3)))
+    link.close()                                   # gone without STOP
+    with DeviceLink(emu.port, timeout=0.3, retries=4) as ln:
+        assert ln.status().state == P.State.IDLE
+        rep = ln.stream(np.linspace(0, 0.1, 20), paced=False)
+        assert rep.rendered == 20
+        ln.request(P.Msg.UPLOAD_BEGIN, P.UPLOAD_BEGIN.pack(7, len(image), crc32(image)), (P.Msg.ACK,))
+        assert ln.status().state == P.State.UPLOADING
+    with DeviceLink(emu.port, timeout=0.3, retries=4) as ln:   # gone mid-upload: staging discarded
+        st = ln.status()
+        assert st.state == P.State.IDLE and st.staged_bytes == 0 and st.active_crc == crc32(image)
+        assert ln.stream(np.linspace(0, 0.1, 20), paced=False).rendered == 20
+    assert emu.activations == [(crc32(image), len(image))]

@@ -558,7 +558,22 @@ class DeviceEmulator:
         v = self.config.protocol_version
         if host_max < v and host_max < P.PROTOCOL_MIN_VERSION:
             return self._nak(f, P.Err.VERSION, v, f"host speaks up to version {host_max}; device needs {v}")
+        self._new_session()
         self._reply(f, P.Msg.HELLO_REPLY, P.HELLO_REPLY.pack(v, min(v, P.PROTOCOL_MIN_VERSION), self.boots))
+
+    def _new_session(self) -> None:
+        """A HELLO opens a session: a stream or an unfinished upload left by a host that went away
+        (killed, unplugged) ends here, so it cannot block the new host; the active table stays."""
+        if self._streaming:
+            self._stop_render()
+            self.log.append("stream of the previous session stopped")
+        with self._lock:
+            self._queue.clear()
+            self._engine = None
+            if self._upload is not None:
+                self.log.append(f"upload {self._upload['id']} of the previous session discarded")
+            self._upload = None
+            self.state = P.State.IDLE
 
     def _on_caps(self, f: Frame) -> None:
         self._reply(f, P.Msg.CAPS, self.config.caps().pack())
