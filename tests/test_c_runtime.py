@@ -328,3 +328,18 @@ def test_c_renderer_init_refuses_bad_parameters(sd_vectors, tmp_path):
         res = subprocess.run([str(sd_vectors), "render", str(fin), str(fout)], capture_output=True, text=True,
                              timeout=60)
         assert res.returncode == 3 and "sd_renderer_init failed (-3)" in res.stderr
+
+
+# ------------------------------------------------------------------ fixed memory
+@pytest.mark.skipif(shutil.which("nm") is None, reason="needs nm (binutils) to list the objects' symbols")
+def test_runtime_library_never_allocates(tmp_path):
+    """The library (not the host tools) calls no allocator at all: memory is the caller's, fixed at init."""
+    alloc = {"malloc", "calloc", "realloc", "free", "aligned_alloc", "posix_memalign", "alloca", "brk", "sbrk"}
+    for name in ("sd_pad.c", "sd_exact.c", "sd_render.c"):
+        obj = tmp_path / (name[:-2] + ".o")
+        res = subprocess.run([_cc(), *CFLAGS, "-I", str(CDIR), "-c", str(CDIR / name), "-o", str(obj)],
+                             capture_output=True, text=True, timeout=120)
+        assert res.returncode == 0, res.stderr
+        undefined = subprocess.run(["nm", "-u", str(obj)], capture_output=True, text=True, check=True).stdout
+        called = {line.split()[-1].split("@")[0] for line in undefined.splitlines() if line.strip()}
+        assert called and not called & alloc, f"{name} calls {sorted(called & alloc)}"
