@@ -103,6 +103,61 @@ def test_table_too_large_for_device(emulator, tmp_path, capsys):
     assert "exceeds the device memory of 65536 bytes" in err and "nothing uploaded" in err
 
 
+def _one_line_exit_2(capsys, argv, message):
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1 and "Traceback" not in err, err
+
+
+def test_not_a_table_and_tampered_table_refused_before_upload(emulator, table_path, tmp_path, capsys):
+    _, port, _ = emulator
+    text = tmp_path / "notes.npz"
+    text.write_text("not a table")
+    _one_line_exit_2(capsys, ["device", "upload", str(text), port], "not a table")
+    with np.load(table_path) as z:
+        arrays = dict(z)
+    arrays["normal_force"] = arrays["normal_force"].copy()
+    arrays["normal_force"].flat[0] ^= 1                    # one stored code changed, header kept
+    tampered = tmp_path / "tampered.npz"
+    np.savez(tampered, **arrays)
+    _one_line_exit_2(capsys, ["device", "play", str(tampered), port, "--stroke", "5,0 -> 15,0 @ 100 mm/s"],
+                     "checksum mismatch")
+
+
+def test_silent_port_times_out(tmp_path, capsys):
+    master, slave = os.openpty()          # a serial port with nothing behind it
+    try:
+        t0 = time.monotonic()
+        _one_line_exit_2(capsys, ["device", "info", os.ttyname(slave), "--timeout", "0.1", "--retries", "1"],
+                         "did not answer HELLO")
+        assert time.monotonic() - t0 < 10
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+def test_emulator_killed_mid_play_is_one_line_exit_2(table_path, tmp_path):
+    port_file = tmp_path / "port"
+    emu = subprocess.Popen([sys.executable, "-m", "shapedisplay_cli.main", "device", "emulate", "--timeout", "60",
+                            "--port-file", str(port_file)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        t_end = time.monotonic() + 60
+        while not port_file.exists() and emu.poll() is None and time.monotonic() < t_end:
+            time.sleep(0.05)
+        host = subprocess.Popen([sys.executable, "-m", "shapedisplay_cli.main", "device", "play", table_path,
+                                 port_file.read_text().strip(), "--stroke", "0,0 <-> 60,0 @ 20 mm/s x3"],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        time.sleep(1.5)                    # uploaded and streaming by now (the stroke lasts 18 s)
+        assert host.poll() is None
+        emu.kill()
+        out, err = host.communicate(timeout=30)
+    finally:
+        emu.kill()
+        emu.wait()
+    assert host.returncode == 2, (out, err)
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err and "disappeared" in err, err
+
+
 def test_emulator_stops_on_sigterm(emulator):
     proc, port, _ = emulator
     proc.send_signal(signal.SIGTERM)
