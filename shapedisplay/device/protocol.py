@@ -36,7 +36,7 @@ class Msg(enum.IntEnum):
     UPLOAD_CHUNK = 0x11   # upload id u16, offset u32, data
     UPLOAD_END = 0x12     # upload id u16, whole-table crc32 u32, size u32
     COMMIT = 0x13         # upload id u16
-    ABORT = 0x14          # upload id u16 (0xFFFF = any)
+    ABORT = 0x14          # upload id u16 (informative: the one staged upload is discarded)
     START = 0x20          # mode u8, input u8, flags u8
     STOP = 0x21           # no body
     CURSOR = 0x22         # CursorSample (one or more, back to back)
