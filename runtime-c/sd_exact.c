@@ -8,36 +8,17 @@
  * dissipated by friction and damper) are not computed: the renderer does not output them.
  * No allocation; bounded work per phase change.
  */
-#include <math.h>
-#include "sd_runtime.h"
+#include "sd_pad_common.h"
 
-#define SD_PI 3.141592653589793
 #define ADMIT (1.0 - 1e-9)        /* re-stick admissible if |f| <= ADMIT * mu_s N */
 #define ADMIT_TOUCH (1.0 - 1e-6)  /* stricter for tangent touches (grazing the limit is no re-stick) */
-
-static double sgn(double x) { return x > 0.0 ? 1.0 : (x < 0.0 ? -1.0 : 0.0); }
-static double py_max(double a, double b) { return b > a ? b : a; }
-static double py_min(double a, double b) { return b < a ? b : a; }
-
-static double py_mod(double a, double b)
-{
-    double r = fmod(a, b);
-    if (r != 0.0) {
-        if ((b < 0.0) != (r < 0.0)) r += b;
-    } else {
-        r = copysign(0.0, b);
-    }
-    return r;
-}
 
 /* Free damped oscillator m y'' + c y' + k y = 0 from (y0, v0) at time t (all damping cases). */
 static void osc(double m, double c, double k, double y0, double v0, double t, double *y, double *v)
 {
     double sig = 0.5 * c / m, wn2 = k / m, disc = sig * sig - wn2;
     if (disc < -1e-10 * wn2) {
-        double wd = sqrt(-disc), e = exp(-sig * t), cs = cos(wd * t), sn = sin(wd * t);
-        *y = e * (y0 * cs + (v0 + sig * y0) / wd * sn);
-        *v = e * (v0 * cs - (wn2 * y0 + sig * v0) / wd * sn);
+        osc_under(m, c, k, y0, v0, t, y, v);
         return;
     }
     if (disc > 1e-10 * wn2) {
@@ -69,25 +50,7 @@ static double acc(double m, double c, double k, double y, double v) { return -(c
 static double next_acc_zero(double m, double c, double k, double y0, double v0, double after)
 {
     double sig = 0.5 * c / m, wn2 = k / m, disc = sig * sig - wn2;
-    double a0 = -2.0 * sig * v0 - wn2 * y0;
-    double j0 = -2.0 * sig * a0 - wn2 * v0;
-    if (disc < -1e-10 * wn2) {
-        double wd = sqrt(-disc), bb = (j0 + sig * a0) / wd, phi, th1, tz;
-        if (a0 == 0.0 && bb == 0.0) return INFINITY;
-        phi = atan2(bb, a0);
-        th1 = py_mod(phi + 0.5 * SD_PI, SD_PI);
-        if (th1 < 1e-9 || th1 > SD_PI - 1e-9) {
-            th1 = th1 > 1.0 ? SD_PI : th1 + SD_PI;
-            if (th1 < SD_PI) th1 = SD_PI;
-        }
-        tz = th1 / wd;
-        if (tz <= after) {
-            double nper = floor((after - tz) * wd / SD_PI) + 1.0;
-            tz = (th1 + nper * SD_PI) / wd;
-            while (tz <= after) tz += SD_PI / wd;
-        }
-        return tz;
-    }
+    if (disc < -1e-10 * wn2) return next_acc_zero_under(m, c, k, y0, v0, after);
     if (disc > 1e-10 * wn2) {
         double sq = sqrt(disc), r1, r2, p, q, num, den, tz;
         if (sig >= 0.0) {
@@ -190,34 +153,13 @@ static int slip_search(double m, double c, double k, double y0, double v0, doubl
     }
 }
 
-static int record(double *ev_t, double *ev_a, int cap, int n_ev, double t, double a)
-{
-    if (n_ev < cap) {
-        ev_t[n_ev] = t;
-        ev_a[n_ev] = a;
-    }
-    return n_ev + 1;
-}
-
 int sd_exact_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double t0, double h, double V, double N,
                   double mus, double muk, double gain, double *ev_t, double *ev_a, int cap, int n_ev)
 {
     double m, k, c, B, tmax, x, v, phase, s, age, ncap, t, Neff, tmin;
     int nev0;
     long it;
-    /* fast path: stuck for the whole tick (the stick force is linear in time, so both ends
-     * inside the static limit means no breakaway in between) -- as pads._exact_tick */
-    if (S->phase == 0.0 && P->max_stick_period == 0.0) {
-        double k_ = P->stiffness, xe = S->x + V * h;
-        double fa = k_ * S->x + P->damping * V, fe = k_ * xe + P->damping * V, thr_ = mus * N;
-        if (fabs(fa) < thr_ && fabs(fe) < thr_) {
-            S->x = xe;
-            S->v = V;
-            S->f = fe;
-            S->n_events = 0;
-            return n_ev;
-        }
-    }
+    if (stuck_whole_tick(S, P, h, V, N, mus)) return n_ev;
     m = P->mass;
     k = P->stiffness;
     c = P->damping;
@@ -252,7 +194,7 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double t0, double
             } else {
                 double tb = INFINITY, tf = INFINITY, tn;
                 if (V != 0.0) {
-                    tb = (sgn(V) * thr - f) / (k * V);
+                    tb = (sd_sgn(V) * thr - f) / (k * V);
                     if (tb < 0.0) tb = 0.0;
                 }
                 if (tmax > 0.0) tf = py_max(tmax - age, 0.0);
@@ -271,8 +213,8 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double t0, double
                 forced = tf < tb;
             }
             if (brk) {
-                s = sgn(f);
-                if (s == 0.0) s = V != 0.0 ? sgn(V) : 1.0;
+                s = sd_sgn(f);
+                if (s == 0.0) s = V != 0.0 ? sd_sgn(V) : 1.0;
                 if (forced && mus > 0.0) ncap = fabs(f) / mus;
                 n_ev = record(ev_t, ev_a, cap, n_ev, t0 + t, B * fabs(k * x));
                 phase = 1.0;

@@ -10,64 +10,7 @@
  *
  * No allocation, no recursion; work per tick is O(1) plus O(1) per stick-slip event.
  */
-#include <math.h>
-#include "sd_runtime.h"
-
-#define SD_PI 3.141592653589793
-
-static double sd_sgn(double x) { return x > 0.0 ? 1.0 : (x < 0.0 ? -1.0 : 0.0); }
-/* Python's max(a, b) / min(a, b): the first argument unless the second is strictly larger/smaller. */
-static double py_max(double a, double b) { return b > a ? b : a; }
-static double py_min(double a, double b) { return b < a ? b : a; }
-
-/* Python float modulo (sign of the divisor), as CPython's float_rem and numba. */
-static double py_mod(double a, double b)
-{
-    double r = fmod(a, b);
-    if (r != 0.0) {
-        if ((b < 0.0) != (r < 0.0)) r += b;
-    } else {
-        r = copysign(0.0, b);
-    }
-    return r;
-}
-
-/* Free under-damped oscillator m y'' + c y' + k y = 0 from (y0, v0), at time t. */
-static void osc_under(double m, double c, double k, double y0, double v0, double t, double *y, double *v)
-{
-    double sig = 0.5 * c / m;
-    double wn2 = k / m;
-    double disc = sig * sig - wn2;
-    double wd = sqrt(-disc);
-    double e = exp(-sig * t);
-    double cs = cos(wd * t);
-    double sn = sin(wd * t);
-    *y = e * (y0 * cs + (v0 + sig * y0) / wd * sn);
-    *v = e * (v0 * cs - (wn2 * y0 + sig * v0) / wd * sn);
-}
-
-/* First time > 0 where the under-damped free oscillator's acceleration is zero (after = 0). */
-static double next_acc_zero_under(double m, double c, double k, double y0, double v0)
-{
-    double sig = 0.5 * c / m;
-    double wn2 = k / m;
-    double disc = sig * sig - wn2;
-    double a0 = -2.0 * sig * v0 - wn2 * y0;
-    double j0 = -2.0 * sig * a0 - wn2 * v0;
-    double wd = sqrt(-disc);
-    double bb = (j0 + sig * a0) / wd;
-    double phi, th1, tz;
-    if (a0 == 0.0 && bb == 0.0) return INFINITY;
-    phi = atan2(bb, a0);
-    th1 = py_mod(phi + 0.5 * SD_PI, SD_PI);
-    if (th1 < 1e-9 || th1 > SD_PI - 1e-9) {
-        th1 = th1 > 1.0 ? SD_PI : th1 + SD_PI;
-        if (th1 < SD_PI) th1 = SD_PI;
-    }
-    tz = th1 / wd;
-    /* after = 0: tz > 0 always holds here (th1 >= 1e-9). */
-    return tz;
-}
+#include "sd_pad_common.h"
 
 void sd_pad_prepare(sd_pad_params_t *P)
 {
@@ -101,7 +44,7 @@ static void restick(const sd_pad_params_t *P, double s, double xb, double V, dou
     vp = -e * V;
     ap = -2.0 * sig * vp - wn2 * yp;
     if (s * ap <= 0.0) return;
-    tz1 = next_acc_zero_under(m, c, k, y0, V);
+    tz1 = next_acc_zero_under(m, c, k, y0, V, 0.0);
     if (tz1 == INFINITY) return;
     osc_under(m, c, k, y0, V, tz1 + SD_PI / wd, &ypk, &vpk);
     if (s * (vpk - V) < 0.0) return;
@@ -138,34 +81,13 @@ void sd_pad_reset(sd_pad_state_t *S)
     S->memo_valid = 0;
 }
 
-static int record(double *ev_t, double *ev_a, int cap, int n_ev, double t, double a)
-{
-    if (n_ev < cap) {
-        ev_t[n_ev] = t;
-        ev_a[n_ev] = a;
-    }
-    return n_ev + 1;
-}
-
 int sd_jump_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double t0, double h, double V, double N,
                  double mus, double muk, double gain, double *ev_t, double *ev_a, int cap, int n_ev)
 {
     double x, phase, s, age, ncap, tsl, t, Neff, k, c, B, tmax;
     int nev0;
     long it;
-    /* fast path: stuck for the whole tick (the stick force is linear in time, so both ends
-     * inside the static limit means no breakaway in between) -- as pads._jump_tick */
-    if (S->phase == 0.0 && P->max_stick_period == 0.0) {
-        double k_ = P->stiffness, xe = S->x + V * h;
-        double fa = k_ * S->x + P->damping * V, fe = k_ * xe + P->damping * V, thr_ = mus * N;
-        if (fabs(fa) < thr_ && fabs(fe) < thr_) {
-            S->x = xe;
-            S->v = V;
-            S->f = fe;
-            S->n_events = 0;
-            return n_ev;
-        }
-    }
+    if (stuck_whole_tick(S, P, h, V, N, mus)) return n_ev;
     k = P->stiffness;
     c = P->damping;
     B = P->burst_gain * gain;

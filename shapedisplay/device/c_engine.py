@@ -76,7 +76,7 @@ def library() -> ctypes.CDLL:
     cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
     if not cc:
         raise InputError("the C engine needs a C compiler (cc, gcc or clang); use the default Python engine")
-    digest = hashlib.sha256(b"".join(p.read_bytes() for p in [*srcs, RUNTIME_C / "sd_runtime.h"])
+    digest = hashlib.sha256(b"".join(p.read_bytes() for p in [*srcs, *sorted(RUNTIME_C.glob("*.h"))])
                             + " ".join(CFLAGS).encode()).hexdigest()[:16]
     cache = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "shapedisplay"
     lib_path = cache / f"sd_runtime-{digest}.so"
