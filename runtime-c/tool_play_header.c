@@ -4,7 +4,7 @@
  *     shapedisplay export TABLE --format c -o table.h --name sd_table
  * and compile this file (or your firmware's equivalent) with
  *     cc -std=c99 -O2 -ffp-contract=off -DSD_TABLE_HEADER='"table.h"' \
- *        tool_play_header.c sd_render.c sd_pad.c -lm
+ *        tool_play_header.c sd_render.c sd_pad.c sd_exact.c -lm
  * The header must carry the device parameters (tables compiled for a device profile do).
  * If the table's mapping uses direction-dependent friction, add -DSD_TABLE_K_MU=sd_table_slope_friction_gain.
  *
