@@ -118,6 +118,15 @@ class StreamReport:
         return out
 
 
+def _drain(q: "queue.Queue") -> None:
+    """Discard everything waiting in ``q`` (stale replies or outputs of an earlier exchange)."""
+    while True:
+        try:
+            q.get_nowait()
+        except queue.Empty:
+            return
+
+
 def open_serial(port: str, baudrate: int = DEFAULT_BAUD, read_timeout: float = 0.02):
     """Open ``port`` (a device path or a pyserial URL) with pyserial; raise a one-line error."""
     serial = require("serial", "serial", "The device link")
@@ -429,11 +438,7 @@ class DeviceLink:
         self.connect()
 
     def _drain_replies(self) -> None:
-        while True:
-            try:
-                self._replies.get_nowait()
-            except queue.Empty:
-                return
+        _drain(self._replies)
 
     # ------------------------------------------------------------ upload
     def upload(self, image: bytes, restarts: int = 2, progress=None) -> UploadReport:
@@ -545,11 +550,7 @@ class DeviceLink:
         return P.ACK.unpack(f.body)[1]
 
     def _drain_outputs(self) -> None:
-        while True:
-            try:
-                self._outputs.get_nowait()
-            except queue.Empty:
-                return
+        _drain(self._outputs)
 
     def _wait_credit(self, sent: int, capacity: int, timeout: float) -> bool:
         """Block until fewer than ``capacity`` samples are queued at the device. True if it waited."""
