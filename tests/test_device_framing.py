@@ -171,3 +171,26 @@ def test_cursor_pack_round_trip():
     assert np.allclose(rec["x"], [0.01, 0.02]) and rec["y"][1] == -0.5
     with pytest.raises(ValueError):
         protocol.unpack_cursor(body[:-1])
+
+
+def test_bulk_random_fuzz_of_the_decoder():
+    """20 000 random inputs (bytes with many delimiters, valid frames cut at random) on top of the
+    hypothesis runs: the decoder never raises, stays bounded, and always resyncs on a clean frame."""
+    rng = np.random.default_rng(2024)
+    good = encode_frame(1, 0x22, 3, b"abc")
+    dec = FrameDecoder(max_frame=128)
+    for i in range(20_000):
+        n = int(rng.integers(0, 120))
+        data = bytearray(rng.integers(0, 256, n, dtype=np.uint8).tobytes())
+        if n and i % 3 == 0:
+            for pos in rng.integers(0, n, 1 + n // 16):
+                data[pos] = 0                                          # many delimiters
+        if i % 5 == 0:
+            cut = int(rng.integers(0, len(good)))
+            data += good[:cut] if i % 2 else good[cut:]               # truncated frame
+        for item in dec.feed(bytes(data)):
+            assert isinstance(item, (Frame, str))
+        assert len(dec._buf) <= dec.max_encoded
+        if i % 1000 == 999:
+            assert dec.feed(b"\x00" + encode_frame(1, 7, i, b"sync"))[-1] == Frame(1, 7, i, b"sync")
+    assert dec.stats.bad > 1000
