@@ -121,6 +121,12 @@ def run_play(args) -> int:
     from shapedisplay.device.framing import crc32
     from shapedisplay.runtime import Renderer, parse_stroke
     table, image = _read_table(args.table)
+    if args.output:
+        from pathlib import Path
+        folder = Path(args.output).parent
+        if not folder.is_dir():          # refuse before playing, not after a long stroke
+            from shapedisplay.errors import InputError
+            raise InputError(f"output '{args.output}': directory '{folder}' does not exist")
     with _link(args) as link:
         caps = link.caps
         if args.mode == "cursor" and not caps.has_renderer:

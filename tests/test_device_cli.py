@@ -81,13 +81,17 @@ def test_play_actuator_mode(emulator, table_path, capsys):
     (["device", "emulate", "--memory", "12 parsecs"], "--memory"),
     (["device", "emulate", "--tick-rate", "10 kHz", "--stream-rate", "3 kHz"], "multiple"),
     (["device", "info", "PORT", "--timeout", "0"], "--timeout"),
+    (["device", "play", "TABLE", "PORT", "--stroke", "0,0 -> 10,0 @ 10 mm/s", "-o", "/no/such/dir/p.npz"],
+     "does not exist"),
 ])
 def test_bad_input_is_one_line_exit_2(emulator, table_path, capsys, argv, message):
     _, port, _ = emulator
     argv = [port if a == "PORT" else table_path if a == "TABLE" else a for a in argv]
     assert main(argv) == 2
-    err = capsys.readouterr().err.strip()
+    out, err = capsys.readouterr()
+    err = err.strip()
     assert message in err and len(err.splitlines()) == 1 and "Traceback" not in err
+    assert "played" not in out          # refused before anything was sent
 
 
 def test_table_too_large_for_device(emulator, tmp_path, capsys):
