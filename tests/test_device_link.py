@@ -459,3 +459,11 @@ def test_host_gone_mid_stream_and_mid_upload_does_not_block_the_next_host(link, 
         assert st.state == P.State.IDLE and st.staged_bytes == 0 and st.active_crc == crc32(image)
         assert ln.stream(np.linspace(0, 0.1, 20), paced=False).rendered == 20
     assert emu.activations == [(crc32(image), len(image))]
+
+
+def test_damaged_cursor_frames_reported_as_crc_failures(link, emu, image):
+    link.upload(image)
+    emu.inject("corrupt", "rx", count=3, after=5)
+    rep = link.stream(np.linspace(0, 0.1, 60), paced=False)
+    assert rep.bad_frames == 3 and rep.rendered == 57
+    assert any("3 damaged frames" in line for line in rep.problems())

@@ -97,6 +97,7 @@ class StreamReport:
     overruns: int = 0
     clipped: int = 0
     duplicates: int = 0
+    bad_frames: int = 0                      # frames the device received damaged (CRC/COBS) and dropped
     backpressure_waits: int = 0
     seconds: float = 0.0
     outputs: np.ndarray | None = None        # drive per renderer tick, in order, flat float64 (monitor only)
@@ -113,6 +114,8 @@ class StreamReport:
             out.append(f"device ran {self.underruns} render periods without a cursor sample (held the last)")
         if self.clipped:
             out.append(f"device clipped {self.clipped} actuator samples to full scale")
+        if self.bad_frames:
+            out.append(f"device received {self.bad_frames} damaged frames (CRC/COBS check failed) and dropped them")
         if self.rendered < self.sent - self.overruns - self.duplicates:
             out.append(f"device rendered {self.rendered} of {self.sent} samples sent")
         return out
@@ -395,7 +398,12 @@ class DeviceLink:
                 if f.type < 0x80:
                     raise LinkError(f"port '{self.port}' echoes our own frames: it is a loopback, not a device")
                 if f.type == P.Msg.NAK and f.seq == P.SEQ_UNSOLICITED:
-                    break            # the device saw a damaged frame: resend now
+                    # The device saw a damaged frame: maybe this request, maybe a stream frame sent
+                    # before it (those are never resent). Resend now (a duplicate runs once); the NAK
+                    # is no answer, so it costs no try and the deadline stays (no hang under a flood).
+                    self.resends += 1
+                    self._write(wire)
+                    continue
                 if f.seq != seq:
                     continue         # a stale or duplicated reply to an older request
                 if f.type == P.Msg.NAK:
@@ -644,6 +652,7 @@ class DeviceLink:
         rep.overruns = after.overruns - before.overruns
         rep.clipped = after.clipped - before.clipped
         rep.duplicates = after.rx_duplicates - before.rx_duplicates
+        rep.bad_frames = after.rx_bad_frames - before.rx_bad_frames
         rep.events = list(self.events)
         if monitor:
             got: dict = {}
