@@ -467,3 +467,22 @@ def test_damaged_cursor_frames_reported_as_crc_failures(link, emu, image):
     rep = link.stream(np.linspace(0, 0.1, 60), paced=False)
     assert rep.bad_frames == 3 and rep.rendered == 57
     assert any("3 damaged frames" in line for line in rep.problems())
+
+
+def test_hung_device_that_stops_reading_is_a_timeout_not_a_hang(monkeypatch):
+    """A port that is there but never drained (a frozen device): writes time out with one clear error."""
+    from shapedisplay.device import host
+    monkeypatch.setattr(host, "WRITE_TIMEOUT_S", 0.3)
+    master, slave = os.openpty()          # nobody ever reads the master side
+    try:
+        ln = DeviceLink(os.ttyname(slave), timeout=0.2, retries=0)
+        ln.open()
+        t0 = time.monotonic()
+        with pytest.raises(LinkTimeout, match="stopped reading"):
+            for _ in range(10_000):
+                ln.send_frame(P.Msg.CURSOR, bytes(2000))
+        assert time.monotonic() - t0 < 10
+        ln.close()
+    finally:
+        os.close(master)
+        os.close(slave)

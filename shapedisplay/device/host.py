@@ -38,6 +38,7 @@ from . import protocol as P
 from .framing import Frame, FrameDecoder, crc32, encode_frame
 
 DEFAULT_BAUD = 921_600
+WRITE_TIMEOUT_S = 5.0     # a write that cannot go out for this long means nothing reads the line
 
 
 class LinkError(ShapeDisplayError):
@@ -134,7 +135,7 @@ def open_serial(port: str, baudrate: int = DEFAULT_BAUD, read_timeout: float = 0
     """Open ``port`` (a device path or a pyserial URL) with pyserial; raise a one-line error."""
     serial = require("serial", "serial", "The device link")
     try:
-        ser = serial.serial_for_url(port, baudrate=baudrate, timeout=read_timeout, write_timeout=5.0,
+        ser = serial.serial_for_url(port, baudrate=baudrate, timeout=read_timeout, write_timeout=WRITE_TIMEOUT_S,
                                     do_not_open=True)
         if hasattr(ser, "exclusive") and not port.startswith(("loop:", "socket:", "rfc2217:", "spy:")):
             try:
@@ -341,7 +342,12 @@ class DeviceLink:
                 self._ser.write(wire)
         except Exception as exc:  # noqa: BLE001  (SerialException, OSError, SerialTimeoutException)
             if self._failure is None:
-                self._fail(DeviceDisconnected(f"port '{self.port}' disappeared while writing ({exc})"))
+                if type(exc).__name__ == "SerialTimeoutException":
+                    # The port is there but nothing drains it: a hung device (or a flow-control stall).
+                    self._fail(LinkTimeout(f"device on '{self.port}' stopped reading: a write of {len(wire)} "
+                                           f"bytes did not go out within {WRITE_TIMEOUT_S:g} s"))
+                else:
+                    self._fail(DeviceDisconnected(f"port '{self.port}' disappeared while writing ({exc})"))
             raise self._failure from None
 
     def send_frame(self, msg_type: int, body: bytes = b"", seq: int | None = None,
