@@ -161,13 +161,8 @@ class FrameDecoder:
                 break
             chunk = data[start:end]
             start = end + 1
-            if self._overflow:
+            if self._overflow or len(self._buf) + len(chunk) > self.max_encoded:
                 self._overflow = False
-                self._buf.clear()
-                self.stats.oversize += 1
-                out.append("oversize")
-                continue
-            if len(self._buf) + len(chunk) > self.max_encoded:
                 self._buf.clear()
                 self.stats.oversize += 1
                 out.append("oversize")
