@@ -343,3 +343,19 @@ def test_runtime_library_never_allocates(tmp_path):
         undefined = subprocess.run(["nm", "-u", str(obj)], capture_output=True, text=True, check=True).stdout
         called = {line.split()[-1].split("@")[0] for line in undefined.splitlines() if line.strip()}
         assert called and not called & alloc, f"{name} calls {sorted(called & alloc)}"
+
+
+@pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is optional (memory check of the C runtime)")
+def test_runtime_under_valgrind_no_heap_and_no_memory_errors(tmp_path):
+    """tool_bench.c keeps its renderer in a static object: running all models and the renderer the
+    heap sees only stdio's one buffer, and valgrind finds no invalid access."""
+    exe = tmp_path / "sd_bench"
+    srcs = [str(CDIR / n) for n in ("sd_pad.c", "sd_exact.c", "sd_render.c", "tool_bench.c")]
+    res = subprocess.run([_cc(), *CFLAGS, "-g", "-I", str(CDIR), *srcs, "-lm", "-o", str(exe)],
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    res = subprocess.run(["valgrind", "--error-exitcode=9", str(exe), "2000"], capture_output=True, text=True,
+                         timeout=120)
+    assert res.returncode == 0 and "ERROR SUMMARY: 0 errors" in res.stderr, res.stderr[-2000:]
+    allocs = int(res.stderr.split("total heap usage:")[1].split("allocs")[0].replace(",", ""))
+    assert allocs <= 1, res.stderr[-1000:]      # stdout's buffer, allocated by printf
