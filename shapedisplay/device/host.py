@@ -117,7 +117,7 @@ class StreamReport:
             out.append(f"device clipped {self.clipped} actuator samples to full scale")
         if self.bad_frames:
             out.append(f"device received {self.bad_frames} damaged frames (CRC/COBS check failed) and dropped them")
-        if self.rendered < self.sent - self.overruns - self.duplicates:
+        if self.rendered < self.sent - self.overruns - self.bad_frames:     # losses not reported above
             out.append(f"device rendered {self.rendered} of {self.sent} samples sent")
         return out
 
