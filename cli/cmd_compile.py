@@ -125,15 +125,6 @@ def build_options(args):
     return mapping, options
 
 
-def _resolution(text):
-    from shapedisplay.errors import InputError
-    from shapedisplay.units import parse_quantity
-    v = parse_quantity(text, "m", "--resolution")
-    if not v > 0:
-        raise InputError(f"`--resolution` must be a length > 0 (got {text!r})")
-    return v
-
-
 def run(args) -> int:
     import json
     from pathlib import Path
@@ -141,8 +132,7 @@ def run(args) -> int:
     from shapedisplay.compile import compile_heightfield, format_report
     from shapedisplay.devices import load_device
     from shapedisplay.errors import InputError
-    from shapedisplay.sources import IMAGE_SUFFIXES, MESH_SUFFIXES, load_source
-    from shapedisplay.units import parse_pair
+    from shapedisplay.sources import IMAGE_SUFFIXES, MESH_SUFFIXES, image_options, load_source, resolution_option
 
     src = Path(args.source)
     suffix = src.suffix.lower()
@@ -170,24 +160,13 @@ def run(args) -> int:
                 if getattr(args, opt) is not None:
                     raise InputError(f"`--{opt}` applies to images; mesh '{src}' takes --resolution, --up, --units")
             if args.resolution is not None:
-                opts["resolution"] = _resolution(args.resolution)
+                opts["resolution"] = resolution_option(args.resolution)
             opts["up"], opts["units"] = args.up, args.units
         elif suffix in IMAGE_SUFFIXES:
             for opt in _MESH_ONLY:
                 if getattr(args, opt) is not None:
                     raise InputError(f"`--{opt}` applies to meshes, not to image '{src}'")
-            if args.size is not None:
-                w, h = opts["size"] = parse_pair(args.size, "x", "m", "--size")
-                if not (w > 0 and h > 0):
-                    raise InputError(f"`--size` must be positive (got {args.size!r}: width={w} m, height={h} m)")
-            if args.height is not None:
-                opts["height_range"] = parse_pair(args.height, ":", "m", "--height")
-            if args.resolution is not None:
-                opts["resolution"] = _resolution(args.resolution)
-            if args.size is None and args.resolution is None:
-                raise InputError(f"image '{src}' needs `--size` (physical width x height, e.g. 60x4mm)")
-            if args.height is None and suffix == ".png":
-                raise InputError(f"image '{src}' needs `--height` (heights of gray 0 and full scale, e.g. 0:2mm)")
+            opts = image_options(src, args.size, args.height, args.resolution)
         with warnings_as_lines("compile"):
             hf = load_source(src, **opts)
         result = compile_heightfield(hf, device, mapping, options)

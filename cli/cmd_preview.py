@@ -59,36 +59,21 @@ def _source_options(args) -> dict:
     from pathlib import Path
 
     from shapedisplay.errors import InputError
-    from shapedisplay.sources import IMAGE_SUFFIXES, MESH_SUFFIXES
-    from shapedisplay.units import parse_pair, parse_quantity
+    from shapedisplay.sources import IMAGE_SUFFIXES, MESH_SUFFIXES, image_options, resolution_option
 
     src = args.input
     suffix = Path(src).suffix.lower()
-    given = [f"--{k}" for k in ("extent", "height", "resolution") if getattr(args, k) is not None]
-    opts = {}
-    if args.resolution is not None:
-        opts["resolution"] = parse_quantity(args.resolution, "m", "--resolution")
-        if not opts["resolution"] > 0:
-            raise InputError(f"`--resolution` must be > 0 (got {args.resolution!r})")
     if suffix in IMAGE_SUFFIXES:
-        if args.extent is not None:
-            w, h = opts["size"] = parse_pair(args.extent, "x", "m", "--extent")
-            if not (w > 0 and h > 0):
-                raise InputError(f"`--extent` must be positive (got {args.extent!r})")
-        if args.height is not None:
-            opts["height_range"] = parse_pair(args.height, ":", "m", "--height")
-        if args.extent is None and args.resolution is None:
-            raise InputError(f"image '{src}' needs `--extent` (physical width x height, e.g. 60x40mm) "
-                             f"or `--resolution`")
-        if args.height is None and suffix == ".png":
-            raise InputError(f"image '{src}' needs `--height` (heights of gray 0 and full scale, e.g. 0:2mm)")
-    elif suffix in MESH_SUFFIXES:
+        return image_options(src, args.extent, args.height, args.resolution, size_flag="--extent")
+    given = [f"--{k}" for k in ("extent", "height", "resolution") if getattr(args, k) is not None]
+    if suffix in MESH_SUFFIXES:
         bad = [g for g in given if g != "--resolution"]
         if bad:
             raise InputError(f"`{bad[0]}` applies to images; mesh '{src}' takes --resolution")
-    elif given:
+        return {} if args.resolution is None else {"resolution": resolution_option(args.resolution)}
+    if given:
         raise InputError(f"`{given[0]}` applies to image and mesh sources, not to '{src}'")
-    return opts
+    return {}
 
 
 def run(args) -> int:

@@ -18,7 +18,6 @@ written atomically (:func:`shapedisplay.atomic.atomic_path`).
 from __future__ import annotations
 
 import math
-import os
 import struct
 import zipfile
 from pathlib import Path

@@ -538,6 +538,40 @@ def load_image(path, size, height_range, *, resolution=None) -> HeightField:
                        {"file": str(path), "size_m": [w, h], "height_range_m": None if hr is None else list(hr)})
 
 
+def resolution_option(text) -> float:
+    """Parse a ``--resolution`` string ("0.1mm") into a sample spacing > 0, metres."""
+    v = parse_quantity(text, "m", "--resolution")
+    if not v > 0:
+        raise InputError(f"`--resolution` must be a length > 0 (got {text!r})")
+    return v
+
+
+def image_options(path, size=None, height=None, resolution=None, *, size_flag="--size") -> dict:
+    """Parse the command-line strings of an image source into :func:`load_image` options.
+
+    ``size`` ("60x4mm", physical width x height of the whole image),
+    ``height`` ("0:2mm", heights of gray 0 and full scale) and ``resolution``
+    ("0.1mm") are strings or None; ``size_flag`` names the size option in
+    messages. An image needs a size or a resolution, and a PNG a height range.
+    """
+    from .units import parse_pair
+    opts = {}
+    if size is not None:
+        w, h = opts["size"] = parse_pair(size, "x", "m", size_flag)
+        if not (w > 0 and h > 0):
+            raise InputError(f"`{size_flag}` must be positive (got {size!r}: width={w} m, height={h} m)")
+    if height is not None:
+        opts["height_range"] = parse_pair(height, ":", "m", "--height")
+    if resolution is not None:
+        opts["resolution"] = resolution_option(resolution)
+    if size is None and resolution is None:
+        raise InputError(f"image '{path}' needs `{size_flag}` (physical width x height, e.g. 60x4mm) "
+                         f"or `--resolution`")
+    if height is None and Path(os.fspath(path)).suffix.lower() == ".png":
+        raise InputError(f"image '{path}' needs `--height` (heights of gray 0 and full scale, e.g. 0:2mm)")
+    return opts
+
+
 def load_source(path, **opts) -> HeightField:
     """Load any file source as a height field, dispatching on its suffix.
 

@@ -306,3 +306,18 @@ def test_load_source_dispatch(tmp_path):
         sources.load_source(tmp_path / "m.pgn")
     with pytest.raises(FileFormatError, match="mesh .* no such file"):
         sources.load_source(tmp_path / "missing.stl", resolution=1e-4)
+
+
+def test_image_options_parse_command_line_strings():
+    from shapedisplay.sources import image_options, resolution_option
+    assert image_options("m.png", "60x4mm", "0:2mm") == {"size": pytest.approx((0.06, 0.004)),
+                                                         "height_range": pytest.approx((0.0, 0.002))}
+    assert image_options("m.npy", None, None, "0.1mm") == {"resolution": pytest.approx(1e-4)}
+    with pytest.raises(InputError, match=r"image 'm.png' needs `--height`"):
+        image_options("m.png", "60x4mm", None)
+    with pytest.raises(InputError, match=r"needs `--extent`"):
+        image_options("m.png", None, "0:1mm", size_flag="--extent")
+    with pytest.raises(InputError, match=r"`--size` must be positive"):
+        image_options("m.png", "0x4mm", "0:1mm")
+    with pytest.raises(InputError, match=r"`--resolution` must be a length > 0"):
+        resolution_option("-1mm")

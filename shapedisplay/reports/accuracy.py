@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError, ShapeDisplayError
+from ..errors import ShapeDisplayError
 from . import common
 from .peers import PEER_METHODS, konyo_ivp, stribeck_ivp
 
