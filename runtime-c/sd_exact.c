@@ -257,18 +257,7 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double t0, double
             tmin = 0.5 * SD_PI * sqrt(m / k);
         }
     }
-    S->x = x;
     S->v = v;
-    S->phase = phase;
-    S->s = s;
-    S->age = age;
-    S->ncap = ncap;
-    S->n_events = n_ev - nev0;
-    if (phase == 0.0) {
-        S->f = k * x + c * V;
-    } else {
-        Neff = N < ncap ? N : ncap;
-        S->f = s * muk * Neff;
-    }
+    finish_tick(S, x, phase, s, age, ncap, k, c, V, N, muk, n_ev - nev0);
     return n_ev;
 }

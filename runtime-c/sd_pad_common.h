@@ -72,6 +72,26 @@ static inline int record(double *ev_t, double *ev_a, int cap, int n_ev, double t
     return n_ev + 1;
 }
 
+/* End-of-tick state shared by the exact and jump ticks, friction force included
+ * (pads._finish_tick). The caller stores v (and tsl) itself. */
+static inline void finish_tick(sd_pad_state_t *S, double x, double phase, double s, double age, double ncap,
+                               double k, double c, double V, double N, double muk, long n_events)
+{
+    double Neff;
+    S->x = x;
+    S->phase = phase;
+    S->s = s;
+    S->age = age;
+    S->ncap = ncap;
+    S->n_events = n_events;
+    if (phase == 0.0) {
+        S->f = k * x + c * V;
+    } else {
+        Neff = N < ncap ? N : ncap;
+        S->f = s * muk * Neff;
+    }
+}
+
 /* Fast path of both models: stuck for the whole tick (the stick force is linear in time, so
  * both ends inside the static limit means no breakaway in between) -- as pads._jump_tick and
  * pads._exact_tick. Returns 1 and advances the state if it applies, 0 otherwise. */
