@@ -40,19 +40,26 @@ long sd_cell_index(const sd_table_t *T, long r, long c)
     return -1;
 }
 
+/* Cell of a position along one axis: the two sample indices around it and the weight of
+ * the second, with the edge value held outside (lookup._axis_cell). */
+static void axis_cell(double pos, double origin, double step, long n, long *i0, long *i1, double *t)
+{
+    double f = (pos - origin) / step;
+    if (f < 0.0) f = 0.0;
+    if (f > (double)(n - 1)) f = (double)n - 1.0;
+    *i0 = (long)floor(f);
+    if (*i0 > imax(n - 2, 0)) *i0 = imax(n - 2, 0);
+    *t = f - (double)*i0;
+    *i1 = imin(*i0 + 1, n - 1);
+}
+
 /* Bilinear value of every slot at (x, y) metres into out[SD_NSLOT] (0 for absent slots). */
 void sd_sample_slots(const sd_table_t *T, double x, double y, double *out)
 {
     long rows = T->rows, cols = T->cols, c0, c1, r0, r1;
-    double fc, fr, tx, ty;
+    double tx, ty;
     int s;
-    fc = (x - T->x0) / T->dx;
-    if (fc < 0.0) fc = 0.0;
-    if (fc > (double)(cols - 1)) fc = (double)cols - 1.0;
-    c0 = (long)floor(fc);
-    if (c0 > imax(cols - 2, 0)) c0 = imax(cols - 2, 0);
-    tx = fc - (double)c0;
-    c1 = imin(c0 + 1, cols - 1);
+    axis_cell(x, T->x0, T->dx, cols, &c0, &c1, &tx);
     if (rows == 1) {
         long i0 = sd_cell_index(T, 0, c0), i1 = sd_cell_index(T, 0, c1);
         for (s = 0; s < SD_NSLOT; s++) {
@@ -61,13 +68,7 @@ void sd_sample_slots(const sd_table_t *T, double x, double y, double *out)
         }
         return;
     }
-    fr = (y - T->y0) / T->dy;
-    if (fr < 0.0) fr = 0.0;
-    if (fr > (double)(rows - 1)) fr = (double)rows - 1.0;
-    r0 = (long)floor(fr);
-    if (r0 > imax(rows - 2, 0)) r0 = imax(rows - 2, 0);
-    ty = fr - (double)r0;
-    r1 = imin(r0 + 1, rows - 1);
+    axis_cell(y, T->y0, T->dy, rows, &r0, &r1, &ty);
     {
         long i00 = sd_cell_index(T, r0, c0), i01 = sd_cell_index(T, r0, c1);
         long i10 = sd_cell_index(T, r1, c0), i11 = sd_cell_index(T, r1, c1);
