@@ -13,6 +13,23 @@
 #define ADMIT (1.0 - 1e-9)        /* re-stick admissible if |f| <= ADMIT * mu_s N */
 #define ADMIT_TOUCH (1.0 - 1e-6)  /* stricter for tangent touches (grazing the limit is no re-stick) */
 
+/* Over-damped pad: the two real rates r1, r2 (the small root taken as wn2 / big root, which
+ * keeps its precision) and the amplitudes of y = p e^(r1 t) + q e^(r2 t) from (y0, v0). */
+static void over_modes(double sig, double wn2, double disc, double y0, double v0,
+                       double *r1, double *r2, double *p, double *q)
+{
+    double sq = sqrt(disc);
+    if (sig >= 0.0) {
+        *r2 = -sig - sq;
+        *r1 = wn2 / *r2;
+    } else {
+        *r1 = -sig + sq;
+        *r2 = wn2 / *r1;
+    }
+    *p = (v0 - *r2 * y0) / (*r1 - *r2);
+    *q = y0 - *p;
+}
+
 /* Free damped oscillator m y'' + c y' + k y = 0 from (y0, v0) at time t (all damping cases). */
 static void osc(double m, double c, double k, double y0, double v0, double t, double *y, double *v)
 {
@@ -22,16 +39,8 @@ static void osc(double m, double c, double k, double y0, double v0, double t, do
         return;
     }
     if (disc > 1e-10 * wn2) {
-        double sq = sqrt(disc), r1, r2, p, q, e1, e2;
-        if (sig >= 0.0) {
-            r2 = -sig - sq;
-            r1 = wn2 / r2;
-        } else {
-            r1 = -sig + sq;
-            r2 = wn2 / r1;
-        }
-        p = (v0 - r2 * y0) / (r1 - r2);
-        q = y0 - p;
+        double r1, r2, p, q, e1, e2;
+        over_modes(sig, wn2, disc, y0, v0, &r1, &r2, &p, &q);
         e1 = exp(r1 * t);
         e2 = exp(r2 * t);
         *y = p * e1 + q * e2;
@@ -52,16 +61,8 @@ static double next_acc_zero(double m, double c, double k, double y0, double v0, 
     double sig = 0.5 * c / m, wn2 = k / m, disc = sig * sig - wn2;
     if (disc < -1e-10 * wn2) return next_acc_zero_under(m, c, k, y0, v0, after);
     if (disc > 1e-10 * wn2) {
-        double sq = sqrt(disc), r1, r2, p, q, num, den, tz;
-        if (sig >= 0.0) {
-            r2 = -sig - sq;
-            r1 = wn2 / r2;
-        } else {
-            r1 = -sig + sq;
-            r2 = wn2 / r1;
-        }
-        p = (v0 - r2 * y0) / (r1 - r2);
-        q = y0 - p;
+        double r1, r2, p, q, num, den, tz;
+        over_modes(sig, wn2, disc, y0, v0, &r1, &r2, &p, &q);
         num = -r2 * r2 * q;
         den = r1 * r1 * p;
         if (den == 0.0 || num / den <= 0.0) return INFINITY;
