@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import copy
 import hashlib
+import io
 import json
 import math
 import os
@@ -384,17 +385,26 @@ class FrictionTable:
             raise TableError(f"table '{path}': unreadable ({exc.strerror or exc})") from None
         if magic != b"PK\x03\x04":
             raise TableError(f"table '{path}': not a table (.npz zip archive); it starts with {magic!r}")
+        return cls._from_npz(path, f"table '{path}'", str(path))
+
+    @classmethod
+    def from_bytes(cls, data: bytes, where: str = "uploaded table") -> "FrictionTable":
+        """Read and verify a table from the bytes of a table file (e.g. an upload)."""
+        return cls._from_npz(io.BytesIO(data), where, where)
+
+    @classmethod
+    def _from_npz(cls, source, label: str, where: str) -> "FrictionTable":
         try:
-            with np.load(path, allow_pickle=False) as z:
+            with np.load(source, allow_pickle=False) as z:
                 if "header" not in z.files:
-                    raise TableError(f"table '{path}': no 'header' entry; not a shapedisplay table")
+                    raise TableError(f"{label}: no 'header' entry; not a shapedisplay table")
                 header = json.loads(bytes(z["header"]).decode("utf-8"))
                 arrays = {n: z[n] for n in z.files if n != "header"}
         except TableError:
             raise
         except (OSError, ValueError, zipfile.BadZipFile, EOFError, KeyError, UnicodeDecodeError) as exc:
-            raise TableError(f"table '{path}': unreadable or truncated ({exc})") from None
-        return cls.from_header(header, arrays, str(path))
+            raise TableError(f"{label}: unreadable or truncated ({exc})") from None
+        return cls.from_header(header, arrays, where)
 
     @classmethod
     def from_header(cls, header: dict, arrays: dict, where: str = "table") -> "FrictionTable":

@@ -271,3 +271,15 @@ def test_non_finite_channel_values_are_refused():
     q = Quantization("float32", 1.0, 0.0, 1e-7)
     with pytest.raises(InputError, match=r"patch at row 0, col 0: channel 'normal_force' must be finite \(1 NaN/inf"):
         FrictionTable.from_dense(g, {"normal_force": np.where(np.isnan(v), np.inf, v)}, {"normal_force": q})
+
+
+def test_from_bytes_reads_the_same_table_as_load(tmp_path):
+    grid = Grid(2, 3, 1e-3, 1e-3)
+    vals = np.array([[0.5, 1.0, 1.5], [2.0, 2.5, 3.0]])
+    t = FrictionTable.from_dense(grid, {"normal_force": vals}, {"normal_force": choose_quantization(vals, "uint16")})
+    path = t.save(tmp_path / "t.npz")
+    u = FrictionTable.from_bytes(path.read_bytes())
+    assert u.checksum() == FrictionTable.load(path).checksum()
+    np.testing.assert_array_equal(u.dense("normal_force"), t.dense("normal_force"))
+    with pytest.raises(TableError, match="uploaded table: unreadable or truncated"):
+        FrictionTable.from_bytes(path.read_bytes()[:50])

@@ -30,7 +30,6 @@ duplicate the next frames in either direction, reset mid-upload, vanish.
 from __future__ import annotations
 
 import collections
-import io
 import os
 import random
 import select
@@ -102,22 +101,8 @@ def parse_table_image(image: bytes):
     Returns a :class:`~shapedisplay.table.FrictionTable`; raises
     :class:`~shapedisplay.errors.TableError` naming what is wrong.
     """
-    import json
-    import zipfile
-
-    from ..errors import TableError
     from ..table import FrictionTable
-    try:
-        with np.load(io.BytesIO(image), allow_pickle=False) as z:
-            if "header" not in z.files:
-                raise TableError("uploaded table has no 'header' entry; not a shapedisplay table")
-            header = json.loads(bytes(z["header"]).decode("utf-8"))
-            arrays = {n: z[n] for n in z.files if n != "header"}
-    except TableError:
-        raise
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError, KeyError, UnicodeDecodeError) as exc:
-        raise TableError(f"uploaded table is unreadable ({exc})") from None
-    return FrictionTable.from_header(header, arrays, "uploaded table")
+    return FrictionTable.from_bytes(image, "uploaded table")
 
 
 def step_period(renderer, prev, x: float, y: float, per: int, out: np.ndarray) -> int:
