@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-CDIR = ROOT / "runtime-c"
+CDIR = ROOT / "shapedisplay" / "runtime_c"
 TARGET = 50e6
 
 

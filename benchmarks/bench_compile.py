@@ -25,7 +25,7 @@ import numpy as np  # noqa: E402
 from shapedisplay.compile import CompileOptions, compile_heightfield  # noqa: E402
 from shapedisplay.devices import load_device  # noqa: E402
 from shapedisplay.imageio import read_png, write_png  # noqa: E402
-from shapedisplay.profiles import MappingOptions  # noqa: E402
+from shapedisplay.forces import MappingOptions  # noqa: E402
 from shapedisplay.sources import load_image  # noqa: E402
 
 BUDGET_S = 2.0

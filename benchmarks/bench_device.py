@@ -22,8 +22,8 @@ import time
 
 import numpy as np
 
-from shapedisplay.device.emulator import DeviceEmulator, EmulatorConfig
-from shapedisplay.device.host import DeviceLink
+from shapedisplay.link.emulator import DeviceEmulator, EmulatorConfig
+from shapedisplay.link.host import DeviceLink
 from shapedisplay.table import FrictionTable, Grid, choose_quantization
 
 BAUD = 921_600

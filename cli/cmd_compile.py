@@ -89,7 +89,7 @@ def _float(text, name):
 def build_options(args):
     """(MappingOptions, CompileOptions) from parsed arguments."""
     from shapedisplay.compile import CompileOptions
-    from shapedisplay.profiles import EXPONENTS, MappingOptions
+    from shapedisplay.forces import EXPONENTS, MappingOptions
     from shapedisplay.units import parse_quantity
 
     def q(value, unit, name, bare_ok=False):

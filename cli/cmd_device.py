@@ -60,7 +60,7 @@ def register(sub) -> None:
 
 
 def _link(args):
-    from shapedisplay.device.host import DeviceLink
+    from shapedisplay.link.host import DeviceLink
     if args.timeout <= 0 or args.retries < 0:
         from shapedisplay.errors import InputError
         raise InputError(f"`--timeout` must be > 0 and `--retries` >= 0 (got {args.timeout}, {args.retries})")
@@ -118,7 +118,7 @@ def run_upload(args) -> int:
 def run_play(args) -> int:
     import numpy as np
 
-    from shapedisplay.device.framing import crc32
+    from shapedisplay.link.framing import crc32
     from shapedisplay.runtime import Renderer, parse_stroke
     table, image = _read_table(args.table)
     if args.output:
@@ -156,7 +156,7 @@ def run_play(args) -> int:
 
 def device_blocks(renderer, cursor, per):
     """Host-side rendering for --mode actuator: (n - 1, per) drive blocks (tick 0 carries no burst)."""
-    from shapedisplay.device.emulator import render_stream
+    from shapedisplay.link.emulator import render_stream
     return render_stream(renderer, cursor.x, cursor.y, per)[1:].reshape(-1, per)
 
 
@@ -165,7 +165,7 @@ def run_emulate(args) -> int:
     import sys
 
     from shapedisplay.atomic import write_text
-    from shapedisplay.device.emulator import DeviceEmulator, EmulatorConfig
+    from shapedisplay.link.emulator import DeviceEmulator, EmulatorConfig
     from shapedisplay.errors import InputError
     from shapedisplay.units import parse_quantity
     mem = _parse_bytes(args.memory)
@@ -187,7 +187,7 @@ def run_emulate(args) -> int:
                          tick_rate_hz=int(tick), model=args.model, renderer=not args.no_renderer, baud=args.baud)
     engine = None
     if args.engine == "c" and not args.no_renderer:
-        from shapedisplay.device.c_engine import CEngine, library
+        from shapedisplay.link.c_engine import CEngine, library
         library()                      # build once, up front: one-line error if it cannot be built
         engine = CEngine
     emu = DeviceEmulator(cfg, engine_factory=engine)

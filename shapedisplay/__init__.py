@@ -1,7 +1,7 @@
 """shapedisplay: tactile shapes for friction-based shape displays.
 
 Pipeline (imports flow one way): sources -> :mod:`heightfield` ->
-:mod:`gradients` -> :mod:`profiles` -> :mod:`compile` -> :mod:`table` ->
+:mod:`gradients` -> :mod:`forces` -> :mod:`compile` -> :mod:`table` ->
 :mod:`runtime` -> :mod:`sinks`. The runtime side (``table``, ``devices``,
 ``runtime``, ``sinks``) never imports the authoring side.
 
@@ -27,7 +27,7 @@ _LAZY = {
     "load_device": "devices",
     "parse_quantity": "units",
     "load_source": "sources",
-    "MappingOptions": "profiles",
+    "MappingOptions": "forces",
     "CompileOptions": "compile",
     "compile_heightfield": "compile",
 }

@@ -1,7 +1,7 @@
 """Compile a height field into a friction-envelope table.
 
 Pipeline: gradient analysis (slopes, walls, wall limiting) -> force profiles
-(:mod:`shapedisplay.profiles`) -> keep only the channels the mapping and the
+(:mod:`shapedisplay.forces`) -> keep only the channels the mapping and the
 device use -> quantize each channel from perceptual resolution -> table with
 meta data and a compile report.
 
@@ -40,7 +40,7 @@ import numpy as np
 from .errors import InputError, unknown_key
 from .gradients import GRADIENT_METHODS, KERNEL_MIN_SIZE, detect_walls, gradient, limit_walls
 from .heightfield import HeightField
-from .profiles import MappingOptions, lateral_force, needed_channels, normal_force, skin_stretch
+from .forces import MappingOptions, lateral_force, needed_channels, normal_force, skin_stretch
 from .table import CHANNELS, FrictionTable, Grid, Quantization
 
 QUANTIZE_CHOICES = ("auto", "uint8", "uint16", "float32", "float64")

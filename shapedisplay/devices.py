@@ -1,6 +1,6 @@
 """Device profiles: what a tactile device can render, and the pad/friction model.
 
-Profiles are TOML files (see ``assets/devices/``). ``[pad]`` and
+Profiles are TOML files (see ``shapedisplay/data/devices/``). ``[pad]`` and
 ``[friction]`` entries are plain numbers (SI: kg, N/m, N*s/m; friction
 coefficients) or quantities with units; every other entry is a quantity with
 its unit written out ("1 kHz", "80 mm/(N*s)"). This module is on the runtime
@@ -21,7 +21,8 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-ASSETS = Path(__file__).resolve().parent.parent / "assets"
+#: Bundled device profiles, shipped inside the package (a wheel carries them).
+BUNDLED_DEVICES = Path(__file__).resolve().parent / "data" / "devices"
 #: Output channels a device may have.
 OUTPUTS = ("burst", "lateral", "skin_stretch", "normal", "contactor")
 
@@ -182,15 +183,15 @@ def load_device(source: str | Path | None = None) -> DeviceProfile:
     """Load a device profile from a TOML file, or a bundled one by name.
 
     ``None`` gives the built-in default (published Konyo pad). A bare name
-    such as ``"handheld-stick"`` is looked up in ``assets/devices/``.
+    such as ``"handheld-stick"`` is looked up in ``shapedisplay/data/devices/``.
     """
     if source is None:
         return DeviceProfile().validate()
     path = Path(source)
     if not path.suffix and not path.exists():
-        path = ASSETS / "devices" / f"{source}.toml"
+        path = BUNDLED_DEVICES / f"{source}.toml"
         if not path.exists():
-            names = sorted(p.stem for p in (ASSETS / "devices").glob("*.toml"))
+            names = sorted(p.stem for p in (BUNDLED_DEVICES).glob("*.toml"))
             raise unknown_key("device", str(source), names)
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
@@ -257,5 +258,5 @@ def parse_device(data: dict, where: str = "device") -> DeviceProfile:
 
 
 def bundled_devices() -> list[str]:
-    """Names of the profiles in ``assets/devices/``."""
-    return sorted(p.stem for p in (ASSETS / "devices").glob("*.toml"))
+    """Names of the profiles in ``shapedisplay/data/devices/``."""
+    return sorted(p.stem for p in (BUNDLED_DEVICES).glob("*.toml"))

@@ -445,7 +445,7 @@ def scene_forces(scene, hf) -> tuple[dict, list]:
     """
     import dataclasses
 
-    from .profiles import MappingOptions, force_channels
+    from .forces import MappingOptions, force_channels
     from .scene.compiler import composite, scene_channels
     known = {f.name for f in dataclasses.fields(MappingOptions)}
     mapping = MappingOptions(**{k: v for k, v in scene.mapping.items() if k in known and k != "height"})

@@ -22,7 +22,7 @@ from shapedisplay.devices import BurstParams, FrictionParams, PadParams, load_de
 
 ROOT = Path(__file__).resolve().parent.parent
 C_MODELS = {"jump": 0, "exact": 1}
-CDIR = ROOT / "runtime-c"
+CDIR = ROOT / "shapedisplay" / "runtime_c"
 CFLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-pedantic", "-Werror", "-ffp-contract=off"]
 
 

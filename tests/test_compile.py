@@ -15,7 +15,7 @@ from shapedisplay.compile import CompileOptions, compile_heightfield, quantizati
 from shapedisplay.devices import load_device
 from shapedisplay.errors import InputError
 from shapedisplay.export import c_header, export_c, export_json
-from shapedisplay.profiles import MappingOptions
+from shapedisplay.forces import MappingOptions
 from shapedisplay.table import CHANNELS, FrictionTable
 
 ASSETS = Path(__file__).resolve().parent.parent / "assets" / "maps"
@@ -81,7 +81,7 @@ def test_stated_errors_hold_and_output_is_finite(heights, spec, quantize):
     m = MappingOptions.parse(spec)
     dev = RIG
     res = compile_heightfield(hf, dev, m, CompileOptions(quantize=quantize, limit_walls=False, max_slope=float("inf")))
-    from shapedisplay.profiles import force_channels
+    from shapedisplay.forces import force_channels
     from shapedisplay.gradients import gradient
     exact = force_channels(hf, dev, m, grad=gradient(hf))
     assert sorted(exact) == res.table.channels

@@ -4,9 +4,9 @@ import pytest
 
 pytest.importorskip("serial")
 
-from shapedisplay.device.c_engine import CEngine, CRenderer
-from shapedisplay.device.emulator import DeviceEmulator, EmulatorConfig, render_stream
-from shapedisplay.device.host import DeviceLink
+from shapedisplay.link.c_engine import CEngine, CRenderer
+from shapedisplay.link.emulator import DeviceEmulator, EmulatorConfig, render_stream
+from shapedisplay.link.host import DeviceLink
 from shapedisplay.runtime import Renderer
 from test_device_render import f32, tent_table
 

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st, HealthCheck
 
-from shapedisplay.device import framing, protocol
-from shapedisplay.device.framing import (Frame, FrameDecoder, cobs_decode, cobs_encode, crc32,
+from shapedisplay.link import framing, protocol
+from shapedisplay.link.framing import (Frame, FrameDecoder, cobs_decode, cobs_encode, crc32,
                                          encode_frame)
 
 FUZZ = settings(max_examples=1000, deadline=None, suppress_health_check=[HealthCheck.too_slow])

@@ -8,10 +8,10 @@ import pytest
 
 pytest.importorskip("serial")
 
-from shapedisplay.device import protocol as P
-from shapedisplay.device.emulator import DeviceEmulator, EmulatorConfig, parse_table_image
-from shapedisplay.device.framing import crc32, encode_frame
-from shapedisplay.device.host import (DeviceDisconnected, DeviceLink, DeviceRefused, DeviceResetError,
+from shapedisplay.link import protocol as P
+from shapedisplay.link.emulator import DeviceEmulator, EmulatorConfig, parse_table_image
+from shapedisplay.link.framing import crc32, encode_frame
+from shapedisplay.link.host import (DeviceDisconnected, DeviceLink, DeviceRefused, DeviceResetError,
                                       LinkError, LinkTimeout, ProtocolVersionError)
 from shapedisplay.table import FrictionTable, Grid, choose_quantization
 
@@ -409,7 +409,7 @@ def test_missing_pyserial_is_one_line_install_hint(monkeypatch):
 def test_import_does_not_load_pyserial():
     import subprocess
     import sys
-    code = ("import sys, shapedisplay.device.host, shapedisplay.device.emulator, shapedisplay.device.protocol; "
+    code = ("import sys, shapedisplay.link.host, shapedisplay.link.emulator, shapedisplay.link.protocol; "
             "print('serial' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60).stdout.strip()
     assert out == "False"
@@ -471,7 +471,7 @@ def test_damaged_cursor_frames_reported_as_crc_failures(link, emu, image):
 
 def test_hung_device_that_stops_reading_is_a_timeout_not_a_hang(monkeypatch):
     """A port that is there but never drained (a frozen device): writes time out with one clear error."""
-    from shapedisplay.device import host
+    from shapedisplay.link import host
     monkeypatch.setattr(host, "WRITE_TIMEOUT_S", 0.3)
     master, slave = os.openpty()          # nobody ever reads the master side
     try:

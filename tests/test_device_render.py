@@ -4,10 +4,10 @@ import pytest
 
 pytest.importorskip("serial")
 
-from shapedisplay.device import protocol as P
-from shapedisplay.device.emulator import (DeviceEmulator, EmulatorConfig, force_to_position, render_stream,
+from shapedisplay.link import protocol as P
+from shapedisplay.link.emulator import (DeviceEmulator, EmulatorConfig, force_to_position, render_stream,
                                           step_period)
-from shapedisplay.device.host import DeviceLink, DeviceRefused
+from shapedisplay.link.host import DeviceLink, DeviceRefused
 from shapedisplay.devices import load_device
 from shapedisplay.runtime import Renderer
 from shapedisplay.table import FrictionTable, Grid, choose_quantization

@@ -11,7 +11,7 @@ trimesh = pytest.importorskip("trimesh")
 
 from shapedisplay import mesh  # noqa: E402
 from shapedisplay.compile import compile_heightfield  # noqa: E402
-from shapedisplay.profiles import MappingOptions  # noqa: E402
+from shapedisplay.forces import MappingOptions  # noqa: E402
 from shapedisplay.sources import load_source, raised_cosine_bump  # noqa: E402
 from shapedisplay_cli.main import main  # noqa: E402
 

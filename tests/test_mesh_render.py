@@ -10,7 +10,7 @@ trimesh = pytest.importorskip("trimesh")
 
 from shapedisplay import mesh  # noqa: E402
 from shapedisplay.compile import compile_heightfield  # noqa: E402
-from shapedisplay.profiles import MappingOptions  # noqa: E402
+from shapedisplay.forces import MappingOptions  # noqa: E402
 from shapedisplay.runtime import Renderer, parse_stroke  # noqa: E402
 from shapedisplay.sources import raised_cosine_bump  # noqa: E402
 from test_mesh_pipeline import bump_mesh  # noqa: E402  (the same bump mesh as the pipeline tests)

@@ -10,7 +10,7 @@ import pytest
 
 from shapedisplay.compile import CompileOptions
 from shapedisplay.gradients import detect_walls, gradient, limit_walls
-from shapedisplay.profiles import EXPONENTS, MappingOptions, force_channels, perceived
+from shapedisplay.forces import EXPONENTS, MappingOptions, force_channels, perceived
 from shapedisplay.scene import check_scene, compile_scene, load_scene, scene_heightfield, select_state
 from shapedisplay.scene.compiler import composite
 from shapedisplay.sources import ramp_force, tent_force

@@ -179,7 +179,7 @@ def _device(case: Case):
 def _table(case: Case, dx, quantize, device):
     """Table the renderer plays: a flat table at N (konyo/stribeck cases) or the compiled tent bump."""
     from ..compile import CompileOptions, compile_heightfield
-    from ..profiles import MappingOptions
+    from ..forces import MappingOptions
     from ..sources import from_array, tent_profile
     if dx is None:
         hf = from_array(np.zeros((1, 4)), 1e-3)

@@ -502,7 +502,7 @@ def _run_pad_case(case, rec, quick):
 
 def _run_table_case(case, rec, quick):
     from ..compile import CompileOptions, compile_heightfield
-    from ..profiles import MappingOptions
+    from ..forces import MappingOptions
     from ..runtime.cursor import CursorPath
     from ..runtime.renderer import Renderer
     from ..sources import step_edge

@@ -16,7 +16,7 @@ How a scene becomes a table
 3. **Channels.** Slopes are computed on the group rectangle grown by one more
    reach (so they equal the slopes of the whole canvas at every stored
    sample), walls are detected and limited as for any height field, and
-   :func:`shapedisplay.profiles.force_channels` gives the channels the device
+   :func:`shapedisplay.forces.force_channels` gives the channels the device
    and mapping need. Data layers add ``friction_scale``/``burst_gain``
    (background 1) when the device uses them.
 4. **Quantization** is chosen per channel from perceptual resolution over the
@@ -353,7 +353,7 @@ def _scene_sha256(scene: Scene) -> str:
 
 
 def _mapping_options(scene: Scene):
-    from ..profiles import MappingOptions
+    from ..forces import MappingOptions
     kw = {k: v for k, v in scene.mapping.items() if k != "direction"}
     try:
         return MappingOptions(height=True, **kw)
@@ -366,7 +366,7 @@ def scene_channels(scene: Scene, device, mapping) -> tuple[list, dict]:
 
     Returns ``(kept, left_out)``: channel names, and channel -> why it is not stored.
     """
-    from ..profiles import FRICTION_OUTPUTS, needed_channels
+    from ..forces import FRICTION_OUTPUTS, needed_channels
     from ..table import CHANNELS
     kept, left_out = needed_channels(device, mapping, scene.canvas.is_1d)
     driven = data_channels(scene)
@@ -386,7 +386,7 @@ def scene_channels(scene: Scene, device, mapping) -> tuple[list, dict]:
 
 
 def _merge_clamp(acc: dict, notes: dict, samples: int) -> None:
-    """Add one block's clamping notes (profiles._clamp format) to the scene totals."""
+    """Add one block's clamping notes (forces._clamp format) to the scene totals."""
     for name, c in notes.items():
         a = acc.setdefault(name, dict(c, below=0, above=0, fraction=0.0, max_excess=0.0, samples=0))
         a["below"] += c["below"]
@@ -400,7 +400,7 @@ def _merge_clamp(acc: dict, notes: dict, samples: int) -> None:
 def _group_channels(scene, rect, reach, states, device, mapping, options, kept, lims, clamped=None):
     """Channels of one block: dict name -> (rows, cols) float64; plus wall and clamp notes."""
     from ..gradients import detect_walls, gradient, limit_walls
-    from ..profiles import force_channels
+    from ..forces import force_channels
     c = scene.canvas
     calc = _grow(rect, reach, c.rows, c.cols)
     h, data = composite(scene, calc, states)
@@ -432,7 +432,7 @@ def _group_channels(scene, rect, reach, states, device, mapping, options, kept, 
 
 
 def _background(scene, device, mapping, kept) -> dict:
-    from ..profiles import force_channels
+    from ..forces import force_channels
     s = scene.canvas.spacing
     flat = HeightField(np.zeros((1, 2) if scene.canvas.is_1d else (2, 2)), s, s)
     ch = force_channels(flat, device, mapping, grad=(np.zeros(flat.shape), np.zeros(flat.shape)))

@@ -64,7 +64,7 @@ SECTIONS = ("scene", "canvas", "device", "mapping", "defaults", "widget")
 CANVAS_KEYS = ("size", "pixels", "dpi", "resolution")
 SCENE_KEYS = ("name", "description")
 DEVICE_KEYS = ("profile",)
-#: [mapping] key -> (unit or kind, meaning). Values go to profiles.MappingOptions.
+#: [mapping] key -> (unit or kind, meaning). Values go to forces.MappingOptions.
 MAPPING_KEYS = {
     "n_base": ("N", "N1, normal force on flat ground"),
     "n_gain": ("N/m", "extra normal force per metre of height"),
@@ -77,7 +77,7 @@ MAPPING_KEYS = {
 DIRECTIONS = ("symmetric", "one-sided")
 LATERAL = ("off", "gradient", "normal")
 #: Slope-friction gain K_mu used by direction = "one-sided" when none is given
-#: (profiles.DEFAULT_SLOPE_FRICTION_GAIN: mu rises 0.2 on a 45 degree uphill).
+#: (forces.DEFAULT_SLOPE_FRICTION_GAIN: mu rises 0.2 on a 45 degree uphill).
 DEFAULT_SLOPE_FRICTION = 0.2
 OVERLAP_RULES = ("max", "min", "add", "over")
 #: Largest canvas accepted (samples), checked before anything is allocated.
@@ -462,7 +462,7 @@ def _parse_canvas(raw, ctx: Ctx) -> Canvas:
 
 
 def _parse_mapping(raw: dict, ctx: Ctx) -> dict:
-    """[mapping] -> keyword arguments of profiles.MappingOptions (SI)."""
+    """[mapping] -> keyword arguments of forces.MappingOptions (SI)."""
     check_keys(raw, MAPPING_KEYS, ctx, "", "mapping.")
     out: dict = {"n_base": 0.5, "n_gain": 1000.0}
     for key, value in raw.items():

@@ -75,7 +75,7 @@ def perceived_level_force(level: float, levels: int, level_force: float, exponen
 
 
 def bumpiness_exponent() -> float:
-    from ..profiles import EXPONENTS
+    from ..forces import EXPONENTS
     for key in ("bumpiness", "height", "bump"):
         if key in EXPONENTS:
             return float(EXPONENTS[key])
@@ -657,7 +657,7 @@ DATA_DIMENSIONS = {"friction_scale": ("friction", "stickiness", 1.26), "burst_ga
 
 
 def data_exponent(channel: str) -> float:
-    from ..profiles import EXPONENTS
+    from ..forces import EXPONENTS
     for key in DATA_DIMENSIONS[channel][:2]:
         if key in EXPONENTS:
             return float(EXPONENTS[key])

@@ -26,7 +26,8 @@ import numpy as np
 from ..errors import InputError
 from .emulator import RenderEngine
 
-RUNTIME_C = Path(__file__).resolve().parent.parent.parent / "runtime-c"
+#: The C runtime sources, shipped inside the package (``runtime-c/`` in a checkout links here).
+RUNTIME_C = Path(__file__).resolve().parent.parent / "runtime_c"
 SOURCES = ("sd_pad.c", "sd_exact.c", "sd_render.c")
 CFLAGS = ("-std=c99", "-O2", "-ffp-contract=off", "-fPIC", "-shared")
 _SLOTS = ("normal_force", "friction_scale", "burst_gain", "grad_x", "grad_y", "lateral_x", "lateral_y",

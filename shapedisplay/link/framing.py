@@ -82,7 +82,7 @@ def encode_frame(version: int, msg_type: int, seq: int, body: bytes = b"") -> by
     version : int, 0..255
         Protocol version of the sender.
     msg_type : int, 0..255
-        Message type (see :mod:`shapedisplay.device.protocol`).
+        Message type (see :mod:`shapedisplay.link.protocol`).
     seq : int, 0..65535
         Sequence number; replies echo the request's.
     body : bytes

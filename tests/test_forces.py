@@ -1,4 +1,4 @@
-"""Force profiles: height mapping, lateral cue sign, skin stretch, perceptual scaling, channel needs."""
+"""Force mapping: height mapping, lateral cue sign, skin stretch, perceptual scaling, channel needs."""
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
@@ -7,7 +7,7 @@ from shapedisplay import sources
 from shapedisplay.devices import load_device
 from shapedisplay.errors import InputError
 from shapedisplay.gradients import gradient
-from shapedisplay.profiles import (EXPONENTS, MappingOptions, force_channels, lateral_force, needed_channels,
+from shapedisplay.forces import (EXPONENTS, MappingOptions, force_channels, lateral_force, needed_channels,
                                    perceived, perceptual_scale)
 
 RIG = load_device("desktop-rig")          # burst + lateral, N range 0.5..8 N, lateral max 1.5 N

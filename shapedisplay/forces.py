@@ -1,4 +1,4 @@
-"""Force profiles: from heights and slopes to the channels a device renders.
+"""Force mapping: from heights and slopes to the channels a device renders.
 
 Mappings (DESIGN 3.2-3.6), all on arrays of shape (rows, cols):
 
