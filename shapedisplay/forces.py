@@ -204,6 +204,18 @@ class MappingOptions:
             terms.append("perceptual")
         return "+".join(terms) or "constant"
 
+    def height_of_force(self, n):
+        """Height (m) whose normal force is ``n`` (N) under the linear mapping: ``(n - n_base) / n_gain``.
+
+        The inverse of ``N = n_base + n_gain h``; refused for a mapping that is
+        not linear in height (no height term, a perceptual exponent, n_gain 0).
+        """
+        if not self.height or self.perceptual_exponent is not None or self.n_gain <= 0:
+            raise InputError(f"a force turns into a height only under the linear mapping with n_gain > 0 "
+                             f"(got mapping {self.spec!r}, n_gain={self.n_gain:g} N/m)")
+        return (np.asarray(n, dtype=np.float64) - self.n_base) / self.n_gain if np.ndim(n) \
+            else (float(n) - self.n_base) / self.n_gain
+
     def with_(self, **changes) -> "MappingOptions":
         return replace(self, **changes)
 

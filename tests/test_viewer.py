@@ -379,9 +379,9 @@ def test_stroke_overlay_changes_the_image(table, trace_path):
         rgb = np.array([int(colour[i:i + 2], 16) for i in (1, 3, 5)])
         return np.linalg.norm(img1.astype(float) - rgb, axis=2) < tol
 
-    assert (near(viewer.STICK_COLOR) & changed).sum() > 20
-    assert (near(viewer.SLIP_COLOR) & changed).sum() > 20
-    assert (near(viewer.BURST_COLOR) & changed).sum() > 20
+    assert (near(viewer.draw.STICK_COLOR) & changed).sum() > 20
+    assert (near(viewer.draw.SLIP_COLOR) & changed).sum() > 20
+    assert (near(viewer.draw.BURST_COLOR) & changed).sum() > 20
     # the overlay lies along y = 15 mm: changed pixels form a horizontal band, not all over the frame
     rows = np.nonzero(changed[:, :int(0.8 * W)])[0]                   # right of that: colour bar, legend
     assert np.mean(np.abs(rows - np.median(rows)) < 0.1 * H) > 0.7
@@ -677,7 +677,7 @@ def test_readout_and_exaggeration_finite_and_bounded(h, px, py):
 
 
 def test_large_grid_drawn_at_a_stride_with_full_colour_range(monkeypatch):
-    monkeypatch.setattr(viewer, "MAX_DRAWN_SAMPLES", 1000)
+    monkeypatch.setattr(viewer.draw, "MAX_DRAWN_SAMPLES", 1000)
     hf = gaussian_field()                                   # 61 x 81 = 4941 samples -> stride 3
     m = viewer.model_from_heightfield(hf)
     assert viewer.draw_stride(61, 81) == 3

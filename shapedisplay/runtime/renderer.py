@@ -155,6 +155,56 @@ def prepare_inputs(t, x, y, vals, cfg, V, vx, vy, N, mus, muk, gain):
         N[i], mus[i], muk[i], gain[i] = _derive(vals[:, i], cfg, vx[i], vy[i], sp)
 
 
+def _derive_config(present, mu_s: float, mu_k: float, kmu: float = 0.0, sst: float = 0.0) -> np.ndarray:
+    """The cfg vector :func:`_derive` reads: device friction, K_mu, skin target, channel presence."""
+    cfg = np.zeros(16)
+    cfg[CFG_MUS] = mu_s
+    cfg[CFG_MUK] = mu_k
+    cfg[CFG_KMU] = kmu
+    cfg[CFG_SST] = sst
+    for i, name in enumerate(SLOTS):
+        cfg[CFG_HAS + i] = 1.0 if name in present else 0.0
+    return cfg
+
+
+def friction_limits(channels: dict, mu_s: float, mu_k: float) -> tuple[np.ndarray, np.ndarray]:
+    """Breakaway and kinetic force of each sample with the cursor at rest, as every tick derives them.
+
+    Runs the renderer's own per-tick derivation (:func:`_derive`) on every
+    sample, so a preview shows what the renderer plays: ``N`` clamped at 0,
+    ``mu_s`` and ``mu_k`` times ``friction_scale`` (or ``breakaway_force / N``
+    and ``kinetic_force / N`` where stored), ``mu_k <= mu_s``. At rest the
+    direction-dependent slope term is zero.
+
+    Parameters
+    ----------
+    channels : dict name -> ndarray, all of one shape, SI
+        Table channels (names from :data:`SLOTS`; others are ignored); must
+        hold ``normal_force``.
+    mu_s, mu_k : float
+        The device's static and kinetic friction coefficients.
+
+    Returns
+    -------
+    breakaway, kinetic : ndarray of the channels' shape, float64, N
+        ``mu_s N`` and ``mu_k N`` as the renderer derives them.
+    """
+    if "normal_force" not in channels:
+        raise InputError(f"friction limits need channel 'normal_force' (got {sorted(channels)})")
+    shape = np.shape(channels["normal_force"])
+    n = int(np.prod(shape))
+    present = [name for name in SLOTS if name in channels]
+    vals = np.zeros((NSLOT, n))
+    for i, name in enumerate(SLOTS):
+        if name in channels:
+            vals[i] = np.broadcast_to(np.asarray(channels[name], dtype=np.float64), shape).ravel()
+    t = np.arange(n, dtype=np.float64)          # any increasing times: the cursor stands still
+    still = np.zeros(n)
+    V, vx, vy, N, mus, muk, gain = arrs = np.empty((7, n))
+    prepare_inputs(t, still, still, vals, _derive_config(present, mu_s, mu_k), *arrs)
+    return (mus * N).reshape(shape), (muk * N).reshape(shape)
+
+
 @njit(cache=True)
 def online_step(model, W, blocks, data, ev, audio, x, y):
     """Online: one tick at cursor position (x, y) m. Returns the burst drive value."""
@@ -386,14 +436,7 @@ class Renderer:
         sst = 0.0
         if "skin_stretch" in dev.extra and "target" in dev.extra["skin_stretch"]:
             sst = parse_quantity(dev.extra["skin_stretch"]["target"], "m", "skin_stretch.target")
-        cfg = np.zeros(16)
-        cfg[CFG_MUS] = dev.friction.mu_s
-        cfg[CFG_MUK] = dev.friction.mu_k
-        cfg[CFG_KMU] = kmu
-        cfg[CFG_SST] = sst
-        for i, name in enumerate(SLOTS):
-            cfg[CFG_HAS + i] = 1.0 if name in self.present else 0.0
-        self._cfg = cfg
+        self._cfg = _derive_config(self.present, dev.friction.mu_s, dev.friction.mu_k, kmu, sst)
         self._build_online()
         self.reset()
         # warm the compiled step on a scratch copy (compilation never happens in the real-time loop)

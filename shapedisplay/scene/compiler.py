@@ -457,6 +457,28 @@ def _append_patch(table, chans: dict) -> int:
     return len(table.patch_shapes) - 1
 
 
+def scene_force_channels(scene: Scene, options=None) -> dict:
+    """Every channel the compiled table of ``scene`` stores, computed over the whole canvas.
+
+    The same computation as :func:`compile_scene` (heights clamped to what
+    the device renders, the gradient method and wall limit of ``options``,
+    the device's force mapping, the data layers the device renders), without
+    grouping, pruning or quantization: what a preview of the scene shows.
+
+    Returns
+    -------
+    dict name -> ndarray of shape (rows, cols), float64, SI
+    """
+    from ..compile import CompileOptions
+    options = CompileOptions() if options is None else options
+    mapping = _mapping_options(scene)
+    kept, _ = scene_channels(scene, scene.device, mapping)
+    c = scene.canvas
+    chans, _, _ = _group_channels(scene, (0, 0, c.rows - 1, c.cols - 1), gradient_reach(options, c.spacing), None,
+                                  scene.device, mapping, options, kept, height_limits(scene))
+    return chans
+
+
 def compile_scene(path, device=None, options=None):
     """Compile a scene file into a friction-envelope table.
 
