@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import re
 import sys
 
 #: Sub-command modules, in help order.
@@ -25,8 +26,117 @@ COMMAND_MODULES = (
 )
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line (exit 2), like the library's errors.
+
+    Sub-command parsers inherit the class, so every level reports the same way:
+    ``shapedisplay play: error: the following arguments are required: -o/--output``.
+    """
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _takes_one_value(action: argparse.Action) -> bool:
+    return bool(action.option_strings) and action.nargs is None and not isinstance(
+        action, (argparse._StoreConstAction, argparse._CountAction, argparse._HelpAction,
+                 argparse._VersionAction, argparse._StoreTrueAction, argparse._StoreFalseAction))
+
+
+def _lookup_option(parser: argparse.ArgumentParser, token: str):
+    """The action ``token`` names in ``parser`` (exact, or an unambiguous long prefix), else None."""
+    actions = parser._option_string_actions
+    if token in actions:
+        return actions[token]
+    if token.startswith("--") and parser.allow_abbrev:
+        hits = {a for s, a in actions.items() if s.startswith(token)}
+        if len(hits) == 1:
+            return hits.pop()
+    return None
+
+
+def _subcommands(parser: argparse.ArgumentParser) -> dict:
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            return action.choices
+    return {}
+
+
+class CommandLine:
+    """What the user typed, read once against the parser tree.
+
+    ``argv`` is the command line with every value that starts with '-' attached
+    to the option before it (argparse takes ``--n-base -1N``, ``--size
+    -60x4mm`` or ``--up -y`` for two options and stops with a usage message):
+    where an option that takes one value is followed by a word that is not an
+    option of that (sub-)command, the two are joined (``--n-base=-1N``,
+    ``-o-x``) so the value reaches the library, which accepts it or says in one
+    line why not. A following word that *is* an option (``--device --model
+    exact``) is left alone, so a forgotten value is still reported as one.
+
+    ``typed`` maps each option's destination (``n_base``) to the spelling the
+    user typed (``--n-base``, or an abbreviation), so that an error naming the
+    library's parameter can name the option instead.
+    """
+
+    def __init__(self, parser: argparse.ArgumentParser, argv: list[str]):
+        self.argv: list[str] = []
+        self.typed: dict[str, str] = {}
+        current = parser
+        i = 0
+        while i < len(argv):
+            token = argv[i]
+            if token == "--":
+                self.argv.extend(argv[i:])
+                break
+            subs = _subcommands(current)
+            if token in subs:
+                current = subs[token]
+                self.argv.append(token)
+                i += 1
+                continue
+            name = token.split("=", 1)[0] if token.startswith("--") else token[:2]
+            action = _lookup_option(current, name) if token.startswith("-") and len(token) > 1 else None
+            if action is not None:
+                self.typed.setdefault(action.dest, name)
+            if action is not None and name == token and _takes_one_value(action) and i + 1 < len(argv):
+                value = argv[i + 1]
+                if value.startswith("-") and value not in ("-", "--") and _lookup_option(current, value) is None:
+                    self.argv.append(f"{token}={value}" if token.startswith("--") else token + value)
+                    i += 2
+                    continue
+            self.argv.append(token)
+            i += 1
+
+    def name_options(self, message: str) -> str:
+        """Replace the library's parameter names in ``message`` with the options as typed.
+
+        ```n_base``` becomes ```--n-base``` and ``n_base=`` becomes ``--n-base=``
+        when the user gave ``--n-base``; a parameter the user did not type
+        (a scene file's field, a device profile's value) keeps its name.
+        """
+        for field, typed in self.typed.items():
+            for alias in (field, *PARAMETER_ALIASES.get(field, ())):
+                message = re.sub(rf"`{re.escape(alias)}`", f"`{typed}`", message)
+                message = re.sub(rf"(?<![\w-]){re.escape(alias)}=", f"{typed}=", message)
+        return message
+
+
+#: Option destination -> the library parameter names it is passed as.
+PARAMETER_ALIASES = {
+    "rate": ("tick_rate",),
+    "tick_rate": ("tick_rate",),
+    "weber": ("weber_fraction",),
+}
+
+
+def join_negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
+    """``argv`` with values that start with '-' attached to their option (see :class:`CommandLine`)."""
+    return CommandLine(parser, argv).argv
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="shapedisplay",
         description="Author tactile shapes for friction-based shape displays and play them.",
     )
@@ -39,7 +149,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    line = CommandLine(parser, list(sys.argv[1:] if argv is None else argv))
+    args = parser.parse_args(line.argv)
     if args.version:
         from importlib.metadata import version
         print(f"shapedisplay {version('shapedisplay')}")
@@ -51,7 +162,8 @@ def main(argv=None) -> int:
     try:
         return int(args.func(args) or 0)
     except ShapeDisplayError as exc:
-        print(f"shapedisplay {args.command}: error: {exc}", file=sys.stderr)
+        message = " ".join(line.name_options(str(exc)).split())   # one line, whatever the text held
+        print(f"shapedisplay {args.command}: error: {message}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("shapedisplay: interrupted", file=sys.stderr)

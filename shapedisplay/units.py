@@ -44,6 +44,7 @@ _ATOMS.update({
 })
 _ATOMS.pop("Mm", None)  # megametre is never meant; avoid confusion with mm
 _NUMBER = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
+_NON_FINITE = re.compile(r"^\s*[-+]?(nan|inf)", re.IGNORECASE)
 _TOKEN = re.compile(r"\s*(\(|\)|\*|·|/|\^\s*[-+]?\d+|[A-Za-zµ%]+|1)")
 
 _DIM_NAMES = {
@@ -169,6 +170,8 @@ def parse_quantity(value, unit: str, field: str, *, bare_ok: bool = False) -> fl
         out = float(value)
     elif isinstance(value, str):
         m = _NUMBER.match(value)
+        if not m and _NON_FINITE.match(value):
+            raise UnitError(f"`{field}` must be finite (got {value!r})")
         if not m:
             raise UnitError(f"`{field}` must be a number with a unit such as '2 {unit}' (got {value!r})")
         number, unit_text = float(m.group(1)), m.group(2)
@@ -210,7 +213,8 @@ def parse_pair(text: str, sep: str, unit: str, field: str) -> tuple[float, float
     _, unit_a = _split_unit(a)
     if unit_b and not unit_a:
         a = f"{a} {unit_b}"
-    return parse_quantity(a, unit, field), parse_quantity(b, unit, field)
+    second = parse_quantity(b, unit, field)   # first: a bad B ("0:NaNmm") is the error, not A's missing unit
+    return parse_quantity(a, unit, field), second
 
 
 def format_quantity(value: float, unit: str) -> str:

@@ -1,0 +1,109 @@
+"""Command-line parsing: negative quantities after an option, one-line usage errors."""
+from pathlib import Path
+
+import pytest
+
+from shapedisplay_cli.main import build_parser, join_negative_values, main
+
+ROOT = Path(__file__).resolve().parent.parent
+TENT = ROOT / "assets" / "maps" / "tent_profile.png"
+KEYCAP = ROOT / "assets" / "meshes" / "keycap.stl"
+
+
+@pytest.fixture(scope="module")
+def parser():
+    return build_parser()
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["compile", "a.png", "-o", "t.npz", "--n-base", "-1N"], ["compile", "a.png", "-o", "t.npz", "--n-base=-1N"]),
+    (["compile", "a.png", "--size", "-60x4mm"], ["compile", "a.png", "--size=-60x4mm"]),
+    (["compile", "a.stl", "--up", "-y"], ["compile", "a.stl", "--up=-y"]),
+    (["compile", "a.stl", "--up=-y"], ["compile", "a.stl", "--up=-y"]),
+    (["play", "t.npz", "--max-stick-period", "-5ms"], ["play", "t.npz", "--max-stick-period=-5ms"]),
+    (["play", "t.npz", "-o", "-x.wav"], ["play", "t.npz", "-o-x.wav"]),
+    # an abbreviated long option is joined as argparse would expand it
+    (["compile", "a.png", "--n-bas", "-1N"], ["compile", "a.png", "--n-bas=-1N"]),
+    # the next word is an option of the command: a forgotten value stays an error
+    (["play", "t.npz", "--device", "--model", "exact"], ["play", "t.npz", "--device", "--model", "exact"]),
+    # flags take no value; '-' and words after '--' are left alone
+    (["play", "t.npz", "--json", "-o", "-"], ["play", "t.npz", "--json", "-o", "-"]),
+    (["play", "--", "--rate", "-1"], ["play", "--", "--rate", "-1"]),
+    # nested sub-commands know their own options
+    (["device", "play", "t.npz", "p", "--stroke", "-1:5mm @ 5mm/s"], ["device", "play", "t.npz", "p", "--stroke=-1:5mm @ 5mm/s"]),
+])
+def test_join_negative_values(parser, argv, expected):
+    assert join_negative_values(parser, argv) == expected
+
+
+def run(argv, capsys):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.mark.parametrize("opts, needle", [
+    (["--n-base", "-1N"], "--n-base"),
+    (["--n-base=-1N"], "--n-base"),
+    (["--size", "-60x4mm"], "--size"),
+    (["--size=-60x4mm"], "--size"),
+])
+def test_negative_quantity_reaches_the_one_line_error(tmp_path, capsys, opts, needle):
+    argv = ["compile", TENT, "-o", tmp_path / "t.npz", "--size", "60x4mm", "--height", "0:2mm", *opts]
+    code, out, err = run(argv, capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert needle in err and "usage" not in err
+    assert not (tmp_path / "t.npz").exists()
+
+
+def test_negative_axis_after_up_is_the_value(tmp_path, capsys):
+    code, out, err = run(["compile", KEYCAP, "-o", tmp_path / "k.npz", "--up", "-y", "--resolution", "1mm"], capsys)
+    assert code == 0, err
+    code, out, err = run(["compile", KEYCAP, "-o", tmp_path / "q.npz", "--up", "-w", "--resolution", "1mm"], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "-w" in err
+
+
+def test_negative_stick_period_is_refused_in_one_line(tmp_path, capsys):
+    t = tmp_path / "t.npz"
+    assert run(["compile", TENT, "-o", t, "--size", "60x4mm", "--height", "0:2mm"], capsys)[0] == 0
+    code, out, err = run(["play", t, "--stroke", "0:60mm @ 50mm/s", "-o", tmp_path / "o.wav",
+                          "--max-stick-period", "-5ms"], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "--max-stick-period" in err, err
+    assert not (tmp_path / "o.wav").exists()
+
+
+@pytest.mark.parametrize("argv", [
+    ["play"],
+    ["play", "t.npz", "--max-stick-period"],
+    ["compile", "a.png", "--no-such-option", "1"],
+    ["no-such-command"],
+    ["device", "emulate", "--tick"],
+])
+def test_usage_errors_are_one_line(capsys, argv):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    _, err = capsys.readouterr()
+    assert exc.value.code == 2 and len(err.strip().splitlines()) == 1 and "error:" in err, err
+
+
+@pytest.mark.parametrize("opts, expected", [
+    (["--height", "0:NaNmm"], "`--height` must be finite (got 'NaNmm')"),
+    (["--height", "0:-infmm"], "`--height` must be finite"),
+    (["--weber", "-1"], "`--weber` must be within (0, 1)"),
+    (["--max-slope", "-1"], "`--max-slope` must be > 0"),
+    (["--n-bas", "-1N"], "`--n-bas` must be finite and >= 0 (got --n-bas=-1.0)"),
+])
+def test_errors_name_the_option_as_typed(tmp_path, capsys, opts, expected):
+    argv = ["compile", TENT, "-o", tmp_path / "t.npz", "--size", "60x4mm", "--height", "0:2mm", *opts]
+    code, out, err = run(argv, capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and expected in err, err
+    for internal in ("weber_fraction", "max_slope", "n_base", "bare number '0'"):
+        assert internal not in err
+
+
+def test_tick_rate_error_names_the_rate_option(tmp_path, capsys):
+    t = tmp_path / "t.npz"
+    assert run(["compile", TENT, "-o", t, "--size", "60x4mm", "--height", "0:2mm"], capsys)[0] == 0
+    code, out, err = run(["play", t, "--stroke", "0:60mm @ 50mm/s", "-o", tmp_path / "o.wav", "--rate", "5Hz"],
+                         capsys)
+    assert code == 2 and "`--rate` must be within" in err and "tick_rate" not in err, err
