@@ -106,7 +106,7 @@ def _cases(tmp_path):
         "missing size": ([ok, "--height", "0:1mm"], "needs `--size`"),
         "mesh option on image": ([ok, *good, "--up", "y"], "`--up` applies to meshes"),
         "unknown source": ([tmp_path / "x.bmp", *good], f"source '{tmp_path / 'x.bmp'}': unknown source type '.bmp'"),
-        "size and resolution": ([ok, *good, "--resolution", "1mm"], "give `size` or `resolution`, not both"),
+        "size and resolution": ([ok, *good, "--resolution", "1mm"], "give `--size` or `--resolution`, not both"),
         "huge gaussian sigma": ([ok, *good, "--gradient", "gaussian", "--sigma", "1km"], "must not exceed the map extent"),
         "mapping gain on a scene": ([ROOT / "assets/scenes/phone.toml", "--n-gain", "2N/mm"], "`--n-gain` applies to images and meshes"),
     }

@@ -111,9 +111,9 @@ def test_heightmap_command_options(tmp_path, capsys):
 
 @pytest.mark.parametrize("argv, pattern", [
     (["--resolution", "0.0001mm"], "grid of 180001x180001"),
-    (["--resolution", "0.1"], "`resolution` needs a unit"),
+    (["--resolution", "0.1"], "`--resolution` needs a unit"),
     (["--units", "yd"], "unknown mesh units 'yd'"),
-    (["--up", "q"], "`up` must be one of x, y, z"),
+    (["--up", "q"], "`--up` must be one of x, y, z"),
     (["--up", "1,a,0"], "`--up` direction must be three numbers"),
     (["--size", "1x1mm"], "`--size` applies to image sources"),   # was silently ignored
     (["--height", "0:1mm"], "`--height` applies to image sources"),
