@@ -1,40 +1,56 @@
-"""``shapedisplay study``: run a published stimulus set through the pad models."""
+"""``shapedisplay study``: run a published experiment (a study preset) and write its files."""
 from __future__ import annotations
+
+import argparse
 
 
 def register(sub) -> None:
-    p = sub.add_parser("study", help="run a published stimulus set (imaizumi: lateral vibration, Stribeck pad)",
-                       description="imaizumi: stimuli #0 still, #1 3 Hz 1.25 mm, #2 6 Hz 0.625 mm, "
-                                   "#3 6 Hz 1.25 mm, #4 9 Hz 1.25 mm at finger speeds 0.1 and 0.04 m/s; "
-                                   "prints mean and max friction per stimulus.")
-    p.add_argument("name", help="imaizumi")
-    p.add_argument("--duration", default="1 s", help="analysed time per stimulus (default 1 s)")
-    p.add_argument("--variant", default="stribeck", help="stribeck | premax (pre-maximum static region)")
-    p.add_argument("--rate", default="10 kHz", help="tick rate (default 10 kHz)")
-    p.add_argument("--json", action="store_true", help="print JSON rows")
+    from shapedisplay.studies import STUDIES
+
+    presets = "\n".join(f"  {s.name:<13} {s.description}" for s in STUDIES.values())
+    p = sub.add_parser("study", help="run a published experiment: " + ", ".join(STUDIES),
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
+                       description="Run a study preset: every condition is played through the renderer; "
+                                   "with -o DIR each condition writes a WAV and a trace (.npz), and the folder "
+                                   "gets manifest.json, summary.csv and summary.png.\n\npresets:\n" + presets)
+    p.add_argument("name", help="preset: " + " | ".join(STUDIES))
+    p.add_argument("-o", "--output", help="new (or empty) folder for the study's files; without it only the "
+                                          "summary is printed")
+    p.add_argument("--only", help="run only the conditions whose name matches this glob, e.g. 'stick-*-dmu0.2'")
+    p.add_argument("--list", action="store_true", help="list the preset's conditions and exit")
+    p.add_argument("--duration", help="stroke length of the friction preset (default 1 s) or analysed time of "
+                                      "imaizumi (default 1 s); the profile presets set their own")
+    p.add_argument("--variant", help="imaizumi only: stribeck (default) | premax (pre-maximum static region)")
+    p.add_argument("--tick-rate", "--rate", dest="tick_rate", help="tick rate (default: each device's)")
+    p.add_argument("--json", action="store_true", help="print the summary rows as JSON")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     import json
+    import sys
 
-    from shapedisplay.errors import InputError, unknown_key
-    from shapedisplay.runtime.studies import imaizumi_study
+    from shapedisplay.studies import format_summary, get_study, run_study, study_conditions
     from shapedisplay.units import parse_quantity
 
-    if args.name != "imaizumi":
-        raise unknown_key("study", args.name, ["imaizumi"])
-    dur = parse_quantity(args.duration, "s", "--duration")
-    if not 0 < dur <= 60:
-        raise InputError(f"`--duration` must be within 0..60 s (got {args.duration!r})")
-    rows = imaizumi_study(duration=dur, tick_rate=parse_quantity(args.rate, "Hz", "--rate"), variant=args.variant)
-    if args.json:
-        print(json.dumps(rows, indent=2))
+    study = get_study(args.name)
+    dur = parse_quantity(args.duration, "s", "--duration") if args.duration else None
+    rate = parse_quantity(args.tick_rate, "Hz", "--tick-rate") if args.tick_rate else None
+    opts = {"variant": args.variant} if args.variant else {}
+    if args.list:
+        for c in study_conditions(study, dur, args.only, **opts):
+            print(c.name)
         return 0
-    print(f"Imaizumi lateral-vibration study ({args.variant}): m=1e-4 kg, k=1e3 N/m, c=1 N*s/m, "
-          f"mu_s=2.1, mu_k=1.4, W=1 N")
-    print(f"{'stimulus':<18} {'finger':>9} {'mean F':>9} {'max F':>9} {'events':>7} {'stick':>6}")
-    for r in rows:
-        print(f"{r['stimulus']:<18} {r['finger_speed_m_s'] * 1e3:>5.0f}mm/s {r['mean_friction_n']:>8.4f}N "
-              f"{r['max_friction_n']:>8.4f}N {r['events']:>7d} {100 * r['stick_fraction']:>5.1f}%")
+    progress = None
+    if args.output and not args.json:
+        def progress(i, n, name):
+            print(f"[{i + 1}/{n}] {name}", file=sys.stderr)
+    res = run_study(study, args.output, duration=dur, tick_rate=rate, only=args.only, progress=progress, **opts)
+    if args.json:
+        print(json.dumps(res.rows, indent=2, default=float))
+        return 0
+    print(f"{study.title}: {len(res.rows)} conditions")
+    print(format_summary(res))
+    if res.folder is not None:
+        print(f"-> {res.folder}/ ({len(res.rows)} WAV + trace pairs, manifest.json, summary.csv, summary.png)")
     return 0

@@ -68,7 +68,7 @@ class PadModel:
 
     name = "base"
     model_id = -1
-    needs: tuple = ("normal_force",)
+    needs: tuple = ()      # N comes from ``normal_force`` or, if not stored, the header's constant
     #: True if the pad mass/stiffness/damping of the device are used.
     uses_pad = True
 

@@ -15,7 +15,9 @@ Per tick ``i`` (from ``t[i-1]`` to ``t[i]``)
   so a reversal gives a negative pad speed ``V`` (tick 0 has ``V = 0``);
 * channels are looked up (bilinear) at the midpoint of the tick's motion;
   outside the table the edge value is held;
-* ``N = normal_force`` (clamped at >= 0);
+* ``N = normal_force`` (clamped at >= 0); a table that does not store
+  ``normal_force`` (a mapping without a height term) plays its constant
+  ``n_base`` from the header (:func:`constant_normal_force`);
   ``mu_s, mu_k`` from the device profile, times ``friction_scale`` if
   stored (or ``breakaway_force / N`` and ``kinetic_force / N`` if those are
   stored), plus the one-sided slope term ``K_mu * max(0, grad . v_hat)``
@@ -71,8 +73,10 @@ SLOTS = ("normal_force", "friction_scale", "burst_gain", "grad_x", "grad_y", "la
 C_N, C_FS, C_BG, C_GX, C_GY, C_LX, C_LY, C_SS, C_BK, C_KF = range(len(SLOTS))
 NSLOT = len(SLOTS)
 
-# cfg vector: mu_s, mu_k, K_mu, default skin target, then presence flags per slot
+# cfg vector: mu_s, mu_k, K_mu, default skin target, then presence flags per slot, then the
+# constant normal force of a table that stores no normal_force channel
 CFG_MUS, CFG_MUK, CFG_KMU, CFG_SST, CFG_HAS = 0, 1, 2, 3, 4
+CFG_N0 = CFG_HAS + NSLOT
 
 # workspace layout for the online path (one float64 array)
 W_S, W_P, W_I, W_CFG, W_BP, W_VALS, W_OUT, W_BG, W_GRID, W_SLOT, W_TMP = 0, 16, 32, 48, 64, 72, 88, 104, 120, 128, 144
@@ -97,7 +101,7 @@ KERNEL_SOURCES_SHA256 = "2db92a708417c879f0a0d5bfb8a0a3a0a4f8a95c94afa83233f739d
 @njit(cache=True)
 def _derive(vals, cfg, vx, vy, speed):
     """Per-tick model inputs from the looked-up channel values: (N, mu_s, mu_k, gain)."""
-    N = vals[C_N]
+    N = vals[C_N] if cfg[CFG_HAS + C_N] != 0.0 else cfg[CFG_N0]
     if N < 0.0:
         N = 0.0
     fs = vals[C_FS] if cfg[CFG_HAS + C_FS] != 0.0 else 1.0
@@ -155,13 +159,16 @@ def prepare_inputs(t, x, y, vals, cfg, V, vx, vy, N, mus, muk, gain):
         N[i], mus[i], muk[i], gain[i] = _derive(vals[:, i], cfg, vx[i], vy[i], sp)
 
 
-def _derive_config(present, mu_s: float, mu_k: float, kmu: float = 0.0, sst: float = 0.0) -> np.ndarray:
-    """The cfg vector :func:`_derive` reads: device friction, K_mu, skin target, channel presence."""
+def _derive_config(present, mu_s: float, mu_k: float, kmu: float = 0.0, sst: float = 0.0,
+                   n_const: float | None = None) -> np.ndarray:
+    """The cfg vector :func:`_derive` reads: device friction, K_mu, skin target, channel presence and
+    the constant N of a table without ``normal_force``."""
     cfg = np.zeros(16)
     cfg[CFG_MUS] = mu_s
     cfg[CFG_MUK] = mu_k
     cfg[CFG_KMU] = kmu
     cfg[CFG_SST] = sst
+    cfg[CFG_N0] = n_const or 0.0
     for i, name in enumerate(SLOTS):
         cfg[CFG_HAS + i] = 1.0 if name in present else 0.0
     return cfg
@@ -366,6 +373,25 @@ class RenderResult:
         }
 
 
+def constant_normal_force(table: FrictionTable) -> float | None:
+    """The normal force (N) of a table that stores no ``normal_force`` channel, else None.
+
+    A mapping without a height term leaves ``normal_force`` out of the table:
+    N is then the constant ``n_base`` of the header's mapping. A table with
+    neither is refused (the pad models need N).
+    """
+    if "normal_force" in table.channels:
+        return None
+    mapping = table.meta.get("mapping")
+    n0 = mapping.get("n_base") if isinstance(mapping, dict) else None
+    if n0 is None:
+        raise TableError(f"table stores no 'normal_force' and its header gives no constant `mapping.n_base`; "
+                         f"the pad models need N (it holds {table.channels})")
+    if isinstance(n0, bool) or not isinstance(n0, (int, float)) or not (math.isfinite(n0) and n0 >= 0):
+        raise TableError(f"table header `mapping.n_base` must be a finite force >= 0 N (got {n0!r})")
+    return float(n0)
+
+
 def device_for_table(table: FrictionTable, device=None) -> DeviceProfile:
     """The profile a renderer uses: ``device`` (profile, path or bundled name) if given,
     else ``table.meta["device"]``, else the built-in Konyo profile."""
@@ -384,8 +410,8 @@ class Renderer:
     Parameters
     ----------
     table : FrictionTable
-        Must store ``normal_force``; other channels are used when present
-        (see the module docstring).
+        Channels are used when present (see the module docstring); without
+        ``normal_force`` N is the header's constant ``mapping.n_base``.
     device : DeviceProfile, path, bundled name or None
         Pad, friction and burst parameters. Default: ``table.meta["device"]``
         if present, else the built-in Konyo profile.
@@ -417,6 +443,8 @@ class Renderer:
         self.device = dev
         self.model: PadModel = get_model(model, dev, **model_options)
         table.require(*self.model.needs)
+        #: N (newtons) of a table without a ``normal_force`` channel, else None.
+        self.normal_force_constant = constant_normal_force(table)
         self.tick_rate = check_tick_rate(dev.tick_rate_hz if tick_rate is None else tick_rate)
         ar = float(dev.audio_rate_hz if audio_rate is None else audio_rate)
         if not (math.isfinite(ar) and 1000.0 <= ar <= 384_000.0):
@@ -436,7 +464,8 @@ class Renderer:
         sst = 0.0
         if "skin_stretch" in dev.extra and "target" in dev.extra["skin_stretch"]:
             sst = parse_quantity(dev.extra["skin_stretch"]["target"], "m", "skin_stretch.target")
-        self._cfg = _derive_config(self.present, dev.friction.mu_s, dev.friction.mu_k, kmu, sst)
+        self._cfg = _derive_config(self.present, dev.friction.mu_s, dev.friction.mu_k, kmu, sst,
+                                   self.normal_force_constant)
         self._build_online()
         self.reset()
         # warm the compiled step on a scratch copy (compilation never happens in the real-time loop)
