@@ -83,7 +83,7 @@ def run_inspect(args) -> int:
 
 def run_export(args) -> int:
     from shapedisplay.errors import unknown_key
-    from shapedisplay.export import FORMATS, export_table
+    from shapedisplay.exchange import FORMATS, export_table
     from shapedisplay.table import FrictionTable
 
     if args.format not in FORMATS:

@@ -283,17 +283,18 @@ def test_renderer_bit_exact_1d_published_tent(sd_vectors, tmp_path):
 
 
 # ------------------------------------------------------------------ table compiled in from the C header export
-@pytest.mark.parametrize("sparse, kmu", [(True, 0.4), (False, 0.0)])
-def test_table_from_c_header_export(tmp_path, sparse, kmu):
-    """`shapedisplay export --format c` + tool_play_header.c reproduce Renderer.step bit for bit."""
+@pytest.mark.parametrize("dtype, sparse, kmu", [("uint16", True, 0.4), ("uint16", False, 0.0), ("uint8", True, 0.4),
+                                                ("float32", True, 0.4), ("float64", False, 0.4)])
+def test_table_from_c_header_export(tmp_path, dtype, sparse, kmu):
+    """`shapedisplay export --format c` + tool_play_header.c reproduce Renderer.step bit for bit.
+
+    The header binds itself (``sd_table_bind``): any channel code type, K_mu without -D flags."""
     from shapedisplay.export import export_c
-    table = widget_table("uint16", kmu=kmu, sparse=sparse)
+    table = widget_table(dtype, kmu=kmu, sparse=sparse)
     table.meta["tick_rate_hz"] = 10_000.0
     header = export_c(table, tmp_path / "table.h", name="sd_table")
     exe = tmp_path / "sd_play_header"
-    defs = [f'-DSD_TABLE_HEADER="{header}"']
-    if kmu:
-        defs.append("-DSD_TABLE_K_MU=sd_table_slope_friction_gain")
+    defs = [f'-DSD_TABLE_HEADER="{header}"']   # the header carries K_mu and every other constant
     cmd = [_cc(), *CFLAGS, *defs, "-I", str(CDIR), str(CDIR / "tool_play_header.c"), str(CDIR / "sd_render.c"),
            str(CDIR / "sd_pad.c"), str(CDIR / "sd_exact.c"), "-lm", "-o", str(exe)]
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=120)

@@ -1,0 +1,155 @@
+"""The C header export is enough on its own: toggles, widget map, every runtime constant.
+
+The phone scene's header compiles strictly (C99, -Wall -Wextra -pedantic
+-Werror); the C runtime, bound from the header alone (no -D flags), plays
+both states of the Wi-Fi toggle bit for bit as the Python renderer plays
+the table switched with ``select_state``; the JSON export carries the same
+states and widget map.
+"""
+import json
+import struct
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from shapedisplay.exchange.widgetmap import toggle_states, widget_map
+from shapedisplay.export import c_header, export_c, export_json
+from shapedisplay.runtime import renderer as R_
+from shapedisplay.runtime.renderer import Renderer
+from shapedisplay.scene import compile_scene
+from shapedisplay.scene.compiler import select_state
+
+ROOT = Path(__file__).resolve().parent.parent
+CDIR = ROOT / "shapedisplay" / "runtime_c"
+STRICT = ["-std=c99", "-O2", "-Wall", "-Wextra", "-pedantic", "-Werror", "-ffp-contract=off"]
+
+
+def _cc():
+    import os
+    import shutil
+    for name in (os.environ.get("CC"), "cc", "gcc", "clang"):
+        if name and shutil.which(name):
+            return shutil.which(name)
+    pytest.fail("no C compiler (cc/gcc/clang) found")
+
+
+@pytest.fixture(scope="module")
+def phone():
+    return compile_scene(ROOT / "assets" / "scenes" / "phone.toml").table
+
+
+@pytest.fixture(scope="module")
+def phone_player(phone, tmp_path_factory):
+    d = tmp_path_factory.mktemp("phone-header")
+    header = export_c(phone, d / "phone.h", name="sd_table")
+    exe = d / "sd_play_header"
+    cmd = [_cc(), *STRICT, f'-DSD_TABLE_HEADER="{header}"', "-I", str(CDIR), str(CDIR / "tool_play_header.c"),
+           str(CDIR / "sd_render.c"), str(CDIR / "sd_pad.c"), str(CDIR / "sd_exact.c"), "-lm", "-o", str(exe)]
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=180)
+    assert res.returncode == 0, res.stderr
+    return exe, header
+
+
+def test_phone_header_alone_compiles_strictly(phone, tmp_path):
+    """Header alone and header after sd_runtime.h (the binding): no warning under -pedantic -Werror."""
+    h = tmp_path / "phone.h"
+    export_c(phone, h, name="phone")
+    for pre in ("", '#include "sd_runtime.h"\n'):
+        src = tmp_path / "use.c"
+        src.write_text(pre + '#include "phone.h"\nint main(void) { return phone_widget_at(0.06, 0.036) == '
+                             'PHONE_WIDGET_WIFI ? 0 : 1; }\n')
+        exe = tmp_path / "use"
+        res = subprocess.run([_cc(), *STRICT, "-I", str(CDIR), "-I", str(tmp_path), str(src), "-o", str(exe)],
+                             capture_output=True, text=True, timeout=120)
+        assert res.returncode == 0, res.stderr
+        assert subprocess.run([str(exe)]).returncode == 0   # hit-test finds the toggle's knob
+
+
+def _play(exe, x, y, tmp_path, *toggle):
+    fin, fout = tmp_path / "in", tmp_path / "out"
+    fin.write_bytes(struct.pack("<q", x.size) + np.asarray(x, "<f8").tobytes() + np.asarray(y, "<f8").tobytes())
+    res = subprocess.run([str(exe), "48000", str(fin), str(fout), *map(str, toggle)],
+                         capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0, res.stderr
+    raw = fout.read_bytes()
+    drive = np.frombuffer(raw[:8 * x.size], "<f8")
+    (na,) = struct.unpack_from("<q", raw, 8 * x.size)
+    return drive, np.frombuffer(raw[8 * x.size + 8:], "<f8")
+
+
+@pytest.mark.parametrize("state", ["off", "on"])
+def test_c_runtime_plays_both_toggle_states_from_the_header_alone(phone, phone_player, tmp_path, state):
+    exe, header = phone_player
+    text = header.read_text()
+    idx = {"off": int(text.split("#define SD_TABLE_TOGGLE_WIFI_OFF ")[1].split()[0]),
+           "on": int(text.split("#define SD_TABLE_TOGGLE_WIFI_ON ")[1].split()[0])}
+    toggle = int(text.split("#define SD_TABLE_TOGGLE_WIFI ")[1].split()[0])
+    # a stroke across the toggle (x 54..78 mm, y 30..42 mm) at 40 mm/s, 10 kHz ticks
+    n = 6000
+    x = np.linspace(0.050, 0.080, n)
+    y = np.full(n, 0.036)
+    table = select_state(phone, "wifi", state)
+    r = Renderer(table, model="jump", audio_rate=48_000.0)
+    assert r.tick_rate == 10_000.0
+    drive_py = np.array([r.step(float(a), float(b)) for a, b in zip(x, y)])
+    r.reset()
+    audio_py = []
+    for a, b in zip(x, y):
+        r.step(float(a), float(b))
+        audio_py.append(r.audio_block[:int(r.last[R_.O_NAUDIO])].copy())
+    drive_c, audio_c = _play(exe, x, y, tmp_path, toggle, idx[state])
+    assert r.event_count > 20
+    np.testing.assert_array_equal(drive_c, drive_py)
+    np.testing.assert_array_equal(audio_c, np.concatenate(audio_py))
+
+
+def test_toggle_states_differ_and_switching_changes_only_the_block_offset(phone):
+    ts = toggle_states(phone)
+    assert [t["id"] for t in ts] == ["wifi"]
+    t = ts[0]
+    assert t["state"] == "off" and [s["name"] for s in t["states"]] == ["off", "on"]
+    offsets = phone.patch_offsets()
+    for s in t["states"]:
+        assert s["offset"] == offsets[s["patch"]]
+    on, off = select_state(phone, "wifi", "on"), select_state(phone, "wifi", "off")
+    assert not np.array_equal(on.dense("normal_force"), off.dense("normal_force"))
+    assert [b for i, b in enumerate(on.blocks) if i != t["block"]] == \
+           [b for i, b in enumerate(off.blocks) if i != t["block"]]
+
+
+def test_header_carries_every_runtime_constant(phone):
+    h = c_header(phone, "t")
+    for name in ("pad_mass_kg", "pad_stiffness_n_per_m", "pad_damping_ns_per_m", "mu_s", "mu_k", "burst_gain",
+                 "max_stick_period_s", "tick_rate_hz", "audio_rate_hz", "burst_carrier_hz", "burst_rise_s",
+                 "burst_decay_s", "skin_target_m"):
+        assert f"static const double t_{name} = " in h
+    assert "static const double t_slope_friction_gain = 0.2;" in h     # the phone's K_mu, no -D needed
+    assert "#define T_NORMAL_FORCE_DTYPE SD_U" in h
+
+
+def test_widget_map_matches_the_scene_and_json_carries_it(phone, tmp_path):
+    wm = widget_map(phone)
+    ids = [w["id"] for w in wm]
+    assert ids[:2] == ["frame", "app-1"] and "wifi" in ids and len(ids) == 11
+    wifi = wm[ids.index("wifi")]
+    assert wifi["type"] == "toggle" and wifi["toggle"] == 0
+    assert wifi["bbox_m"] == pytest.approx([0.054, 0.030, 0.078, 0.042])
+    # the block of every widget covers its bounding box centre on the canvas
+    g = phone.grid
+    for w in wm:
+        (b,) = w["blocks"]
+        r0, c0, p = phone.blocks[b]
+        rows, cols = phone.patch_shapes[p]
+        cx, cy = (w["bbox_m"][0] + w["bbox_m"][2]) / 2, (w["bbox_m"][1] + w["bbox_m"][3]) / 2
+        c, r = round((cx - g.x0) / g.dx), round((cy - g.y0) / g.dy)
+        assert r0 <= r < r0 + rows and c0 <= c < c0 + cols, w["id"]
+    doc = json.loads(export_json(phone, tmp_path / "p.json").read_text())
+    assert [w["id"] for w in doc["widgets"]] == ids
+    (tj,) = doc["toggles"]
+    on = select_state(phone, "wifi", "on")
+    r0, c0, p = on.blocks[tj["block"]]
+    rows, cols = on.patch_shapes[p]
+    got = np.array(tj["states"][1]["channels"]["normal_force"])
+    np.testing.assert_array_equal(got, on.dense("normal_force")[r0:r0 + rows, c0:c0 + cols])
