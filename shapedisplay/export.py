@@ -146,10 +146,11 @@ def run_config(meta: dict) -> list[tuple[str, float, str]]:
         ("cursor_gain_m_per_ns", dev.cursor_gain, "alpha: cursor velocity per stick force (0 = position)"),
         ("lateral_force_max_n", dev.lateral_force_max, "largest lateral force"),
         ("skin_target_m", sst, "skin-stretch target where the table stores none"),
-        ("n_base_n", mp.get("n_base", 0.0), "normal force on flat ground (used when normal_force is not stored)"),
         ("slope_friction_gain", mp.get("slope_friction_gain", 0.0) or 0.0,
          "K_mu: mu_eff = mu + K_mu*max(0, grad.v_hat) (0 = no slope friction)"),
     ]
+    if "n_base" in mp:   # informative only: the runtime reads N from the table
+        out.append(("n_base_n", mp["n_base"], "normal force on flat ground (used when normal_force is not stored)"))
     params = []
     for name, v, doc in out:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
