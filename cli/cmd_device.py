@@ -21,13 +21,13 @@ def register(sub) -> None:
     q.set_defaults(func=run_info)
 
     q = dsub.add_parser("upload", help="upload a table, verify it on the device and commit it")
-    q.add_argument("table", help="table file (.npz)")
+    q.add_argument("table", help="table file (.npz) or binary table image (export --format bin)")
     q.add_argument("port", help="serial port or URL")
     common(q)
     q.set_defaults(func=run_upload)
 
     q = dsub.add_parser("play", help="play a stroke on the device (uploads the table if it is not active)")
-    q.add_argument("table", help="table file (.npz)")
+    q.add_argument("table", help="table file (.npz) or binary table image (export --format bin)")
     q.add_argument("port", help="serial port or URL")
     q.add_argument("--stroke", required=True,
                    help='cursor stroke in mm on the table grid, e.g. "0,0 -> 60,0 @ 50 mm/s" or '
@@ -90,11 +90,8 @@ def run_info(args) -> int:
 
 
 def _read_table(path):
-    from pathlib import Path
-
-    from shapedisplay.table import FrictionTable
-    table = FrictionTable.load(path)          # verify locally before sending anything
-    return table, Path(path).read_bytes()
+    from shapedisplay.runtime.image import load_table_or_image
+    return load_table_or_image(path)          # verified locally before anything is sent
 
 
 def _upload(link, image, quiet=False):

@@ -9,11 +9,13 @@ def register(sub) -> None:
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=run_inspect)
 
-    p = sub.add_parser("export", help="export a table as JSON (SI arrays) or a C99 header",
+    p = sub.add_parser("export", help="export a table as JSON (SI arrays), a C99 header or a binary image",
                        description="Export a verified table: JSON holds the grid and every channel in SI units "
-                                   "at the sample centres (row-major); C writes static const arrays for firmware.")
+                                   "at the sample centres (row-major); C writes static const arrays for firmware; bin "
+                                   "writes the binary table image the C runtime loads at run time "
+                                   "(docs/table-image.md).")
     p.add_argument("table", help="table file (.npz)")
-    p.add_argument("--format", required=True, help="json | c")
+    p.add_argument("--format", required=True, help="json | c | bin")
     p.add_argument("-o", "--output", required=True, help="file to write")
     p.add_argument("--name", help="C symbol prefix (default: output file stem)")
     p.set_defaults(func=run_export)

@@ -293,6 +293,8 @@ def _firmware_sections(table: FrictionTable, P: str, p: str) -> tuple[list[str],
         f"    T->y0 = {p}_y0_m;",
         f"    T->n_blocks = {P}_N_BLOCKS;",
         "    T->blocks = (const int32_t (*)[5])blocks;",
+        "    T->tile_rows = T->tile_cols = T->tiles_y = T->tiles_x = 0;",
+        "    T->tile_start = T->tile_list = 0;   /* no block index: lookups scan the blocks */",
         "    for (i = 0; i < SD_NSLOT; i++)",
         "        T->slot[i] = 0;",
     ]

@@ -45,6 +45,24 @@ def test_emulator_with_c_engine_over_pty(tmp_path):
         emu.close()
 
 
+def test_emulator_takes_a_binary_table_image(tmp_path):
+    """An upload may be the binary table image (export --format bin): same samples as the .npz."""
+    from shapedisplay.runtime.image import to_image
+    table = tent_table()
+    emu = DeviceEmulator(EmulatorConfig(model="jump"), engine_factory=CEngine)
+    emu.start()
+    try:
+        with DeviceLink(emu.port, timeout=2.0) as link:
+            link.upload(to_image(table))
+            x = np.linspace(0.003, 0.057, 300)
+            rep = link.stream(x, paced=False, monitor=True)
+            assert rep.rendered == 300 and rep.missing_outputs == 0
+        host = render_stream(Renderer(table, model="jump", tick_rate=10_000.0), f32(x), None, 10)
+        np.testing.assert_array_equal(rep.outputs, f32(host))
+    finally:
+        emu.close()
+
+
 def test_cli_emulate_with_c_engine(tmp_path, capsys):
     import os
     import subprocess
@@ -60,7 +78,8 @@ def test_cli_emulate_with_c_engine(tmp_path, capsys):
         while not port_file.exists():
             assert proc.poll() is None and time.monotonic() < t_end, proc.stderr.read() if proc.poll() else "slow"
             time.sleep(0.05)
-        table = str(tent_table().save(tmp_path / "t.npz"))
+        from shapedisplay.runtime.image import export_image
+        table = str(export_image(tent_table(), tmp_path / "t.sdt"))      # the binary image, uploaded as is
         out = tmp_path / "played.npz"
         assert main(["device", "play", table, port_file.read_text().strip(), "--stroke",
                      "5,0 -> 45,0 @ 100 mm/s", "-o", str(out)]) == 0

@@ -6,6 +6,8 @@ Table exports (:func:`export_table`, ``shapedisplay export TABLE --format F``):
 ``json``                dense SI channels, metadata, widget map and toggle states
 ``c``                   C99 header for firmware, enough on its own (toggles,
                         widget map, every runtime constant, ``NAME_bind``)
+``bin``                 binary table image: flat, little-endian, CRC-32; the C
+                        runtime loads it in place (docs/table-image.md)
 ======================  ==========================================================
 
 Every export is written atomically and reads only the verified table.
@@ -21,6 +23,7 @@ from ..errors import unknown_key
 EXPORTERS = {
     "json": "shapedisplay.export:export_json",
     "c": "shapedisplay.export:export_c",
+    "bin": "shapedisplay.runtime.image:export_image",
 }
 FORMATS = tuple(EXPORTERS)
 

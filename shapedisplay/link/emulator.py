@@ -96,12 +96,16 @@ class EmulatorConfig:
 
 
 def parse_table_image(image: bytes):
-    """Parse and verify an uploaded table image (the bytes of a table file).
+    """Parse and verify an uploaded table: the bytes of a table file (.npz) or a binary table
+    image (``export --format bin``, recognised by its magic, as firmware loads it).
 
     Returns a :class:`~shapedisplay.table.FrictionTable`; raises
     :class:`~shapedisplay.errors.TableError` naming what is wrong.
     """
+    from ..runtime.image import is_image, read_image
     from ..table import FrictionTable
+    if is_image(image):
+        return read_image(image, "uploaded table image")
     return FrictionTable.from_bytes(image, "uploaded table")
 
 

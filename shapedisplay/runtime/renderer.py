@@ -404,6 +404,23 @@ def device_for_table(table: FrictionTable, device=None) -> DeviceProfile:
     return load_device(None)
 
 
+def mapping_settings(table: FrictionTable, dev: DeviceProfile) -> tuple[float, float]:
+    """The renderer settings a table's mapping and device add to the pad and burst parameters:
+    ``(slope_friction_gain, skin_stretch_target_m)``, validated (one home for both rules)."""
+    mapping = table.meta.get("mapping", {}) or {}
+    kmu = float(mapping.get("slope_friction_gain", 0.0) or 0.0)
+    if not (math.isfinite(kmu) and kmu >= 0):
+        raise InputError(f"table mapping `slope_friction_gain` must be >= 0 (got {kmu!r})")
+    if kmu > 0 and "grad_x" not in table.channels:
+        raise TableError(f"table mapping sets slope_friction_gain={kmu:g} but the table lacks channel "
+                         f"'grad_x' (and 'grad_y') needed for direction-dependent friction; "
+                         f"it holds {table.channels}")
+    sst = 0.0
+    if "skin_stretch" in dev.extra and "target" in dev.extra["skin_stretch"]:
+        sst = parse_quantity(dev.extra["skin_stretch"]["target"], "m", "skin_stretch.target")
+    return kmu, sst
+
+
 class Renderer:
     """Stick-slip renderer of a friction-envelope table.
 
@@ -453,17 +470,7 @@ class Renderer:
         self.burst_policy = burst_policy
         self._policy = policy_id(burst_policy)
         self.present = [name for name in SLOTS if name in table.channels]
-        mapping = table.meta.get("mapping", {}) or {}
-        kmu = float(mapping.get("slope_friction_gain", 0.0) or 0.0)
-        if not (math.isfinite(kmu) and kmu >= 0):
-            raise InputError(f"table mapping `slope_friction_gain` must be >= 0 (got {kmu!r})")
-        if kmu > 0 and "grad_x" not in self.present:
-            raise TableError(f"table mapping sets slope_friction_gain={kmu:g} but the table lacks channel "
-                             f"'grad_x' (and 'grad_y') needed for direction-dependent friction; "
-                             f"it holds {table.channels}")
-        sst = 0.0
-        if "skin_stretch" in dev.extra and "target" in dev.extra["skin_stretch"]:
-            sst = parse_quantity(dev.extra["skin_stretch"]["target"], "m", "skin_stretch.target")
+        kmu, sst = mapping_settings(table, dev)
         self._cfg = _derive_config(self.present, dev.friction.mu_s, dev.friction.mu_k, kmu, sst,
                                    self.normal_force_constant)
         self._build_online()

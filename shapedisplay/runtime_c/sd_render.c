@@ -29,9 +29,22 @@ double sd_channel_value(const sd_channel_t *ch, long idx)
     return ch->offset + ch->scale * code;   /* as Quantization.decode */
 }
 
+/* Index of canvas sample (r, c) in the code arrays, or -1 outside every block. With a tile index
+ * the work is at most max_tile_blocks block tests (the image header states it); without one, a
+ * scan of all blocks. */
 long sd_cell_index(const sd_table_t *T, long r, long c)
 {
     int32_t b;
+    if (T->tile_start) {
+        long tile = (r / T->tile_rows) * (long)T->tiles_x + c / T->tile_cols;
+        uint32_t e, e1 = T->tile_start[tile + 1];
+        for (e = T->tile_start[tile]; e < e1; e++) {
+            const int32_t *k = T->blocks[T->tile_list[e]];
+            long r0 = k[0], c0 = k[1], nr = k[2], nc = k[3];
+            if (r0 <= r && r < r0 + nr && c0 <= c && c < c0 + nc) return (long)k[4] + (r - r0) * nc + (c - c0);
+        }
+        return -1;
+    }
     for (b = 0; b < T->n_blocks; b++) {
         long r0 = T->blocks[b][0], c0 = T->blocks[b][1], nr = T->blocks[b][2], nc = T->blocks[b][3];
         if (r0 <= r && r < r0 + nr && c0 <= c && c < c0 + nc)

@@ -99,6 +99,12 @@ typedef struct {
     int32_t n_blocks;
     const int32_t (*blocks)[5];         /* row0, col0, rows, cols, offset; never overlapping */
     const sd_channel_t *slot[SD_NSLOT]; /* NULL = channel not stored */
+    /* Optional coarse index of the blocks (O(1) lookup; a table image always has one). With
+     * tile_start NULL a lookup scans the blocks. Canvas tile (i, j) covers rows
+     * [i*tile_rows, (i+1)*tile_rows) and cols [j*tile_cols, ...); it lists the blocks overlapping it:
+     * tile_list[tile_start[i*tiles_x + j] .. tile_start[i*tiles_x + j + 1] - 1]. */
+    int32_t tile_rows, tile_cols, tiles_y, tiles_x;
+    const uint32_t *tile_start, *tile_list;
 } sd_table_t;
 
 double sd_channel_value(const sd_channel_t *ch, long idx);
@@ -155,6 +161,50 @@ int sd_renderer_init(sd_renderer_t *R, const sd_table_t *table, const sd_config_
 void sd_renderer_reset(sd_renderer_t *R, double t0);
 /* One tick with the cursor at (x, y) metres; returns the burst drive in [-1, 1]. */
 double sd_renderer_step(sd_renderer_t *R, double x, double y);
+
+/* ------------------------------------------------------------------ table image */
+/* The flat binary table image (`shapedisplay export TABLE --format bin`, docs/table-image.md):
+ * little-endian, versioned, closed by a CRC-32. sd_image_load validates it (every size and
+ * offset is bounded before use) and binds an sd_table_t whose arrays point into the image:
+ * nothing is copied or allocated. The image must stay in place while the table is used and
+ * start at an 8-byte aligned address. */
+#define SD_IMAGE_VERSION 1
+#define SD_IMAGE_HEADER_SIZE 560
+#define SD_IMAGE_NPARAM 16
+/* Renderer settings stored in the image (runtime/image.py PARAMS). */
+enum {
+    SD_IP_MASS, SD_IP_STIFFNESS, SD_IP_DAMPING, SD_IP_BURST_GAIN, SD_IP_MAX_STICK, SD_IP_MU_S, SD_IP_MU_K,
+    SD_IP_K_MU, SD_IP_SKIN_TARGET, SD_IP_TICK_RATE, SD_IP_AUDIO_RATE, SD_IP_CARRIER, SD_IP_RISE, SD_IP_DECAY
+};
+enum {
+    SD_ERR_IMAGE_SIZE = -10,     /* shorter than a header, or the size field disagrees */
+    SD_ERR_IMAGE_MAGIC = -11,    /* not a table image */
+    SD_ERR_IMAGE_VERSION = -12,  /* another format version */
+    SD_ERR_IMAGE_CRC = -13,      /* corrupt */
+    SD_ERR_IMAGE_LAYOUT = -14,   /* a count, offset or index out of bounds */
+    SD_ERR_IMAGE_ALIGN = -15,    /* image not 8-byte aligned in memory */
+    SD_ERR_IMAGE_VALUE = -16,    /* a non-finite or out-of-range value */
+    SD_ERR_IMAGE_ENDIAN = -17    /* big-endian host: the codes cannot be used in place */
+};
+
+typedef struct {
+    sd_table_t table;                 /* bound to the image's arrays */
+    sd_channel_t ch[SD_NSLOT];        /* table.slot[s] points here when slot s is stored */
+    double params[SD_IMAGE_NPARAM];   /* SD_IP_* settings */
+    int32_t n_values, max_tile_blocks;
+    uint32_t image_size;
+    const char *meta;                 /* the table file's JSON header (not NUL-terminated) */
+    uint32_t meta_len;
+} sd_image_t;
+
+/* CRC-32 (IEEE 802.3, as zlib) of n bytes; bitwise, no table (8 shifts per byte). */
+uint32_t sd_crc32(const void *data, size_t n);
+/* Validate the image of `size` bytes at `data` and bind img->table. Returns SD_OK or SD_ERR_IMAGE_*. */
+int sd_image_load(sd_image_t *img, const void *data, size_t size);
+/* sizeof(sd_image_t), for bindings that allocate it from another language. */
+size_t sd_image_size(void);
+/* A renderer configuration from the image's settings (jump model, retrigger policy). */
+void sd_image_config(const sd_image_t *img, sd_config_t *cfg);
 
 #ifdef __cplusplus
 }

@@ -88,6 +88,8 @@ int main(int argc, char **argv)
     T.x0 = T.y0 = 0.0;
     T.n_blocks = 1;
     T.blocks = blocks;
+    T.tile_rows = T.tile_cols = T.tiles_y = T.tiles_x = 0;
+    T.tile_start = T.tile_list = NULL;
     for (s = 0; s < SD_NSLOT; s++) T.slot[s] = NULL;
     T.slot[SD_SLOT_NORMAL_FORCE] = &nf;
     C.pad.mass = 1.0e-6;

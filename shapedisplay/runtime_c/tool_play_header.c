@@ -4,7 +4,7 @@
  *     shapedisplay export TABLE --format c -o table.h --name sd_table
  * and compile this file (or your firmware's equivalent) with
  *     cc -std=c99 -O2 -ffp-contract=off -DSD_TABLE_HEADER='"table.h"' \
- *        tool_play_header.c sd_render.c sd_pad.c sd_exact.c -lm
+ *        tool_play_header.c sd_render.c sd_pad.c sd_exact.c sd_image.c -lm
  * The header is enough on its own: sd_table_bind() fills the table and the whole configuration
  * (pad, friction, slope-friction gain K_mu, burst, rates) from it; any channel code type works.
  *

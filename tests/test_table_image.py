@@ -1,0 +1,170 @@
+"""The binary table image: writer, Python reader, and the C loader on the host (bit-exact)."""
+import struct
+import subprocess
+import sys
+import zlib
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from shapedisplay.errors import TableError
+from shapedisplay.runtime import image as I
+from shapedisplay.table import FrictionTable, Grid, choose_quantization
+
+from runtime_vectors import CASES, case_setup, image_payload, parse_outputs
+from test_c_runtime import CDIR, CFLAGS, LIB, _cc, py_render, widget_table
+
+
+def _reseal(buf: bytearray) -> bytes:
+    """Recompute the CRC after a deliberate edit (an attack that passes the CRC)."""
+    struct.pack_into("<I", buf, len(buf) - 4, zlib.crc32(bytes(buf[:-4])) & 0xFFFFFFFF)
+    return bytes(buf)
+
+
+def test_image_round_trip_keeps_the_table():
+    for table in (widget_table("uint16"), widget_table("float32", sparse=False), widget_table("uint8")):
+        img = I.to_image(table)
+        assert len(img) % 4 == 0 and img[:4] == b"SDTI"
+        back = I.read_image(img)
+        assert back.checksum() == table.checksum()
+        for name in table.channels:
+            np.testing.assert_array_equal(back.codes[name], table.codes[name])
+
+
+def test_image_slots_are_the_renderer_and_c_slots():
+    import re
+    from shapedisplay.runtime.renderer import SLOTS
+    assert I.SLOTS == SLOTS
+    header = (CDIR / "sd_runtime.h").read_text()
+    enum = re.search(r"enum \{\s*(SD_SLOT_NORMAL_FORCE.*?)SD_NSLOT", header, re.S).group(1)
+    assert [e.strip() for e in enum.split(",") if e.strip()] == [f"SD_SLOT_{n.upper()}" for n in SLOTS]
+
+
+def test_image_header_holds_the_renderer_settings():
+    from shapedisplay.runtime import Renderer
+    table = widget_table("uint16")
+    h = I.parse_header(I.to_image(table))
+    r = Renderer(table, model="jump")
+    assert h["param_0"] == r.device.pad.mass and h["param_5"] == r.device.friction.mu_s
+    assert h["param_7"] == 0.4                       # slope_friction_gain of the mapping
+    assert h["param_9"] == r.tick_rate and h["param_10"] == r.audio_rate
+    assert h["slot_mask"] == sum(1 << i for i, n in enumerate(I.SLOTS) if n in table.channels)
+
+
+def test_export_bin_cli_and_refusals(tmp_path):
+    table = widget_table("uint16")
+    src = tmp_path / "t.npz"
+    table.save(src)
+    out = tmp_path / "t.sdt"
+    res = subprocess.run([sys.executable, "-m", "shapedisplay", "export", str(src), "--format", "bin", "-o", str(out)],
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    data = out.read_bytes()
+    assert I.read_image(data, str(out)).checksum() == table.checksum()
+    with pytest.raises(TableError, match="CRC mismatch"):
+        I.read_image(data[:600] + bytes([data[600] ^ 1]) + data[601:])
+    with pytest.raises(TableError, match="truncated or padded"):
+        I.read_image(data[:-8])
+    with pytest.raises(TableError, match="not a shapedisplay table image"):
+        I.read_image(b"PK\x03\x04" + data[4:])
+    with pytest.raises(TableError, match="version must be 1"):
+        I.read_image(_reseal(bytearray(data[:4] + b"\x02\x00" + data[6:])))
+
+
+@given(st.lists(st.tuples(st.integers(0, 60), st.integers(0, 90), st.integers(1, 12), st.integers(1, 20)),
+                min_size=0, max_size=40))
+@settings(max_examples=60, deadline=None)
+def test_tile_index_lists_every_block_of_every_cell(rects):
+    """Looking a cell up through its tile finds the same block as scanning all blocks."""
+    rows, cols = 64, 96
+    occupied = np.full((rows, cols), -1)
+    blocks = []
+    for r0, c0, nr, nc in rects:           # keep the non-overlapping ones inside the canvas
+        nr, nc = min(nr, rows - r0), min(nc, cols - c0)
+        if (occupied[r0:r0 + nr, c0:c0 + nc] >= 0).any():
+            continue
+        occupied[r0:r0 + nr, c0:c0 + nc] = len(blocks)
+        blocks.append([r0, c0, nr, nc, 0])
+    b = np.array(blocks, "<i4").reshape(-1, 5)
+    tr, tc, ty, tx, start, entries = I.tile_index(rows, cols, b)
+    assert ty * tx <= min(I.MAX_TILES, 4 * len(blocks) + 1)
+    for r in range(rows):
+        for c in range(cols):
+            t = (r // tr) * tx + c // tc
+            found = [k for k in entries[start[t]:start[t + 1]]
+                     if b[k, 0] <= r < b[k, 0] + b[k, 2] and b[k, 1] <= c < b[k, 1] + b[k, 3]]
+            assert found == ([] if occupied[r, c] < 0 else [occupied[r, c]])
+
+
+@pytest.fixture(scope="module")
+def sd_vectors_image(tmp_path_factory):
+    out = tmp_path_factory.mktemp("c-image") / "sd_vectors"
+    srcs = [str(CDIR / n) for n in (*LIB, "tool_vectors.c")]
+    res = subprocess.run([_cc(), *CFLAGS, "-I", str(CDIR), *srcs, "-lm", "-o", str(out)],
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    return out
+
+
+def _run_image(exe, payload, tmp_path):
+    fin, fout = tmp_path / "img.in", tmp_path / "img.out"
+    fin.write_bytes(payload)
+    return subprocess.run([str(exe), "image", str(fin), str(fout)], capture_output=True, text=True,
+                          timeout=120), fout
+
+
+@pytest.mark.parametrize("dtype, kind, policy, tick, audio, model", CASES)
+def test_c_runtime_plays_the_image_bit_exact(sd_vectors_image, tmp_path, dtype, kind, policy, tick, audio, model):
+    table, r, x, y, img = case_setup(dtype, kind, policy, tick, audio, model)
+    po, pa, (pclip, pev) = py_render(r, x, y)
+    res, fout = _run_image(sd_vectors_image, image_payload(img, r, x, y), tmp_path)
+    assert res.returncode == 0, res.stderr
+    co, ca, (cclip, cev, cdrop) = parse_outputs(fout.read_bytes(), len(x))
+    assert pev > 20 and cev == pev and cclip == pclip and cdrop == 0
+    np.testing.assert_array_equal(co, po)
+    np.testing.assert_array_equal(ca, pa)
+
+
+def test_c_loader_refuses_damaged_images(sd_vectors_image, tmp_path):
+    table, r, x, y, img = case_setup("uint16", "diagonal", "retrigger", 10_000.0, None, "jump", seconds=0.01)
+    h = I.parse_header(img)
+
+    def code(data):
+        res, _ = _run_image(sd_vectors_image, image_payload(data, r, x, y), tmp_path)
+        assert res.returncode == 4, res.stderr
+        return int(res.stderr.split("(")[1].split(")")[0])
+
+    assert code(img[:-8]) == -10                                   # size field disagrees
+    assert code(img[:100]) == -10                                  # shorter than a header
+    assert code(img[:700] + bytes([img[700] ^ 0x10]) + img[701:]) == -13   # CRC
+    assert code(b"SDTX" + img[4:]) == -11
+    bad = bytearray(img)                                           # a block reaching past the codes
+    struct.pack_into("<i", bad, h["blocks_off"] + 16, h["n_values"])
+    assert code(_reseal(bad)) == -14
+    bad = bytearray(img)                                           # a tile list naming a missing block
+    struct.pack_into("<I", bad, h["tile_list_off"], 1000)
+    assert code(_reseal(bad)) == -14
+    bad = bytearray(img)                                           # channel data past the end
+    struct.pack_into("<I", bad, 224 + 4, len(img) - 8)
+    assert code(_reseal(bad)) == -14
+    bad = bytearray(img)                                           # a NaN scale
+    struct.pack_into("<d", bad, 224 + 8, float("nan"))
+    assert code(_reseal(bad)) == -16
+    bad = bytearray(img)                                           # a huge canvas
+    struct.pack_into("<ii", bad, 16, 1 << 30, 1 << 30)
+    assert code(_reseal(bad)) == -14
+
+
+def test_float_channel_nan_codes_are_refused(sd_vectors_image, tmp_path):
+    """A float32 code that is NaN (an image made by something else) never reaches the renderer."""
+    g = Grid(1, 8, 1e-3, 1e-3)
+    nf = np.linspace(0.5, 2.0, 8)[None, :]
+    table = FrictionTable.from_dense(g, {"normal_force": nf}, {"normal_force": choose_quantization(nf, "float32")})
+    img = bytearray(I.to_image(table))
+    h = I.parse_header(bytes(img))
+    struct.pack_into("<f", img, h["normal_force_data_off"] + 8, float("inf"))
+    from shapedisplay.runtime import Renderer
+    r = Renderer(table, model="jump")
+    res, _ = _run_image(sd_vectors_image, image_payload(_reseal(img), r, [0.0, 1e-4], [0.0, 0.0]), tmp_path)
+    assert res.returncode == 4 and "(-16)" in res.stderr
