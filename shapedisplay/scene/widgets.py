@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .spec import (Canvas, Ctx, OVERLAP_RULES, SceneError, Widget, choice, length, number, pair,
-                   quantity)
+from .fields import (Canvas, Ctx, OVERLAP_RULES, SceneError, Widget, choice, length, number, pair,
+                     quantity, wrap_unit_errors)
 
 #: Published starting points (DESIGN 3.2): ramp spans of 10-30 mm were studied;
 #: perception saturates above ~15 mm at 0.15 N/mm.
@@ -128,8 +128,7 @@ def resolve_strength(raw: dict, keys: tuple, sign: int, default: str, fp: str, w
 
 def _force_range(value, path, w):
     from ..units import parse_pair
-    from .spec import _wrap
-    return _wrap(w.ctx, w.where, parse_pair, value, ":", "N", path)
+    return wrap_unit_errors(w.ctx, w.where, parse_pair, value, ":", "N", path)
 
 
 # --------------------------------------------------------------- placing
@@ -588,9 +587,8 @@ class Image(WidgetType):
                 raise w.error("force", f"needs mapping.n_gain > 0 (got {g} N/m)")
             lo, hi = (lo - w.mapping["n_base"]) / g, (hi - w.mapping["n_base"]) / g
         else:
-            from .spec import _wrap
             from ..units import parse_pair
-            lo, hi = _wrap(w.ctx, w.where, parse_pair, raw.get("height", "0:2mm"), ":", "m", w.fp + "height")
+            lo, hi = wrap_unit_errors(w.ctx, w.where, parse_pair, raw.get("height", "0:2mm"), ":", "m", w.fp + "height")
         if hi < lo:
             raise w.error("height", f"range must run low:high (got {raw.get('height', raw.get('force'))!r})")
         from ..sources import load_image

@@ -1,0 +1,114 @@
+"""The package's import graph: one way, no cycles, and a runtime that needs no authoring module.
+
+Every ``import`` in the package counts, also the ones inside functions (lazy
+imports keep ``import shapedisplay`` cheap, but they are dependencies all the
+same). Imports of a package's ``__init__`` by its own submodules are Python's
+doing, not the code's, and are not edges.
+"""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parent.parent / "shapedisplay"
+
+#: What the runtime and the device link may import: a table file plus these run a device host.
+RUNTIME_SIDE = {"shapedisplay", "shapedisplay.errors", "shapedisplay.units", "shapedisplay.table",
+                "shapedisplay.devices", "shapedisplay.atomic"}
+RUNTIME_PACKAGES = ("shapedisplay.runtime", "shapedisplay.link")
+
+
+def _modules() -> dict[str, tuple[Path, bool]]:
+    mods = {}
+    for p in PACKAGE.rglob("*.py"):
+        parts = list(p.relative_to(PACKAGE.parent).with_suffix("").parts)
+        is_pkg = parts[-1] == "__init__"
+        mods[".".join(parts[:-1] if is_pkg else parts)] = (p, is_pkg)
+    return mods
+
+
+def import_graph() -> dict[str, set[str]]:
+    """module -> the package modules it imports (anywhere in its code)."""
+    mods = _modules()
+    graph = {}
+    for name, (path, is_pkg) in mods.items():
+        pkg = name if is_pkg else name.rsplit(".", 1)[0]
+        deps = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), str(path))):
+            if isinstance(node, ast.Import):
+                deps.update(a.name for a in node.names)
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = pkg.split(".")[:len(pkg.split(".")) - (node.level - 1)]
+                    mod = ".".join(base + ([node.module] if node.module else []))
+                else:
+                    mod = node.module or ""
+                for a in node.names:
+                    deps.add(f"{mod}.{a.name}" if f"{mod}.{a.name}" in mods else mod)
+        graph[name] = {d for d in deps if d in mods and d != name}
+    return graph
+
+
+def _closure(graph, start) -> set[str]:
+    seen, todo = set(), [start]
+    while todo:
+        for d in graph[todo.pop()]:
+            if d not in seen:
+                seen.add(d)
+                todo.append(d)
+    return seen
+
+
+def find_cycle(graph) -> list[str] | None:
+    """One import cycle (as a list of modules, first == last), or None."""
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(m):
+        state[m] = 1
+        stack.append(m)
+        for d in sorted(graph[m]):
+            if state.get(d) == 1:
+                return stack[stack.index(d):] + [d]
+            if d not in state:
+                found = visit(d)
+                if found:
+                    return found
+        stack.pop()
+        state[m] = 2
+        return None
+
+    for m in sorted(graph):
+        if m not in state:
+            found = visit(m)
+            if found:
+                return found
+    return None
+
+
+def test_graph_sees_lazy_and_relative_imports():
+    """The walker itself: it finds a function-level relative import and a package-level one."""
+    g = import_graph()
+    assert "shapedisplay.runtime.renderer" in g["shapedisplay.viewer.model"]      # lazy, inside a function
+    assert "shapedisplay.runtime.pads" in g["shapedisplay.runtime.renderer"]      # from . import pads
+    assert "shapedisplay.scene.fields" in g["shapedisplay.scene.widgets"]
+
+
+def test_no_import_cycles():
+    assert find_cycle(import_graph()) is None, " -> ".join(find_cycle(import_graph()))
+
+
+def test_find_cycle_reports_a_cycle():
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b"}, "b": set()}) is None
+
+
+@pytest.mark.parametrize("package", RUNTIME_PACKAGES)
+def test_runtime_and_link_import_no_authoring_module(package):
+    g = import_graph()
+    for mod in sorted(m for m in g if m == package or m.startswith(package + ".")):
+        outside = sorted(d for d in _closure(g, mod) - RUNTIME_SIDE
+                         if not d.startswith(RUNTIME_PACKAGES))
+        assert not outside, f"{mod} imports authoring modules {outside}"
