@@ -10,7 +10,7 @@ import pytest
 
 from shapedisplay.compile import CompileOptions
 from shapedisplay.gradients import detect_walls, gradient, limit_walls
-from shapedisplay.forces import EXPONENTS, MappingOptions, force_channels, perceived
+from shapedisplay.forces import EXPONENTS, force_channels, perceived
 from shapedisplay.scene import check_scene, compile_scene, load_scene, scene_heightfield, select_state
 from shapedisplay.scene.compiler import composite
 from shapedisplay.sources import ramp_force, tent_force
@@ -453,8 +453,7 @@ def _dense_reference(scene, options=CompileOptions()):
     gx, gy = gradient(hf, options.gradient_method, **options.gradient_kw)
     if detect_walls(hf, gx, gy, options.max_slope).count and options.limit_walls:
         limit_walls(gx, gy, options.max_slope, out=(gx, gy))
-    kw = {k: v for k, v in scene.mapping.items() if k != "direction"}
-    chans = dict(force_channels(hf, scene.device, MappingOptions(**kw), grad=(gx, gy)))
+    chans = dict(force_channels(hf, scene.device, scene.mapping, grad=(gx, gy)))
     c = scene.canvas
     for ch in ("friction_scale", "burst_gain"):
         _, data = composite(scene, (0, 0, c.rows - 1, c.cols - 1))

@@ -534,7 +534,7 @@ def test_scene_file_preview_has_scene_heights_and_widget_ids():
     assert (app["x0"], app["y0"], app["x1"], app["y1"]) == pytest.approx(sc.widget("app-1").bbox)
     # forces as the scene's device and mapping make them: N = n_base + n_gain h, breakaway = mu_s N
     lo, hi = sc.device.normal_force_range
-    n = np.clip(sc.mapping["n_base"] + sc.mapping["n_gain"] * m.fields["height"], lo, hi)
+    n = np.clip(sc.mapping.n_base + sc.mapping.n_gain * m.fields["height"], lo, hi)
     np.testing.assert_allclose(m.fields["normal_force"], n, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(m.fields["breakaway_force"], sc.device.friction.mu_s * n, rtol=1e-12)
     assert m.resolve_channel("N") == "normal_force"

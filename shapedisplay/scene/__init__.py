@@ -14,18 +14,20 @@ device and the tactile parameters written in the designer's language
   need, both states of every toggle;
 * :func:`select_state` switches a toggle of a compiled table.
 
-Modules: :mod:`.spec` (file format, validation), :mod:`.widgets` (the
+Modules: :mod:`.fields` (value parsers, scene errors, the canvas and widget
+records), :mod:`.spec` (file format, validation), :mod:`.widgets` (the
 geometry of each widget type, a registry), :mod:`.compiler` (boxes, merging,
 force mapping, table), :mod:`.template` (the commented template written by
 ``shapedisplay new scene``).
 """
 from __future__ import annotations
 
-from .spec import Canvas, Scene, Widget, load_scene, parse_scene
+from .fields import Canvas, SceneError, Widget
+from .spec import Scene, load_scene, parse_scene
 from .widgets import WIDGET_TYPES
 from .compiler import check_scene, compile_scene, format_widget_report, scene_heightfield, select_state
 from .template import TEMPLATE
 
-__all__ = ["Canvas", "Scene", "Widget", "load_scene", "parse_scene", "WIDGET_TYPES",
+__all__ = ["Canvas", "Scene", "SceneError", "Widget", "load_scene", "parse_scene", "WIDGET_TYPES",
            "check_scene", "compile_scene", "format_widget_report", "scene_heightfield", "select_state",
            "TEMPLATE"]

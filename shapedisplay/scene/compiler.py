@@ -47,7 +47,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..heightfield import HeightField
-from .spec import Scene, SceneError, load_scene
+from .fields import SceneError
+from .spec import Scene, load_scene
 from .widgets import WIDGET_TYPES
 
 #: Background of the data channels (a multiplier: 1 = unchanged).
@@ -168,9 +169,9 @@ def height_limits(scene: Scene) -> tuple[float, float]:
     """Heights (m) the device can render: N = n_base + n_gain h within normal_force_range."""
     m = scene.mapping
     lo, hi = scene.device.normal_force_range
-    if m["n_gain"] <= 0:
+    if m.n_gain <= 0:
         return -math.inf, math.inf
-    return (lo - m["n_base"]) / m["n_gain"], (hi - m["n_base"]) / m["n_gain"]
+    return m.height_of_force(lo), m.height_of_force(hi)
 
 
 def _widget_local(w, r0: int, c0: int, r1: int, c1: int, is_1d: bool):
@@ -285,12 +286,12 @@ def height_warnings(scene: Scene) -> list[str]:
             h, _ = composite(scene, _box(w), {w.id: st} if st else None, members=[w.index])
             hmin, hmax = min(hmin, float(h.min())), max(hmax, float(h.max()))
         if hmax > hi + 1e-12:
-            n = m["n_base"] + m["n_gain"] * hmax
+            n = m.n_base + m.n_gain * hmax
             out.append(f"{w.where}: height {hmax * 1e3:.4g} mm asks for {_fmt(n, 'N')}, above the device "
                        f"'{scene.device.name}' maximum {_fmt(fhi, 'N')} by {_fmt(n - fhi, 'N')} "
                        f"({(hmax - hi) * 1e3:.4g} mm); clamped to {hi * 1e3:.4g} mm")
         if hmin < lo - 1e-12:
-            n = m["n_base"] + m["n_gain"] * hmin
+            n = m.n_base + m.n_gain * hmin
             out.append(f"{w.where}: height {hmin * 1e3:.4g} mm asks for {_fmt(n, 'N')}, below the device "
                        f"'{scene.device.name}' minimum {_fmt(flo, 'N')} by {_fmt(flo - n, 'N')} "
                        f"({(lo - hmin) * 1e3:.4g} mm); clamped to {lo * 1e3:.4g} mm (raise mapping.n_base "
@@ -302,7 +303,7 @@ def combined_height_warnings(scene: Scene, grps: list[dict], warned: list[str]) 
     """Groups whose combined heights (overlap rule ``add``) go beyond the device when no single
     widget of the group does (those are in ``warned`` already), stating by how much."""
     lo, hi = height_limits(scene)
-    gain = scene.mapping["n_gain"]
+    gain = scene.mapping.n_gain
     out = []
     for g in grps:
         ids = [scene.widgets[i].id for i in g["members"]]
@@ -350,15 +351,6 @@ def _scene_sha256(scene: Scene) -> str:
         if f and Path(f).is_file():
             d.update(Path(f).read_bytes())
     return d.hexdigest()
-
-
-def _mapping_options(scene: Scene):
-    from ..forces import MappingOptions
-    kw = {k: v for k, v in scene.mapping.items() if k != "direction"}
-    try:
-        return MappingOptions(height=True, **kw)
-    except InputError as exc:
-        raise SceneError(f"scene '{scene.path}': [mapping]: {exc}") from None
 
 
 def scene_channels(scene: Scene, device, mapping) -> tuple[list, dict]:
@@ -471,7 +463,7 @@ def scene_force_channels(scene: Scene, options=None) -> dict:
     """
     from ..compile import CompileOptions
     options = CompileOptions() if options is None else options
-    mapping = _mapping_options(scene)
+    mapping = scene.mapping
     kept, _ = scene_channels(scene, scene.device, mapping)
     c = scene.canvas
     chans, _, _ = _group_channels(scene, (0, 0, c.rows - 1, c.cols - 1), gradient_reach(options, c.spacing), None,
@@ -511,7 +503,7 @@ def compile_scene(path, device=None, options=None):
     else:
         scene = load_scene(path, device=device)
     dev = scene.device
-    mapping = _mapping_options(scene)
+    mapping = scene.mapping
     canvas = scene.canvas
     reach = gradient_reach(options, canvas.spacing)
     grps = groups(scene, reach)
@@ -640,7 +632,7 @@ def compile_scene(path, device=None, options=None):
         "is_1d": canvas.is_1d,
         "device": dev.name,
         "mapping": mapping.spec,
-        "direction": scene.mapping.get("direction", "symmetric"),
+        "direction": scene.direction,
         "kept": kept,
         "left_out": left,
         "quantization": qinfo,

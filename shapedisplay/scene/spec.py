@@ -52,10 +52,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import FileFormatError, InputError, did_you_mean
-from .fields import (  # noqa: F401  (SceneError, SceneUnitError, Canvas, Widget: re-exported)
-    OVERLAP_RULES, Canvas, Ctx, SceneError, SceneUnitError, Widget, check_keys, choice, length, number, pair,
-    quantity,
-)
+from ..forces import DEFAULT_SLOPE_FRICTION_GAIN, MappingOptions
+from .fields import Canvas, Ctx, SceneError, Widget, check_keys, choice, length, number, pair, quantity
 from .widgets import WIDGET_TYPES, place_widget
 
 if sys.version_info >= (3, 11):
@@ -67,7 +65,7 @@ SECTIONS = ("scene", "canvas", "device", "mapping", "defaults", "widget")
 CANVAS_KEYS = ("size", "pixels", "dpi", "resolution")
 SCENE_KEYS = ("name", "description")
 DEVICE_KEYS = ("profile",)
-#: [mapping] key -> (unit or kind, meaning). Values go to forces.MappingOptions.
+#: [mapping] key -> (unit or kind, meaning). The values become a forces.MappingOptions.
 MAPPING_KEYS = {
     "n_base": ("N", "N1, normal force on flat ground"),
     "n_gain": ("N/m", "extra normal force per metre of height"),
@@ -79,9 +77,6 @@ MAPPING_KEYS = {
 }
 DIRECTIONS = ("symmetric", "one-sided")
 LATERAL = ("off", "gradient", "normal")
-#: Slope-friction gain K_mu used by direction = "one-sided" when none is given
-#: (forces.DEFAULT_SLOPE_FRICTION_GAIN: mu rises 0.2 on a 45 degree uphill).
-DEFAULT_SLOPE_FRICTION = 0.2
 #: Largest canvas accepted (samples), checked before anything is allocated.
 MAX_CANVAS_SAMPLES = 4096 * 4096
 
@@ -96,10 +91,11 @@ class Scene:
     canvas: Canvas
     device: object              # devices.DeviceProfile
     device_source: str
-    mapping: dict               # MappingOptions keyword arguments (SI)
+    mapping: MappingOptions     # how height becomes force ([mapping]; defaults are MappingOptions')
     widgets: tuple              # of Widget
     warnings: tuple = ()
     levels: dict = field(default_factory=dict)
+    direction: str = "symmetric"  # [mapping] direction: "symmetric" or "one-sided"
 
     def widget(self, wid: str) -> Widget:
         for w in self.widgets:
@@ -174,7 +170,7 @@ def parse_scene(data: dict, path: str = "<scene>", base_dir: Path | None = None,
             raise SceneError(f"scene '{path}': `device.profile`: {exc}") from None
         dev_src = str(src) if src is not None else "default"
 
-    mapping = _parse_mapping(data.get("mapping", {}), ctx)
+    mapping, direction = _parse_mapping(data.get("mapping", {}), ctx)
     defaults = data.get("defaults", {})
     type_defaults = {t: defaults[t] for t in WIDGET_TYPES if isinstance(defaults.get(t), dict)}
     common_defaults = {k: v for k, v in defaults.items() if k not in type_defaults}
@@ -233,7 +229,7 @@ def parse_scene(data: dict, path: str = "<scene>", base_dir: Path | None = None,
         merged.update(raw)
         widgets.append(place_widget(wt, merged, i, wid, canvas, mapping, levels, dev, ctx))
     return Scene(path, name, description, canvas, dev, dev_src, mapping, tuple(widgets),
-                 tuple(ctx.warnings), levels)
+                 tuple(ctx.warnings), levels, direction=direction)
 
 
 def _parse_canvas(raw, ctx: Ctx) -> Canvas:
@@ -285,15 +281,16 @@ def _parse_canvas(raw, ctx: Ctx) -> Canvas:
     return canvas
 
 
-def _parse_mapping(raw: dict, ctx: Ctx) -> dict:
-    """[mapping] -> keyword arguments of forces.MappingOptions (SI)."""
+def _parse_mapping(raw: dict, ctx: Ctx) -> tuple[MappingOptions, str]:
+    """[mapping] -> (forces.MappingOptions, direction). Keys not given keep MappingOptions' defaults."""
     check_keys(raw, MAPPING_KEYS, ctx, "", "mapping.")
-    out: dict = {"n_base": 0.5, "n_gain": 1000.0}
+    out: dict = {}
+    direction = None
     for key, value in raw.items():
         unit = MAPPING_KEYS[key][0]
         fp = f"mapping.{key}"
         if key == "direction":
-            out["_direction"] = choice(value, DIRECTIONS, fp, ctx)
+            direction = choice(value, DIRECTIONS, fp, ctx)
         elif key == "lateral":
             out["lateral"] = choice(value, LATERAL, fp, ctx)
         elif key == "slope_friction":
@@ -302,21 +299,22 @@ def _parse_mapping(raw: dict, ctx: Ctx) -> dict:
             out[key] = length(value, fp, ctx, nonneg=True)
         else:
             out[key] = quantity(value, unit, fp, ctx)
-    if out["n_base"] < 0:
+    if out.get("n_base", 0.0) < 0:
         raise ctx.error("", "mapping.n_base", f"must be a force >= 0 (got {out['n_base']} N)")
     if out.get("lateral_gain", 0.0) < 0:
         raise ctx.error("", "mapping.lateral_gain", f"must be >= 0 (got {out['lateral_gain']} N)")
-    direction = out.pop("_direction", "one-sided" if out.get("slope_friction_gain", 0.0) > 0 else "symmetric")
+    if direction is None:
+        direction = "one-sided" if out.get("slope_friction_gain", 0.0) > 0 else "symmetric"
     if direction == "one-sided":
-        out.setdefault("slope_friction_gain", DEFAULT_SLOPE_FRICTION)
+        out.setdefault("slope_friction_gain", DEFAULT_SLOPE_FRICTION_GAIN)
         if out["slope_friction_gain"] <= 0:
             raise ctx.error("", "mapping.slope_friction",
                             f"must be > 0 when direction = \"one-sided\" (got {out['slope_friction_gain']})")
-    else:
-        if out.get("slope_friction_gain", 0.0) > 0:
-            raise ctx.error("", "mapping.slope_friction",
-                            f"needs direction = \"one-sided\" (got slope_friction={out['slope_friction_gain']} "
-                            f"with direction = \"symmetric\")")
-        out["slope_friction_gain"] = 0.0
-    out["direction"] = direction
-    return out
+    elif out.get("slope_friction_gain", 0.0) > 0:
+        raise ctx.error("", "mapping.slope_friction",
+                        f"needs direction = \"one-sided\" (got slope_friction={out['slope_friction_gain']} "
+                        f"with direction = \"symmetric\")")
+    try:
+        return MappingOptions(height=True, **out), direction
+    except InputError as exc:
+        raise SceneError(f"scene '{ctx.path}': [mapping]: {exc}") from None

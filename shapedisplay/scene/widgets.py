@@ -92,7 +92,7 @@ def resolve_strength(raw: dict, keys: tuple, sign: int, default: str, fp: str, w
     if len(given) > 1:
         raise w.ctx.error(w.where, f"{fp}{given[1]}",
                           f"conflicts with `{fp}{given[0]}`: give only one of {', '.join(keys)}")
-    n_base, n_gain = w.mapping["n_base"], w.mapping["n_gain"]
+    n_base, n_gain = w.mapping.n_base, w.mapping.n_gain
     key = given[0] if given else keys[0]
     value = raw[key] if given else default
     path = f"{fp}{key}"
@@ -135,7 +135,7 @@ def _force_range(value, path, w):
 class PlaceCtx:
     """What a widget type sees while finishing its parameters."""
 
-    def __init__(self, ctx: Ctx, where: str, index: int, wtype: str, canvas: Canvas, mapping: dict,
+    def __init__(self, ctx: Ctx, where: str, index: int, wtype: str, canvas: Canvas, mapping,
                  levels: dict, device):
         self.ctx, self.where, self.index, self.type = ctx, where, index, wtype
         self.canvas, self.mapping, self.levels, self.device = canvas, mapping, levels, device
@@ -582,10 +582,10 @@ class Image(WidgetType):
             raise w.error("force", "conflicts with `height`: give only one")
         if "force" in raw:
             lo, hi = _force_range(raw["force"], w.fp + "force", w)
-            g = w.mapping["n_gain"]
+            g = w.mapping.n_gain
             if g <= 0:
                 raise w.error("force", f"needs mapping.n_gain > 0 (got {g} N/m)")
-            lo, hi = (lo - w.mapping["n_base"]) / g, (hi - w.mapping["n_base"]) / g
+            lo, hi = w.mapping.height_of_force(lo), w.mapping.height_of_force(hi)
         else:
             from ..units import parse_pair
             lo, hi = wrap_unit_errors(w.ctx, w.where, parse_pair, raw.get("height", "0:2mm"), ":", "m", w.fp + "height")
@@ -771,7 +771,7 @@ WIDGET_TYPES: dict[str, WidgetType] = {t.name: t for t in (
     Button(), Dent(), Well(), Slider(), Toggle(), Ridge(), Edge(), Groove(), Image(), Mesh(), Data())}
 
 
-def place_widget(wt: WidgetType, raw: dict, index: int, wid: str, canvas: Canvas, mapping: dict,
+def place_widget(wt: WidgetType, raw: dict, index: int, wid: str, canvas: Canvas, mapping,
                  levels: dict, device, ctx: Ctx) -> Widget:
     """Validate one widget, snap its box to the grid, clip it to the canvas."""
     where = f"widget[{index}] '{wid}'"
