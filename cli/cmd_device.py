@@ -164,12 +164,14 @@ def run_emulate(args) -> int:
     from shapedisplay.atomic import write_text
     from shapedisplay.link.emulator import DeviceEmulator, EmulatorConfig
     from shapedisplay.errors import InputError
+    from shapedisplay.devices import TICK_RATE_RANGE
     from shapedisplay.units import parse_quantity
     mem = _parse_bytes(args.memory)
     tick = parse_quantity(args.tick_rate, "Hz", "--tick-rate")
     stream = parse_quantity(args.stream_rate, "Hz", "--stream-rate")
-    if not (100 <= stream <= tick <= 192_000) or tick % stream:
-        raise InputError(f"`--tick-rate` must be a multiple of `--stream-rate`, both within 100 Hz..192 kHz "
+    lo, hi = TICK_RATE_RANGE
+    if not (lo <= stream <= tick <= hi) or tick % stream:
+        raise InputError(f"`--tick-rate` must be a multiple of `--stream-rate`, both within {lo:g} Hz..{hi / 1e3:g} kHz "
                          f"(got {tick:g} Hz, {stream:g} Hz)")
     if args.queue < 1 or args.baud < 0:
         raise InputError(f"`--queue` must be >= 1 and `--baud` >= 0 (got {args.queue}, {args.baud})")

@@ -21,6 +21,22 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
+
+#: Tick rates a renderer runs at and a device profile may declare, Hz (the one home of this range).
+TICK_RATE_RANGE = (100.0, 192_000.0)
+
+
+def check_tick_rate(rate: float, field: str = "tick_rate") -> float:
+    """Return ``rate`` (Hz) as float, or raise naming ``field`` if outside :data:`TICK_RATE_RANGE`."""
+    try:
+        r = float(rate)
+    except (TypeError, ValueError):
+        raise InputError(f"`{field}` must be a number in Hz (got {rate!r})") from None
+    lo, hi = TICK_RATE_RANGE
+    if not (math.isfinite(r) and lo <= r <= hi):
+        raise InputError(f"`{field}` must be within {lo:g} Hz..{hi / 1e3:g} kHz (got {rate!r} Hz)")
+    return r
+
 #: Bundled device profiles, shipped inside the package (a wheel carries them).
 BUNDLED_DEVICES = Path(__file__).resolve().parent / "data" / "devices"
 #: Output channels a device may have.
@@ -119,8 +135,10 @@ class DeviceProfile:
         self.pad.validate()
         self.friction.validate()
         self.burst.validate()
-        if not 100.0 <= self.tick_rate_hz <= 192_000.0:
-            raise InputError(f"device `tick_rate` must be within 100 Hz..192 kHz (got {self.tick_rate_hz} Hz)")
+        try:
+            check_tick_rate(self.tick_rate_hz)
+        except InputError as exc:
+            raise InputError(f"device {exc}") from None
         lo, hi = self.normal_force_range
         if not (0 <= lo < hi and math.isfinite(hi)):
             raise InputError(f"device `normal_force_range` must satisfy 0 <= low < high (got {lo}..{hi} N)")

@@ -38,7 +38,7 @@ from .errors import InputError, unknown_key
 from .heightfield import HeightField
 from .units import parse_quantity
 
-#: Power-law exponents beta of psi = k phi^beta (DESIGN 3.6).
+#: Power-law exponents beta of psi = k phi^beta, measured per haptic dimension (the one table of them).
 EXPONENTS = {
     "bumpiness": 0.76,     # lowest measured on virtual surfaces
     "friction": 1.26,      # stickiness / friction, highest measured
@@ -224,11 +224,48 @@ _TERMS = ("height", "slope", "lateral", "lateral-normal", "stretch", "skin-stret
 
 
 # ----------------------------------------------------------------- perceptual scaling
+def equal_steps(t, lo: float, hi: float, beta: float, threshold: float = 0.0):
+    """Stimulus whose perceived magnitude grows linearly with ``t``: the inverted power law.
+
+    With Stevens' law ``psi = k (phi - phi_th)^beta`` (``phi_th`` the
+    threshold below which it fails; 0 for the plain form), the stimulus at
+    ``t`` is the one whose ``psi`` lies the fraction ``t`` of the way from
+    ``psi(lo)`` to ``psi(hi)``:
+    ``phi = phi_th + ((lo - phi_th)^beta + t ((hi - phi_th)^beta - (lo - phi_th)^beta))^(1/beta)``;
+    from the threshold up (``lo == phi_th``) that is
+    ``phi_th + (hi - phi_th) t^(1/beta)``. Every use of the power law in the
+    package (height levels, perceptual height mapping, data layers) goes
+    through this function; the exponents are :data:`EXPONENTS`.
+
+    Parameters
+    ----------
+    t : array-like, >= 0
+        Position between the ends (0 at ``lo``, 1 at ``hi``; larger values
+        extrapolate along the same law).
+    lo, hi : float
+        Stimuli at t = 0 and t = 1 (``phi_th <= lo <= hi``).
+    beta : float
+        Exponent (> 0).
+    threshold : float
+        ``phi_th``.
+    """
+    if not (beta > 0 and math.isfinite(beta)):
+        raise InputError(f"the power law needs an exponent beta > 0 (got beta={beta})")
+    if not threshold <= lo <= hi:
+        raise InputError(f"the power law needs threshold <= lo <= hi (got threshold={threshold}, lo={lo}, hi={hi})")
+    t = np.asarray(t, dtype=np.float64)
+    if lo == threshold:
+        return threshold + (hi - threshold) * np.power(t, 1.0 / beta)
+    a, b = (lo - threshold) ** beta, (hi - threshold) ** beta
+    return threshold + np.power(a + t * (b - a), 1.0 / beta)
+
+
 def perceptual_scale(d, d0: float, phi0: float, beta: float, phi_th: float = 0.0):
-    """Stimulus for data value ``d`` so that perceived steps are equal (DESIGN 3.6).
+    """Stimulus for data value ``d`` so that perceived steps are equal.
 
     Stevens' law ``psi = k (phi - phi_th)^beta`` inverted so that psi is linear
-    in d: ``phi = phi_th + (phi0 - phi_th) (d / d0)^(1/beta)`` for d > 0 and
+    in d (:func:`equal_steps` from the threshold up to ``phi0`` at ``d0``):
+    ``phi = phi_th + (phi0 - phi_th) (d / d0)^(1/beta)`` for d > 0 and
     ``phi = 0`` for d = 0 (no stimulus). With ``phi_th = 0`` this is the plain
     form ``phi = phi0 (d / d0)^(1/beta)``.
 
@@ -250,8 +287,7 @@ def perceptual_scale(d, d0: float, phi0: float, beta: float, phi_th: float = 0.0
     d = np.asarray(d, dtype=np.float64)
     if np.any(d < 0):
         raise InputError("perceptual scaling takes data values >= 0")
-    out = phi_th + (phi0 - phi_th) * np.power(d / d0, 1.0 / beta)
-    return np.where(d > 0, out, 0.0)
+    return np.where(d > 0, equal_steps(d / d0, phi_th, phi0, beta, phi_th), 0.0)
 
 
 def perceived(phi, k: float, beta: float, phi_th: float = 0.0):

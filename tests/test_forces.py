@@ -171,3 +171,18 @@ def test_no_nan_from_finite_input(values, spec):
         assert ch["normal_force"].min() >= 0.5 and ch["normal_force"].max() <= 8.0
     if "lateral_x" in ch:
         assert np.hypot(ch["lateral_x"], ch.get("lateral_y", 0)).max() <= 1.5 * (1 + 1e-12)
+
+
+def test_equal_steps_is_the_one_inverted_power_law():
+    """psi of equal_steps(t) is linear in t, with and without a threshold; the plain form is exact."""
+    from shapedisplay.forces import equal_steps
+    t = np.linspace(0.0, 1.0, 11)
+    for lo, hi, beta, th in ((0.0, 4.0, 0.76, 0.0), (0.8, 1.5, 1.26, 0.0), (0.5, 2.0, 0.6, 0.3), (0.3, 2.0, 0.6, 0.3)):
+        psi = perceived(equal_steps(t, lo, hi, beta, th), 1.0, beta, th)
+        np.testing.assert_allclose(psi, psi[0] + t * (psi[-1] - psi[0]), rtol=1e-12, atol=1e-15)
+    # level i of n asks for F (i/n)^(1/beta), bit for bit
+    assert equal_steps(3 / 5, 0.0, 4.0, 0.76) == 4.0 * (3 / 5) ** (1 / 0.76)
+    with pytest.raises(InputError):
+        equal_steps(t, 1.0, 0.5, 0.76)
+    with pytest.raises(InputError):
+        equal_steps(t, 0.0, 1.0, 0.0)

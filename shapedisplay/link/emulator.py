@@ -40,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..devices import TICK_RATE_RANGE
 from . import protocol as P
 from .framing import Frame, FrameDecoder, crc32, encode_frame
 
@@ -70,7 +71,7 @@ class EmulatorConfig:
         from ..errors import InputError
         from .framing import MAX_FRAME
         ints = {"max_table_bytes": (1, 2**31), "chunk_size": (1, MAX_FRAME - 64), "upload_window": (1, 255),
-                "queue_capacity": (1, 65535), "stream_rate_hz": (1, 65535), "tick_rate_hz": (100, 192_000),
+                "queue_capacity": (1, 65535), "stream_rate_hz": (1, 65535), "tick_rate_hz": tuple(int(r) for r in TICK_RATE_RANGE),
                 "baud": (0, 100_000_000), "flow_every": (1, 65535), "protocol_version": (1, 255)}
         for name, (lo, hi) in ints.items():
             v = getattr(self, name)

@@ -229,7 +229,7 @@ def _run_pad(p, model_name, rate, duration, stribeck=False, substep_s=None):
     from ..runtime import pads
     from ..runtime.models import get_model, run_kernel
     from ..errors import InputError
-    from ..runtime.models import check_tick_rate
+    from ..devices import check_tick_rate
     rate = check_tick_rate(rate)
     for name in ("N", "V"):
         if not math.isfinite(p[name]):
@@ -347,7 +347,8 @@ def slip_mode_growth(p, r):
 
 
 def _higher(rate):
-    return [min(2 * rate, 192000.0), min(4 * rate, 192000.0)]
+    from ..devices import TICK_RATE_RANGE
+    return [min(2 * rate, TICK_RATE_RANGE[1]), min(4 * rate, TICK_RATE_RANGE[1])]
 
 
 def _count_converged(counts):

@@ -38,7 +38,7 @@ import numpy as np
 
 from ..errors import FileFormatError, InputError
 from ..units import parse_quantity
-from .models import check_tick_rate
+from ..devices import check_tick_rate
 
 #: Most ticks one offline cursor path may hold.
 MAX_TICKS = 10_000_000

@@ -31,25 +31,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..devices import DeviceProfile, FrictionParams, PadParams, BurstParams, load_device
+from ..devices import BurstParams, DeviceProfile, FrictionParams, PadParams, check_tick_rate, load_device
 from ..errors import InputError, ModelError, unknown_key
 from ..units import parse_quantity
 from . import pads
-
-#: Allowed tick rates, Hz.
-TICK_RATE_RANGE = (100.0, 192_000.0)
-
-
-def check_tick_rate(rate: float, field: str = "tick_rate") -> float:
-    """Return ``rate`` (Hz) as float or raise if outside 100 Hz .. 192 kHz."""
-    try:
-        r = float(rate)
-    except (TypeError, ValueError):
-        raise InputError(f"`{field}` must be a number in Hz (got {rate!r})") from None
-    lo, hi = TICK_RATE_RANGE
-    if not (math.isfinite(r) and lo <= r <= hi):
-        raise InputError(f"`{field}` must be within 100 Hz..192 kHz (got {rate!r} Hz)")
-    return r
 
 
 def _extra_q(device: DeviceProfile, section: str, key: str, unit: str, default: float, bare_ok=False) -> float:

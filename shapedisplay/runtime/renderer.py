@@ -57,7 +57,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numba import njit
 
-from ..devices import DeviceProfile, load_device
+from ..devices import DeviceProfile, check_tick_rate, load_device
 from ..errors import InputError, ModelError, TableError
 from ..table import FrictionTable
 from ..units import parse_quantity
@@ -65,7 +65,7 @@ from . import pads
 from .bursts import audio_length, burst_value, policy_id, render_bursts, synth
 from .cursor import CursorPath
 from .lookup import sample_all
-from .models import PadModel, check_tick_rate, divergence_message, get_model, run_kernel
+from .models import PadModel, divergence_message, get_model, run_kernel
 
 #: Table channels the renderer reads, in slot order.
 SLOTS = ("normal_force", "friction_scale", "burst_gain", "grad_x", "grad_y", "lateral_x", "lateral_y",

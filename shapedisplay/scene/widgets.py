@@ -11,13 +11,13 @@ Heights are metres; positive is raised (a bump: more normal force), negative
 sunk (a dent). Tactile strength is given in the designer's language by one of
 
 * ``height`` (``depth`` for dents and grooves): geometric height, mapped to
-  force by the scene's ``n_gain`` (N = N1 + n_gain * h, DESIGN 3.2);
+  force by the scene's ``n_gain`` (N = N1 + n_gain * h);
 * ``force``: the normal force at the top (bottom for a dent), e.g. "2.5 N",
   or the range "0.5:2.5 N" whose low end must be the scene's N1;
 * ``force_step``: the force difference to flat ground, e.g. "2 N";
 * ``level``: perceived height in equal-feeling steps ``1..levels``; level
   ``i`` asks for ``level_force * (i / levels) ** (1 / beta)`` (Stevens' power
-  law ``psi = k phi^beta`` with the bumpiness exponent, DESIGN 3.6), so that
+  law ``psi = k phi^beta`` with the bumpiness exponent, forces.equal_steps), so that
   each step feels equally larger than the one below.
 """
 from __future__ import annotations
@@ -27,10 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..forces import EXPONENTS, equal_steps
 from .fields import (Canvas, Ctx, OVERLAP_RULES, SceneError, Widget, choice, length, number, pair,
                      quantity, wrap_unit_errors)
 
-#: Published starting points (DESIGN 3.2): ramp spans of 10-30 mm were studied;
+#: Published starting points: ramp spans of 10-30 mm were studied;
 #: perception saturates above ~15 mm at 0.15 N/mm.
 DEFAULT_RAMP = "10 mm"
 EDGES = ("linear", "cosine", "tent")
@@ -66,22 +67,6 @@ def raised_cosine(r, radius: float):
 
 
 # --------------------------------------------------------------- strength
-def perceived_level_force(level: float, levels: int, level_force: float, exponent: float) -> float:
-    """Force step for perceived-height level ``level`` of ``levels`` (power law, DESIGN 3.6).
-
-    ``psi = k dN^beta``; equal steps of psi need ``dN_i = dN_max (i / levels)^(1 / beta)``.
-    """
-    return level_force * (level / levels) ** (1.0 / exponent)
-
-
-def bumpiness_exponent() -> float:
-    from ..forces import EXPONENTS
-    for key in ("bumpiness", "height", "bump"):
-        if key in EXPONENTS:
-            return float(EXPONENTS[key])
-    return 0.76  # DESIGN 3.6: bumpiness
-
-
 STRENGTH_KEYS = ("height", "force", "force_step", "level")
 DEPTH_KEYS = ("depth", "force", "force_step", "level")
 
@@ -123,7 +108,8 @@ def resolve_strength(raw: dict, keys: tuple, sign: int, default: str, fp: str, w
         return sign * step / n_gain
     levels = w.levels["levels"]
     lv = number(value, path, w.ctx, w.where, lo=0, hi=levels)
-    return sign * perceived_level_force(lv, levels, w.levels["level_force"], bumpiness_exponent()) / n_gain
+    step = float(equal_steps(lv / levels, 0.0, w.levels["level_force"], EXPONENTS["bumpiness"]))
+    return sign * step / n_gain
 
 
 def _force_range(value, path, w):
@@ -650,27 +636,8 @@ class Mesh(WidgetType):
 DATA_CHANNELS = ("friction_scale", "burst_gain")
 #: Default stimulus range of each data channel (multiplier on mu / on burst gain B).
 DATA_RANGES = {"friction_scale": (0.8, 1.5), "burst_gain": (0.5, 2.0)}
-#: Power-law dimension of each data channel (DESIGN 3.6).
-DATA_DIMENSIONS = {"friction_scale": ("friction", "stickiness", 1.26), "burst_gain": ("vibration", "vibration", 0.6)}
-
-
-def data_exponent(channel: str) -> float:
-    from ..forces import EXPONENTS
-    for key in DATA_DIMENSIONS[channel][:2]:
-        if key in EXPONENTS:
-            return float(EXPONENTS[key])
-    return DATA_DIMENSIONS[channel][2]
-
-
-def perceptual_map(t, lo: float, hi: float, exponent: float, threshold: float = 0.0):
-    """Stimulus for normalized data ``t`` in [0, 1] so perceived magnitude grows linearly.
-
-    With ``psi = k (phi - phi_th)^beta`` (DESIGN 3.6) and psi linear in t between
-    the ends: ``phi = phi_th + ((lo-th)^b + t ((hi-th)^b - (lo-th)^b))^(1/b)``.
-    """
-    t = np.clip(np.asarray(t, dtype=np.float64), 0.0, 1.0)
-    a, b = (lo - threshold) ** exponent, (hi - threshold) ** exponent
-    return threshold + (a + t * (b - a)) ** (1.0 / exponent)
+#: Haptic dimension of each data channel: its power-law exponent is forces.EXPONENTS[dimension].
+DATA_DIMENSIONS = {"friction_scale": "friction", "burst_gain": "vibration"}
 
 
 class Data(WidgetType):
@@ -719,13 +686,14 @@ class Data(WidgetType):
         if lo < 0 or hi < 0:
             raise w.error("range", f"must be multipliers >= 0 (got {raw.get('range')!r})")
         scaling = choice(raw.get("scaling", "perceptual"), ("perceptual", "linear"), fp + "scaling", ctx, where)
-        beta = number(raw.get("exponent", data_exponent(ch)), fp + "exponent", ctx, where, lo=1e-3)
+        beta = number(raw.get("exponent", EXPONENTS[DATA_DIMENSIONS[ch]]), fp + "exponent", ctx, where, lo=1e-3)
         th = number(raw.get("threshold", 0.0), fp + "threshold", ctx, where, lo=0.0)
         if scaling == "perceptual" and th > min(lo, hi):
             raise w.error("threshold", f"must be <= the low end of `range` ({min(lo, hi):g}) (got {th:g})")
         t = (arr - dlo) / (dhi - dlo) if dhi > dlo else np.zeros_like(arr)
         if scaling == "perceptual":
-            vals = perceptual_map(t, lo, hi, beta, th) if hi >= lo else perceptual_map(1 - t, hi, lo, beta, th)
+            t = np.clip(t, 0.0, 1.0)
+            vals = equal_steps(t, lo, hi, beta, th) if hi >= lo else equal_steps(1 - t, hi, lo, beta, th)
         else:
             vals = lo + np.clip(t, 0, 1) * (hi - lo)
         return {"channel": ch, "values": vals, "range": (lo, hi), "data_range": (dlo, dhi),
