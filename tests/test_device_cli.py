@@ -150,9 +150,10 @@ def test_emulator_killed_mid_play_is_one_line_exit_2(table_path, tmp_path):
             time.sleep(0.05)
         host = subprocess.Popen([sys.executable, "-m", "shapedisplay_cli.main", "device", "play", table_path,
                                  port_file.read_text().strip(), "--stroke", "0,0 <-> 60,0 @ 20 mm/s x3"],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        time.sleep(1.5)                    # uploaded and streaming by now (the stroke lasts 18 s)
-        assert host.poll() is None
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                env={**os.environ, "PYTHONUNBUFFERED": "1"})
+        first = host.stdout.readline()     # "uploaded ... committed": streaming starts next (the stroke lasts 18 s)
+        assert first.startswith("uploaded") and host.poll() is None, first
         emu.kill()
         out, err = host.communicate(timeout=30)
     finally:
