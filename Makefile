@@ -26,7 +26,7 @@ demo: $(STAMP)
 	$(SD) inspect $(OUT)/tent.npz
 	# 2. the phone screen scene -> table, played by the exact stick-slip renderer
 	$(SD) compile assets/scenes/phone.toml -o $(OUT)/phone.npz
-	$(SD) play $(OUT)/phone.npz --stroke "62,2 -> 62,156 @ 30mm/s" --model exact --rate 10kHz -o $(OUT)/phone.wav --trace-out $(OUT)/phone-trace.npz --plot $(OUT)/phone-trace.png
+	$(SD) play $(OUT)/phone.npz --stroke "62,2 -> 62,156 @ 30mm/s" --model exact --tick-rate 10kHz -o $(OUT)/phone.wav --trace-out $(OUT)/phone-trace.npz --plot $(OUT)/phone-trace.png
 	# 3. a 3D model (keycap mesh) -> table, and a stroke across it
 	$(SD) compile assets/meshes/keycap.stl -o $(OUT)/keycap.npz --resolution 0.1mm --up z
 	$(SD) play $(OUT)/keycap.npz --stroke "0,9 -> 18,9 @ 20mm/s" -o $(OUT)/keycap.wav

@@ -47,7 +47,8 @@ def register(sub) -> None:
     q.add_argument("--engine", default="python", choices=("python", "c"),
                    help="render with the Python runtime (default) or the C99 runtime of runtime-c/ "
                         "(built with the system C compiler)")
-    q.add_argument("--tick-rate", default="10 kHz", help="renderer tick rate (default 10 kHz)")
+    q.add_argument("--tick-rate", "--rate", dest="tick_rate", default="10 kHz",
+                   help="renderer tick rate (default 10 kHz; --rate is the same option)")
     q.add_argument("--stream-rate", default="1 kHz", help="cursor sample rate (default 1 kHz)")
     q.add_argument("--queue", type=int, default=64, help="cursor queue capacity, samples (default 64)")
     q.add_argument("--no-renderer", action="store_true", help="emulate a device that only plays actuator streams")
@@ -167,11 +168,11 @@ def run_emulate(args) -> int:
     from shapedisplay.devices import TICK_RATE_RANGE
     from shapedisplay.units import parse_quantity
     mem = _parse_bytes(args.memory)
-    tick = parse_quantity(args.tick_rate, "Hz", "--tick-rate")
-    stream = parse_quantity(args.stream_rate, "Hz", "--stream-rate")
+    tick = parse_quantity(args.tick_rate, "Hz", "tick_rate")
+    stream = parse_quantity(args.stream_rate, "Hz", "stream_rate")
     lo, hi = TICK_RATE_RANGE
     if not (lo <= stream <= tick <= hi) or tick % stream:
-        raise InputError(f"`--tick-rate` must be a multiple of `--stream-rate`, both within {lo:g} Hz..{hi / 1e3:g} kHz "
+        raise InputError(f"`tick_rate` must be a multiple of `stream_rate`, both within {lo:g} Hz..{hi / 1e3:g} kHz "
                          f"(got {tick:g} Hz, {stream:g} Hz)")
     if args.queue < 1 or args.baud < 0:
         raise InputError(f"`--queue` must be >= 1 and `--baud` >= 0 (got {args.queue}, {args.baud})")

@@ -19,7 +19,8 @@ def register(sub) -> None:
     p.add_argument("--start", default="0,0", help="start position for --force, 'x,y' in mm (default 0,0)")
     p.add_argument("--device", help="device profile (TOML path or bundled name); overrides the table's")
     p.add_argument("--model", default="exact", help="exact | jump | karnopp | stribeck | tanh | euler | rk4 (default exact)")
-    p.add_argument("--rate", help="tick rate, e.g. 10kHz (default: the device's)")
+    p.add_argument("--tick-rate", "--rate", dest="tick_rate",
+                   help="renderer tick rate, e.g. 10kHz (default: the device's; --rate is the same option)")
     p.add_argument("--audio-rate", help="audio sample rate, e.g. 48kHz (default: the device's)")
     p.add_argument("--format", default="float32", help="WAV sample format: float32 | int16 (default float32)")
     p.add_argument("--burst-policy", default="retrigger", help="retrigger | add | max (default retrigger)")
@@ -60,7 +61,7 @@ def run(args) -> int:
         gain = parse_quantity(args.burst_gain, "1/N", "--burst-gain", bare_ok=True)
         base = device if device is not None else device_for_table(table)
         device = base.with_(burst=replace(base.burst, gain=gain))
-    rate = parse_quantity(args.rate, "Hz", "--rate") if args.rate else None
+    rate = parse_quantity(args.tick_rate, "Hz", "tick_rate") if args.tick_rate else None
     arate = parse_quantity(args.audio_rate, "Hz", "--audio-rate") if args.audio_rate else None
     msp = parse_quantity(args.max_stick_period, "s", "--max-stick-period") if args.max_stick_period else None
     r = Renderer(table, device=device, model=args.model, tick_rate=rate, audio_rate=arate,

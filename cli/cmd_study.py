@@ -35,7 +35,7 @@ def run(args) -> int:
 
     study = get_study(args.name)
     dur = parse_quantity(args.duration, "s", "--duration") if args.duration else None
-    rate = parse_quantity(args.tick_rate, "Hz", "--tick-rate") if args.tick_rate else None
+    rate = parse_quantity(args.tick_rate, "Hz", "tick_rate") if args.tick_rate else None
     opts = {"variant": args.variant} if args.variant else {}
     if args.list:
         for c in study_conditions(study, dur, args.only, **opts):

@@ -124,8 +124,6 @@ class CommandLine:
 
 #: Option destination -> the library parameter names it is passed as.
 PARAMETER_ALIASES = {
-    "rate": ("tick_rate",),
-    "tick_rate": ("tick_rate",),
     "weber": ("weber_fraction",),
 }
 

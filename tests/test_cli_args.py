@@ -1,4 +1,5 @@
 """Command-line parsing: negative quantities after an option, one-line usage errors."""
+import json
 from pathlib import Path
 
 import pytest
@@ -107,3 +108,21 @@ def test_tick_rate_error_names_the_rate_option(tmp_path, capsys):
     code, out, err = run(["play", t, "--stroke", "0:60mm @ 50mm/s", "-o", tmp_path / "o.wav", "--rate", "5Hz"],
                          capsys)
     assert code == 2 and "`--rate` must be within" in err and "tick_rate" not in err, err
+
+
+def test_tick_rate_is_one_option_spelled_tick_rate_or_rate(tmp_path, capsys):
+    """play and device emulate take --tick-rate; --rate is the same option; errors name the spelling typed."""
+    t = tmp_path / "t.npz"
+    assert run(["compile", TENT, "-o", t, "--size", "60x4mm", "--height", "0:2mm"], capsys)[0] == 0
+    rates = []
+    for flag in ("--tick-rate", "--rate"):
+        code, out, err = run(["play", t, "--stroke", "0:60mm @ 50mm/s", "-o", tmp_path / f"o{flag}.wav", flag,
+                              "2kHz", "--json"], capsys)
+        assert code == 0, err
+        rates.append(json.loads(out)["tick_rate_hz"])
+        code, out, err = run(["play", t, "--stroke", "0:60mm @ 50mm/s", "-o", tmp_path / "x.wav", flag, "5Hz"],
+                             capsys)
+        assert code == 2 and f"`{flag}` must be within" in err and "tick_rate" not in err, err
+    assert rates == [2000.0, 2000.0]
+    code, out, err = run(["device", "emulate", "--rate", "1500Hz", "--stream-rate", "1kHz"], capsys)
+    assert code == 2 and "`--rate` must be a multiple of `--stream-rate`" in err, err
