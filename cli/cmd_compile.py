@@ -3,8 +3,6 @@ from __future__ import annotations
 
 import argparse
 
-_IMAGE_ONLY = ("size", "height")
-_MESH_ONLY = ("up", "units")
 _MAPPING_OPTS = ("n_base", "n_gain", "slope_gain", "lateral_gain", "skin_stretch", "perceptual")
 
 
@@ -28,7 +26,7 @@ def register(sub) -> None:
     g = p.add_argument_group("mesh sources")
     g.add_argument("--up", help="mesh axis that points up: x, y, z, -x, -y, -z or a vector dx,dy,dz (default z)")
     g.add_argument("--units", help="length unit of the mesh coordinates, e.g. mm (default mm)")
-    g = p.add_argument_group("mapping (DESIGN 3.2-3.6)")
+    g = p.add_argument_group("mapping (images and meshes; a scene has its [mapping])")
     g.add_argument("--mapping", default="height",
                    help="terms joined by '+': height, slope, lateral, lateral-normal, stretch, perceptual "
                         "(default height)")
@@ -131,42 +129,22 @@ def run(args) -> int:
 
     from shapedisplay.compile import compile_heightfield, format_report
     from shapedisplay.devices import load_device
-    from shapedisplay.errors import InputError
-    from shapedisplay.sources import IMAGE_SUFFIXES, MESH_SUFFIXES, image_options, load_source, resolution_option
+    from shapedisplay.sources import check_applicable, load_source, source_options
 
     src = Path(args.source)
-    suffix = src.suffix.lower()
     mapping, options = build_options(args)
-    if suffix == ".toml":
-        for opt in _IMAGE_ONLY + _MESH_ONLY + ("resolution",):
-            if getattr(args, opt) is not None:
-                raise InputError(f"`--{opt}` applies to images and meshes; a scene sets its own geometry ({src})")
-        for opt in _MAPPING_OPTS:
-            if getattr(args, opt) is not None:
-                raise InputError(f"`--{opt.replace('_', '-')}` applies to images and meshes; a scene sets its "
-                                 f"mapping in its [mapping] table ({src})")
-        if args.mapping != "height":
-            raise InputError(f"`--mapping` applies to images and meshes; a scene sets its mapping in its "
-                             f"[mapping] table ({src})")
+    given = {o: getattr(args, o) for o in _MAPPING_OPTS}
+    given["mapping"] = None if args.mapping == "height" else args.mapping
+    check_applicable(src, given, kinds={o: ("image", "mesh") for o in given})
+    opts = source_options(src, size=args.size, height=args.height, resolution=args.resolution, up=args.up,
+                          units=args.units)
+    if src.suffix.lower() == ".toml":
         from shapedisplay.scene import compile_scene
         # Without --device the scene's own [device] applies.
         device = load_device(args.device) if args.device else None
         result = compile_scene(src, device=device, options=options)
     else:
         device = load_device(args.device)
-        opts = {}
-        if suffix in MESH_SUFFIXES:
-            for opt in _IMAGE_ONLY:
-                if getattr(args, opt) is not None:
-                    raise InputError(f"`--{opt}` applies to images; mesh '{src}' takes --resolution, --up, --units")
-            if args.resolution is not None:
-                opts["resolution"] = resolution_option(args.resolution)
-            opts["up"], opts["units"] = args.up, args.units
-        elif suffix in IMAGE_SUFFIXES:
-            for opt in _MESH_ONLY:
-                if getattr(args, opt) is not None:
-                    raise InputError(f"`--{opt}` applies to meshes, not to image '{src}'")
-            opts = image_options(src, args.size, args.height, args.resolution)
         with warnings_as_lines("compile"):
             hf = load_source(src, **opts)
         result = compile_heightfield(hf, device, mapping, options)

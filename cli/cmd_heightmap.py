@@ -88,22 +88,16 @@ MESH_DEFAULTS = {"up": "z", "units": "mm", "supersample": 1, "supersample_mode":
 
 
 def _load(args, src, mesh):
-    from shapedisplay.errors import InputError
+    from shapedisplay.sources import OPTION_KINDS, check_applicable, load_source
 
-    if src.suffix.lower() in mesh.MESH_SUFFIXES:
-        for opt in ("size", "height"):
-            if getattr(args, opt) is not None:
-                raise InputError(f"`--{opt}` applies to image sources; mesh '{src}' takes --resolution or --grid")
+    kind = check_applicable(src, {k: getattr(args, k) for k in OPTION_KINDS})
+    if kind == "mesh":
         o = {k: (d if getattr(args, k) is None else getattr(args, k)) for k, d in MESH_DEFAULTS.items()}
         return mesh.mesh_to_heightfield(
             src, resolution=args.resolution, grid=args.grid, up=_up(o["up"]), units=o["units"],
             background=o["background"], supersample=o["supersample"],
             supersample_mode=o["supersample_mode"], margin=o["margin"], method=o["method"],
         )
-    for k in MESH_DEFAULTS:
-        if getattr(args, k) is not None:
-            raise InputError(f"`--{k.replace('_', '-')}` applies to meshes, not to '{src}'")
-    from shapedisplay.sources import load_source
     opts = {k: v for k, v in (("resolution", args.resolution), ("grid", args.grid),
                               ("size", args.size), ("height_range", args.height)) if v is not None}
     return load_source(src, **opts)

@@ -54,32 +54,13 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _source_options(args) -> dict:
-    """Options of an image or mesh source, parsed with the flag names in errors."""
-    from pathlib import Path
-
-    from shapedisplay.errors import InputError
-    from shapedisplay.sources import IMAGE_SUFFIXES, MESH_SUFFIXES, image_options, resolution_option
-
-    src = args.input
-    suffix = Path(src).suffix.lower()
-    if suffix in IMAGE_SUFFIXES:
-        return image_options(src, args.extent, args.height, args.resolution, size_flag="--extent")
-    given = [f"--{k}" for k in ("extent", "height", "resolution") if getattr(args, k) is not None]
-    if suffix in MESH_SUFFIXES:
-        bad = [g for g in given if g != "--resolution"]
-        if bad:
-            raise InputError(f"`{bad[0]}` applies to images; mesh '{src}' takes --resolution")
-        return {} if args.resolution is None else {"resolution": resolution_option(args.resolution)}
-    if given:
-        raise InputError(f"`{given[0]}` applies to image and mesh sources, not to '{src}'")
-    return {}
-
-
 def run(args) -> int:
     from shapedisplay import viewer
+    from shapedisplay.sources import source_options
 
-    model = viewer.load_model(args.input, scene=args.scene, **_source_options(args))
+    opts = source_options(args.input, size=args.extent, height=args.height, resolution=args.resolution,
+                          flags={"size": "--extent"})
+    model = viewer.load_model(args.input, scene=args.scene, **opts)
     trace = viewer.load_trace(args.trace) if args.trace else None
     preview = viewer.render(model, args.color, trace=trace, exaggeration=args.exaggeration, size=args.size,
                             off_screen=bool(args.output), view=args.view, cmap=args.cmap,

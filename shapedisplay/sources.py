@@ -572,6 +572,84 @@ def image_options(path, size=None, height=None, resolution=None, *, size_flag="-
     return opts
 
 
+#: Command-line source options (library names) -> the kinds of file source each applies to.
+#: One table for every command that loads a source (compile, preview, heightmap).
+OPTION_KINDS = {
+    "size": ("image",), "height": ("image",), "resolution": ("image", "mesh"), "grid": ("image", "mesh"),
+    "up": ("mesh",), "units": ("mesh",), "supersample": ("mesh",), "supersample_mode": ("mesh",),
+    "background": ("mesh",), "margin": ("mesh",), "method": ("mesh",),
+}
+_KIND_WORDS = {("image",): "image sources", ("mesh",): "meshes", ("image", "mesh"): "images and meshes"}
+_WHAT = {"image": "an image", "mesh": "a mesh", "scene": "a scene: it sets its own geometry and mapping",
+         "table": "a compiled table"}
+
+
+def source_kind(path) -> str:
+    """What a file is, by its suffix: "table" (.npz), "scene" (.toml), "image" or "mesh".
+
+    Any other suffix is an error listing the ones known.
+    """
+    path = Path(os.fspath(path))
+    suffix = path.suffix.lower()
+    if suffix == ".npz":
+        return "table"
+    if suffix == ".toml":
+        return "scene"
+    if suffix in IMAGE_SUFFIXES:
+        return "image"
+    if suffix in MESH_SUFFIXES:
+        return "mesh"
+    err = unknown_key("source type", suffix or "(no suffix)", IMAGE_SUFFIXES + MESH_SUFFIXES)
+    raise InputError(f"source '{path}': {err}")
+
+
+def check_applicable(path, given: dict, flags: dict | None = None, kinds: dict | None = None) -> str:
+    """Refuse options that do not apply to the source at ``path``; return its kind (:func:`source_kind`).
+
+    Parameters
+    ----------
+    given : dict name -> value
+        Options as the library names them; None means not given.
+    flags : dict name -> str, optional
+        How each option is spelled on the command line (default ``--name``
+        with dashes), for the message.
+    kinds : dict name -> tuple of kinds, optional
+        Rules added to (or replacing) :data:`OPTION_KINDS`.
+    """
+    kind = source_kind(path)
+    rules = {**OPTION_KINDS, **(kinds or {})}
+    for name, value in given.items():
+        if value is None:
+            continue
+        ok = rules[name]
+        if kind not in ok:
+            flag = (flags or {}).get(name, "--" + name.replace("_", "-"))
+            raise InputError(f"`{flag}` applies to {_KIND_WORDS[tuple(ok)]}, not to '{path}' ({_WHAT[kind]})")
+    return kind
+
+
+def source_options(path, *, size=None, height=None, resolution=None, up=None, units=None,
+                   flags: dict | None = None) -> dict:
+    """:func:`load_source` keyword arguments from command-line strings (None = not given).
+
+    Options that do not apply to the kind of source are refused
+    (:func:`check_applicable`); an image's are parsed by
+    :func:`image_options`, a mesh's resolution by :func:`resolution_option`.
+    A scene or a table takes none and gets ``{}``.
+    """
+    flags = flags or {}
+    kind = check_applicable(path, {"size": size, "height": height, "resolution": resolution, "up": up,
+                                   "units": units}, flags)
+    if kind == "image":
+        return image_options(path, size, height, resolution, size_flag=flags.get("size", "--size"))
+    if kind == "mesh":
+        opts = {"up": up, "units": units}
+        if resolution is not None:
+            opts["resolution"] = resolution_option(resolution)
+        return {k: v for k, v in opts.items() if v is not None}
+    return {}
+
+
 def load_source(path, **opts) -> HeightField:
     """Load any file source as a height field, dispatching on its suffix.
 

@@ -321,3 +321,23 @@ def test_image_options_parse_command_line_strings():
         image_options("m.png", "0x4mm", "0:1mm")
     with pytest.raises(InputError, match=r"`--resolution` must be a length > 0"):
         resolution_option("-1mm")
+
+
+def test_source_kind_and_option_applicability_live_in_the_library(tmp_path):
+    """One table says which command-line option applies to which source; every command asks it."""
+    from shapedisplay.sources import check_applicable, source_kind, source_options
+    assert [source_kind(p) for p in ("t.npz", "s.TOML", "a.png", "b.npy", "c.stl", "d.glb")] == \
+        ["table", "scene", "image", "image", "mesh", "mesh"]
+    with pytest.raises(InputError, match=r"unknown source type '\.bmp'"):
+        source_kind("x.bmp")
+    with pytest.raises(InputError, match=r"`--up` applies to meshes, not to 'a\.png' \(an image\)"):
+        check_applicable("a.png", {"up": "y"})
+    with pytest.raises(InputError, match=r"`--extent` applies to image sources, not to 'k\.stl' \(a mesh\)"):
+        source_options("k.stl", size="1x1mm", flags={"size": "--extent"})
+    with pytest.raises(InputError, match=r"`--n-gain` applies to images and meshes, not to 'p\.toml' \(a scene"):
+        check_applicable("p.toml", {"n_gain": "2N/mm"}, kinds={"n_gain": ("image", "mesh")})
+    assert check_applicable("p.toml", {"up": None, "size": None}) == "scene"
+    assert source_options("k.stl", resolution="0.1mm", up="y") == {"resolution": pytest.approx(1e-4), "up": "y"}
+    assert source_options("a.png", size="60x4mm", height="0:2mm") == {
+        "size": pytest.approx((0.06, 0.004)), "height_range": pytest.approx((0.0, 0.002))}
+    assert source_options("t.npz") == {}
