@@ -154,7 +154,7 @@ def run_play(args) -> int:
 
 def device_blocks(renderer, cursor, per):
     """Host-side rendering for --mode actuator: (n - 1, per) drive blocks (tick 0 carries no burst)."""
-    from shapedisplay.link.emulator import render_stream
+    from shapedisplay.link.engine import render_stream
     return render_stream(renderer, cursor.x, cursor.y, per)[1:].reshape(-1, per)
 
 

@@ -5,7 +5,8 @@ import pytest
 pytest.importorskip("serial")
 
 from shapedisplay.link.c_engine import CEngine, CRenderer
-from shapedisplay.link.emulator import DeviceEmulator, EmulatorConfig, render_stream
+from shapedisplay.link.emulator import DeviceEmulator, EmulatorConfig
+from shapedisplay.link.engine import render_stream
 from shapedisplay.link.host import DeviceLink
 from shapedisplay.runtime import Renderer
 from test_device_render import f32, tent_table

@@ -5,8 +5,8 @@ import pytest
 pytest.importorskip("serial")
 
 from shapedisplay.link import protocol as P
-from shapedisplay.link.emulator import (DeviceEmulator, EmulatorConfig, force_to_position, render_stream,
-                                          step_period)
+from shapedisplay.link.emulator import DeviceEmulator, EmulatorConfig
+from shapedisplay.link.engine import force_to_position, render_stream, step_period
 from shapedisplay.link.host import DeviceLink, DeviceRefused
 from shapedisplay.devices import load_device
 from shapedisplay.runtime import Renderer

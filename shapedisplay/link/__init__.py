@@ -5,10 +5,14 @@
   ``docs/protocol.md``);
 * :mod:`.host` — :class:`~.host.DeviceLink`, the host end (needs pyserial,
   the ``serial`` extra);
+* :mod:`.engine` — :class:`~.engine.RenderEngine`, the device's renderer
+  (cursor samples in, one drive value per tick out), shared by the emulator,
+  the host's actuator-stream mode and the C engine;
 * :mod:`.emulator` — :class:`~.emulator.DeviceEmulator`, firmware behaviour
-  on a pseudo-terminal, rendering with :mod:`shapedisplay.runtime`;
+  on a pseudo-terminal (transport, upload, queue, fault injection), rendering
+  through :mod:`.engine`;
 * :mod:`.c_engine` — the emulator's optional engine running the C99
-  runtime of ``runtime-c/`` through ctypes.
+  runtime of ``shapedisplay/runtime_c/`` through ctypes.
 
 Nothing here opens a port or imports pyserial at import time.
 """

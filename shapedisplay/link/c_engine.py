@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from .emulator import RenderEngine
+from .engine import RenderEngine
 
 #: The C runtime sources, shipped inside the package (``runtime-c/`` in a checkout links here).
 RUNTIME_C = Path(__file__).resolve().parent.parent / "runtime_c"
@@ -136,7 +136,7 @@ class CRenderer:
 
 
 class CEngine(RenderEngine):
-    """Emulator engine (the :class:`~.emulator.RenderEngine` interface) rendering every tick in C."""
+    """Emulator engine (the :class:`~.engine.RenderEngine` interface) rendering every tick in C."""
 
     def __init__(self, table, model: str, tick_rate_hz: int, stream_rate_hz: int, input_kind: int):
         super().__init__(table, model, tick_rate_hz, stream_rate_hz, input_kind,

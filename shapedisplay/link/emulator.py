@@ -9,8 +9,8 @@ keeps the firmware's rules:
   :meth:`FrictionTable.load`) and becomes active only on COMMIT; the active
   table survives a reset (flash), the staging buffer does not;
 * cursor samples go into a fixed queue of ``queue_capacity`` samples and are
-  consumed at ``stream_rate_hz`` by the render thread, which runs the same
-  renderer as the host (:mod:`shapedisplay.runtime`); a period with no sample
+  consumed at ``stream_rate_hz`` by the render thread, which runs the
+  device's render engine (:mod:`.engine`, the same renderer as the host); a period with no sample
   counts an underrun (the renderer waits for the sample), a sample arriving at a
   full queue is dropped and counts an overrun; both are reported in EVENT
   frames and in STATUS;
@@ -42,10 +42,11 @@ import numpy as np
 
 from ..devices import TICK_RATE_RANGE
 from . import protocol as P
+from .engine import RenderEngine, warm_engine
 from .framing import Frame, FrameDecoder, crc32, encode_frame
 
-#: Renderer ticks per cursor sample are tick_rate_hz // stream_rate_hz.
-DAC_RANGE = 1.0   # actuator full scale; |sample| > 1 is clipped and counted
+#: Actuator full scale; a drive sample with |value| > 1 is clipped and counted.
+DAC_RANGE = 1.0
 
 
 @dataclass(frozen=True)
@@ -108,103 +109,6 @@ def parse_table_image(image: bytes):
     if is_image(image):
         return read_image(image, "uploaded table image")
     return FrictionTable.from_bytes(image, "uploaded table")
-
-
-def step_period(renderer, prev, x: float, y: float, per: int, out: np.ndarray) -> int:
-    """Advance ``renderer`` over one cursor period; return the number of drive values written.
-
-    The first cursor sample (``prev is None``) is the renderer's tick 0 at
-    (x, y): one value. Every later sample runs ``per`` ticks with the cursor
-    interpolated linearly from ``prev`` to (x, y), the last tick exactly at
-    (x, y). ``out`` receives the burst drive of each tick (Renderer.step).
-    Allocation-free; the device and the host (actuator mode, tests) share it.
-    """
-    if prev is None:
-        out[0] = renderer.step(x, y)
-        return 1
-    x0, y0 = prev
-    for j in range(1, per + 1):
-        if j == per:
-            out[j - 1] = renderer.step(x, y)
-        else:
-            f = j / per
-            out[j - 1] = renderer.step(x0 + (x - x0) * f, y0 + (y - y0) * f)
-    return per
-
-
-def render_stream(renderer, x, y, per: int) -> np.ndarray:
-    """Drive values the device renders for cursor samples ``x, y`` (m), flat, 1 + (n - 1) * per.
-
-    Resets ``renderer`` first. Positions are used as given: pass them through
-    float32 (``np.float32(x)``) to match what crossed the wire.
-    """
-    x = np.asarray(x, dtype=np.float64)
-    y = np.zeros_like(x) if y is None else np.asarray(y, dtype=np.float64)
-    renderer.reset()
-    out = np.empty(1 + max(x.size - 1, 0) * per)
-    buf = np.empty(per)
-    prev = None
-    k = 0
-    for i in range(x.size):
-        m = step_period(renderer, prev, float(x[i]), float(y[i]), per, buf)
-        out[k:k + m] = buf[:m]
-        k += m
-        prev = (float(x[i]), float(y[i]))
-    return out
-
-
-def force_to_position(prev_pos, prev_v, fx: float, fy: float, alpha: float, dt: float):
-    """One step of ``v = alpha f`` with the trapezoid rule (as :func:`runtime.cursor.force_input`)."""
-    vx, vy = alpha * fx, alpha * fy
-    if prev_pos is None:
-        return (0.0, 0.0), (vx, vy)
-    return (prev_pos[0] + 0.5 * (vx + prev_v[0]) * dt, prev_pos[1] + 0.5 * (vy + prev_v[1]) * dt), (vx, vy)
-
-
-class RenderEngine:
-    """Device-side renderer: one cursor sample in, the drive of each renderer tick out.
-
-    Wraps :class:`shapedisplay.runtime.Renderer` through :func:`step_period`,
-    exactly as the host's :func:`render_stream`, so host and emulated device
-    produce identical samples. Input ``FORCE`` integrates ``v = alpha f``
-    with the table's device cursor gain.
-    """
-
-    def __init__(self, table, model: str, tick_rate_hz: int, stream_rate_hz: int, input_kind: int,
-                 renderer=None):
-        from ..errors import InputError
-        from ..runtime import Renderer
-        self.per = max(1, tick_rate_hz // stream_rate_hz)
-        self.input_kind = input_kind
-        self.renderer = renderer if renderer is not None else Renderer(table, model=model,
-                                                                        tick_rate=float(tick_rate_hz))
-        self.alpha = float(self.renderer.device.cursor_gain)
-        if input_kind == P.Input.FORCE and not self.alpha > 0:
-            raise InputError(f"force input needs a cursor gain; the table's device profile "
-                             f"'{self.renderer.device.name}' has cursor_gain 0")
-        self.dt = 1.0 / stream_rate_hz
-        self._buf = np.zeros(self.per)
-        self._prev = None
-        self._v = None
-
-    def render(self, x: float, y: float) -> np.ndarray:
-        if self.input_kind == P.Input.FORCE:
-            pos, self._v = force_to_position(self._prev, self._v, x, y, self.alpha, self.dt)
-            x, y = pos
-        m = step_period(self.renderer, self._prev, x, y, self.per, self._buf)
-        self._prev = (x, y)
-        return self._buf[:m]
-
-
-def _warm_renderer(config: EmulatorConfig, engine=None) -> None:
-    """Load and compile the runtime kernels once, on a one-sample table (not on the I/O path)."""
-    from ..table import FrictionTable, Grid, choose_quantization
-    z = np.full((1, 2), 1.0)
-    t = FrictionTable.from_dense(Grid(1, 2, 1e-3, 1e-3), {"normal_force": z},
-                                 {"normal_force": choose_quantization(z, "float32")})
-    eng = (engine or RenderEngine)(t, config.model, config.tick_rate_hz, config.stream_rate_hz, P.Input.POSITION)
-    eng.render(0.0, 0.0)
-    eng.render(1e-4, 0.0)
 
 
 class _Fault:
@@ -271,7 +175,8 @@ class DeviceEmulator:
         """Load and compile the renderer (firmware has it built in before it boots). Idempotent."""
         if (not self._prepared and self.config.renderer and isinstance(self.engine_factory, type)
                 and issubclass(self.engine_factory, RenderEngine)):
-            _warm_renderer(self.config, self.engine_factory)
+            warm_engine(self.config.model, self.config.tick_rate_hz, self.config.stream_rate_hz,
+                        self.engine_factory)
         self._prepared = True
 
     def open_pty(self, link: str | None = None) -> str:
