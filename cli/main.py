@@ -23,6 +23,7 @@ COMMAND_MODULES = (
     "shapedisplay_cli.cmd_play",
     "shapedisplay_cli.cmd_study",
     "shapedisplay_cli.cmd_report",
+    "shapedisplay_cli.cmd_studio",
 )
 
 

@@ -360,15 +360,21 @@ class FrictionTable:
     def save(self, path: str | os.PathLike) -> Path:
         """Write atomically to ``path`` (.npz). Returns the path."""
         path = Path(path)
+        data = self.to_bytes()
+        with atomic_path(path, suffix=".npz") as tmp:
+            tmp.write_bytes(data)
+        return path
+
+    def to_bytes(self) -> bytes:
+        """The bytes of the table file (.npz) that :meth:`save` writes."""
         header = self.header()
         header["checksum"] = _checksum(header, self.codes)
         arrays = {"header": np.frombuffer(json.dumps(header, sort_keys=True).encode(), dtype=np.uint8)}
         for n, a in self.codes.items():
             arrays[n] = a.astype(a.dtype.newbyteorder("<"), copy=False)
-        with atomic_path(path, suffix=".npz") as tmp:
-            with open(tmp, "wb") as fh:
-                np.savez_compressed(fh, **arrays)
-        return path
+        buf = io.BytesIO()
+        np.savez_compressed(buf, **arrays)
+        return buf.getvalue()
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "FrictionTable":

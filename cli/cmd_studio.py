@@ -1,0 +1,52 @@
+"""``shapedisplay studio``: edit a tactile screen in the browser and feel it while you edit."""
+from __future__ import annotations
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "studio", help="serve a local web app: top view, report, scene editor, live feel in the browser",
+        description="Serve SOURCE (scene .toml, image, mesh or table .npz) as a local web app on 127.0.0.1: "
+                    "a top view of the table, the compile report, a scene editor and live stick-slip feel "
+                    "(the C runtime as WebAssembly in the browser's audio thread). Saving the scene recompiles "
+                    "and swaps the table without a reload. Prints the URL (with its access token).")
+    p.add_argument("source", help="scene (.toml), image (.png/.npy), mesh or table (.npz)")
+    p.add_argument("--device", help="device profile: bundled name or TOML under the source's folder")
+    p.add_argument("--port", type=int, default=8765, help="TCP port (default 8765; 0 = any free port)")
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1, this computer only)")
+    p.add_argument("--allow-remote", action="store_true",
+                   help="allow --host to be a non-loopback address (prints a warning)")
+    p.add_argument("--no-browser", action="store_true", help="do not open a browser")
+    p.add_argument("--out", help="output folder for exports (default: studio-out beside the source)")
+    p.add_argument("--model", default="exact", help="pad model the page plays: exact | jump (default exact)")
+    g = p.add_argument_group("image and mesh sources")
+    g.add_argument("--size", help="image: physical width x height, e.g. 60x4mm")
+    g.add_argument("--height", help="image: heights of gray 0 and full scale, e.g. 0:2mm")
+    g.add_argument("--resolution", help="image or mesh: sample spacing, e.g. 0.1mm")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from pathlib import Path
+
+    from shapedisplay.errors import InputError
+    from shapedisplay.sources import IMAGE_SUFFIXES, MESH_SUFFIXES, image_options, resolution_option
+    from shapedisplay.studio.server import serve
+
+    src = Path(args.source)
+    suffix = src.suffix.lower()
+    opts = {}
+    if suffix in IMAGE_SUFFIXES:
+        opts = image_options(src, args.size, args.height, args.resolution)
+    else:
+        given = [f"--{k}" for k in ("size", "height") if getattr(args, k) is not None]
+        if suffix not in MESH_SUFFIXES and args.resolution is not None:
+            given.append("--resolution")
+        if given:
+            raise InputError(f"`{given[0]}` applies to image (and --resolution to mesh) sources, not to '{src}'")
+        if args.resolution is not None:
+            opts["resolution"] = resolution_option(args.resolution)
+    if args.model not in ("exact", "jump"):
+        raise InputError(f"`--model` must be exact or jump for the page's C runtime (got {args.model!r})")
+    serve(src, device=args.device, port=args.port, host=args.host, allow_remote=args.allow_remote,
+          open_browser=not args.no_browser, out_dir=args.out, source_options=opts, model=args.model)
+    return 0

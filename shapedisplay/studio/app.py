@@ -1,0 +1,319 @@
+"""The studio's web app: Starlette routes, the security gate, file watching and live updates.
+
+Security (the page can make a sound card drive a tactor, and it edits files):
+
+* it binds to 127.0.0.1 unless told otherwise (:func:`serve`);
+* every request and WebSocket must carry the session's random token
+  (``?token=...`` or the ``X-Studio-Token`` header), compared in constant time;
+* a request whose ``Host`` is not the studio's own address, or whose
+  ``Origin`` (when sent) is not the studio's own origin, is refused: a page
+  on another site, or a DNS-rebinding name pointing at 127.0.0.1, gets 403;
+* files are read only under the source's folder (see :mod:`.session`) and
+  written only to the scene file being edited and under the output folder.
+
+Routes (all under the token):
+``GET /`` the page; ``GET /static/NAME`` its scripts; ``GET /api/state`` what
+the page shows (JSON); ``GET /api/table`` the current table (.npz bytes);
+``GET /api/runtime.wasm`` the C runtime as WebAssembly; ``GET /api/runtime``
+the current table laid out for it; ``GET /api/map.png?channel=NAME`` the top
+view; ``GET/PUT /api/scene`` the scene text; ``GET /api/export/FORMAT``;
+``POST /api/snapshot`` the 3D preview; ``WS /ws`` a message per compile.
+"""
+from __future__ import annotations
+
+import asyncio
+import json
+import secrets
+import struct
+import time
+from pathlib import Path
+from urllib.parse import parse_qs
+
+from ..errors import InputError, ShapeDisplayError
+
+WEB = Path(__file__).resolve().parent / "web"
+#: Files served under /static/ (nothing else from disk is ever served).
+STATIC = {"studio.js": "text/javascript", "worklet.js": "text/javascript", "studio.css": "text/css"}
+#: Largest request body accepted (scene text, a recorded stroke for the snapshot), bytes.
+MAX_BODY = 64 << 20
+
+
+class Gate:
+    """ASGI middleware: token, Host and Origin checks on every request and WebSocket."""
+
+    def __init__(self, app, token: str, hosts: set, origins: set):
+        self.app, self.token, self.hosts, self.origins = app, token, hosts, origins
+
+    def refusal(self, scope) -> str | None:
+        headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in scope.get("headers", [])}
+        host = headers.get("host", "")
+        if host not in self.hosts:
+            return f"refused: Host '{host}' is not this studio's address"
+        origin = headers.get("origin")
+        if origin is not None and origin not in self.origins:
+            return f"refused: Origin '{origin}' is not this studio's page"
+        if scope["type"] == "websocket" and origin is None:
+            return "refused: a WebSocket must come from the studio's page (no Origin)"
+        query = parse_qs(scope.get("query_string", b"").decode("latin-1"))
+        given = (query.get("token") or [headers.get("x-studio-token", "")])[0]
+        if not secrets.compare_digest(given.encode(), self.token.encode()):
+            return "refused: missing or wrong token (open the URL the studio printed)"
+        return None
+
+    async def __call__(self, scope, receive, send):
+        if scope["type"] not in ("http", "websocket"):
+            return await self.app(scope, receive, send)
+        why = self.refusal(scope)
+        if why is None:
+            return await self.app(scope, receive, send)
+        if scope["type"] == "websocket":
+            await receive()                           # websocket.connect
+            await send({"type": "websocket.close", "code": 1008, "reason": why[:120]})
+            return
+        body = why.encode()
+        await send({"type": "http.response.start", "status": 403,
+                    "headers": [(b"content-type", b"text/plain; charset=utf-8"),
+                                (b"content-length", str(len(body)).encode())]})
+        await send({"type": "http.response.body", "body": body})
+
+
+class Studio:
+    """The running studio: a session, its clients and the watcher task."""
+
+    def __init__(self, session, model: str = "exact"):
+        self.session = session
+        self.model = model
+        self.clients: set = set()
+        self.layout_cache: tuple | None = None
+        self.last_change: dict = {}
+
+    # -------------------------------------------------------------- compile + broadcast
+    async def recompile(self, reason: str) -> None:
+        t0 = time.perf_counter()
+        loop = asyncio.get_running_loop()
+        changed = await loop.run_in_executor(None, self.session.compile)
+        if changed:
+            self.layout_cache = None
+        self.last_change = {"reason": reason, "compile_ms": (time.perf_counter() - t0) * 1e3}
+        await self.broadcast()
+
+    async def broadcast(self) -> None:
+        msg = json.dumps({"type": "state", "state": self.state()})
+        for ws in list(self.clients):
+            try:
+                await ws.send_text(msg)
+            except Exception:                      # a closed page: forget it
+                self.clients.discard(ws)
+
+    def state(self) -> dict:
+        from .views import channel_range
+        d = self.session.state()
+        cur = self.session.current
+        if cur is not None:
+            d["ranges"] = {c: channel_range(cur.table, c) for c in cur.table.channels}
+            lay = self.layout()[0]
+            cfg = lay["config"]
+            d["runtime"] = {"tick_rate": cfg["tick_rate"], "audio_rate": cfg["audio_rate"], "model": self.model,
+                            "cursor_gain": float(self.session_device().cursor_gain)}
+        from .exports import formats
+        d["last_change"] = self.last_change
+        d["export_formats"] = formats()
+        return d
+
+    def session_device(self):
+        from ..runtime.renderer import device_for_table
+        return device_for_table(self.session.current.table)
+
+    def layout(self) -> tuple:
+        from .wasm import table_payload
+        cur = self.session.current
+        if self.layout_cache is None or self.layout_cache[0] != cur.generation:
+            from ..runtime.renderer import OUT_NAMES, device_for_table
+            lay, payload = table_payload(cur.table, self.model)
+            lay["generation"] = cur.generation
+            lay["out_names"] = list(OUT_NAMES)
+            lay["cursor_gain"] = float(device_for_table(cur.table).cursor_gain)
+            self.layout_cache = (cur.generation, lay, payload)
+        return self.layout_cache[1], self.layout_cache[2]
+
+    async def watch(self, stop: asyncio.Event) -> None:
+        """Recompile whenever a file under the source's folder changes (not the output folder)."""
+        from watchfiles import awatch
+        async for changes in awatch(self.session.root, stop_event=stop, step=20, debounce=400,
+                                    watch_filter=lambda _change, path: self.session.watch_filter(path)):
+            names = sorted({Path(p).name for _c, p in changes})
+            await self.recompile("changed: " + ", ".join(names))
+
+
+def build_app(session, token: str, hosts: set, origins: set, model: str = "exact", watch: bool = True):
+    """The ASGI app of a studio on ``session`` (wrapped in the security :class:`Gate`)."""
+    from contextlib import asynccontextmanager
+
+    from starlette.applications import Starlette
+    from starlette.responses import HTMLResponse, JSONResponse, PlainTextResponse, Response
+    from starlette.routing import Route, WebSocketRoute
+    from starlette.websockets import WebSocketDisconnect
+
+    studio = Studio(session, model)
+
+    def need_table():
+        if session.current is None:
+            msg = session.error.message if session.error else "nothing compiled yet"
+            raise InputError(f"no table: {msg}")
+        return session.current
+
+    def error_response(exc: ShapeDisplayError, status: int = 400):
+        return JSONResponse({"error": str(exc)}, status_code=status)
+
+    async def page(request):
+        html = (WEB / "index.html").read_text(encoding="utf-8")
+        html = html.replace("{{TOKEN}}", token).replace("{{SOURCE}}", _html_escape(session.source.name))
+        return HTMLResponse(html, headers={"Cache-Control": "no-store",
+                                           "Content-Security-Policy": "default-src 'self'; img-src 'self' blob: data:;"
+                                           " script-src 'self' 'wasm-unsafe-eval'; style-src 'self';"
+                                           " connect-src 'self' ws: wss:; media-src 'self' blob:"})
+
+    async def static(request):
+        name = request.path_params["name"]
+        if name not in STATIC:
+            return PlainTextResponse("not found", status_code=404)
+        return Response((WEB / name).read_bytes(), media_type=STATIC[name], headers={"Cache-Control": "no-store"})
+
+    async def state(request):
+        return JSONResponse(studio.state())
+
+    async def table(request):
+        try:
+            cur = need_table()
+        except ShapeDisplayError as exc:
+            return error_response(exc, 409)
+        return Response(cur.npz, media_type="application/octet-stream",
+                        headers={"Content-Disposition": f'attachment; filename="{session.source.stem}.npz"'})
+
+    async def runtime_wasm(request):
+        from .wasm import module_bytes
+        loop = asyncio.get_running_loop()
+        try:
+            data = await loop.run_in_executor(None, module_bytes)
+        except ShapeDisplayError as exc:
+            return error_response(exc, 500)
+        return Response(data, media_type="application/wasm")
+
+    async def runtime(request):
+        try:
+            need_table()
+            lay, payload = studio.layout()
+        except ShapeDisplayError as exc:
+            return error_response(exc, 409)
+        head = json.dumps(lay).encode()
+        return Response(struct.pack("<I", len(head)) + head + payload, media_type="application/octet-stream")
+
+    async def colour_map(request):
+        from .views import colour_map_png
+        channel = request.query_params.get("channel", "normal_force")
+        try:
+            cur = need_table()
+            png = colour_map_png(cur.table, channel)
+        except ShapeDisplayError as exc:
+            return error_response(exc, 400)
+        return Response(png, media_type="image/png", headers={"Cache-Control": "no-store"})
+
+    async def scene_get(request):
+        try:
+            return PlainTextResponse(session.source_text())
+        except ShapeDisplayError as exc:
+            return error_response(exc)
+
+    async def scene_put(request):
+        try:
+            text = (await _body(request)).decode("utf-8")
+            await asyncio.get_running_loop().run_in_executor(None, session.save_source_text, text)
+        except UnicodeDecodeError:
+            return JSONResponse({"error": "scene text must be UTF-8"}, status_code=400)
+        except ShapeDisplayError as exc:
+            return error_response(exc)
+        if not watch:
+            await studio.recompile("saved from the page")
+        return JSONResponse({"saved": session.source.name})
+
+    async def export(request):
+        from .exports import export_bytes
+        fmt = request.path_params["fmt"]
+        try:
+            cur = need_table()
+            name, data = await asyncio.get_running_loop().run_in_executor(
+                None, export_bytes, cur.table, fmt, session.out_dir, session.source.stem)
+        except ShapeDisplayError as exc:
+            return error_response(exc)
+        return Response(data, media_type="application/octet-stream",
+                        headers={"Content-Disposition": f'attachment; filename="{name}"'})
+
+    async def snapshot(request):
+        from .views import snapshot_png
+        try:
+            body = await _body(request)
+            cur = need_table()
+            req = json.loads(body or b"{}")
+            if not isinstance(req, dict):
+                raise InputError("snapshot request must be a JSON object")
+            channel = str(req.get("channel", "normal_force"))
+            stroke = req.get("stroke") if isinstance(req.get("stroke"), dict) else None
+            png = await asyncio.get_running_loop().run_in_executor(None, snapshot_png, cur.table, channel, stroke)
+        except (ShapeDisplayError, ValueError) as exc:
+            return JSONResponse({"error": str(exc)}, status_code=400)
+        return Response(png, media_type="image/png")
+
+    async def ws(websocket):
+        await websocket.accept()
+        studio.clients.add(websocket)
+        try:
+            await websocket.send_text(json.dumps({"type": "state", "state": studio.state()}))
+            while True:
+                await websocket.receive_text()         # the page only listens; keeps the socket open
+        except WebSocketDisconnect:
+            pass
+        finally:
+            studio.clients.discard(websocket)
+
+    @asynccontextmanager
+    async def lifespan(app):
+        await studio.recompile("start")
+        stop = asyncio.Event()
+        task = asyncio.create_task(studio.watch(stop)) if watch else None
+        try:
+            yield
+        finally:
+            stop.set()
+            if task is not None:
+                task.cancel()
+                try:
+                    await task
+                except (asyncio.CancelledError, Exception):
+                    pass
+
+    routes = [
+        Route("/", page), Route("/static/{name}", static), Route("/api/state", state), Route("/api/table", table),
+        Route("/api/runtime.wasm", runtime_wasm), Route("/api/runtime", runtime),
+        Route("/api/map.png", colour_map), Route("/api/scene", scene_get, methods=["GET"]),
+        Route("/api/scene", scene_put, methods=["PUT"]), Route("/api/export/{fmt}", export),
+        Route("/api/snapshot", snapshot, methods=["POST"]), WebSocketRoute("/ws", ws),
+    ]
+    app = Starlette(routes=routes, lifespan=lifespan)
+    app.state.studio = studio
+    return Gate(app, token, hosts, origins)
+
+
+async def _body(request) -> bytes:
+    size = int(request.headers.get("content-length") or 0)
+    if size > MAX_BODY:
+        raise InputError(f"request body must be at most {MAX_BODY} bytes (got {size})")
+    data = b""
+    async for chunk in request.stream():
+        data += chunk
+        if len(data) > MAX_BODY:
+            raise InputError(f"request body must be at most {MAX_BODY} bytes")
+    return data
+
+
+def _html_escape(text: str) -> str:
+    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;").replace('"', "&quot;")

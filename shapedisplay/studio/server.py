@@ -1,0 +1,85 @@
+"""Start and stop a studio: the socket, the token, the printed URL and Uvicorn."""
+from __future__ import annotations
+
+import ipaddress
+import secrets
+import socket
+import sys
+from pathlib import Path
+
+from ..errors import InputError, require
+
+LOOPBACK = "127.0.0.1"
+
+
+def check_host(host: str, allow_remote: bool) -> str:
+    """The address to bind: loopback always; anything else only with ``allow_remote``."""
+    try:
+        addr = ipaddress.ip_address(host)
+    except ValueError:
+        raise InputError(f"`--host` must be an IP address, e.g. 127.0.0.1 (got {host!r})") from None
+    if not addr.is_loopback and not allow_remote:
+        raise InputError(f"`--host` {host} is not a loopback address: the studio then serves your files and "
+                         "drives your sound output for anyone who can reach it and has the URL; "
+                         "add --allow-remote to do it anyway")
+    return str(addr)
+
+
+def serve(source, device=None, port: int = 8765, host: str = LOOPBACK, allow_remote: bool = False,
+          open_browser: bool = True, out_dir=None, source_options=None, model: str = "exact",
+          out=sys.stdout, err=sys.stderr) -> None:
+    """Serve the studio on ``host:port`` until interrupted (Ctrl-C).
+
+    Prints one line with the URL (``http://HOST:PORT/?token=TOKEN``) once the
+    socket listens; ``port=0`` picks a free port.
+    """
+    require("starlette", "studio", "the studio")
+    uvicorn = require("uvicorn", "studio", "the studio")
+    require("watchfiles", "studio", "the studio")
+    from .app import build_app
+    from .session import Session
+
+    host = check_host(host, allow_remote)
+    session = Session(Path(source), device=device, out_dir=out_dir, source_options=source_options or {})
+    if not (isinstance(port, int) and 0 <= port <= 65535):
+        raise InputError(f"`--port` must be 0..65535 (got {port!r})")
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((host, port))
+    except OSError as exc:
+        sock.close()
+        raise InputError(f"`--port` {port}: cannot listen on {host}:{port} ({exc.strerror or exc}); "
+                         "choose another port or --port 0 for a free one") from None
+    sock.listen(128)
+    sock.set_inheritable(True)
+    port = sock.getsockname()[1]
+    token = secrets.token_urlsafe(24)
+    shown = f"[{host}]" if family == socket.AF_INET6 else host
+    hosts = {f"{shown}:{port}", f"localhost:{port}"}
+    if addr_is_loopback(host):
+        hosts.add(f"127.0.0.1:{port}")
+    origins = {f"http://{h}" for h in hosts}
+    app = build_app(session, token, hosts, origins, model=model)
+    url = f"http://{shown}:{port}/?token={token}"
+    if not addr_is_loopback(host):
+        print(f"shapedisplay studio: warning: serving on {host}, not only this computer: anyone who can reach "
+              f"{host}:{port} and has the token can read the files under {session.root} and edit the scene",
+              file=err)
+    print(f"shapedisplay studio: {session.source.name} ({session.kind}) at {url}", file=out, flush=True)
+    print(f"shapedisplay studio: output folder {session.out_dir}; Ctrl-C stops", file=out, flush=True)
+    if open_browser:
+        import webbrowser
+        webbrowser.open(url)
+    config = uvicorn.Config(app, log_level="warning", lifespan="on", ws="websockets-sansio")
+    server = uvicorn.Server(config)
+    try:
+        server.run(sockets=[sock])
+    finally:
+        sock.close()
+    print("shapedisplay studio: stopped", file=out, flush=True)
+
+
+def addr_is_loopback(host: str) -> bool:
+    return ipaddress.ip_address(host).is_loopback

@@ -1,0 +1,243 @@
+"""The studio's model: one source file, compiled into the table the page plays.
+
+A :class:`Session` owns the source (a scene, an image, a mesh or a table), the
+last good compile (table, report, generation number) and the last error.
+Compiling again never loses the last good table: a scene with an error keeps
+the previous table playing and records the error with the line it points at.
+
+Files: the session reads only under the source's folder (a scene's image
+widgets and a device profile given as a path must lie there too) and writes
+only the scene text the page saves and files under the output folder.
+"""
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import FileFormatError, InputError, ShapeDisplayError
+from ..sources import IMAGE_SUFFIXES, MESH_SUFFIXES
+
+#: Source kinds by suffix.
+SCENE_SUFFIXES = (".toml",)
+TABLE_SUFFIXES = (".npz",)
+#: Largest scene text the page may save, bytes.
+MAX_SCENE_BYTES = 1 << 20
+
+
+def source_kind(path: Path) -> str:
+    """'scene', 'image', 'mesh' or 'table' from the suffix of ``path``."""
+    suffix = path.suffix.lower()
+    for kind, suffixes in (("scene", SCENE_SUFFIXES), ("image", IMAGE_SUFFIXES), ("mesh", MESH_SUFFIXES),
+                           ("table", TABLE_SUFFIXES)):
+        if suffix in suffixes:
+            return kind
+    raise InputError(f"studio source '{path}' must be a scene (.toml), an image ({', '.join(IMAGE_SUFFIXES)}), "
+                     f"a mesh ({', '.join(MESH_SUFFIXES)}) or a table (.npz) (got suffix {suffix!r})")
+
+
+def inside(path: Path, root: Path) -> bool:
+    """True if ``path`` (resolved, symlinks followed) lies under the folder ``root``."""
+    try:
+        Path(path).resolve().relative_to(root)
+        return True
+    except ValueError:
+        return False
+
+
+@dataclass
+class Compiled:
+    """One good compile: the table, its report, the ``.npz`` bytes and a generation number."""
+
+    table: object
+    report: dict
+    report_text: str
+    npz: bytes
+    generation: int
+    seconds: float               # wall time of the compile
+
+
+@dataclass
+class SourceError:
+    """The last failed compile: message, the line it points at (scene text) and when."""
+
+    message: str
+    line: int | None
+    generation: int
+
+
+@dataclass
+class Session:
+    """A studio session on one source file.
+
+    Parameters
+    ----------
+    source : Path
+        Scene (.toml), image, mesh or table (.npz).
+    device : str or None
+        Device profile (bundled name or a TOML under the source's folder);
+        None keeps the scene's or the table's own.
+    out_dir : Path
+        The only folder (besides the scene file itself) the studio writes to.
+    source_options : dict
+        Options of an image or mesh source (as :func:`shapedisplay.sources.load_source` takes).
+    """
+
+    source: Path
+    device: str | None = None
+    out_dir: Path | None = None
+    source_options: dict = field(default_factory=dict)
+    current: Compiled | None = None
+    error: SourceError | None = None
+    generation: int = 0
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    def __post_init__(self):
+        src = Path(self.source)
+        if not src.is_file():
+            raise FileFormatError(f"studio source '{src}': no such file")
+        self.kind = source_kind(src)
+        self.source = src.resolve()
+        self.root = self.source.parent
+        if self.device is not None and _looks_like_path(self.device):
+            dev = Path(self.device)
+            dev = dev if dev.is_absolute() else Path.cwd() / dev
+            if not inside(dev, self.root):
+                raise InputError(f"`--device` '{self.device}' lies outside the source's folder '{self.root}'; "
+                                 "the studio reads only under that folder (copy the profile there)")
+        out = Path(self.out_dir) if self.out_dir is not None else self.root / "studio-out"
+        self.out_dir = out.resolve()
+
+    # -------------------------------------------------------------- reading
+    def source_text(self) -> str:
+        """The scene text (scenes only)."""
+        if self.kind != "scene":
+            raise InputError(f"studio source '{self.source.name}' is a {self.kind}, not a scene: no text to edit")
+        return self.source.read_text(encoding="utf-8")
+
+    def save_source_text(self, text: str) -> None:
+        """Replace the scene text atomically (the page's editor); the file watcher recompiles."""
+        from ..atomic import write_text
+        if self.kind != "scene":
+            raise InputError(f"studio source '{self.source.name}' is a {self.kind}, not a scene: cannot save text")
+        data = text.encode("utf-8")
+        if len(data) > MAX_SCENE_BYTES:
+            raise InputError(f"scene text must be at most {MAX_SCENE_BYTES} bytes (got {len(data)})")
+        write_text(self.source, text)
+
+    def _check_scene_reads(self, text: str) -> None:
+        """Refuse a scene that would read a file outside the source's folder."""
+        from ..scene.spec import tomllib
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError:
+            return                      # the compiler reports the syntax error with its line
+        refs = []
+        dev = data.get("device")
+        if isinstance(dev, dict) and isinstance(dev.get("profile"), str) and _looks_like_path(dev["profile"]):
+            refs.append(("device.profile", dev["profile"]))
+        widgets = data.get("widget")
+        for i, w in enumerate(widgets if isinstance(widgets, list) else []):
+            if isinstance(w, dict) and isinstance(w.get("file"), str):
+                refs.append((f"widget[{i}].file", w["file"]))
+        for name, ref in refs:
+            p = Path(ref)
+            if not inside(p if p.is_absolute() else self.root / p, self.root):
+                where = f"widget[{name[7:name.index(']')]}] " if name.startswith("widget[") else ""
+                raise InputError(f"scene '{self.source}': {where}`{name}` = '{ref}' lies outside the scene's folder "
+                                 f"'{self.root}'; the studio reads only under that folder")
+
+    # -------------------------------------------------------------- compiling
+    def compile(self) -> bool:
+        """Compile the source again. True if a new table replaced the current one.
+
+        On an error the current table stays; :attr:`error` holds the message and line.
+        """
+        with self._lock:
+            self.generation += 1
+            gen = self.generation
+            t0 = time.perf_counter()
+            text = None
+            try:
+                table, report, report_text = self._compile_source()
+            except ShapeDisplayError as exc:
+                message = str(exc)
+                line = None
+                if self.kind == "scene":
+                    from .lines import error_line
+                    try:
+                        text = self.source.read_text(encoding="utf-8")
+                        line = error_line(text, message)
+                    except (OSError, UnicodeDecodeError):
+                        pass
+                self.error = SourceError(message, line, gen)
+                return False
+            self.current = Compiled(table, report, report_text, table.to_bytes(), gen, time.perf_counter() - t0)
+            self.error = None
+            return True
+
+    def _compile_source(self):
+        from ..compile import compile_heightfield, format_report
+        from ..devices import load_device
+        if self.kind == "table":
+            from ..table import FrictionTable
+            table = FrictionTable.load(self.source)
+            report = table.meta.get("report") or {}
+            return table, report, (format_report(report) if report.get("grid") else "")
+        if self.kind == "scene":
+            from ..scene import compile_scene, format_widget_report
+            try:
+                text = self.source.read_text(encoding="utf-8")
+            except (OSError, UnicodeDecodeError) as exc:
+                raise FileFormatError(f"scene '{self.source}': unreadable ({exc})") from None
+            self._check_scene_reads(text)
+            device = load_device(self.device) if self.device else None
+            result = compile_scene(self.source, device=device)
+            report_text = format_report(result.report) + "\n" + format_widget_report(result.report)
+            return result.table, result.report, report_text
+        from ..sources import load_source
+        hf = load_source(self.source, **self.source_options)
+        result = compile_heightfield(hf, load_device(self.device))
+        return result.table, result.report, format_report(result.report)
+
+    # -------------------------------------------------------------- page state
+    def state(self) -> dict:
+        """What the page shows: generation, table summary, report, widgets, error."""
+        cur = self.current
+        d = {"source": self.source.name, "kind": self.kind, "generation": self.generation,
+             "table_generation": cur.generation if cur else None, "error": None}
+        if self.error is not None:
+            d["error"] = {"message": self.error.message, "line": self.error.line,
+                          "generation": self.error.generation}
+        if cur is not None:
+            t = cur.table
+            g = t.grid
+            d.update({
+                "grid": {"rows": g.rows, "cols": g.cols, "dx": g.dx, "dy": g.dy, "x0": g.x0, "y0": g.y0},
+                "channels": t.channels,
+                "widgets": (t.meta.get("scene") or {}).get("widgets", []),
+                "report": cur.report_text,
+                "compile_seconds": cur.seconds,
+                "checksum": t.checksum(),
+            })
+        return d
+
+    def watch_filter(self, path: str) -> bool:
+        """True for a changed file that may change the compile (under the root, not in the output folder)."""
+        p = Path(path)
+        name = p.name
+        if name.startswith(".") or name.endswith((".part", "~")) or ".part." in name:
+            return False
+        try:
+            p.resolve().relative_to(self.out_dir)
+            return False
+        except ValueError:
+            pass
+        return inside(p, self.root)
+
+
+def _looks_like_path(value: str) -> bool:
+    return "/" in value or "\\" in value or value.lower().endswith(".toml")
+
+

@@ -1,0 +1,70 @@
+"""Pictures the studio page shows: the top-view colour map of a channel and the 3D snapshot.
+
+The top view is drawn the same way up as the 3D preview: x to the right, y up
+the screen (table row 0, at y0, is the bottom line of the picture). One
+picture pixel per table sample; the page scales it.
+"""
+from __future__ import annotations
+
+import io
+
+import numpy as np
+
+#: Viridis at 16 evenly spaced points (the preview's default colour map), 8-bit RGB.
+VIRIDIS = np.array([(68, 1, 84), (72, 26, 108), (71, 47, 125), (65, 68, 135), (57, 86, 140), (49, 104, 142),
+                    (42, 120, 142), (35, 136, 142), (31, 152, 139), (34, 168, 132), (53, 183, 121),
+                    (84, 197, 104), (122, 209, 81), (165, 219, 54), (210, 226, 27), (253, 231, 37)],
+                   dtype=np.float64)
+#: Rows of the picture of a 1-D table (one row stretched so that it can be seen and hovered).
+ROWS_1D = 24
+
+
+def channel_range(table, channel: str) -> tuple[float, float]:
+    """(min, max) of a channel over the canvas, SI units."""
+    values = table.dense(channel)
+    return float(values.min()), float(values.max())
+
+
+def colour_map_png(table, channel: str) -> bytes:
+    """PNG (RGB) of ``channel`` over the canvas, viridis from its min to its max, y up."""
+    from PIL import Image
+    table.require(channel)
+    values = table.dense(channel)
+    lo, hi = channel_range(table, channel)
+    u = (values - lo) / (hi - lo) if hi > lo else np.zeros_like(values)
+    pos = np.clip(u, 0.0, 1.0) * (len(VIRIDIS) - 1)
+    i0 = np.minimum(np.floor(pos).astype(np.int64), len(VIRIDIS) - 2)
+    w = (pos - i0)[..., None]
+    rgb = VIRIDIS[i0] * (1.0 - w) + VIRIDIS[i0 + 1] * w
+    img = np.ascontiguousarray(np.round(rgb[::-1]).astype(np.uint8))      # y up: last row on top
+    if img.shape[0] == 1:
+        img = np.repeat(img, ROWS_1D, axis=0)
+    buf = io.BytesIO()
+    Image.fromarray(img, "RGB").save(buf, format="PNG")
+    return buf.getvalue()
+
+
+def snapshot_png(table, channel: str = "normal_force", stroke: dict | None = None,
+                 size: str = "1200x800") -> bytes:
+    """The 3D preview of ``table`` (off-screen, as ``shapedisplay preview -o``), with the last stroke.
+
+    ``stroke`` holds the page's recording: per-tick arrays ``t, x, y,
+    normal_force, friction_force, state`` (s, m, N) and the events
+    ``event_time, event_amplitude``.
+    """
+    from PIL import Image
+
+    from .. import viewer
+    model = viewer.model_from_table(table)
+    trace = None
+    if stroke:
+        trace = viewer.Trace(**{k: np.asarray(stroke.get(k, []), dtype=np.float64)
+                                for k in viewer.TRACE_ARRAYS}, table_checksum=table.checksum(), source="studio")
+    preview = viewer.render(model, channel, trace=trace, size=size, off_screen=True)
+    try:
+        img = preview.screenshot()
+    finally:
+        preview.close()
+    buf = io.BytesIO()
+    Image.fromarray(img).save(buf, format="PNG")
+    return buf.getvalue()

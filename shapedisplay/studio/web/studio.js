@@ -1,0 +1,502 @@
+// The studio page. It draws the top view the server renders, reads values with the C runtime
+// (WebAssembly, a second instance on this thread), plays the table with the C runtime in an
+// AudioWorklet, edits the scene, charts and records strokes. No renderer is written here.
+"use strict";
+
+const token = document.body.dataset.token;
+const withToken = (p) => p + (p.includes("?") ? "&" : "?") + "token=" + encodeURIComponent(token);
+const $ = (id) => document.getElementById(id);
+const now = () => performance.timeOrigin + performance.now();     // epoch ms
+
+const UNITS = {normal_force: "N", breakaway_force: "N", kinetic_force: "N", friction_scale: "", burst_gain: "",
+               grad_x: "", grad_y: "", lateral_x: "N", lateral_y: "N", skin_stretch: "m"};
+
+const studio = window.studio = {
+  state: null, module: null, hover: null, layout: null, payload: null, tableGeneration: null,
+  ctx: null, node: null, lastStroke: null, lastPointer: [], swaps: [], pending: null, dirty: false,
+  errorLine: null, readoutValues: {}, hoverPos: null,
+};
+
+// ------------------------------------------------------------------ server
+async function fetchOk(path, init) {
+  const r = await fetch(withToken(path), init);
+  if (!r.ok) throw new Error(`${path}: ${r.status} ${await r.text()}`);
+  return r;
+}
+
+async function loadModule() {
+  if (!studio.module) {
+    const bytes = await (await fetchOk("/api/runtime.wasm")).arrayBuffer();
+    studio.module = await WebAssembly.compile(bytes);
+    studio.hover = (await WebAssembly.instantiate(studio.module, {})).exports;
+  }
+  return studio.module;
+}
+
+async function fetchRuntime() {
+  const buf = await (await fetchOk("/api/runtime")).arrayBuffer();
+  const n = new DataView(buf).getUint32(0, true);
+  const layout = JSON.parse(new TextDecoder().decode(new Uint8Array(buf, 4, n)));
+  return {layout, payload: buf.slice(4 + n)};
+}
+
+// Bind the table to the read-out instance (the same lookup the renderer uses).
+function bindHover(layout, payload) {
+  const w = studio.hover;
+  const base = w.sdw_reserve(layout.bytes);
+  new Uint8Array(w.memory.buffer, base, layout.bytes).set(new Uint8Array(payload));
+  const g = layout.grid;
+  w.sdw_table(g.rows, g.cols, g.dx, g.dy, g.x0, g.y0, layout.n_blocks, base + layout.blocks_offset);
+  for (const c of layout.channels) w.sdw_channel(c.slot, base + c.offset, c.dtype, c.scale, c.value_offset,
+                                                 c.background);
+}
+
+// Every stored channel at (x, y) metres, by the C runtime's bilinear lookup.
+studio.readout = function (x, y) {
+  const w = studio.hover, lay = studio.layout;
+  const p = w.sdw_sample(x, y);
+  const v = new Float64Array(w.memory.buffer, p, w.sdw_n_slots());
+  const out = {};
+  for (const c of lay.channels) out[c.name] = v[c.slot];
+  return out;
+};
+
+// ------------------------------------------------------------------ geometry
+// Picture pixel (u, v) in [0, 1] from the top-left -> table position (m); y up, pixel centres
+// on the samples.
+function toTable(u, v) {
+  const g = studio.layout.grid;
+  const x = g.x0 + (u * g.cols - 0.5) * g.dx;
+  const y = g.rows === 1 ? g.y0 : g.y0 + ((1 - v) * g.rows - 0.5) * g.dy;
+  return [x, y];
+}
+function toPicture(x, y) {           // -> (u, v)
+  const g = studio.layout.grid;
+  const u = ((x - g.x0) / g.dx + 0.5) / g.cols;
+  const v = g.rows === 1 ? 0.5 : 1 - ((y - g.y0) / g.dy + 0.5) / g.rows;
+  return [u, v];
+}
+function eventPos(e) {
+  const r = $("map").getBoundingClientRect();
+  const u = (e.clientX - r.left - 1) / (r.width - 2), v = (e.clientY - r.top - 1) / (r.height - 2);
+  return toTable(Math.min(Math.max(u, 0), 1), Math.min(Math.max(v, 0), 1));
+}
+// Screen pixel of a table position, relative to the overlay (for tests and drawing).
+studio.screenOf = function (x, y) {
+  const r = $("map").getBoundingClientRect();
+  const [u, v] = toPicture(x, y);
+  return [r.left + 1 + u * (r.width - 2), r.top + 1 + v * (r.height - 2)];
+};
+
+function mapSize() {
+  const g = studio.layout.grid;
+  const rows = g.rows === 1 ? 24 : g.rows;
+  const maxW = 460, maxH = Math.max(window.innerHeight - 170, 300);
+  const widthMm = g.cols * g.dx, heightMm = g.rows === 1 ? widthMm / 10 : g.rows * g.dy;
+  const s = Math.min(maxW / widthMm, maxH / heightMm);
+  return [Math.round(widthMm * s), Math.round(heightMm * s), rows];
+}
+
+function drawOverlay() {
+  const cv = $("overlay"), img = $("map");
+  const w = img.clientWidth - 2, h = img.clientHeight - 2;
+  cv.width = w; cv.height = h;
+  const c = cv.getContext("2d");
+  c.clearRect(0, 0, w, h);
+  c.font = "11px system-ui";
+  for (const wd of (studio.state.widgets || [])) {
+    const [x0, y0, x1, y1] = wd.bbox_m;
+    const [ua, va] = toPicture(x0, y1), [ub, vb] = toPicture(x1, y0);
+    c.strokeStyle = "rgba(255,255,255,0.85)";
+    c.lineWidth = 1;
+    c.strokeRect(ua * w, va * h, (ub - ua) * w, (vb - va) * h);
+    c.fillStyle = "#fff";
+    c.fillText(wd.id, ua * w + 2, va * h + 11);
+  }
+  const s = studio.lastStroke;
+  if (s && s.ticks > 1) {
+    c.strokeStyle = "#ff4d6d";
+    c.lineWidth = 2;
+    c.beginPath();
+    const step = Math.max(1, Math.floor(s.ticks / 2000));
+    for (let i = 0; i < s.ticks; i += step) {
+      const [u, v] = toPicture(s.x[i], s.y[i]);
+      if (i === 0) c.moveTo(u * w, v * h); else c.lineTo(u * w, v * h);
+    }
+    c.stroke();
+  }
+}
+
+// ------------------------------------------------------------------ state + table swap
+async function showState(st) {
+  studio.state = st;
+  $("report").textContent = st.report || "";
+  showError(st.error);
+  if (st.table_generation !== null && st.table_generation !== studio.tableGeneration) {
+    await swapTable(st);
+  }
+  if (!studio.dirty && st.kind === "scene") {
+    const text = await (await fetchOk("/api/scene")).text();
+    if (!studio.dirty && text !== $("text").value) { $("text").value = text; gutter(); }
+  }
+  markErrorLine();
+}
+
+async function swapTable(st) {
+  const t0 = now();
+  const gen = st.table_generation;
+  studio.tableGeneration = gen;
+  await loadModule();
+  const {layout, payload} = await fetchRuntime();
+  studio.layout = layout; studio.payload = payload;
+  bindHover(layout, payload);
+  const swap = {generation: gen, t_message: t0, t_view: null, t_playing: null, t_changed: st.last_change};
+  studio.swaps.push(swap);
+  const playing = studio.node ? postTable(studio.node, layout, payload) : Promise.resolve(null);
+  fillChannels(st);
+  const viewed = showMap();
+  await Promise.all([viewed.then(() => { swap.t_view = now(); }),
+                     playing.then(() => { swap.t_playing = studio.node ? now() : null; })]);
+  $("status").textContent = `table ${gen} · compiled in ${(st.compile_seconds * 1e3).toFixed(0)} ms`;
+}
+
+function fillChannels(st) {
+  const sel = $("channel");
+  const keep = sel.value || "normal_force";
+  sel.innerHTML = "";
+  for (const c of st.channels) {
+    const o = document.createElement("option");
+    o.value = c; o.textContent = c === "normal_force" ? "N (normal_force)" : c;
+    sel.appendChild(o);
+  }
+  sel.value = st.channels.includes(keep) ? keep : st.channels[0];
+  const tb = $("readout").tBodies[0];
+  tb.innerHTML = "";
+  for (const c of st.channels) {
+    const tr = document.createElement("tr");
+    tr.innerHTML = `<td>${c}</td><td class="v" data-channel="${c}">–</td>`;
+    tb.appendChild(tr);
+  }
+}
+
+function showMap() {
+  const st = studio.state, ch = $("channel").value;
+  const [w, h] = mapSize();
+  const img = $("map");
+  img.style.width = w + "px"; img.style.height = h + "px";
+  const [lo, hi] = st.ranges[ch];
+  const unit = UNITS[ch] || "";
+  $("scale-lo").textContent = `${lo.toPrecision(3)} ${unit}`;
+  $("scale-hi").textContent = `${hi.toPrecision(3)} ${unit}`;
+  return new Promise((resolve) => {
+    img.onload = () => { drawOverlay(); resolve(); };
+    img.onerror = () => resolve();
+    img.src = withToken(`/api/map.png?channel=${encodeURIComponent(ch)}&g=${studio.tableGeneration}`);
+  });
+}
+
+function showError(err) {
+  const box = $("error");
+  studio.errorLine = err ? err.line : null;
+  if (!err) { box.hidden = true; return; }
+  box.hidden = false;
+  $("error-where").textContent = err.line ? `line ${err.line}` : "";
+  $("error-where").dataset.line = err.line || "";
+  $("error-text").textContent = err.message + (studio.tableGeneration !== null ? " (the last good table keeps playing)" : "");
+}
+
+// ------------------------------------------------------------------ editor
+function gutter() {
+  const n = $("text").value.split("\n").length;
+  let s = "";
+  for (let i = 1; i <= n; i++) s += `<span data-line="${i}">${i}</span>\n`;
+  $("gutter").innerHTML = s;
+  markErrorLine();
+}
+function markErrorLine() {
+  for (const el of $("gutter").querySelectorAll(".error-line")) el.classList.remove("error-line");
+  if (studio.errorLine) {
+    const el = $("gutter").querySelector(`[data-line="${studio.errorLine}"]`);
+    if (el) {
+      el.classList.add("error-line");
+      const ta = $("text"), top = (studio.errorLine - 1) * 16;
+      if (top < ta.scrollTop || top > ta.scrollTop + ta.clientHeight - 32) ta.scrollTop = Math.max(0, top - 64);
+    }
+  }
+  $("gutter").scrollTop = $("text").scrollTop;
+}
+async function save() {
+  const r = await fetch(withToken("/api/scene"), {method: "PUT", body: $("text").value});
+  if (r.ok) { studio.dirty = false; $("status").textContent = "saved; compiling…"; }
+  else $("status").textContent = "save failed: " + (await r.text());
+}
+
+// ------------------------------------------------------------------ audio (the C runtime in a worklet)
+function postTable(node, layout, payload) {
+  return new Promise((resolve) => {
+    const done = (e) => {
+      if (e.data.type === "table-ready" && e.data.generation === layout.generation) {
+        node.port.removeEventListener("message", done);
+        resolve(e.data);
+      }
+    };
+    node.port.addEventListener("message", done);
+    node.port.postMessage({type: "table", layout, payload: payload.slice(0)});
+  });
+}
+
+async function makeNode(ctx, extra) {
+  await ctx.audioWorklet.addModule(withToken("/static/worklet.js"));
+  const node = new AudioWorkletNode(ctx, "sd-renderer", {numberOfInputs: 0, outputChannelCount: [ctx.destination.channelCount >= 2 ? 2 : 1],
+                                                       processorOptions: Object.assign({delay: 0.02}, extra || {})});
+  node.port.start();
+  const ready = new Promise((resolve) => {
+    const h = (e) => { if (e.data.type === "module-ready") { node.port.removeEventListener("message", h); resolve(); } };
+    node.port.addEventListener("message", h);
+  });
+  node.port.postMessage({type: "module", module: studio.module});
+  await ready;
+  await postTable(node, studio.layout, studio.payload);
+  node.connect(ctx.destination);
+  return node;
+}
+
+async function startFeel() {
+  if (studio.ctx) { await studio.ctx.resume(); return; }
+  await loadModule();
+  const rate = studio.layout.config.audio_rate;
+  studio.ctx = new AudioContext({sampleRate: rate, latencyHint: "interactive"});
+  studio.node = await makeNode(studio.ctx);
+  studio.node.port.addEventListener("message", onWorklet);
+  studio.node.port.postMessage({type: "mode", mode: $("mode").value});
+  await studio.ctx.resume();
+  $("feel").textContent = "Feel on";
+  $("feel").disabled = true;
+  studio.latency = {base: studio.ctx.baseLatency, output: studio.ctx.outputLatency || 0};
+  $("status").textContent = `audio ${rate} Hz · latency ${(1e3 * (studio.latency.base + studio.latency.output)).toFixed(1)} ms + 20 ms input delay`;
+}
+
+function onWorklet(e) {
+  const m = e.data;
+  if (m.type === "meter") {
+    $("lamp").classList.toggle("slip", m.touching && m.state === 1);
+    $("meter-n").textContent = m.touching ? m.n.toFixed(2) : "–";
+    $("meter-f").textContent = m.touching ? m.f.toFixed(3) : "–";
+    $("meter-ev").textContent = m.events;
+  } else if (m.type === "stroke") {
+    if (m.ticks > 0) showStroke(m);
+  }
+}
+
+function ctxTime(ts) {
+  const ctx = studio.ctx;
+  const o = ctx.getOutputTimestamp ? ctx.getOutputTimestamp() : null;
+  if (o && o.performanceTime) return o.contextTime + (ts - o.performanceTime) / 1000;
+  return ctx.currentTime;
+}
+
+// Pointer -> worklet. Direct mode: positions. Stick mode: drag displacement -> force.
+const STICK_N_PER_MM = 0.05;       // pointing-stick force per mm of drag on the screen
+let down = null, pressed = false;
+function pointer(kind, e) {
+  const [x, y] = eventPos(e);
+  if (kind === "down") pressed = true;
+  if (pressed) studio.lastPointer.push({kind, t: e.timeStamp, x, y});
+  if (kind === "up") pressed = false;
+  if (!studio.node || !studio.ctx) return;
+  const t = ctxTime(e.timeStamp);
+  if ($("mode").value === "stick") {
+    if (kind === "down") down = {x, y};
+    const fx = kind === "up" ? 0 : (x - down.x) * 1e3 * STICK_N_PER_MM, fy = kind === "up" ? 0 : (y - down.y) * 1e3 * STICK_N_PER_MM;
+    studio.node.port.postMessage({type: "cursor", kind, t, x: fx, y: fy, px: down.x, py: down.y});
+  } else {
+    studio.node.port.postMessage({type: "cursor", kind, t, x, y});
+  }
+  if (kind === "up") down = null;
+}
+
+function hover(e) {
+  if (!studio.layout) return;
+  const [x, y] = eventPos(e);
+  const vals = studio.readout(x, y);
+  studio.readoutValues = vals; studio.hoverPos = [x, y];
+  $("hover-pos").textContent = `x ${(x * 1e3).toFixed(2)} mm, y ${(y * 1e3).toFixed(2)} mm`;
+  $("hover-pos").dataset.x = x; $("hover-pos").dataset.y = y;
+  for (const td of $("readout").querySelectorAll("td.v")) {
+    const c = td.dataset.channel, v = vals[c];
+    td.textContent = `${v.toPrecision(4)} ${UNITS[c] || ""}`;
+    td.dataset.value = v;
+  }
+}
+
+// ------------------------------------------------------------------ strokes: chart, record, replay
+function showStroke(s) {
+  studio.lastStroke = s;
+  drawChart(s);
+  drawOverlay();
+  $("dl-csv").disabled = false; $("dl-wav").disabled = false;
+  const dur = s.ticks / s.tickRate;
+  $("stroke-info").textContent = `${s.ticks} ticks (${dur.toFixed(3)} s) at ${s.tickRate} Hz, ` +
+    `${s.event_time.length} stick-slip events, ${s.audio.length} audio samples` +
+    (s.clipped ? `, ${s.clipped} clipped` : "") + (s.lost ? `, ${s.lost} ticks beyond the recording limit` : "");
+}
+
+function drawChart(s) {
+  const cv = $("chart"), c = cv.getContext("2d");
+  const W = cv.width, H = cv.height, pad = 34, h1 = (H - 30) * 0.62, h2 = (H - 30) - h1;
+  c.clearRect(0, 0, W, H);
+  c.font = "11px system-ui";
+  const n = s.ticks, t0 = s.t[0], t1 = s.t[n - 1] || 1e-9;
+  const X = (t) => pad + (W - pad - 8) * (t - t0) / Math.max(t1 - t0, 1e-9);
+  let fmax = 0;
+  for (let i = 0; i < n; i++) fmax = Math.max(fmax, s.normal_force[i], s.friction_force[i]);
+  fmax = fmax > 0 ? fmax * 1.1 : 1;
+  const Y1 = (v) => 8 + h1 * (1 - v / fmax);
+  c.fillStyle = "rgba(242,140,40,0.15)";         // slip shading
+  for (let i = 0; i < n; i++) if (s.state[i] === 1) c.fillRect(X(s.t[i]), 8, Math.max(1, X(s.t[Math.min(i + 1, n - 1)]) - X(s.t[i])), h1);
+  const line = (arr, colour, Y) => {
+    c.strokeStyle = colour; c.lineWidth = 1.2; c.beginPath();
+    const step = Math.max(1, Math.floor(n / (2 * W)));
+    for (let i = 0; i < n; i += step) { const px = X(s.t[i]), py = Y(arr[i]); if (i === 0) c.moveTo(px, py); else c.lineTo(px, py); }
+    c.stroke();
+  };
+  line(s.normal_force, "#3b528b", Y1);
+  line(s.friction_force, "#e63946", Y1);
+  c.fillStyle = "#333";
+  c.fillText(`${fmax.toFixed(2)} N`, 2, 14);
+  c.fillText("0", 20, 8 + h1);
+  c.fillStyle = "#3b528b"; c.fillText("N", W - 90, 16);
+  c.fillStyle = "#e63946"; c.fillText("friction", W - 70, 16);
+  // bursts: the drive per tick, and a tick mark per stick-slip event
+  const y2 = 8 + h1 + 14, mid = y2 + h2 / 2;
+  const Y2 = (v) => mid - v * h2 / 2;
+  line(s.drive, "#21918c", Y2);
+  c.strokeStyle = "#f28c28";
+  for (const te of s.event_time) { const px = X(te); c.beginPath(); c.moveTo(px, y2 + h2 - 6); c.lineTo(px, y2 + h2); c.stroke(); }
+  c.fillStyle = "#21918c"; c.fillText("burst drive", W - 90, y2 + 10);
+  c.fillStyle = "#333"; c.fillText(`${(t1 - t0).toFixed(3)} s`, W - 50, H - 2); c.fillText("0", pad, H - 2);
+}
+
+// The recorded cursor trace: one row per tick, as `shapedisplay play --trace` reads it.
+studio.traceCSV = function (s) {
+  s = s || studio.lastStroke;
+  const rows = [`# shapedisplay studio stroke: ${s.ticks} ticks at ${s.tickRate} Hz, table ${s.generation}`,
+                `# replay: shapedisplay play TABLE --trace stroke.csv --rate ${s.tickRate}Hz -o stroke.wav`, "t,x_m,y_m"];
+  for (let i = 0; i < s.ticks; i++) rows.push(`${s.t[i]},${s.x[i]},${s.y[i]}`);
+  return rows.join("\n") + "\n";
+};
+
+function wavBytes(samples, rate) {        // 32-bit float mono WAV
+  const n = samples.length, buf = new ArrayBuffer(44 + 4 * n), d = new DataView(buf);
+  const str = (o, s) => { for (let i = 0; i < s.length; i++) d.setUint8(o + i, s.charCodeAt(i)); };
+  str(0, "RIFF"); d.setUint32(4, 36 + 4 * n, true); str(8, "WAVE"); str(12, "fmt ");
+  d.setUint32(16, 16, true); d.setUint16(20, 3, true); d.setUint16(22, 1, true); d.setUint32(24, rate, true);
+  d.setUint32(28, rate * 4, true); d.setUint16(32, 4, true); d.setUint16(34, 32, true);
+  str(36, "data"); d.setUint32(40, 4 * n, true);
+  new Float32Array(buf, 44).set(samples);
+  return buf;
+}
+studio.wav = () => wavBytes(studio.lastStroke.audio, studio.layout.config.audio_rate);
+
+function download(name, data, type) {
+  const a = document.createElement("a");
+  a.href = URL.createObjectURL(new Blob([data], {type}));
+  a.download = name;
+  document.body.appendChild(a); a.click(); a.remove();
+  setTimeout(() => URL.revokeObjectURL(a.href), 1000);
+}
+
+// Render a stroke given per tick (x, y arrays, metres) through an OfflineAudioContext: the
+// same worklet and WebAssembly runtime as the live output, faster than real time.
+studio.renderOffline = async function (xs, ys) {
+  await loadModule();
+  const rate = studio.layout.config.audio_rate, tickRate = studio.layout.config.tick_rate;
+  const length = Math.ceil(xs.length * rate / tickRate) + 1024;
+  const ctx = new OfflineAudioContext({numberOfChannels: 1, length, sampleRate: rate});
+  const node = await makeNode(ctx);
+  const stroke = new Promise((resolve) => node.port.addEventListener("message", (e) => {
+    if (e.data.type === "stroke") resolve(e.data);
+  }));
+  node.port.postMessage({type: "script", x: Float64Array.from(xs), y: Float64Array.from(ys)});
+  const t0 = performance.now();
+  const rendered = await ctx.startRendering();
+  const wall = performance.now() - t0;
+  const s = await stroke;
+  s.wall_ms = wall; s.quanta = Math.ceil(length / 128); s.rendered = rendered.getChannelData(0).length;
+  return s;
+};
+
+// Per-tick positions of the recorded pointer stroke (linear between pointer events), for replay.
+studio.pointerTicks = function () {
+  const p = studio.lastPointer, rate = studio.layout.config.tick_rate;
+  const i0 = p.map((e) => e.kind).lastIndexOf("down");
+  const pts = p.slice(i0);
+  const t0 = pts[0].t, t1 = pts[pts.length - 1].t;
+  const n = Math.floor((t1 - t0) / 1000 * rate) + 1;
+  const xs = new Float64Array(n), ys = new Float64Array(n);
+  let j = 0;
+  for (let k = 0; k < n; k++) {
+    const t = t0 + 1000 * k / rate;
+    while (j < pts.length - 2 && pts[j + 1].t <= t) j++;
+    const a = pts[j], b = pts[Math.min(j + 1, pts.length - 1)];
+    const u = b.t > a.t ? Math.min(Math.max((t - a.t) / (b.t - a.t), 0), 1) : 0;
+    xs[k] = a.x + (b.x - a.x) * u; ys[k] = a.y + (b.y - a.y) * u;
+  }
+  return {x: Array.from(xs), y: Array.from(ys)};
+};
+
+async function snapshot() {
+  const s = studio.lastStroke;
+  const body = {channel: $("channel").value};
+  if (s) body.stroke = {t: Array.from(s.t), x: Array.from(s.x), y: Array.from(s.y),
+                        normal_force: Array.from(s.normal_force), friction_force: Array.from(s.friction_force),
+                        state: Array.from(s.state), event_time: Array.from(s.event_time),
+                        event_amplitude: Array.from(s.event_amplitude)};
+  $("status").textContent = "rendering the 3D snapshot…";
+  const r = await fetch(withToken("/api/snapshot"), {method: "POST", body: JSON.stringify(body)});
+  if (!r.ok) { $("status").textContent = "snapshot failed: " + (await r.text()); return; }
+  const img = $("snapshot-img");
+  img.src = URL.createObjectURL(await r.blob());
+  img.hidden = false;
+  $("status").textContent = "3D snapshot ready";
+}
+
+// ------------------------------------------------------------------ wiring
+function connect() {
+  const proto = location.protocol === "https:" ? "wss:" : "ws:";
+  const ws = new WebSocket(withToken(`${proto}//${location.host}/ws`));
+  ws.onmessage = (e) => {
+    const m = JSON.parse(e.data);
+    if (m.type === "state") studio.pending = (studio.pending || Promise.resolve()).then(() => showState(m.state));
+  };
+  ws.onclose = () => { $("status").textContent = "disconnected from the studio server"; setTimeout(connect, 1000); };
+}
+
+function init() {
+  const wrap = $("map-wrap");
+  wrap.addEventListener("pointerdown", (e) => { wrap.setPointerCapture(e.pointerId); studio.lastPointer = []; pointer("down", e); });
+  wrap.addEventListener("pointermove", (e) => { hover(e); if (pressed) pointer("move", e); });
+  wrap.addEventListener("pointerup", (e) => pointer("up", e));
+  $("channel").addEventListener("change", showMap);
+  $("mode").addEventListener("change", () => studio.node && studio.node.port.postMessage({type: "mode", mode: $("mode").value}));
+  $("feel").addEventListener("click", startFeel);
+  $("save").addEventListener("click", save);
+  $("text").addEventListener("input", () => { studio.dirty = true; gutter(); });
+  $("text").addEventListener("scroll", () => { $("gutter").scrollTop = $("text").scrollTop; });
+  document.addEventListener("keydown", (e) => { if ((e.ctrlKey || e.metaKey) && e.key === "s") { e.preventDefault(); save(); } });
+  $("dl-csv").addEventListener("click", () => download("stroke.csv", studio.traceCSV(), "text/csv"));
+  $("dl-wav").addEventListener("click", () => download("stroke.wav", studio.wav(), "audio/wav"));
+  $("snapshot").addEventListener("click", snapshot);
+  window.addEventListener("resize", () => studio.layout && showMap());
+  fetchOk("/api/state").then((r) => r.json()).then((st) => {
+    const ex = $("exports");
+    for (const f of st.export_formats || []) {
+      const a = document.createElement("a");
+      a.href = withToken(`/api/export/${f}`); a.textContent = f; a.className = "export";
+      ex.appendChild(a);
+    }
+    if (st.kind !== "scene") $("text").disabled = true;
+  });
+  connect();
+}
+init();
