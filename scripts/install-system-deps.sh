@@ -13,6 +13,10 @@
 #   --with-xvfb   also install xvfb (provides xvfb-run), used only by the test
 #                 of the interactive window (tests/test_viewer.py); off-screen
 #                 pictures never need it.
+#   --with-studio the studio's needs: clang, lld, wasi-libc and the wasm32
+#                 compiler runtime (the C runtime built to WebAssembly for the
+#                 page), and chromium (the headless browser of the studio's
+#                 tests, driven by Playwright).
 #
 # Idempotent and non-interactive: does nothing when the packages are present,
 # and only prints what to install when it is not root or apt-get is absent.
@@ -22,7 +26,8 @@ PACKAGES="libegl1 libegl-mesa0 libgl1-mesa-dri"
 for arg in "$@"; do
     case "$arg" in
         --with-xvfb) PACKAGES="$PACKAGES xvfb" ;;
-        *) echo "install-system-deps: unknown option '$arg' (valid: --with-xvfb)" >&2; exit 2 ;;
+        --with-studio) PACKAGES="$PACKAGES clang lld wasi-libc libclang-rt-dev-wasm32 chromium" ;;
+        *) echo "install-system-deps: unknown option '$arg' (valid: --with-xvfb, --with-studio)" >&2; exit 2 ;;
     esac
 done
 
@@ -51,5 +56,5 @@ fi
 
 echo "install-system-deps: installing$missing"
 export DEBIAN_FRONTEND=noninteractive
-apt-get update -q
-apt-get install -y -q --no-install-recommends $missing
+apt-get -o DPkg::Lock::Timeout=600 update -q
+apt-get -o DPkg::Lock::Timeout=600 install -y -q --no-install-recommends $missing

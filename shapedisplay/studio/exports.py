@@ -6,18 +6,19 @@ from pathlib import Path
 from ..errors import unknown_key
 
 #: File suffix of each export format the library knows (new formats get ".FORMAT").
-SUFFIXES = {"table": ".npz", "json": ".json", "c": ".h", "bin": ".bin"}
+SUFFIXES = {"table": ".npz", "json": ".json", "c": ".h", "bin": ".bin", "glb": ".glb", "friction-png": ".png",
+            "hjif": ".hjif"}
 
 
 def formats() -> list[str]:
     """Every format the page offers: the table itself and each of ``shapedisplay export``."""
-    from ..export import FORMATS
+    from ..exchange import FORMATS
     return ["table", *FORMATS]
 
 
 def export_bytes(table, fmt: str, out_dir: Path, stem: str) -> tuple[str, bytes]:
     """Write ``table`` as ``fmt`` to ``out_dir/STEM.SUFFIX`` and return (file name, bytes)."""
-    from ..export import export_table
+    from ..exchange import export_table
     if fmt not in formats():
         raise unknown_key("export format", fmt, formats())
     out_dir = Path(out_dir)

@@ -76,6 +76,8 @@ def serve(source, device=None, port: int = 8765, host: str = LOOPBACK, allow_rem
     server = uvicorn.Server(config)
     try:
         server.run(sockets=[sock])
+    except KeyboardInterrupt:       # Uvicorn has shut down cleanly and re-raises the signal
+        pass
     finally:
         sock.close()
     print("shapedisplay studio: stopped", file=out, flush=True)

@@ -413,15 +413,20 @@ studio.renderOffline = async function (xs, ys) {
   const rate = studio.layout.config.audio_rate, tickRate = studio.layout.config.tick_rate;
   const length = Math.ceil(xs.length * rate / tickRate) + 1024;
   const ctx = new OfflineAudioContext({numberOfChannels: 1, length, sampleRate: rate});
-  const node = await makeNode(ctx);
-  const stroke = new Promise((resolve) => node.port.addEventListener("message", (e) => {
-    if (e.data.type === "stroke") resolve(e.data);
-  }));
-  node.port.postMessage({type: "script", x: Float64Array.from(xs), y: Float64Array.from(ys)});
+  await ctx.audioWorklet.addModule(withToken("/static/worklet.js"));
+  const node = new AudioWorkletNode(ctx, "sd-renderer", {
+    numberOfInputs: 0, outputChannelCount: [1],
+    processorOptions: {module: studio.module, layout: studio.layout, payload: studio.payload.slice(0),
+                       script: {x: Float64Array.from(xs), y: Float64Array.from(ys)}}});
+  node.connect(ctx.destination);
+  let got;
+  const stroke = new Promise((resolve) => { got = resolve; });
+  node.port.onmessage = (e) => { if (e.data.type === "stroke") got(e.data); };
   const t0 = performance.now();
   const rendered = await ctx.startRendering();
   const wall = performance.now() - t0;
-  const s = await stroke;
+  const s = await Promise.race([stroke, new Promise((_, fail) => setTimeout(
+    () => fail(new Error("the offline render ended without a stroke")), 5000))]);
   s.wall_ms = wall; s.quanta = Math.ceil(length / 128); s.rendered = rendered.getChannelData(0).length;
   return s;
 };

@@ -35,6 +35,12 @@ class StudioRenderer extends AudioWorkletProcessor {
     this.rec = null;
     this.lastMeter = 0;
     this.port.onmessage = (e) => this.onMessage(e.data);
+    // Offline renders hand everything over at construction: nothing waits on a message.
+    if (o.module) {
+      this.wasm = new WebAssembly.Instance(o.module, {}).exports;
+      if (o.layout) this.bind(o.layout, o.payload);
+      if (o.script) this.script = {x: o.script.x, y: o.script.y, i: 0};
+    }
   }
 
   onMessage(m) {

@@ -1,0 +1,79 @@
+"""Running a studio in a child process for the tests (the real CLI, a real socket)."""
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+import urllib.error
+import urllib.request
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+PHONE = ROOT / "assets" / "scenes" / "phone.toml"
+
+
+class StudioProcess:
+    """``shapedisplay studio SOURCE --no-browser --port 0`` in a child process."""
+
+    def __init__(self, source, *args, timeout: float = 60.0):
+        cmd = [sys.executable, "-m", "shapedisplay", "studio", str(source), "--no-browser", "--port", "0", *args]
+        self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                     cwd=ROOT, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+        self.lines: list[str] = []
+        self._url = threading.Event()
+        self.url = None
+        threading.Thread(target=self._read, daemon=True).start()
+        if not self._url.wait(timeout):
+            self.stop()
+            raise RuntimeError(f"studio printed no URL in {timeout} s: {self.lines} {self.proc.stderr.read()}")
+        m = re.match(r"http://([^/]+)/\?token=(\S+)", self.url)
+        self.host, self.token = m.group(1), m.group(2)
+        self.base = f"http://{self.host}"
+
+    def _read(self):
+        for line in self.proc.stdout:
+            self.lines.append(line)
+            m = re.search(r"http://127\.0\.0\.1:\d+/\?token=\S+", line)
+            if m and self.url is None:
+                self.url = m.group(0)
+                self._url.set()
+
+    def get(self, path: str, token: bool = True, headers: dict | None = None, method: str = "GET",
+            data: bytes | None = None):
+        """(status, body bytes) of a request to the studio."""
+        sep = "&" if "?" in path else "?"
+        url = self.base + path + (f"{sep}token={self.token}" if token else "")
+        req = urllib.request.Request(url, headers=headers or {}, method=method, data=data)
+        try:
+            with urllib.request.urlopen(req, timeout=30) as r:
+                return r.status, r.read()
+        except urllib.error.HTTPError as exc:
+            return exc.code, exc.read()
+
+    def wait_state(self, predicate, timeout: float = 30.0) -> dict:
+        """Poll /api/state until ``predicate(state)`` holds."""
+        import json
+        end = time.monotonic() + timeout
+        while True:
+            status, body = self.get("/api/state")
+            if status == 200:
+                st = json.loads(body)
+                if predicate(st):
+                    return st
+            if time.monotonic() > end:
+                raise AssertionError(f"studio state never matched: {st if status == 200 else status}")
+            time.sleep(0.05)
+
+    def stop(self) -> int:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+            try:
+                self.proc.wait(20)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        return self.proc.returncode

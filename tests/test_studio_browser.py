@@ -1,0 +1,227 @@
+"""The studio in a real headless Chromium (Debian's ``chromium``, driven by Playwright).
+
+The page loads the phone scene; its hover read-out (the C runtime's lookup in
+WebAssembly) equals ``FrictionTable.sample``; a scripted mouse stroke played
+by the AudioWorklet (the C runtime in WebAssembly) gives the events and drive
+of the Python renderer, and ``shapedisplay play --trace`` on the page's CSV
+reproduces them; editing the scene file updates the view without a reload; a
+bad scene shows its error at its line; requests without the token are refused.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("starlette")
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+try:
+    from playwright.sync_api import sync_playwright
+except ImportError:                                       # pragma: no cover
+    sync_playwright = None
+if sync_playwright is None or not Path(CHROMIUM).is_file():
+    if os.environ.get("CI"):
+        pytest.fail("CI needs chromium (scripts/install-system-deps.sh --with-studio) and playwright (pip)",
+                    pytrace=False)
+    pytest.skip("needs Debian's chromium and the playwright package", allow_module_level=True)
+
+from shapedisplay.runtime import Renderer  # noqa: E402
+from shapedisplay.runtime.cursor import CursorPath, load_trace_csv  # noqa: E402
+from shapedisplay.table import FrictionTable  # noqa: E402
+
+from studio_helpers import PHONE, StudioProcess  # noqa: E402
+
+#: Screenshot of the page for the README (copied there when this variable names a folder).
+SCREENSHOT_DIR = os.environ.get("SHAPEDISPLAY_SCREENSHOT_DIR")
+
+
+@pytest.fixture(scope="module")
+def page(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("studio")
+    shutil.copy(PHONE, folder / "phone.toml")
+    studio = StudioProcess(folder / "phone.toml")
+    studio.folder = folder
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM,
+                                    args=["--autoplay-policy=no-user-gesture-required"])
+        # the page's Content-Security-Policy forbids eval; Playwright's waiting helpers need it
+        pg = browser.new_page(viewport={"width": 1500, "height": 980}, bypass_csp=True)
+        errors = []
+        pg.on("pageerror", lambda e: errors.append(str(e)))
+        pg.goto(studio.url)
+        pg.wait_for_function("window.studio && studio.swaps.length > 0 && studio.swaps[0].t_view !== null",
+                             timeout=30000)
+        pg.studio, pg.js_errors = studio, errors
+        yield pg
+        browser.close()
+    studio.stop()
+
+
+def table_of(page) -> FrictionTable:
+    status, body = page.studio.get("/api/table")
+    assert status == 200
+    return FrictionTable.from_bytes(body)
+
+
+def test_page_loads_the_phone_scene(page):
+    st = page.evaluate("studio.state")
+    assert st["source"] == "phone.toml" and st["error"] is None
+    assert [w["id"] for w in st["widgets"]][:3] == ["frame", "app-1", "app-2"]
+    assert page.evaluate("document.getElementById('map').naturalWidth") == 161          # cols
+    assert page.evaluate("document.getElementById('map').naturalHeight") == 321         # rows
+    assert "grid: 321 x 161 samples" in page.inner_text("#report")
+    assert page.input_value("#channel") == "normal_force"                               # N by default
+    assert "id = \"call\"" in page.input_value("#text")
+    # the top view is the same way up as the preview: the home well (low y) is drawn near the bottom
+    _, y_home = page.evaluate("studio.screenOf(0.040, 0.012)")
+    _, y_frame = page.evaluate("studio.screenOf(0.040, 0.152)")
+    assert y_home > y_frame
+    assert not page.js_errors
+
+
+def test_hover_readout_equals_table_sample(page):
+    table = table_of(page)
+    for xm, ym in ((0.015, 0.128), (0.062, 0.036), (0.0407, 0.0657), (0.001, 0.159), (0.031, 0.119)):
+        sx, sy = page.evaluate(f"studio.screenOf({xm}, {ym})")
+        page.mouse.move(sx, sy)
+        page.wait_for_function(f"studio.hoverPos && Math.abs(studio.hoverPos[0] - {xm}) < 1e-3")
+        x = float(page.get_attribute("#hover-pos", "data-x"))
+        y = float(page.get_attribute("#hover-pos", "data-y"))
+        assert abs(x - xm) < 1e-3 and abs(y - ym) < 1e-3
+        shown = {td.get_attribute("data-channel"): float(td.get_attribute("data-value"))
+                 for td in page.query_selector_all("#readout td.v")}
+        assert sorted(shown) == table.channels
+        for name, value in shown.items():
+            assert value == pytest.approx(float(table.sample(name, x, y)), rel=1e-12, abs=1e-12), name
+
+
+def _mouse_stroke(page, points, steps=40, pause_ms=12):
+    sx, sy = page.evaluate(f"studio.screenOf({points[0][0]}, {points[0][1]})")
+    page.mouse.move(sx, sy)
+    page.mouse.down()
+    for (xa, ya), (xb, yb) in zip(points[:-1], points[1:]):
+        ax, ay = page.evaluate(f"studio.screenOf({xa}, {ya})")
+        bx, by = page.evaluate(f"studio.screenOf({xb}, {yb})")
+        for i in range(1, steps + 1):
+            page.mouse.move(ax + (bx - ax) * i / steps, ay + (by - ay) * i / steps)
+            page.wait_for_timeout(pause_ms)
+    page.mouse.up()
+
+
+def _assert_same_as_python(rec, table, tick_rate):
+    t = np.asarray(rec["t"])
+    assert np.array_equal(t, np.arange(t.size) / tick_rate)
+    res = Renderer(table, model="exact").render(CursorPath(t, np.asarray(rec["x"]), np.asarray(rec["y"]), tick_rate))
+    et = np.asarray(rec["event_time"])
+    assert et.size == res.event_time.size and et.size > 20
+    assert np.max(np.abs(et - res.event_time)) <= 1e-6
+    assert np.allclose(rec["event_amplitude"], res.event_amplitude, rtol=1e-9, atol=1e-12)
+    audio = np.asarray(rec["audio"])
+    assert audio.size == res.audio.size
+    assert np.max(np.abs(audio - res.audio)) < 1e-6                   # recorded as float32
+    assert np.allclose(rec["normal_force"], res.normal_force, rtol=1e-12, atol=1e-12)
+    assert np.allclose(rec["friction_force"], res.friction_force, rtol=1e-9, atol=1e-9)
+    return res
+
+
+def test_scripted_stroke_offline_and_live_match_the_python_renderer(page, tmp_path):
+    table = table_of(page)
+    page.click("#feel")
+    page.wait_for_function("studio.node !== null && studio.ctx.state === 'running'", timeout=20000)
+    page.evaluate("studio.lastStroke = null")
+    _mouse_stroke(page, [(0.062, 0.010), (0.062, 0.080), (0.040, 0.125)])
+    # the stroke played live by the AudioWorklet (C runtime in WebAssembly) ...
+    page.wait_for_function("studio.lastStroke !== null", timeout=20000)
+    live = page.evaluate("""(() => { const s = studio.lastStroke; const a = (k) => Array.from(s[k]);
+        return {t: a('t'), x: a('x'), y: a('y'), event_time: a('event_time'), event_amplitude: a('event_amplitude'),
+                audio: a('audio'), normal_force: a('normal_force'), friction_force: a('friction_force'),
+                ticks: s.ticks, csv: studio.traceCSV()}; })()""")
+    assert live["ticks"] > 1000
+    _assert_same_as_python(live, table, 10000.0)
+    # ... and the recorded pointer stroke rendered through an OfflineAudioContext
+    off = page.evaluate("""(async () => { const p = studio.pointerTicks(); const s = await studio.renderOffline(p.x, p.y);
+        const a = (k) => Array.from(s[k]);
+        return {t: a('t'), x: a('x'), y: a('y'), event_time: a('event_time'), event_amplitude: a('event_amplitude'),
+                audio: a('audio'), normal_force: a('normal_force'), friction_force: a('friction_force'),
+                wall_ms: s.wall_ms, quanta: s.quanta}; })()""")
+    _assert_same_as_python(off, table, 10000.0)
+    # the page's trace CSV replays with the CLI: same events, times within 1e-6 s, same drive
+    csv = tmp_path / "stroke.csv"
+    csv.write_text(live["csv"])
+    tpath = tmp_path / "phone.npz"
+    tpath.write_bytes(page.studio.get("/api/table")[1])
+    cp = load_trace_csv(csv)
+    assert np.array_equal(cp.x, live["x"]) and np.array_equal(cp.y, live["y"])
+    r = subprocess.run([sys.executable, "-m", "shapedisplay", "play", str(tpath), "--trace", str(csv),
+                        "-o", str(tmp_path / "replay.wav"), "--trace-out", str(tmp_path / "replay.npz")],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    with np.load(tmp_path / "replay.npz") as z:
+        et = z["event_time"]
+    assert et.size == len(live["event_time"])
+    assert np.max(np.abs(et - np.asarray(live["event_time"]))) <= 1e-6
+    # ... and the drive: the page's WAV download and the replay's WAV hold the same samples
+    from shapedisplay.sinks import read_wav
+    replay, rate = read_wav(tmp_path / "replay.wav")
+    (tmp_path / "page.wav").write_bytes(bytes(page.evaluate("Array.from(new Uint8Array(studio.wav()))")))
+    mine, rate2 = read_wav(tmp_path / "page.wav")
+    assert rate == rate2 == 48000 and mine.size == replay.size
+    assert np.max(np.abs(mine - replay)) < 1e-6
+    assert page.is_enabled("#dl-csv") and page.is_enabled("#dl-wav")
+    if SCREENSHOT_DIR:
+        page.mouse.move(*page.evaluate("studio.screenOf(0.040, 0.128)"))
+        page.screenshot(path=str(Path(SCREENSHOT_DIR) / "studio-phone.png"))
+
+
+def test_editing_the_scene_file_updates_the_view(page):
+    scene = page.studio.folder / "phone.toml"
+    good = scene.read_text()
+    gen = page.evaluate("studio.tableGeneration")
+    before = page.evaluate("studio.readout(0.015, 0.128).normal_force")
+    try:
+        scene.write_text(good.replace("level = 3 ", "level = 5 "))
+        page.wait_for_function(f"studio.tableGeneration > {gen} && studio.swaps[studio.swaps.length - 1].t_view",
+                               timeout=20000)
+        after = page.evaluate("studio.readout(0.015, 0.128).normal_force")
+        assert after > before + 0.5                     # app-1 is higher now
+        assert page.evaluate("performance.getEntriesByType('navigation').length") == 1      # no reload
+        assert after == pytest.approx(float(table_of(page).sample("normal_force", 0.015, 0.128)), rel=1e-12)
+    finally:
+        scene.write_text(good)
+        page.wait_for_function(f"studio.tableGeneration > {gen + 1}", timeout=20000)
+
+
+def test_bad_scene_shows_its_error_at_its_line(page):
+    scene = page.studio.folder / "phone.toml"
+    good = scene.read_text()
+    gen = page.evaluate("studio.tableGeneration")
+    bad = good.replace('track_depth = "0.4 mm"', 'track_depth = "-0.4 mm"')
+    line = next(i for i, t in enumerate(bad.splitlines(), 1) if '"-0.4 mm"' in t)
+    try:
+        scene.write_text(bad)
+        page.wait_for_selector("#error:not([hidden])", timeout=20000)
+        assert page.get_attribute("#error-where", "data-line") == str(line)
+        assert "track_depth" in page.inner_text("#error-text")
+        assert page.get_attribute("#gutter .error-line", "data-line") == str(line)
+        assert page.evaluate("studio.tableGeneration") == gen              # the last good table keeps playing
+        if SCREENSHOT_DIR:
+            page.screenshot(path=str(Path(SCREENSHOT_DIR) / "studio-error.png"))
+    finally:
+        scene.write_text(good)
+        page.wait_for_selector("#error", state="hidden", timeout=20000)
+
+
+def test_requests_without_token_or_from_another_host_are_refused(page):
+    base = page.studio.base
+    assert page.evaluate(f"fetch('{base}/api/table').then(r => r.status)") == 403
+    assert page.evaluate(f"fetch('{base}/api/table?token={page.studio.token}').then(r => r.status)") == 200
+    ctx = page.context
+    r = ctx.request.get(f"{base}/api/state?token={page.studio.token}",
+                        headers={"Host": "rebind.example:" + base.rsplit(":", 1)[1]})
+    assert r.status == 403

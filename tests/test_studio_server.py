@@ -1,0 +1,225 @@
+"""The studio server without a browser: the command's interface, security, recompiling, exports."""
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+pytest.importorskip("starlette")
+pytest.importorskip("uvicorn")
+pytest.importorskip("watchfiles")
+
+from shapedisplay.errors import InputError, ShapeDisplayError  # noqa: E402
+from shapedisplay.scene import compile_scene  # noqa: E402
+from shapedisplay.studio.lines import error_line  # noqa: E402
+from shapedisplay.studio.server import check_host  # noqa: E402
+from shapedisplay.table import FrictionTable  # noqa: E402
+
+from studio_helpers import PHONE, StudioProcess  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def studio(tmp_path_factory):
+    d = tmp_path_factory.mktemp("scene")
+    shutil.copy(PHONE, d / "phone.toml")
+    s = StudioProcess(d / "phone.toml")
+    s.folder = d
+    s.wait_state(lambda st: st["table_generation"] is not None)
+    yield s
+    s.stop()
+
+
+def test_prints_url_serves_page_and_table_only_with_token(studio):
+    status, body = studio.get("/")
+    assert status == 200 and b"shapedisplay studio" in body and studio.token.encode() in body
+    assert studio.get("/", token=False)[0] == 403
+    assert studio.get("/api/table", token=False)[0] == 403
+    status, body = studio.get("/api/table")
+    assert status == 200
+    table = FrictionTable.from_bytes(body, "studio table")
+    assert table.checksum() == compile_scene(studio.folder / "phone.toml").table.checksum()
+
+
+def test_wrong_token_and_every_route_refused_without_it(studio):
+    for path in ("/static/studio.js", "/static/worklet.js", "/api/state", "/api/runtime.wasm", "/api/runtime",
+                 "/api/map.png", "/api/scene", "/api/export/json"):
+        assert studio.get(path, token=False)[0] == 403, path
+        assert studio.get(path + "?token=" + "x" * len(studio.token), token=False)[0] == 403, path
+
+
+def test_foreign_host_or_origin_refused(studio):
+    assert studio.get("/", headers={"Host": "attacker.example:80"})[0] == 403
+    port = studio.host.split(":")[1]
+    assert studio.get("/", headers={"Host": f"rebind.example:{port}"})[0] == 403
+    assert studio.get("/api/state", headers={"Origin": "http://attacker.example"})[0] == 403
+    assert studio.get("/api/state", headers={"Origin": f"http://{studio.host}"})[0] == 200
+    assert studio.get("/api/state", headers={"Host": f"localhost:{port}"})[0] == 200
+
+
+def test_websocket_needs_token_and_own_origin(studio):
+    from websockets.exceptions import InvalidStatus, ConnectionClosedError
+    from websockets.sync.client import connect
+    own = f"http://{studio.host}"
+    with connect(f"ws://{studio.host}/ws?token={studio.token}", origin=own) as ws:
+        msg = json.loads(ws.recv(timeout=10))
+        assert msg["type"] == "state" and msg["state"]["source"] == "phone.toml"
+    for url, origin in ((f"ws://{studio.host}/ws", own),
+                        (f"ws://{studio.host}/ws?token={studio.token}", "http://attacker.example"),
+                        (f"ws://{studio.host}/ws?token={studio.token}", None)):
+        with pytest.raises((InvalidStatus, ConnectionClosedError, OSError)):
+            with connect(url, origin=origin) as ws:
+                ws.recv(timeout=5)
+
+
+def test_runtime_layout_holds_the_table_codes(studio):
+    from shapedisplay.runtime.renderer import SLOTS
+    status, body = studio.get("/api/runtime")
+    assert status == 200
+    n = int.from_bytes(body[:4], "little")
+    layout = json.loads(body[4:4 + n])
+    payload = body[4 + n:]
+    table = FrictionTable.from_bytes(studio.get("/api/table")[1])
+    blocks = np.frombuffer(payload, "<i4", layout["n_blocks"] * 5, layout["blocks_offset"]).reshape(-1, 5)
+    assert [tuple(b[:2]) for b in blocks] == [tuple(b[:2]) for b in table.blocks]
+    assert sorted(c["name"] for c in layout["channels"]) == table.channels
+    for c in layout["channels"]:
+        assert SLOTS[c["slot"]] == c["name"]
+        codes = table.codes[c["name"]]
+        got = np.frombuffer(payload, codes.dtype.newbyteorder("<"), codes.size, c["offset"])
+        assert np.array_equal(got, codes)
+    assert layout["config"]["tick_rate"] == 10000.0 and layout["config"]["model"] == 1   # exact
+
+
+def test_wasm_module_has_no_imports(studio):
+    status, body = studio.get("/api/runtime.wasm")
+    assert status == 200 and body[:4] == b"\0asm"
+    # import section (id 2) absent: the module needs nothing from the page
+    pos, sections = 8, []
+    while pos < len(body):
+        sid = body[pos]
+        pos += 1
+        size = shift = 0
+        while True:
+            b = body[pos]
+            pos += 1
+            size |= (b & 0x7F) << shift
+            shift += 7
+            if not b & 0x80:
+                break
+        sections.append(sid)
+        pos += size
+    assert 2 not in sections and 7 in sections      # no imports; exports present
+
+
+def test_editing_recompiles_and_an_error_keeps_the_last_table(studio):
+    scene = studio.folder / "phone.toml"
+    good = scene.read_text()
+    st0 = studio.wait_state(lambda st: st["error"] is None)
+    try:
+        scene.write_text(good.replace('level = 3 ', 'level = 4 '))
+        st1 = studio.wait_state(lambda st: st["table_generation"] > st0["table_generation"])
+        assert st1["checksum"] != st0["checksum"] and st1["error"] is None
+        bad = good.replace('size = "36x16 mm"', 'size = "36x16 furlong"')
+        scene.write_text(bad)
+        st2 = studio.wait_state(lambda st: st["error"] is not None)
+        line = next(i for i, t in enumerate(bad.splitlines(), 1) if "furlong" in t)
+        assert st2["error"]["line"] == line and "furlong" in st2["error"]["message"]
+        assert st2["table_generation"] == st1["table_generation"] and st2["checksum"] == st1["checksum"]
+        assert studio.get("/api/table")[0] == 200                    # the last good table is still served
+    finally:
+        scene.write_text(good)
+        studio.wait_state(lambda st: st["error"] is None and st["table_generation"] > st0["table_generation"])
+
+
+def test_save_from_page_writes_the_scene_and_exports_go_to_the_output_folder(studio):
+    scene = studio.folder / "phone.toml"
+    text = scene.read_text()
+    status, _ = studio.get("/api/scene", method="PUT", data=text.encode())
+    assert status == 200 and scene.read_text() == text
+    out = studio.folder / "studio-out"
+    status, body = studio.get("/api/export/c")
+    assert status == 200 and b"#define" in body and (out / "phone.h").read_bytes() == body
+    status, body = studio.get("/api/export/table")
+    assert status == 200 and (out / "phone.npz").is_file()
+    assert studio.get("/api/export/../../etc")[0] in (400, 404)
+    assert studio.get("/api/export/nope")[0] == 400
+    before = sorted(p.name for p in studio.folder.iterdir())
+    assert studio.get("/api/map.png?channel=grad_x")[0] == 200
+    assert studio.get("/api/map.png?channel=lateral_x")[0] == 400       # not stored: an error, not a picture
+    assert sorted(p.name for p in studio.folder.iterdir()) == before
+
+
+def test_scene_reading_outside_its_folder_is_refused(tmp_path):
+    secret = tmp_path / "secret.png"
+    secret.write_bytes(b"\x89PNG")
+    d = tmp_path / "scene"
+    d.mkdir()
+    (d / "s.toml").write_text('[canvas]\nsize = "20x20 mm"\nresolution = "1 mm"\n\n[[widget]]\nid = "m"\n'
+                              'type = "image"\nfile = "../secret.png"\nposition = "0,0 mm"\nsize = "20x20 mm"\n'
+                              'height = "0:1 mm"\n')
+    s = StudioProcess(d / "s.toml")
+    try:
+        st = s.wait_state(lambda st: st["error"] is not None)
+        assert "outside the scene's folder" in st["error"]["message"] and st["error"]["line"] == 8
+        assert st["table_generation"] is None
+        assert s.get("/api/table")[0] == 409
+    finally:
+        s.stop()
+
+
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "shapedisplay", "studio", *args], capture_output=True, text=True,
+                          timeout=60)
+
+
+def test_cli_refusals_are_one_line(tmp_path):
+    r = _cli(str(PHONE), "--no-browser", "--host", "0.0.0.0")
+    assert r.returncode == 2 and "--allow-remote" in r.stderr and "Traceback" not in r.stderr
+    r = _cli(str(PHONE), "--no-browser", "--device", str(tmp_path / "dev.toml"))
+    assert r.returncode == 2 and "outside the source's folder" in r.stderr
+    r = _cli(str(tmp_path / "missing.toml"), "--no-browser")
+    assert r.returncode == 2 and "no such file" in r.stderr
+    r = _cli(str(PHONE), "--no-browser", "--size", "10x10mm")
+    assert r.returncode == 2 and "--size" in r.stderr
+
+
+def test_check_host():
+    assert check_host("127.0.0.1", False) == "127.0.0.1"
+    assert check_host("::1", False) == "::1"
+    with pytest.raises(InputError, match="--allow-remote"):
+        check_host("192.168.1.5", False)
+    assert check_host("192.168.1.5", True) == "192.168.1.5"
+    with pytest.raises(InputError, match="IP address"):
+        check_host("example.com", True)
+
+
+def test_ctrl_c_stops_cleanly(tmp_path):
+    shutil.copy(PHONE, tmp_path / "phone.toml")
+    s = StudioProcess(tmp_path / "phone.toml")
+    s.wait_state(lambda st: st["table_generation"] is not None)
+    rc = s.stop()
+    err = s.proc.stderr.read()
+    assert rc == 0 and "Traceback" not in err
+    assert any("stopped" in line for line in s.lines)
+
+
+@pytest.mark.parametrize("old,new,needle", [
+    ('size = "20x20 mm"', 'size = "20x20 parsec"', "parsec"),                 # widget field
+    ("level = 3 ", "level = 9 ", "level = 9"),                                # widget field from [defaults.button]
+    ('resolution = "0.5 mm"', 'resolution = "0.5"', 'resolution = "0.5"'),   # [canvas] field
+    ('n_base = "1 N"', 'n_base = "1 N" "', 'n_base = "1 N" "'),                # TOML syntax
+    ('type = "dent"', 'type = "dentt"', "dentt"),                             # widget type
+    ("levels = 5", "levels = -5", "levels = -5"),                             # [defaults]
+])
+def test_error_line_points_at_the_field(tmp_path, old, new, needle):
+    text = PHONE.read_text().replace(old, new, 1)
+    p = tmp_path / "bad.toml"
+    p.write_text(text)
+    with pytest.raises(ShapeDisplayError) as exc:
+        compile_scene(p)
+    line = error_line(text, str(exc.value))
+    assert needle in text.splitlines()[line - 1]
