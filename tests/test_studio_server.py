@@ -75,23 +75,17 @@ def test_websocket_needs_token_and_own_origin(studio):
                 ws.recv(timeout=5)
 
 
-def test_runtime_layout_holds_the_table_codes(studio):
-    from shapedisplay.runtime.renderer import SLOTS
+def test_runtime_gets_the_tables_binary_image(studio):
+    from shapedisplay.runtime.image import read_image
     status, body = studio.get("/api/runtime")
     assert status == 200
     n = int.from_bytes(body[:4], "little")
     layout = json.loads(body[4:4 + n])
-    payload = body[4 + n:]
+    image = body[4 + n:]
     table = FrictionTable.from_bytes(studio.get("/api/table")[1])
-    blocks = np.frombuffer(payload, "<i4", layout["n_blocks"] * 5, layout["blocks_offset"]).reshape(-1, 5)
-    assert [tuple(b[:2]) for b in blocks] == [tuple(b[:2]) for b in table.blocks]
+    assert len(image) == layout["bytes"] and read_image(image).checksum() == table.checksum()
     assert sorted(c["name"] for c in layout["channels"]) == table.channels
-    for c in layout["channels"]:
-        assert SLOTS[c["slot"]] == c["name"]
-        codes = table.codes[c["name"]]
-        got = np.frombuffer(payload, codes.dtype.newbyteorder("<"), codes.size, c["offset"])
-        assert np.array_equal(got, codes)
-    assert layout["config"]["tick_rate"] == 10000.0 and layout["config"]["model"] == 1   # exact
+    assert layout["tick_rate"] == 10000.0 and layout["audio_rate"] == 48000.0 and layout["model"] == 1   # exact
 
 
 def test_wasm_module_has_no_imports(studio):

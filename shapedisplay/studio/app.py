@@ -15,7 +15,7 @@ Routes (all under the token):
 ``GET /`` the page; ``GET /static/NAME`` its scripts; ``GET /api/state`` what
 the page shows (JSON); ``GET /api/table`` the current table (.npz bytes);
 ``GET /api/runtime.wasm`` the C runtime as WebAssembly; ``GET /api/runtime``
-the current table laid out for it; ``GET /api/map.png?channel=NAME`` the top
+the current table's binary image for it (with a JSON head); ``GET /api/map.png?channel=NAME`` the top
 view; ``GET/PUT /api/scene`` the scene text; ``GET /api/export/FORMAT``;
 ``POST /api/snapshot`` the 3D preview; ``WS /ws`` a message per compile.
 """
@@ -84,16 +84,28 @@ class Studio:
         self.session = session
         self.model = model
         self.clients: set = set()
-        self.layout_cache: tuple | None = None
+        self.prepared: dict | None = None       # what the page fetches for the current table
         self.last_change: dict = {}
 
     # -------------------------------------------------------------- compile + broadcast
+    def compile_and_prepare(self) -> bool:
+        """Compile (in a worker thread) and prepare everything the page will fetch for a new table."""
+        from .views import channel_range, colour_map_png
+        from .wasm import table_payload
+        if not self.session.compile():
+            return False
+        cur = self.session.current
+        lay, image = table_payload(cur.table, self.model)
+        lay["generation"] = cur.generation
+        first = "normal_force" if "normal_force" in cur.table.channels else cur.table.channels[0]
+        self.prepared = {"generation": cur.generation, "layout": lay, "image": image,
+                         "ranges": {c: channel_range(cur.table, c) for c in cur.table.channels},
+                         "maps": {first: colour_map_png(cur.table, first)}}
+        return True
+
     async def recompile(self, reason: str) -> None:
         t0 = time.perf_counter()
-        loop = asyncio.get_running_loop()
-        changed = await loop.run_in_executor(None, self.session.compile)
-        if changed:
-            self.layout_cache = None
+        await asyncio.get_running_loop().run_in_executor(None, self.compile_and_prepare)
         self.last_change = {"reason": reason, "compile_ms": (time.perf_counter() - t0) * 1e3}
         await self.broadcast()
 
@@ -106,35 +118,27 @@ class Studio:
                 self.clients.discard(ws)
 
     def state(self) -> dict:
-        from .views import channel_range
-        d = self.session.state()
-        cur = self.session.current
-        if cur is not None:
-            d["ranges"] = {c: channel_range(cur.table, c) for c in cur.table.channels}
-            lay = self.layout()[0]
-            cfg = lay["config"]
-            d["runtime"] = {"tick_rate": cfg["tick_rate"], "audio_rate": cfg["audio_rate"], "model": self.model,
-                            "cursor_gain": float(self.session_device().cursor_gain)}
         from .exports import formats
+        d = self.session.state()
+        prep = self.prepared
+        if prep is not None:
+            lay = prep["layout"]
+            d["ranges"] = prep["ranges"]
+            d["runtime"] = {"tick_rate": lay["tick_rate"], "audio_rate": lay["audio_rate"], "model": self.model,
+                            "cursor_gain": lay["cursor_gain"]}
         d["last_change"] = self.last_change
         d["export_formats"] = formats()
         return d
 
-    def session_device(self):
-        from ..runtime.renderer import device_for_table
-        return device_for_table(self.session.current.table)
-
     def layout(self) -> tuple:
-        from .wasm import table_payload
-        cur = self.session.current
-        if self.layout_cache is None or self.layout_cache[0] != cur.generation:
-            from ..runtime.renderer import OUT_NAMES, device_for_table
-            lay, payload = table_payload(cur.table, self.model)
-            lay["generation"] = cur.generation
-            lay["out_names"] = list(OUT_NAMES)
-            lay["cursor_gain"] = float(device_for_table(cur.table).cursor_gain)
-            self.layout_cache = (cur.generation, lay, payload)
-        return self.layout_cache[1], self.layout_cache[2]
+        return self.prepared["layout"], self.prepared["image"]
+
+    def colour_map(self, channel: str) -> bytes:
+        from .views import colour_map_png
+        prep = self.prepared
+        if channel not in prep["maps"]:
+            prep["maps"][channel] = colour_map_png(self.session.current.table, channel)
+        return prep["maps"][channel]
 
     async def watch(self, stop: asyncio.Event) -> None:
         """Recompile whenever a file under the source's folder changes (not the output folder)."""
@@ -209,11 +213,10 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
         return Response(struct.pack("<I", len(head)) + head + payload, media_type="application/octet-stream")
 
     async def colour_map(request):
-        from .views import colour_map_png
         channel = request.query_params.get("channel", "normal_force")
         try:
-            cur = need_table()
-            png = colour_map_png(cur.table, channel)
+            need_table()
+            png = studio.colour_map(channel)
         except ShapeDisplayError as exc:
             return error_response(exc, 400)
         return Response(png, media_type="image/png", headers={"Cache-Control": "no-store"})

@@ -2,19 +2,18 @@
 
 The page plays tables with the C runtime (``runtime_c/``) compiled to
 WebAssembly: the same C sources as firmware, plus the studio's entry points
-(``wasm/sd_studio.c``: bind a table laid out in linear memory, step, read the
-outputs). There is no renderer written in JavaScript.
+(``wasm/sd_studio.c``: load a binary table image from linear memory, step,
+read the outputs). There is no renderer written in JavaScript.
 
 :func:`module_bytes` builds the module with clang (``--target=wasm32-wasi``,
 libm from wasi-libc, no imports) into a temporary folder when the studio
 starts, so it always matches the C sources; a prebuilt ``sd_studio.wasm`` next
 to this file (for installs without clang) is used otherwise.
 
-:func:`table_payload` lays a table out for the module: the block list and the
-codes of every stored renderer channel in one little-endian buffer, with a JSON
-description (offsets, code types, scales) and the C configuration taken from a
-Python :class:`~shapedisplay.runtime.Renderer` (the one place the parameters
-are validated).
+:func:`table_payload` gives the module a table: its binary image
+(``shapedisplay export --format bin``, validated and bound in place by
+``sd_image_load``) and the rates, policy and model the Python
+:class:`~shapedisplay.runtime.Renderer` resolves for it.
 """
 from __future__ import annotations
 
@@ -22,8 +21,6 @@ import shutil
 import subprocess
 import tempfile
 from pathlib import Path
-
-import numpy as np
 
 from ..errors import InputError, MissingDependencyError
 
@@ -36,7 +33,6 @@ WASM_FLAGS = ("--target=wasm32-wasi", "-std=c99", "-O2", "-Wall", "-Wextra", "-f
               "-nostartfiles", "-Wl,--no-entry")
 #: Where Debian's wasi-libc puts its headers and libraries.
 WASI_SYSROOTS = ("/usr/share/wasi-sysroot", "/usr")
-_CODE_TYPES = {"uint8": 0, "uint16": 1, "float32": 2, "float64": 3}
 _MODULE: bytes | None = None
 
 
@@ -84,56 +80,34 @@ def module_bytes() -> bytes:
     return _MODULE
 
 
-def renderer_for(table, model: str = "exact", audio_rate: float | None = None):
-    """The Python renderer whose parameters the page's C renderer takes (validates them)."""
-    from ..runtime import Renderer
-    return Renderer(table, model=model, audio_rate=audio_rate)
-
-
 def table_payload(table, model: str = "exact") -> tuple[dict, bytes]:
-    """Lay ``table`` out for the module.
+    """The table as the module loads it: its binary image and what the page needs beside it.
 
     Returns
     -------
     layout : dict
-        ``grid`` (rows, cols, dx, dy, x0, y0), ``n_blocks``, ``blocks_offset``,
-        ``channels`` (per renderer slot: name, slot, offset, code type, scale,
-        offset value, background), ``config`` (the C configuration: pad and
-        renderer fields), ``bytes`` (payload length) and ``slots`` (the
-        renderer's slot names, in C order).
-    payload : bytes
-        Little-endian int32 blocks (n_blocks x 5: row0, col0, rows, cols,
-        offset) then each channel's codes, every part 8-byte aligned.
+        ``grid`` (rows, cols, dx, dy, x0, y0); ``channels`` (stored renderer
+        channels: name and slot); ``tick_rate``, ``audio_rate`` (Hz),
+        ``policy`` and ``model`` (the C runtime's codes) as the Python
+        :class:`~shapedisplay.runtime.Renderer` resolves them for this table
+        (the one place they are validated); ``out_names`` (the renderer's
+        per-tick outputs, in C order); ``cursor_gain`` (m/(N s), the device's
+        alpha); ``bytes`` (image length).
+    image : bytes
+        The flat binary table image (:func:`shapedisplay.runtime.image.to_image`).
     """
-    from ..link.c_engine import config_values
-    from ..runtime.renderer import SLOTS
-    py = renderer_for(table, model)
+    from ..link.c_engine import _MODELS, _POLICIES
+    from ..runtime import Renderer
+    from ..runtime.image import SLOTS, to_image
+    from ..runtime.renderer import OUT_NAMES
+    if model not in _MODELS:
+        raise InputError(f"the page's C runtime plays models {sorted(_MODELS)} (got {model!r})")
+    py = Renderer(table, model=model)
+    image = to_image(table, py.device)
     g = table.grid
-    off = table.patch_offsets()
-    blocks = np.asarray([[r0, c0, *table.patch_shapes[i], off[i]] for r0, c0, i in table.blocks],
-                        dtype="<i4").reshape(-1, 5)
-    parts, pos = [], 0
-
-    def put(arr: np.ndarray) -> int:
-        nonlocal pos
-        start = pos
-        data = arr.tobytes()
-        pad = (-len(data)) % 8
-        parts.append(data + b"\0" * pad)
-        pos += len(data) + pad
-        return start
-
     layout = {"grid": {"rows": g.rows, "cols": g.cols, "dx": g.dx, "dy": g.dy, "x0": g.x0, "y0": g.y0},
-              "n_blocks": int(blocks.shape[0]), "blocks_offset": put(blocks), "channels": [],
-              "slots": list(SLOTS)}
-    for slot, name in enumerate(SLOTS):
-        if name not in table.channels:
-            continue
-        q = table.quant[name]
-        codes = np.ascontiguousarray(table.codes[name]).astype(np.dtype(q.dtype).newbyteorder("<"), copy=False)
-        layout["channels"].append({"name": name, "slot": slot, "offset": put(codes), "dtype": _CODE_TYPES[q.dtype],
-                                   "scale": q.scale, "value_offset": q.offset,
-                                   "background": table.background[name]})
-    layout["config"] = config_values(py)
-    layout["bytes"] = pos
-    return layout, b"".join(parts)
+              "channels": [{"name": n, "slot": s} for s, n in enumerate(SLOTS) if n in table.channels],
+              "tick_rate": py.tick_rate, "audio_rate": py.audio_rate, "policy": _POLICIES[py.burst_policy],
+              "model": _MODELS[model], "out_names": list(OUT_NAMES), "cursor_gain": float(py.device.cursor_gain),
+              "bytes": len(image)}
+    return layout, image

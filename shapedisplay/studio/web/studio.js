@@ -40,15 +40,13 @@ async function fetchRuntime() {
   return {layout, payload: buf.slice(4 + n)};
 }
 
-// Bind the table to the read-out instance (the same lookup the renderer uses).
+// Bind the table image to the read-out instance (the same lookup the renderer uses).
 function bindHover(layout, payload) {
   const w = studio.hover;
   const base = w.sdw_reserve(layout.bytes);
   new Uint8Array(w.memory.buffer, base, layout.bytes).set(new Uint8Array(payload));
-  const g = layout.grid;
-  w.sdw_table(g.rows, g.cols, g.dx, g.dy, g.x0, g.y0, layout.n_blocks, base + layout.blocks_offset);
-  for (const c of layout.channels) w.sdw_channel(c.slot, base + c.offset, c.dtype, c.scale, c.value_offset,
-                                                 c.background);
+  const rc = w.sdw_bind(base, layout.bytes);
+  if (rc !== 0) throw new Error(`the C runtime refused the table image (code ${rc})`);
 }
 
 // Every stored channel at (x, y) metres, by the C runtime's bilinear lookup.
@@ -88,8 +86,7 @@ studio.screenOf = function (x, y) {
   return [r.left + 1 + u * (r.width - 2), r.top + 1 + v * (r.height - 2)];
 };
 
-function mapSize() {
-  const g = studio.layout.grid;
+function mapSize(g) {
   const rows = g.rows === 1 ? 24 : g.rows;
   const maxW = 460, maxH = Math.max(window.innerHeight - 170, 300);
   const widthMm = g.cols * g.dx, heightMm = g.rows === 1 ? widthMm / 10 : g.rows * g.dy;
@@ -146,16 +143,18 @@ async function swapTable(st) {
   const t0 = now();
   const gen = st.table_generation;
   studio.tableGeneration = gen;
+  const swap = {generation: gen, t_message: t0, t_view: null, t_playing: null, t_changed: st.last_change};
+  studio.swaps.push(swap);
+  const first = !studio.layout;
+  if (!first) fillChannels(st);
+  const viewed = first ? null : showMap(st);             // the picture loads while the table is fetched
   await loadModule();
   const {layout, payload} = await fetchRuntime();
   studio.layout = layout; studio.payload = payload;
   bindHover(layout, payload);
-  const swap = {generation: gen, t_message: t0, t_view: null, t_playing: null, t_changed: st.last_change};
-  studio.swaps.push(swap);
   const playing = studio.node ? postTable(studio.node, layout, payload) : Promise.resolve(null);
-  fillChannels(st);
-  const viewed = showMap();
-  await Promise.all([viewed.then(() => { swap.t_view = now(); }),
+  if (first) fillChannels(st);
+  await Promise.all([(viewed || showMap(st)).then(() => { swap.t_view = now(); drawOverlay(); rehover(); }),
                      playing.then(() => { swap.t_playing = studio.node ? now() : null; })]);
   $("status").textContent = `table ${gen} · compiled in ${(st.compile_seconds * 1e3).toFixed(0)} ms`;
 }
@@ -179,9 +178,10 @@ function fillChannels(st) {
   }
 }
 
-function showMap() {
-  const st = studio.state, ch = $("channel").value;
-  const [w, h] = mapSize();
+function showMap(st) {
+  st = st && st.grid ? st : studio.state;
+  const ch = $("channel").value;
+  const [w, h] = mapSize(st.grid);
   const img = $("map");
   img.style.width = w + "px"; img.style.height = h + "px";
   const [lo, hi] = st.ranges[ch];
@@ -189,7 +189,7 @@ function showMap() {
   $("scale-lo").textContent = `${lo.toPrecision(3)} ${unit}`;
   $("scale-hi").textContent = `${hi.toPrecision(3)} ${unit}`;
   return new Promise((resolve) => {
-    img.onload = () => { drawOverlay(); resolve(); };
+    img.onload = () => resolve();
     img.onerror = () => resolve();
     img.src = withToken(`/api/map.png?channel=${encodeURIComponent(ch)}&g=${studio.tableGeneration}`);
   });
@@ -264,7 +264,7 @@ async function makeNode(ctx, extra) {
 async function startFeel() {
   if (studio.ctx) { await studio.ctx.resume(); return; }
   await loadModule();
-  const rate = studio.layout.config.audio_rate;
+  const rate = studio.layout.audio_rate;
   studio.ctx = new AudioContext({sampleRate: rate, latencyHint: "interactive"});
   studio.node = await makeNode(studio.ctx);
   studio.node.port.addEventListener("message", onWorklet);
@@ -317,7 +317,11 @@ function pointer(kind, e) {
 
 function hover(e) {
   if (!studio.layout) return;
-  const [x, y] = eventPos(e);
+  showReadout(...eventPos(e));
+}
+// After a table swap the read-out shows the new table at the same point.
+function rehover() { if (studio.hoverPos) showReadout(...studio.hoverPos); }
+function showReadout(x, y) {
   const vals = studio.readout(x, y);
   studio.readoutValues = vals; studio.hoverPos = [x, y];
   $("hover-pos").textContent = `x ${(x * 1e3).toFixed(2)} mm, y ${(y * 1e3).toFixed(2)} mm`;
@@ -396,7 +400,7 @@ function wavBytes(samples, rate) {        // 32-bit float mono WAV
   new Float32Array(buf, 44).set(samples);
   return buf;
 }
-studio.wav = () => wavBytes(studio.lastStroke.audio, studio.layout.config.audio_rate);
+studio.wav = () => wavBytes(studio.lastStroke.audio, studio.layout.audio_rate);
 
 function download(name, data, type) {
   const a = document.createElement("a");
@@ -410,7 +414,7 @@ function download(name, data, type) {
 // same worklet and WebAssembly runtime as the live output, faster than real time.
 studio.renderOffline = async function (xs, ys) {
   await loadModule();
-  const rate = studio.layout.config.audio_rate, tickRate = studio.layout.config.tick_rate;
+  const rate = studio.layout.audio_rate, tickRate = studio.layout.tick_rate;
   const length = Math.ceil(xs.length * rate / tickRate) + 1024;
   const ctx = new OfflineAudioContext({numberOfChannels: 1, length, sampleRate: rate});
   await ctx.audioWorklet.addModule(withToken("/static/worklet.js"));
@@ -433,7 +437,7 @@ studio.renderOffline = async function (xs, ys) {
 
 // Per-tick positions of the recorded pointer stroke (linear between pointer events), for replay.
 studio.pointerTicks = function () {
-  const p = studio.lastPointer, rate = studio.layout.config.tick_rate;
+  const p = studio.lastPointer, rate = studio.layout.tick_rate;
   const i0 = p.map((e) => e.kind).lastIndexOf("down");
   const pts = p.slice(i0);
   const t0 = pts[0].t, t1 = pts[pts.length - 1].t;
@@ -482,7 +486,7 @@ function init() {
   wrap.addEventListener("pointerdown", (e) => { wrap.setPointerCapture(e.pointerId); studio.lastPointer = []; pointer("down", e); });
   wrap.addEventListener("pointermove", (e) => { hover(e); if (pressed) pointer("move", e); });
   wrap.addEventListener("pointerup", (e) => pointer("up", e));
-  $("channel").addEventListener("change", showMap);
+  $("channel").addEventListener("change", () => showMap().then(drawOverlay));
   $("mode").addEventListener("change", () => studio.node && studio.node.port.postMessage({type: "mode", mode: $("mode").value}));
   $("feel").addEventListener("click", startFeel);
   $("save").addEventListener("click", save);
@@ -492,7 +496,7 @@ function init() {
   $("dl-csv").addEventListener("click", () => download("stroke.csv", studio.traceCSV(), "text/csv"));
   $("dl-wav").addEventListener("click", () => download("stroke.wav", studio.wav(), "audio/wav"));
   $("snapshot").addEventListener("click", snapshot);
-  window.addEventListener("resize", () => studio.layout && showMap());
+  window.addEventListener("resize", () => studio.layout && showMap().then(drawOverlay));
   fetchOk("/api/state").then((r) => r.json()).then((st) => {
     const ex = $("exports");
     for (const f of st.export_formats || []) {

@@ -61,7 +61,7 @@ class StudioRenderer extends AudioWorkletProcessor {
     }
   }
 
-  // Bind a table laid out by the server (shapedisplay.studio.wasm.table_payload).
+  // Load a table image (shapedisplay.studio.wasm.table_payload) and start a renderer on it.
   bind(layout, payload) {
     const w = this.wasm;
     const base = w.sdw_reserve(layout.bytes);
@@ -70,16 +70,9 @@ class StudioRenderer extends AudioWorkletProcessor {
       return;
     }
     new Uint8Array(w.memory.buffer, base, layout.bytes).set(new Uint8Array(payload));
+    const rc = w.sdw_load(base, layout.bytes, layout.tick_rate, layout.audio_rate, layout.policy, layout.model);
     const g = layout.grid;
-    w.sdw_table(g.rows, g.cols, g.dx, g.dy, g.x0, g.y0, layout.n_blocks, base + layout.blocks_offset);
-    for (const c of layout.channels) {
-      w.sdw_channel(c.slot, base + c.offset, c.dtype, c.scale, c.value_offset, c.background);
-    }
-    const k = layout.config;
-    const rc = w.sdw_init(k.mass, k.stiffness, k.damping, k.burst_gain, k.max_stick_period, k.mu_s, k.mu_k,
-                          k.k_mu, k.skin_target, k.tick_rate, k.audio_rate, k.carrier_hz, k.rise_s, k.decay_s,
-                          k.policy, k.model);
-    this.tickRate = k.tick_rate;
+    this.tickRate = layout.tick_rate;
     this.alpha = layout.cursor_gain;
     this.extent = [g.x0, g.y0, g.x0 + (g.cols - 1) * g.dx, g.y0 + (g.rows - 1) * g.dy];
     const o = layout.out_names;
