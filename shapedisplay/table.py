@@ -360,9 +360,8 @@ class FrictionTable:
     def save(self, path: str | os.PathLike) -> Path:
         """Write atomically to ``path`` (.npz). Returns the path."""
         path = Path(path)
-        data = self.to_bytes()
         with atomic_path(path, suffix=".npz") as tmp:
-            tmp.write_bytes(data)
+            tmp.write_bytes(self.to_bytes())
         return path
 
     def to_bytes(self) -> bytes:
