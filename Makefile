@@ -9,7 +9,7 @@ OUT    := out
 .PHONY: install test demo bench report clean
 
 $(STAMP): pyproject.toml scripts/install-system-deps.sh
-	sh scripts/install-system-deps.sh --with-xvfb --with-studio
+	sh scripts/install-system-deps.sh --with-xvfb --with-studio --with-toolchains
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q -e '.[all,test]'
 	@touch $@

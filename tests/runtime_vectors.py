@@ -53,3 +53,82 @@ def case_setup(dtype, kind, policy, tick, audio, model, seconds=0.25):
     r = Renderer(table, model=model, tick_rate=tick, audio_rate=audio, burst_policy=policy)
     x, y = stroke(int(seconds * tick), kind)
     return table, r, x, y, to_image(table)
+
+
+class WasmRunner:
+    """sd_runtime.wasm in wasmtime, driven through its exports as sd_wasm.js drives it."""
+
+    def __init__(self, path):
+        import wasmtime
+        self.engine = wasmtime.Engine()
+        self.store = wasmtime.Store(self.engine)
+        module = wasmtime.Module.from_file(self.engine, str(path))
+        assert not module.imports, "the module must import nothing (an AudioWorklet gives it no WASI)"
+        self.ex = wasmtime.Instance(self.store, module, []).exports(self.store)
+        self.ex["_initialize"](self.store)
+        self.mem = self.ex["memory"]
+
+    def call(self, name, *args):
+        return self.ex[name](self.store, *args)
+
+    def write(self, ptr, data: bytes):
+        self.mem.write(self.store, data, ptr)
+
+    def read(self, ptr, n):
+        return bytes(self.mem.read(self.store, ptr, ptr + n))
+
+    def load(self, image: bytes) -> int:
+        """Stage the image and load it; the return code of sd_wasm_load."""
+        base = self.call("sd_wasm_stage", len(image))
+        assert base and base % 8 == 0
+        self.write(base, image)
+        return self.call("sd_wasm_load", base, len(image))
+
+    def play(self, image: bytes, r, x, y):
+        """Outputs, audio and counters as parse_outputs gives them for the host tool."""
+        n = len(x)
+        per_tick = int(np.ceil(r.audio_rate / r.tick_rate)) + 2
+        xy = np.empty(2 * n, "<f8")
+        xy[0::2], xy[1::2] = x, y
+        nout = len(R_.OUT_NAMES)
+        sizes = (16 * n, 8 * nout * n, 8 * per_tick * n)
+        rc = self.load(image)
+        assert rc == 0, rc
+        rc = self.call("sd_wasm_configure", MODELS[r.model.name], r._policy, r.tick_rate, r.audio_rate)
+        assert rc == 0, rc
+        assert self.call("sd_wasm_audio_cap") == per_tick
+        p = self.call("sd_wasm_scratch", sum(sizes))
+        xy_p, out_p, audio_p = p, p + sizes[0], p + sizes[0] + sizes[1]
+        self.write(xy_p, xy.tobytes())
+        na = self.call("sd_wasm_run", xy_p, n, out_p, audio_p, per_tick * n)
+        assert na >= 0
+        outs = np.frombuffer(self.read(out_p, sizes[1]), "<f8").reshape(n, nout)
+        audio = np.frombuffer(self.read(audio_p, 8 * na), "<f8")
+        return outs, audio, tuple(int(self.call("sd_wasm_counter", i)) for i in range(3))
+
+
+def derived_bounds(r, outs, unit_roundoff: float, libm_ulps: float = 1.0):
+    """Bounds on the differences between two builds of the runtime that do the same operations but
+    differ in libm (each result within ``libm_ulps`` ulp) and/or precision (``unit_roundoff`` u):
+    ``(dt_event, d_drive, d_force)`` -- event-time, drive/audio-sample and friction-force bounds.
+    The derivation is in runtime_c/README.md ("Tolerance"); ``outs`` are the reference per-tick
+    outputs (renderer.OUT_NAMES)."""
+    u = unit_roundoff
+    names = R_.OUT_NAMES
+    F = np.abs(outs[:, names.index("friction_force")])
+    V = np.abs(outs[:, names.index("pad_speed")])
+    ev = outs[:, names.index("events")] > 0
+    k = r.device.pad.stiffness
+    x_max = F.max() / k                           # largest spring stretch seen, m
+    v_min = V[ev].min() if ev.any() else 1.0      # slowest surface speed at an event, m/s
+    K = 16.0 * max(libm_ulps, 1.0)                # <= 8 libm results of 2u each along a re-stick
+    dt = K * u * x_max / v_min                    # a re-stick stretch error, turned into time by V
+    h = 1.0 / r.tick_rate
+    if r.model.name == "exact":
+        dt += 2.0 * (1e-16 + 1e-15 * h)           # Newton stopping rule of the re-stick polish
+    b = r.device.burst
+    w = 2.0 * np.pi * b.carrier_hz
+    n_rot = (b.rise_s + b.decay_s) * r.audio_rate # carrier rotations per burst
+    d_drive = (w + 1.0 / b.rise_s) * dt + (8.0 + 4.0 * n_rot) * u * max(libm_ulps, 1.0)
+    d_force = K * u * F.max() + k * v_min * dt
+    return dt, d_drive, d_force

@@ -1,0 +1,161 @@
+/* sd_wasm.c -- the WebAssembly face of the runtime (sd_runtime.wasm, built by `make wasm`).
+ *
+ * One renderer per module instance, all state static. The module imports nothing (no WASI
+ * calls are referenced), so an AudioWorklet instantiates it with an empty import object;
+ * sd_wasm.js wraps these exports. Pointers are byte offsets into the module's memory.
+ *
+ *   sd_wasm_stage(bytes)         where to write a table image of `bytes` bytes (8-aligned); never
+ *                                the active table's bytes, so a bad image leaves the playing table intact
+ *   sd_wasm_load(ptr, size)      validate and bind the image written at ptr (sd_image_load). On
+ *                                success it becomes the active table (the first one's settings become
+ *                                the configuration; later ones keep model, policy and rates) and the
+ *                                renderer restarts; on failure the previous table keeps playing.
+ *   sd_wasm_scratch(bytes)       scratch memory after the active image, for sd_wasm_run's arrays
+ *                                (valid until the next sd_wasm_stage)
+ *   sd_wasm_configure(model, policy, tick_rate, audio_rate)   override settings; restart
+ *   sd_wasm_set(index, value)    override one stored setting (SD_IP_* index); restart
+ *   sd_wasm_step(x, y)           one tick at cursor (x, y) m; returns the drive
+ *   sd_wasm_run(xy, n, outs, audio, cap)   n ticks from xy[2n]; per-tick outputs to outs[n][15]
+ *                                (0 = not wanted), audio samples to audio[cap]; returns samples
+ *                                written (-1: cap too small, stopped before the tick that would overflow)
+ *   sd_wasm_outputs(), sd_wasm_audio(), sd_wasm_audio_count()   last tick's outputs / samples
+ *   sd_wasm_audio_cap()          most samples one tick writes (ceil(audio_rate / tick_rate) + 2)
+ *   sd_wasm_counter(i)           0 clipped, 1 events, 2 events dropped, 3 position faults, 4 ticks
+ *
+ * Real-time rule: after load/configure nothing allocates or grows memory; a step is bounded work.
+ */
+#include <stdint.h>
+#include <string.h>
+#include "sd_runtime.h"
+
+#define EXPORT(name) __attribute__((export_name(#name)))
+
+static sd_image_t img, staged;
+static sd_renderer_t R;
+static sd_config_t cfg;
+static int loaded, ready;
+static uintptr_t act_lo, act_hi;          /* the active image's bytes */
+
+extern unsigned char __heap_base;
+
+static uintptr_t align8(uintptr_t p) { return (p + 7u) & ~(uintptr_t)7u; }
+
+/* Make [p, p + bytes) part of linear memory (set-up only: memory.grow). */
+static uint32_t region(uintptr_t p, uint32_t bytes)
+{
+    uintptr_t have = (uintptr_t)__builtin_wasm_memory_size(0) * 65536u, need = p + bytes;
+    if (bytes > (1u << 30)) return 0;
+    if (need > have && __builtin_wasm_memory_grow(0, (need - have + 65535u) / 65536u) == (size_t)-1) return 0;
+    return (uint32_t)p;
+}
+
+EXPORT(sd_wasm_stage) uint32_t sd_wasm_stage(uint32_t bytes)
+{
+    uintptr_t base = align8((uintptr_t)&__heap_base);
+    if (act_hi == 0 || base + bytes <= act_lo) return region(base, bytes);
+    return region(align8(act_hi), bytes);
+}
+
+EXPORT(sd_wasm_scratch) uint32_t sd_wasm_scratch(uint32_t bytes)
+{
+    uintptr_t base = align8((uintptr_t)&__heap_base);
+    return region(align8(act_hi > base ? act_hi : base), bytes);
+}
+
+static int restart(void)
+{
+    int rc = sd_renderer_init(&R, &img.table, &cfg);
+    ready = rc == SD_OK;
+    return rc;
+}
+
+EXPORT(sd_wasm_load) int sd_wasm_load(uint32_t ptr, uint32_t size)
+{
+    int rc = sd_image_load(&staged, (const void *)(uintptr_t)ptr, size), s;
+    if (rc != SD_OK) return rc;                    /* the active table is untouched */
+    img = staged;
+    for (s = 0; s < SD_NSLOT; s++)                 /* the copy's slots point at its own channels */
+        if (img.table.slot[s]) img.table.slot[s] = &img.ch[s];
+    act_lo = ptr;
+    act_hi = (uintptr_t)ptr + size;
+    if (!loaded) {
+        sd_image_config(&img, &cfg);
+    } else {                                       /* a table swapped into a running player */
+        sd_config_t keep = cfg;
+        sd_image_config(&img, &cfg);
+        cfg.model = keep.model;
+        cfg.policy = keep.policy;
+        cfg.tick_rate = keep.tick_rate;
+        cfg.audio_rate = keep.audio_rate;
+    }
+    loaded = 1;
+    return restart();
+}
+
+EXPORT(sd_wasm_configure) int sd_wasm_configure(int model, int policy, double tick_rate, double audio_rate)
+{
+    if (!loaded) return SD_ERR_ARG;
+    cfg.model = model;
+    cfg.policy = policy;
+    cfg.tick_rate = tick_rate;
+    cfg.audio_rate = audio_rate;
+    return restart();
+}
+
+EXPORT(sd_wasm_set) int sd_wasm_set(int index, double value)
+{
+    double *p[] = {&cfg.pad.mass, &cfg.pad.stiffness, &cfg.pad.damping, &cfg.pad.burst_gain,
+                   &cfg.pad.max_stick_period, &cfg.mu_s, &cfg.mu_k, &cfg.k_mu, &cfg.skin_target, &cfg.tick_rate,
+                   &cfg.audio_rate, &cfg.carrier_hz, &cfg.rise_s, &cfg.decay_s};
+    if (!loaded || index < 0 || index >= (int)(sizeof p / sizeof p[0])) return SD_ERR_ARG;
+    *p[index] = value;
+    return restart();
+}
+
+EXPORT(sd_wasm_reset) void sd_wasm_reset(double t0)
+{
+    if (ready) sd_renderer_reset(&R, t0);
+}
+
+EXPORT(sd_wasm_step) double sd_wasm_step(double x, double y)
+{
+    return ready ? sd_renderer_step(&R, x, y) : 0.0;
+}
+
+EXPORT(sd_wasm_run) int32_t sd_wasm_run(uint32_t xy_ptr, int32_t n, uint32_t outs_ptr, uint32_t audio_ptr, int32_t cap)
+{
+    const double *xy = (const double *)(uintptr_t)xy_ptr;
+    double *outs = (double *)(uintptr_t)outs_ptr, *audio = (double *)(uintptr_t)audio_ptr;
+    int32_t i, written = 0;
+    if (!ready || n < 0) return -1;
+    for (i = 0; i < n; i++) {
+        if (written + R.audio_cap > cap) return -1;
+        sd_renderer_step(&R, xy[2 * i], xy[2 * i + 1]);
+        if (outs) memcpy(outs + (size_t)i * SD_NOUT, R.out, sizeof R.out);
+        if (audio && R.n_audio > 0) {
+            memcpy(audio + written, R.audio, (size_t)R.n_audio * sizeof(double));
+            written += (int32_t)R.n_audio;
+        }
+    }
+    return written;
+}
+
+EXPORT(sd_wasm_outputs) uint32_t sd_wasm_outputs(void) { return (uint32_t)(uintptr_t)R.out; }
+EXPORT(sd_wasm_audio) uint32_t sd_wasm_audio(void) { return (uint32_t)(uintptr_t)R.audio; }
+EXPORT(sd_wasm_audio_count) int32_t sd_wasm_audio_count(void) { return ready ? (int32_t)R.n_audio : 0; }
+EXPORT(sd_wasm_audio_cap) int32_t sd_wasm_audio_cap(void) { return ready ? (int32_t)R.audio_cap : 0; }
+EXPORT(sd_wasm_n_outputs) int32_t sd_wasm_n_outputs(void) { return SD_NOUT; }
+EXPORT(sd_wasm_param) double sd_wasm_param(int index)
+{
+    return loaded && index >= 0 && index < SD_IMAGE_NPARAM ? img.params[index] : 0.0;
+}
+
+EXPORT(sd_wasm_counter) double sd_wasm_counter(int which)
+{
+    switch (which) {
+    case 0: return (double)R.clipped;
+    case 1: return (double)R.events_total;
+    case 2: return (double)R.events_dropped;
+    default: return 0.0;
+    }
+}
