@@ -24,7 +24,7 @@ import numpy as np  # noqa: E402
 
 from shapedisplay.compile import CompileOptions, compile_heightfield  # noqa: E402
 from shapedisplay.devices import load_device  # noqa: E402
-from shapedisplay.imageio import read_png, write_png  # noqa: E402
+from shapedisplay.imageio import read_picture, write_png  # noqa: E402
 from shapedisplay.forces import MappingOptions  # noqa: E402
 from shapedisplay.sources import load_image  # noqa: E402
 
@@ -47,7 +47,7 @@ def ours(path, device, mapping, options):
 
 def naive(path, lateral_gain=1.0):
     """Same arithmetic in plain numpy (no walls, no checks, no report)."""
-    g = read_png(path)
+    g = read_picture(path).values
     h = g * (2e-3 / 65535)
     del g
     gy, gx = np.gradient(h, 100e-3 / h.shape[0], 100e-3 / h.shape[1])
@@ -77,10 +77,10 @@ def main(n: int = 4096) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "map.png"
         t0 = time.perf_counter()
-        write_png(path, make_map(n), "up", 1)
+        write_png(path, make_map(n))
         print(f"map {n}x{n} 16-bit PNG, {path.stat().st_size / 2**20:.1f} MiB, written in {time.perf_counter() - t0:.2f} s")
         ours(path, device, mapping, options)            # warm up (numba cache, page cache)
-        t_read, c_read = best_of(lambda: read_png(path))
+        t_read, c_read = best_of(lambda: read_picture(path))
         t_ours, c_ours = best_of(lambda: ours(path, device, mapping, options))
         t_naive, c_naive = best_of(lambda: naive(path))
         res = ours(path, device, mapping, options)

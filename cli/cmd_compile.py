@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 
+_SOURCE_OPTS = ("size", "height", "resolution", "channel", "z_units", "up", "units")
 _MAPPING_OPTS = ("n_base", "n_gain", "slope_gain", "lateral_gain", "skin_stretch", "perceptual")
 
 
@@ -10,22 +11,17 @@ def register(sub) -> None:
     p = sub.add_parser(
         "compile",
         help="compile a height map, mesh or scene into a friction-envelope table",
-        description="Compile SOURCE (.png/.npy height map, .stl/.obj/.ply/.off/.glb/.gltf mesh, or .toml scene) "
-                    "into a table. Quantities take units: '60x4mm', '0:2mm', '0.5N', '2N/mm'.",
+        description="Compile SOURCE (picture .png/.jpg/.tif/..., .npy array, .stl/.obj/.ply/.off/.glb/.gltf mesh, "
+                    ".toml scene or .svg mockup) into a table. Quantities take units: '60x4mm', '0:2mm', '0.5N', "
+                    "'2N/mm'. A picture is the top view: x to the right, y up.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="example:\n  shapedisplay compile map.png -o t.npz --size 60x4mm --height 0:2mm "
                "--mapping height --n-base 0.5N --n-gain 2N/mm",
     )
-    p.add_argument("source", help="height map (.png 8/16-bit gray, .npy), mesh, or scene (.toml)")
+    p.add_argument("source", help="picture or .npy height map, mesh, scene (.toml) or SVG mockup (.svg)")
     p.add_argument("-o", "--output", required=True, help="table file to write (.npz)")
     p.add_argument("--device", help="device profile: TOML file or bundled name (default: built-in Konyo pad)")
-    g = p.add_argument_group("image sources")
-    g.add_argument("--size", help="physical width x height of the whole image, e.g. 60x4mm")
-    g.add_argument("--height", help="heights of gray 0 and full scale, e.g. 0:2mm (float .npy: omit = metres)")
-    g.add_argument("--resolution", help="sample spacing, e.g. 0.1mm (images: instead of --size; meshes: grid step)")
-    g = p.add_argument_group("mesh sources")
-    g.add_argument("--up", help="mesh axis that points up: x, y, z, -x, -y, -z or a vector dx,dy,dz (default z)")
-    g.add_argument("--units", help="length unit of the mesh coordinates, e.g. mm (default mm)")
+    add_source_arguments(p)
     g = p.add_argument_group("mapping (images and meshes; a scene has its [mapping])")
     g.add_argument("--mapping", default="height",
                    help="terms joined by '+': height, slope, lateral, lateral-normal, stretch, perceptual "
@@ -49,6 +45,34 @@ def register(sub) -> None:
     p.add_argument("--json", action="store_true", help="print the compile report as JSON")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     p.set_defaults(func=run)
+
+
+def add_source_arguments(p, size_flag: str = "--size") -> None:
+    """The options of picture and mesh sources, the same on compile, preview and heightmap.
+
+    ``size_flag``: the physical size option (``preview`` uses ``--size`` for
+    its picture in pixels and calls this one ``--extent``).
+    """
+    g = p.add_argument_group("picture and mesh sources")
+    g.add_argument(size_flag,
+                   help="pictures: physical width x height, e.g. 60x4mm; meshes: WxH stretches the footprint, "
+                        "one length (e.g. 60mm) scales the whole model")
+    g.add_argument("--height", help="LO:HI, e.g. 0:2mm: integer pictures map gray 0 and full scale onto it; float "
+                                    "data and meshes have their range fitted onto it")
+    g.add_argument("--resolution", help="sample spacing, e.g. 0.1mm (pictures: instead of the size; meshes: grid step)")
+    g.add_argument("--channel", help="colour pictures: luminance (ITU-R BT.709, default), r, g, b, a, or normal "
+                                     "(integrate a tangent-space normal map)")
+    g.add_argument("--z-units", help="unit of float data (.npy, float TIFF): m (default), mm, um, nm")
+    g.add_argument("--up", help="mesh axis that points up: x, y, z, -x, -y, -z or a vector dx,dy,dz (default z)")
+    g.add_argument("--units", help="length unit of the mesh coordinates: mm (default), cm, m, in")
+
+
+def source_given(args, extra=(), size_flag: str = "--size") -> dict:
+    """{option name: text or None} of the source options on the command line."""
+    given = {"size": getattr(args, size_flag.lstrip("-"))}
+    for name in ("height", "resolution", "channel", "z_units", "up", "units") + tuple(extra):
+        given[name] = getattr(args, name)
+    return given
 
 
 class warnings_as_lines:
@@ -125,28 +149,31 @@ def build_options(args):
 
 def run(args) -> int:
     import json
-    from pathlib import Path
 
     from shapedisplay.compile import compile_heightfield, format_report
     from shapedisplay.devices import load_device
     from shapedisplay.sources import check_applicable, load_source, source_options
 
-    src = Path(args.source)
     mapping, options = build_options(args)
     given = {o: getattr(args, o) for o in _MAPPING_OPTS}
     given["mapping"] = None if args.mapping == "height" else args.mapping
-    check_applicable(src, given, kinds={o: ("image", "mesh") for o in given})
-    opts = source_options(src, size=args.size, height=args.height, resolution=args.resolution, up=args.up,
-                          units=args.units)
-    if src.suffix.lower() == ".toml":
+    kind = check_applicable(args.source, given, kinds={o: ("image", "mesh") for o in given})
+    opts = source_options(args.source, **source_given(args))
+    if kind in ("scene", "svg"):
         from shapedisplay.scene import compile_scene
         # Without --device the scene's own [device] applies.
         device = load_device(args.device) if args.device else None
-        result = compile_scene(src, device=device, options=options)
+        with warnings_as_lines("compile"):
+            result = compile_scene(args.source, device=device, options=options)
     else:
         device = load_device(args.device)
         with warnings_as_lines("compile"):
-            hf = load_source(src, **opts)
+            hf = load_source(args.source, **opts)
+        from shapedisplay.forces import fit_to_force_range
+        from shapedisplay.sources import fits_force_range_by_default
+        if fits_force_range_by_default(hf, n_gain_given=args.n_gain is not None,
+                                       height_given=args.height is not None):
+            hf = fit_to_force_range(hf, device, mapping)
         result = compile_heightfield(hf, device, mapping, options)
     out = result.table.save(args.output)
     if args.json:

@@ -7,12 +7,17 @@ MESH_HELP = """\
 Rasterise the top surface of a 3D model (STL, OBJ, PLY, OFF, GLB, glTF) into
 a height field seen from above, and write it as .npy (heights in metres),
 .npz (heights + grid), .png (16-bit gray, black = lowest) or back out as a
-mesh (.stl / .ply, a closed solid for printing or inspection).
+mesh (.stl / .ply, a closed solid for printing or inspection). Pictures and
+arrays are written as the top view (row 0 = the far edge, y up); meshes keep
+x, y and z. Pictures and .npy arrays are read the same way, so a picture
+taken through heightmap and back keeps its orientation.
 
 examples:
   shapedisplay heightmap assets/meshes/keycap.stl -o keycap.png --resolution 0.1mm
   shapedisplay heightmap model.glb -o map.npy --grid 512x512 --up y --units m
   shapedisplay heightmap assets/meshes/keycap.stl -o check.stl --resolution 0.2mm
+  shapedisplay heightmap statue.glb -o statue.png --up y --size 60mm --height 0:3mm
+  shapedisplay heightmap icon.png -o icon.stl --size 20x20mm --height 0:1mm
 """
 
 
@@ -24,33 +29,20 @@ def register(subparsers) -> None:
     p.add_argument("source", help="mesh file (.stl .obj .ply .off .glb .gltf) or another source file")
     p.add_argument("-o", "--output", required=True,
                    help="output file; suffix picks the format: .npy .npz .png .stl .ply")
-    p.add_argument("--resolution", help="sample spacing, e.g. 0.1mm (exclusive with --grid)")
-    p.add_argument("--grid", help="grid size ROWSxCOLS, e.g. 512x512 (exclusive with --resolution)")
-    p.add_argument("--up", help="axis pointing up: x, y, z, -x, -y, -z (default z) or a direction 'dx,dy,dz'")
-    p.add_argument("--units", help="unit of the mesh coordinates: mm, cm, m, in (default mm)")
-    p.add_argument("--supersample", type=int,
-                   help="k: k x k sub-samples per sample (anti-aliasing; default 1)")
-    p.add_argument("--supersample-mode", help="reduce sub-samples by mean (default) or max")
-    p.add_argument("--background", help="height where the mesh does not reach (default 0mm)")
-    p.add_argument("--margin", help="background border around the footprint (default 0mm)")
-    p.add_argument("--size", help="image sources only: physical size WxH, e.g. 60x40mm")
-    p.add_argument("--height", help="image sources only: height range LO:HI, e.g. 0:2mm")
-    p.add_argument("--method", help="rasteriser: numba (default) or numpy (same answer)")
+    from shapedisplay_cli.cmd_compile import add_source_arguments
+    add_source_arguments(p)
+    g = p.add_argument_group("mesh rasterising")
+    g.add_argument("--grid", help="grid size ROWSxCOLS, e.g. 512x512 (exclusive with --resolution)")
+    g.add_argument("--supersample", help="k: k x k sub-samples per sample (anti-aliasing; default 1)")
+    g.add_argument("--supersample-mode", help="reduce sub-samples by mean (default) or max")
+    g.add_argument("--background", help="height where the mesh does not reach (default 0mm)")
+    g.add_argument("--margin", help="background border around the footprint (default 0mm)")
+    g.add_argument("--method", help="rasteriser: numba (default) or numpy (same answer)")
     p.add_argument("--base-thickness", default="1mm",
                    help="for .stl/.ply output: solid base below the lowest point (default 1mm)")
     p.add_argument("--surface-only", action="store_true",
                    help="for .stl/.ply output: write only the top surface, no walls or base")
     p.set_defaults(func=run)
-
-
-def _up(text: str):
-    if "," in text:
-        from shapedisplay.errors import InputError
-        try:
-            return [float(v) for v in text.split(",")]
-        except ValueError:
-            raise InputError(f"`--up` direction must be three numbers 'dx,dy,dz' (got {text!r})") from None
-    return text
 
 
 def run(args) -> int:
@@ -79,25 +71,18 @@ def run(args) -> int:
         print(f"  mesh: {m['triangles']} triangles from {m['meshes']} mesh(es), "
               f"{m['degenerate_faces_dropped']} degenerate faces dropped, footprint {w * 1e3:.4g} x {h * 1e3:.4g} mm, "
               f"{100 * m['covered_fraction']:.1f}% of samples covered, up={m['up']}, units={m['units']}")
+    if m.get("scale"):
+        print(f"  scale: {m['scale']['rule']}")
+    for note in m.get("notes", []):
+        print(f"  note: {note}")
     return 0
 
 
-#: Mesh-only options and their defaults (None on the command line = not given).
-MESH_DEFAULTS = {"up": "z", "units": "mm", "supersample": 1, "supersample_mode": "mean", "background": "0mm",
-                 "margin": "0mm", "method": "numba"}
+_MESH_EXTRA = ("grid", "supersample", "supersample_mode", "background", "margin", "method")
 
 
 def _load(args, src, mesh):
-    from shapedisplay.sources import OPTION_KINDS, check_applicable, load_source
+    from shapedisplay.sources import load_source, source_options
+    from shapedisplay_cli.cmd_compile import source_given
 
-    kind = check_applicable(src, {k: getattr(args, k) for k in OPTION_KINDS})
-    if kind == "mesh":
-        o = {k: (d if getattr(args, k) is None else getattr(args, k)) for k, d in MESH_DEFAULTS.items()}
-        return mesh.mesh_to_heightfield(
-            src, resolution=args.resolution, grid=args.grid, up=_up(o["up"]), units=o["units"],
-            background=o["background"], supersample=o["supersample"],
-            supersample_mode=o["supersample_mode"], margin=o["margin"], method=o["method"],
-        )
-    opts = {k: v for k, v in (("resolution", args.resolution), ("grid", args.grid),
-                              ("size", args.size), ("height_range", args.height)) if v is not None}
-    return load_source(src, **opts)
+    return load_source(src, **source_options(src, **source_given(args, _MESH_EXTRA)))

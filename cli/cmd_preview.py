@@ -27,6 +27,10 @@ examples:
   shapedisplay preview assets/scenes/phone.toml --color slope
   shapedisplay preview assets/meshes/keycap.stl --resolution 0.1mm -o keycap.png
   shapedisplay preview assets/scenes/terrain.png --extent 120x80mm --height 0:2mm -o map.png --size 1200x800
+  shapedisplay preview tray.glb --up y --units m --view top -o tray.png
+
+A picture is shown as the top view it is (x to the right, y up the screen):
+--view top shows it the way an image viewer does.
 """
 
 
@@ -48,18 +52,17 @@ def register(subparsers) -> None:
     p.add_argument("--scene", help="scene file (.toml) whose widget outlines and ids are drawn on a table")
     p.add_argument("--cmap", default="viridis", help="colour map (default viridis)")
     p.add_argument("--no-chart", action="store_true", help="do not draw the N/friction chart of the stroke")
-    p.add_argument("--extent", help="image sources only: physical size WxH, e.g. 60x40mm")
-    p.add_argument("--height", help="image sources only: height range LO:HI, e.g. 0:2mm")
-    p.add_argument("--resolution", help="image/mesh sources: sample spacing, e.g. 0.1mm")
+    from shapedisplay_cli.cmd_compile import add_source_arguments
+    add_source_arguments(p, size_flag="--extent")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     from shapedisplay import viewer
     from shapedisplay.sources import source_options
+    from shapedisplay_cli.cmd_compile import source_given
 
-    opts = source_options(args.input, size=args.extent, height=args.height, resolution=args.resolution,
-                          flags={"size": "--extent"})
+    opts = source_options(args.input, flags={"size": "--extent"}, **source_given(args, size_flag="--extent"))
     model = viewer.load_model(args.input, scene=args.scene, **opts)
     trace = viewer.load_trace(args.trace) if args.trace else None
     preview = viewer.render(model, args.color, trace=trace, exaggeration=args.exaggeration, size=args.size,

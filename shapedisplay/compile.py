@@ -391,9 +391,16 @@ def compile_heightfield(hf: HeightField, device=None, mapping: MappingOptions = 
     # an extruded profile (every row identical in every stored channel) keeps one row
     repeated = hf.rows > 1 and all(bool((c[1] == c[0]).all()) for c in codes.values()) \
         and all(bool((c == c[:1]).all()) for c in codes.values())
+    tiles = None
     if repeated:
         layout = f"one {hf.cols}-sample row stored once and placed on all {hf.rows} rows (rows identical)"
         stored = int(sum(c[0].nbytes for c in codes.values()))
+    elif hf.mask is not None:
+        tiles, bg_codes = _mask_tiles(codes, hf.mask)
+        n_tiles = -(-hf.rows // MASK_TILE) * -(-hf.cols // MASK_TILE)
+        stored = int(sum(c.nbytes for _, chans in tiles for c in chans.values()))
+        layout = (f"masked: {len(tiles)} of {n_tiles} tiles of {MASK_TILE}x{MASK_TILE} samples stored; the rest "
+                  f"lies outside the picture's opaque area (flat ground, not stored)")
     else:
         layout = "dense: one block covering the canvas"
         stored = int(sum(c.nbytes for c in codes.values()))
@@ -414,15 +421,77 @@ def compile_heightfield(hf: HeightField, device=None, mapping: MappingOptions = 
         "dense_bytes": dense,
         "bytes_saved": dense - stored,
         "dense_rule": "dense = rows*cols * every format channel * 4 bytes (float32)",
+        "scale": _scale_report(hf.meta.get("scale"), mapping),
+        "source_notes": list(hf.meta.get("notes", [])),
     }
     meta = table_meta(device, mapping, options, hf.source, hf.sha256(), report)
     background = {k: 0.0 for k in codes}
     if repeated:
         row = {n: quant[n].decode(c[:1]) for n, c in codes.items()}  # re-encodes to the same codes
         table = FrictionTable.from_patches(grid, [((r, 0), row) for r in range(hf.rows)], quant, background, meta)
+    elif tiles is not None:
+        background = {n: float(quant[n].decode(np.asarray([bg_codes[n]]))[0]) for n in codes}
+        placed = [(rc, {n: quant[n].decode(c) for n, c in chans.items()}) for rc, chans in tiles]
+        table = FrictionTable.from_patches(grid, placed, quant, background, meta)
     else:
         table = FrictionTable.from_codes(grid, codes, quant, background, meta)
     return CompileResult(table, report)
+
+
+#: Tile size (samples) of tables compiled from masked sources.
+MASK_TILE = 32
+
+
+def _mask_tiles(codes: dict, mask: np.ndarray):
+    """Tiles to store of a masked source: those touching the mask or differing from the outside value.
+
+    The outside value of each channel is its most common code outside the
+    mask (flat ground); a tile left out holds exactly that code in every
+    channel, so leaving it out changes nothing the renderer reads.
+    Returns ``([((row0, col0), {name: codes}), ...], {name: outside code})``.
+    """
+    outside = ~mask
+    bg = {}
+    for n, c in codes.items():
+        vals, counts = np.unique(c[outside], return_counts=True)
+        bg[n] = vals[int(np.argmax(counts))]
+    rows, cols = mask.shape
+    tiles = []
+    for r0 in range(0, rows, MASK_TILE):
+        for c0 in range(0, cols, MASK_TILE):
+            sl = (slice(r0, r0 + MASK_TILE), slice(c0, c0 + MASK_TILE))
+            if mask[sl].any() or any(bool((c[sl] != bg[n]).any()) for n, c in codes.items()):
+                tiles.append(((r0, c0), {n: c[sl] for n, c in codes.items()}))
+    return tiles, bg
+
+
+def _scale_report(scale: dict | None, mapping: MappingOptions) -> dict | None:
+    """Scale from source units to height to force, for the compile report."""
+    if not scale:
+        return None
+    out = dict(scale)
+    a = float(scale["m_per_unit"])
+    unit = scale["source_unit"]
+    g = mapping.n_gain if mapping.height else 0.0
+    out["n_per_m"] = g
+    out["n_per_source_unit"] = a * g
+    what = "1 gray level" if unit == "gray level" else f"1 {unit} of {scale.get('what', 'data')}"
+    text = f"{what} -> {_si(a, 'm')} of height"
+    if mapping.height:
+        text += f" -> {_si(a * g, 'N')} of normal force (n_gain {g * 1e-3:.4g} N/mm"
+        text += ", perceptual reshaping on top)" if mapping.perceptual_exponent is not None else ")"
+    out["text"] = text
+    return out
+
+
+def _si(v: float, unit: str) -> str:
+    """``3.5e-6, 'm'`` -> ``'3.5 um'``."""
+    if v == 0:
+        return f"0 {unit}"
+    for f, p in ((1.0, ""), (1e-3, "m"), (1e-6, "u"), (1e-9, "n"), (1e-12, "p")):
+        if abs(v) >= f:
+            return f"{v / f:.4g} {p}{unit}"
+    return f"{v:.4g} {unit}"
 
 
 def format_report(report: dict) -> str:
@@ -431,8 +500,13 @@ def format_report(report: dict) -> str:
     lines = [f"source: {report['source']}",
              f"grid: {g['rows']} x {g['cols']} samples, dx={g['dx_m'] * 1e3:.4g} mm, dy={g['dy_m'] * 1e3:.4g} mm"
              + (" (1-D)" if report.get("is_1d") else ""),
-             f"device: {report['device']}   mapping: {report['mapping']}",
-             "kept:"]
+             f"device: {report['device']}   mapping: {report['mapping']}"]
+    sc = report.get("scale")
+    if sc:
+        lines.append(f"scale: {sc['text']}; {sc['rule']}")
+    for note in report.get("source_notes", []):
+        lines.append(f"note: {note}")
+    lines.append("kept:")
     for name in report["kept"]:
         q = report["quantization"][name]
         unit = CHANNELS[name][0]

@@ -380,6 +380,53 @@ def normal_force(hf: HeightField, device, mapping: MappingOptions) -> tuple[np.n
     return n, _clamp(n, lo, hi, "normal_force", "N")
 
 
+def fit_to_force_range(hf: HeightField, device, mapping: MappingOptions) -> HeightField:
+    """Scale the heights so that the normal force never leaves the device's range.
+
+    With ``N = n_base + n_gain * h`` the heights are multiplied by the
+    largest factor ``s <= 1`` that keeps every sample within
+    ``device.normal_force_range`` (about height 0, so flat ground keeps
+    ``n_base``). A field that already fits, or a mapping without the height
+    term, is returned unchanged. The factor is recorded in
+    ``meta["scale"]`` and stated in ``meta["notes"]``.
+
+    Returns
+    -------
+    HeightField
+        ``hf`` itself, or a copy on the same grid with scaled heights.
+    """
+    if not mapping.height or mapping.n_gain <= 0:
+        return hf
+    lo, hi = device.normal_force_range
+    h = hf.heights
+    hmin, hmax = float(h.min()), float(h.max())
+    s = 1.0
+    if hmax > 0 and mapping.n_base + mapping.n_gain * hmax > hi:
+        s = min(s, (hi - mapping.n_base) / (mapping.n_gain * hmax))
+    if hmin < 0 and mapping.n_base + mapping.n_gain * hmin < lo:
+        s = min(s, (lo - mapping.n_base) / (mapping.n_gain * hmin))
+    if s >= 1.0:
+        return hf
+    if s <= 0:
+        raise InputError(f"cannot fit the heights into the device's normal force range {lo:g}..{hi:g} N: "
+                         f"the base force n_base = {mapping.n_base:g} N lies outside it")
+    s *= 1 - 1e-12                      # the top sample lands just inside the ceiling, not 1 ulp above it
+    out = hf.with_heights(h * s)
+    meta = out.meta
+    sc = dict(meta.get("scale") or {"source_unit": "m", "m_per_unit": 1.0, "offset_m": 0.0, "rule": "metres"})
+    sc["m_per_unit"] = sc["m_per_unit"] * s
+    sc["offset_m"] = sc.get("offset_m", 0.0) * s
+    sc["rule"] = sc.get("rule", "") + f", relief scaled x{s:.4g} to fit the device's {lo:g}..{hi:g} N force range"
+    meta["scale"] = sc
+    top = max(hmax, -hmin)
+    meta["notes"] = list(meta.get("notes", [])) + [
+        f"relief {hmin * 1e3:.4g}..{hmax * 1e3:.4g} mm would clamp at the device's force range {lo:g}..{hi:g} N "
+        f"with n_gain {mapping.n_gain * 1e-3:g} N/mm; heights scaled x{s:.4g} to fit "
+        f"(now {hmin * s * 1e3:.4g}..{hmax * s * 1e3:.4g} mm; give --n-gain or --height to choose the scale)"]
+    meta["fitted_to_force_range"] = {"factor": s, "relief_m": top}
+    return out
+
+
 def _clamp(a: np.ndarray, lo: float, hi: float, name: str, unit: str) -> dict:
     """Clamp ``a`` in place to [lo, hi]; return a note of how much was clamped."""
     amin, amax = float(a.min()), float(a.max())

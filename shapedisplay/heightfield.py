@@ -5,6 +5,16 @@ source (analytic primitive, image, mesh, scene) produces one, and gradient
 analysis and force mapping consume it. Arrays are indexed (rows, cols); row
 index grows with y, column index with x. Sample (r, c) sits at
 ``(x0 + c*dx, y0 + r*dy)``. A 1-D profile is a single row.
+
+Orientation
+-----------
+Physical space has x to the right and y up the screen. A height map
+written or shown as a picture is the top view of the surface, so a
+picture's row 0 (its top edge) holds the *largest* y: picture rows run
+opposite to height-field rows. :func:`grid_from_picture` and
+:func:`picture_from_grid` are the one place that flips between the two;
+every reader and writer of picture-ordered data (PNG/TIFF/JPEG pictures and
+``.npy`` height arrays) goes through them.
 """
 from __future__ import annotations
 
@@ -37,6 +47,16 @@ def check_spacing(value: float, name: str) -> float:
     return v
 
 
+def grid_from_picture(values: np.ndarray) -> np.ndarray:
+    """Picture order (row 0 = top edge) -> height-field order (row 0 = smallest y). A view, no copy."""
+    return np.asarray(values)[::-1]
+
+
+def picture_from_grid(values: np.ndarray) -> np.ndarray:
+    """Height-field order (row 0 = smallest y) -> picture order (row 0 = top edge). A view, no copy."""
+    return np.asarray(values)[::-1]
+
+
 @dataclass(frozen=True, eq=False)
 class HeightField:
     """Heights on a regular grid.
@@ -51,6 +71,13 @@ class HeightField:
         Position of sample (0, 0).
     source : str
         Human-readable description of where the heights came from.
+    meta : dict
+        What the source knows: ``kind``, ``scale`` (source unit -> metres),
+        ``notes`` (what was ignored or converted), ...
+    mask : ndarray of shape (rows, cols), bool, or None
+        True where the surface exists (a picture's opaque pixels); samples
+        outside hold flat ground and the compiler does not store regions
+        lying wholly outside. None = everywhere.
     """
 
     heights: np.ndarray
@@ -60,6 +87,7 @@ class HeightField:
     y0: float = 0.0
     source: str = ""
     meta: dict = field(default_factory=dict)
+    mask: np.ndarray | None = None
 
     def __post_init__(self):
         h = np.asarray(self.heights, dtype=np.float64)
@@ -83,6 +111,16 @@ class HeightField:
         object.__setattr__(self, "heights", h)
         object.__setattr__(self, "dx", check_spacing(self.dx, "dx"))
         object.__setattr__(self, "dy", check_spacing(self.dy, "dy"))
+        if self.mask is not None:
+            m = np.asarray(self.mask)
+            if m.dtype != bool or m.shape != h.shape:
+                raise InputError(f"`mask` must be a bool array of the heights' shape {h.shape} "
+                                 f"(got {m.dtype} {m.shape})")
+            if not m.any():
+                raise InputError("`mask` leaves no sample inside the shape (every pixel transparent)")
+            m = np.ascontiguousarray(m)
+            m.setflags(write=False)
+            object.__setattr__(self, "mask", None if m.all() else m)
         for name in ("x0", "y0"):
             v = float(getattr(self, name))
             if not np.isfinite(v):
@@ -127,12 +165,14 @@ class HeightField:
         d.update(np.asarray(self.shape, dtype="<i8").tobytes())
         d.update(np.asarray([self.dx, self.dy, self.x0, self.y0], dtype="<f8").tobytes())
         d.update(np.ascontiguousarray(self.heights.astype("<f8", copy=False)))  # buffer, no copy
+        if self.mask is not None:
+            d.update(np.packbits(self.mask).tobytes())
         return d.hexdigest()
 
     def with_heights(self, heights: np.ndarray, source: str | None = None) -> "HeightField":
         """A copy on the same grid with new heights."""
         return HeightField(heights, self.dx, self.dy, self.x0, self.y0,
-                           self.source if source is None else source, dict(self.meta))
+                           self.source if source is None else source, dict(self.meta), self.mask)
 
     def __repr__(self) -> str:
         return (f"HeightField({self.rows}x{self.cols}, dx={self.dx * 1e3:g} mm, dy={self.dy * 1e3:g} mm, "

@@ -1,353 +1,406 @@
-"""Grayscale PNG and ``.npy`` height-map files, read and written with zlib + numpy.
+"""Height-map pictures and arrays: read and written through Pillow and numpy.
 
-Functions for dealing with single-channel height images as integer arrays
-of shape (rows, cols). Only what a height map needs is supported:
+Functions for turning a picture file into one channel of numbers of shape
+(rows, cols), *picture order* (row 0 is the top edge of the picture as it
+is shown), and back. :mod:`shapedisplay.sources` turns these values into
+heights and puts them on the height-field grid (row index growing with y,
+see :func:`shapedisplay.heightfield.grid_from_picture`).
 
-* PNG colour type 0 (grayscale) with bit depth 8 or 16, not interlaced, any
-  mix of the five PNG row filters (None, Sub, Up, Average, Paeth). RGB,
-  palette, alpha and 1/2/4-bit images are refused with a message saying so.
-* ``.npy`` arrays of shape (rows, cols) or (cols,), integer or float.
+What is read
+------------
+Every format Pillow reads: PNG (1/2/4/8/16-bit grey, grey+alpha, RGB, RGBA,
+palette with or without transparency, interlaced or not), JPEG, TIFF
+(8/16-bit, 32-bit integer, 32-bit float), BMP, GIF, WebP. ``.npy`` arrays of
+shape (rows, cols) or (cols,) are read with numpy.
 
-The image size is read from the PNG header and checked against
-:data:`shapedisplay.heightfield.MAX_SAMPLES` *before* any pixel data is
-decompressed, so an oversized (or hostile) file is refused without
-exhausting memory. Pixel data is inflated with an output limit equal to the
-size the header announces. CRCs of every chunk are checked.
+* **Integer pictures** keep their codes: ``full_scale`` is 255 for 8-bit
+  channels and 65535 for 16-bit ones (1/2/4-bit grey is widened to 8 bits by
+  Pillow: 0 and 255 stay the ends).
+* **Float pictures** (32-bit float TIFF) are data in a physical unit, not
+  gray values: ``full_scale`` is None.
+* **Colour** is reduced to one channel chosen by ``channel``:
+  ``luminance`` (default) is the ITU-R BT.709 luma of the stored (gamma
+  encoded) values, ``Y' = 0.2126 R' + 0.7152 G' + 0.0722 B'``, the weights of
+  HD video and sRGB; ``r``, ``g``, ``b``, ``a`` pick one channel. A palette
+  picture is expanded through its palette first.
+* **Alpha** (grey+alpha, RGBA, palette transparency) becomes a mask: samples
+  with alpha 0 are outside the shape. ``channel="a"`` uses alpha as heights
+  instead (no mask).
+* **Normal maps**: a colour picture whose pixels decode as unit vectors
+  ``n = 2 c / full_scale - 1`` pointing out of the surface (``nz > 0``, the
+  blue-violet look of a tangent-space normal map) is recognised;
+  ``channel="normal"`` returns its slopes for integration, any other reading
+  of such a picture is refused with that advice unless a channel is named.
 
-The row filters None/Sub/Up are undone with numpy; Average and Paeth, which
-depend on the pixel just decoded to their left, are undone by a small numba
-kernel (compiled once, cached on disk).
+Limits
+------
+The picture size is read from the file header (Pillow opens lazily) and
+checked against :data:`shapedisplay.heightfield.MAX_SAMPLES` *before* any
+pixel data is decoded, so an oversized or hostile file (a decompression
+bomb) is refused without exhausting memory.
+
+Pillow reads 16-bit-per-channel RGB/RGBA PNG at 8 bits per channel; such a
+file is read that way with a warning that says so (convert it to 16-bit grey
+to keep the depth).
+
+Written pictures are 16-bit grey PNG through Pillow, with ``tEXt`` chunks
+recording the height range and spacing.
 """
 from __future__ import annotations
 
 import os
-import struct
-import zlib
+import warnings
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from .atomic import atomic_path
-from .errors import FileFormatError, InputError
+from .errors import FileFormatError, InputError, unknown_key
 from .heightfield import check_grid_size
 
+#: Suffixes read as pictures through Pillow.
+PICTURE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".gif", ".webp")
+#: Channel choices; "normal" integrates a tangent-space normal map.
+CHANNELS = ("luminance", "r", "g", "b", "a", "normal")
+#: ITU-R BT.709 luma weights of R', G', B'.
+BT709 = (0.2126, 0.7152, 0.0722)
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-#: What this reader accepts, quoted in every refusal.
-SUPPORTED = "8- or 16-bit grayscale PNG (colour type 0, not interlaced)"
-_COLOR_NAMES = {0: "grayscale", 2: "RGB", 3: "palette", 4: "grayscale+alpha", 6: "RGBA"}
-FILTER_NAMES = ("none", "sub", "up", "average", "paeth")
+
+
+class PictureWarning(UserWarning):
+    """A picture was read with a loss the user should know about (bit depth, frames)."""
+
+
+@dataclass(frozen=True)
+class Picture:
+    """One channel of a picture file, in picture order (row 0 = top edge).
+
+    Attributes
+    ----------
+    values : ndarray of shape (rows, cols)
+        uint8/uint16 codes of an integer picture, float64 for luminance of a
+        colour picture (still on the 0..full_scale scale), float32/float64
+        for float data.
+    full_scale : float or None
+        Code of full scale (255, 65535) for integer pictures; None for float
+        data (values in a physical unit).
+    mask : ndarray of shape (rows, cols), bool, or None
+        True where the picture is opaque (alpha > 0); None without alpha.
+    slopes : tuple of two ndarrays or None
+        ``channel="normal"``: (dh/dx, dh/dy) per pixel, picture order, x to the
+        right and y *up* the picture.
+    description : str
+        Mode, bit depth and channel, for reports ("RGBA 8-bit, luminance BT.709").
+    notes : list of str
+        What was dropped or converted (alpha used as mask, frames ignored...).
+    """
+
+    values: np.ndarray
+    full_scale: float | None
+    mask: np.ndarray | None = None
+    slopes: tuple | None = None
+    description: str = ""
+    notes: list = field(default_factory=list)
 
 
 # ----------------------------------------------------------------- reading
-def read_png(path: str | os.PathLike) -> np.ndarray:
-    """Read an 8- or 16-bit grayscale PNG.
+def _open(path: Path):
+    from PIL import Image
+    if not path.exists():
+        raise FileFormatError(f"image '{path}': no such file")
+    if path.is_dir():
+        raise FileFormatError(f"image '{path}': is a directory, not a file")
+    try:
+        return Image.open(path)
+    except PermissionError as exc:
+        raise FileFormatError(f"image '{path}': unreadable ({exc.strerror or exc})") from None
+    except Image.DecompressionBombError as exc:   # Pillow's own header check (its limit is below ours)
+        raise InputError(f"image '{path}': refused before decoding: {exc}") from None
+    except Exception as exc:  # UnidentifiedImageError, SyntaxError (broken header), OSError
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise FileFormatError(f"image '{path}': not a picture Pillow can read ({msg}); readable: "
+                              f"{', '.join(PICTURE_SUFFIXES)} or .npy") from None
+
+
+def picture_info(path: str | os.PathLike) -> dict:
+    """Size, mode and bit depth from the file header alone.
+
+    Returns ``{"cols", "rows", "mode", "bit_depth", "format"}``; raises
+    :class:`InputError` for a picture larger than the sample limit (nothing
+    decoded yet).
+    """
+    path = Path(path)
+    with _open(path) as im:
+        cols, rows = im.size
+        if cols == 0 or rows == 0:
+            raise FileFormatError(f"image '{path}': empty image ({cols}x{rows} pixels)")
+        check_grid_size(rows, cols, f"image '{path}'")
+        return {"cols": cols, "rows": rows, "mode": im.mode, "bit_depth": _bit_depth(im, path),
+                "format": im.format}
+
+
+def _bit_depth(im, path: Path) -> int:
+    """Bits per channel as stored in the file (PNG header read directly for 16-bit colour)."""
+    if im.format == "PNG":
+        with open(path, "rb") as fh:
+            head = fh.read(33)
+        if len(head) == 33 and head.startswith(PNG_SIGNATURE):
+            return head[24]
+    if im.mode in ("I;16", "I;16B", "I;16L", "I;16N"):
+        return 16
+    if im.mode in ("I", "F"):
+        return 32
+    return 8
+
+
+def read_picture(path: str | os.PathLike, channel: str | None = None) -> Picture:
+    """Read one channel of a picture (see the module docstring).
 
     Parameters
     ----------
     path : path-like
-        The PNG file.
+        Any picture Pillow reads (PNG, JPEG, TIFF, ...).
+    channel : {"luminance", "r", "g", "b", "a", "normal"} or None
+        Which channel of a colour picture; None = luminance, refusing a
+        picture that looks like a normal map. Grey pictures take None,
+        "luminance" (the grey value) or "a" (their alpha).
 
     Returns
     -------
-    ndarray of shape (rows, cols), uint8 or uint16
-        Gray values; full scale is 255 (8-bit) or 65535 (16-bit).
+    Picture
 
     Raises
     ------
     FileFormatError
-        missing/unreadable/corrupt file, unsupported colour type or bit depth,
-        interlacing, bad CRC, truncated or oversized pixel data.
+        Missing, unreadable, truncated or corrupt file; a channel the picture
+        does not have.
     InputError
-        the header announces an image too large to hold in memory.
+        The header announces a picture too large to hold in memory; a normal
+        map read without ``channel``.
     """
     path = Path(path)
-    data = _read_file(path, "image")
-    if not data.startswith(PNG_SIGNATURE):
-        raise FileFormatError(f"image '{path}': not a PNG file (bad signature); supported: {SUPPORTED}, or .npy")
-    pos = len(PNG_SIGNATURE)
-    ihdr = None
-    idat: list[bytes] = []
-    seen_iend = False
-    while pos < len(data):
-        if pos + 8 > len(data):
-            raise FileFormatError(f"image '{path}': truncated PNG chunk header at byte {pos}")
-        length, ctype = struct.unpack(">I4s", data[pos:pos + 8])
-        end = pos + 12 + length
-        if end > len(data):
-            raise FileFormatError(f"image '{path}': truncated PNG chunk {ctype!r} (needs {length} bytes)")
-        body = data[pos + 8:pos + 8 + length]
-        (crc,) = struct.unpack(">I", data[pos + 8 + length:end])
-        if zlib.crc32(ctype + body) & 0xFFFFFFFF != crc:
-            raise FileFormatError(f"image '{path}': CRC mismatch in PNG chunk {ctype.decode('latin-1')!r}; file is corrupt")
-        if ctype == b"IHDR":
-            ihdr = _parse_ihdr(body, path)
-        elif ctype == b"IDAT":
-            if ihdr is None:
-                raise FileFormatError(f"image '{path}': IDAT before IHDR; file is corrupt")
-            idat.append(body)
-        elif ctype == b"IEND":
-            seen_iend = True
-            break
-        elif ctype == b"PLTE" or (ctype[0] & 0x20) == 0 and ctype not in (b"IHDR", b"IDAT", b"IEND"):
-            # a critical chunk this reader does not know
-            raise FileFormatError(f"image '{path}': unsupported critical PNG chunk {ctype!r}; supported: {SUPPORTED}")
-        pos = end
-    if ihdr is None:
-        raise FileFormatError(f"image '{path}': no IHDR chunk; file is corrupt")
-    if not idat:
-        raise FileFormatError(f"image '{path}': no pixel data (IDAT); file is truncated")
-    if not seen_iend:
-        raise FileFormatError(f"image '{path}': no IEND chunk; file is truncated")
-    width, height, depth = ihdr
-    bpp = depth // 8
-    stride = width * bpp
-    expected = height * (stride + 1)
-    raw = _inflate(b"".join(idat) if len(idat) > 1 else idat[0], expected, path)
-    rows = np.frombuffer(raw, dtype=np.uint8).reshape(height, stride + 1)
-    ftypes = rows[:, 0]
-    if ftypes.max(initial=0) > 4:
-        r = int(np.argmax(ftypes > 4))
-        raise FileFormatError(f"image '{path}': row {r} has unknown PNG filter type {int(ftypes[r])}; file is corrupt")
-    pix = unfilter(rows[:, 1:], ftypes, bpp)
-    if depth == 16:
-        return pix.view(">u2").astype(np.uint16)
-    return pix
+    if channel is not None and channel not in CHANNELS:
+        raise unknown_key("image channel", channel, CHANNELS)
+    with _open(path) as im:
+        cols, rows = im.size
+        if cols == 0 or rows == 0:
+            raise FileFormatError(f"image '{path}': empty image ({cols}x{rows} pixels)")
+        check_grid_size(rows, cols, f"image '{path}'")     # before any pixel is decoded
+        depth = _bit_depth(im, path)
+        notes = []
+        if getattr(im, "n_frames", 1) > 1:
+            notes.append(f"first of {im.n_frames} frames used")
+        from PIL import Image
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", Image.DecompressionBombWarning)   # our limit was checked
+                im.load()
+        except Exception as exc:   # truncated data, bad CRC, decoder errors
+            msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise FileFormatError(f"image '{path}': corrupt or truncated pixel data ({msg})") from None
+        return _channel(im, path, channel, depth, notes)
 
 
-def _read_file(path: Path, what: str) -> bytes:
-    try:
-        return path.read_bytes()
-    except FileNotFoundError:
-        raise FileFormatError(f"{what} '{path}': no such file") from None
-    except IsADirectoryError:
-        raise FileFormatError(f"{what} '{path}': is a directory, not a file") from None
-    except OSError as exc:
-        raise FileFormatError(f"{what} '{path}': unreadable ({exc.strerror or exc})") from None
+def _channel(im, path: Path, channel: str | None, depth: int, notes: list) -> Picture:
+    mode = im.mode
+    where = f"image '{path}'"
+    if mode == "P":
+        im = im.convert("RGBA" if "transparency" in im.info else "RGB")
+        notes.append("palette expanded")
+        mode = im.mode
+    elif mode == "PA":
+        im, mode = im.convert("RGBA"), "RGBA"
+        notes.append("palette expanded")
+    elif mode in ("CMYK", "YCbCr", "LAB", "HSV", "RGBX", "RGBa"):
+        im, mode = im.convert("RGB"), "RGB"
+    elif mode == "La":
+        im, mode = im.convert("LA"), "LA"
+    elif mode == "1":
+        im, mode = im.convert("L"), "L"
+    elif mode == "I;16B" or mode == "I;16L" or mode == "I;16N":
+        im, mode = im.convert("I;16"), "I;16"
+    grey = mode in ("L", "LA", "I;16", "I", "F")
+    has_alpha = mode in ("LA", "RGBA")
+    colour = mode in ("RGB", "RGBA")
+    if not (grey or colour):
+        raise FileFormatError(f"{where}: picture mode {mode} is not supported; save it as grey or RGB(A)")
+    if colour and depth == 16:
+        warnings.warn(f"{where}: 16-bit-per-channel colour is read at 8 bits per channel (Pillow's limit); "
+                      f"save the height map as 16-bit grey to keep its depth", PictureWarning, stacklevel=3)
+        notes.append("16-bit colour read at 8 bits per channel")
+    arr = np.asarray(im)
+    if mode == "I":
+        # 32-bit integer TIFF, or 16-bit data Pillow widened
+        full = 65535.0 if depth <= 16 else float(2 ** 32 - 1)
+        vmin = int(arr.min()) if arr.size else 0
+        if vmin < 0:
+            raise FileFormatError(f"{where}: signed 32-bit integer pixels (min {vmin}) are not supported; "
+                                  f"save the heights as 32-bit float TIFF or .npy")
+        arr = arr.astype(np.uint16) if full == 65535.0 else arr.astype(np.float64)
+    elif mode == "F":
+        return Picture(np.array(arr, dtype=np.float32), None, None, None, "32-bit float", notes)
+    else:
+        full = 65535.0 if mode == "I;16" else 255.0
+
+    if channel == "normal":
+        if not colour:
+            raise FileFormatError(f"{where}: `channel` 'normal' needs an RGB normal map (got a {mode} picture)")
+        slopes = _normal_slopes(arr[..., :3], full, where, strict=True)
+        return Picture(np.zeros(arr.shape[:2]), full, _mask(arr, has_alpha), slopes,
+                       f"{mode} {depth}-bit tangent-space normal map (+y green)", notes)
+    if channel == "a":
+        if not has_alpha:
+            raise FileFormatError(f"{where}: has no alpha channel (mode {mode}); choose luminance, r, g or b")
+        return Picture(np.ascontiguousarray(arr[..., -1]), full, None, None, f"{mode} {depth}-bit, alpha", notes)
+    if grey:
+        if channel in ("r", "g", "b"):
+            raise FileFormatError(f"{where}: is a grey picture (mode {mode}); `channel` '{channel}' needs colour "
+                                  f"(use luminance or omit it)")
+        values = np.ascontiguousarray(arr[..., 0] if has_alpha else arr)
+        desc = f"grey {depth}-bit" + (" + alpha (mask)" if has_alpha else "")
+    else:
+        rgb = arr[..., :3]
+        if channel is None and looks_like_normal_map(rgb, full):
+            raise InputError(
+                f"{where}: looks like a tangent-space normal map (pixels are unit vectors pointing out of the "
+                f"surface); pass `--channel normal` to integrate it into heights (Frankot-Chellappa), or name "
+                f"another channel (luminance, r, g, b) to use its values as heights")
+        if channel in ("r", "g", "b"):
+            values = np.ascontiguousarray(rgb[..., "rgb".index(channel)])
+            desc = f"{mode} {depth}-bit, channel {channel}"
+        else:
+            w = BT709
+            values = rgb[..., 0] * w[0] + rgb[..., 1] * w[1] + rgb[..., 2] * w[2]   # float64
+            desc = f"{mode} {depth}-bit, luminance (ITU-R BT.709)"
+        if has_alpha:
+            desc += " + alpha (mask)"
+    mask = _mask(arr, has_alpha)
+    if mask is not None:
+        notes.append(f"alpha used as mask: {int((~mask).sum())} transparent pixels are outside the shape")
+    return Picture(values, full, mask, None, desc, notes)
 
 
-def _parse_ihdr(body: bytes, path: Path) -> tuple[int, int, int]:
-    if len(body) != 13:
-        raise FileFormatError(f"image '{path}': IHDR has {len(body)} bytes, expected 13; file is corrupt")
-    width, height, depth, color, comp, filt, interlace = struct.unpack(">IIBBBBB", body)
-    if color != 0:
-        raise FileFormatError(
-            f"image '{path}': colour type {color} ({_COLOR_NAMES.get(color, 'unknown')}) is not supported; "
-            f"supported: {SUPPORTED}")
-    if depth not in (8, 16):
-        raise FileFormatError(f"image '{path}': bit depth {depth} is not supported; supported: {SUPPORTED}")
-    if comp != 0 or filt != 0:
-        raise FileFormatError(f"image '{path}': unknown PNG compression/filter method ({comp}, {filt}); file is corrupt")
-    if interlace != 0:
-        raise FileFormatError(f"image '{path}': interlaced (Adam7) PNG is not supported; supported: {SUPPORTED}")
-    if width == 0 or height == 0:
-        raise FileFormatError(f"image '{path}': empty image ({width}x{height} pixels)")
-    check_grid_size(height, width, f"image '{path}'")
-    return width, height, depth
+def _mask(arr: np.ndarray, has_alpha: bool):
+    if not has_alpha:
+        return None
+    m = arr[..., -1] > 0
+    return None if m.all() else m
 
 
-def _inflate(blob: bytes, expected: int, path: Path) -> bytes:
-    d = zlib.decompressobj()
-    try:
-        out = d.decompress(blob, expected)
-    except zlib.error as exc:
-        raise FileFormatError(f"image '{path}': corrupt compressed pixel data ({exc})") from None
-    if len(out) < expected:
-        raise FileFormatError(
-            f"image '{path}': pixel data holds {len(out)} bytes, the header needs {expected}; file is truncated")
-    if d.unconsumed_tail and d.decompress(d.unconsumed_tail, 1):
-        raise FileFormatError(f"image '{path}': more pixel data than the header announces; file is corrupt")
-    return out
+def _normal_vectors(rgb: np.ndarray, full: float) -> np.ndarray:
+    return rgb.astype(np.float64) * (2.0 / full) - 1.0
 
 
-def unfilter(filtered: np.ndarray, ftypes: np.ndarray, bpp: int) -> np.ndarray:
-    """Undo PNG row filters.
+def looks_like_normal_map(rgb: np.ndarray, full: float) -> bool:
+    """True if most pixels decode as unit normals facing out of the surface.
+
+    Rule: with ``n = 2 c / full_scale - 1``, at least 95 % of the pixels have
+    ``| |n| - 1 | < 0.1`` and ``nz > 0``, and the mean ``nz`` exceeds 0.5 (a
+    flat area encodes as (128, 128, 255)). Photographs and screenshots fail
+    the unit-length test almost everywhere.
+    """
+    step = max(1, int(np.sqrt(rgb.shape[0] * rgb.shape[1] / 65536)))   # a sample of at most ~64k pixels
+    n = _normal_vectors(rgb[::step, ::step], full)
+    length = np.sqrt((n * n).sum(axis=-1))
+    unit = (np.abs(length - 1.0) < 0.1) & (n[..., 2] > 0)
+    return bool(unit.mean() >= 0.95 and n[..., 2].mean() > 0.5)
+
+
+def _normal_slopes(rgb: np.ndarray, full: float, where: str, strict: bool):
+    n = _normal_vectors(rgb, full)
+    nz = n[..., 2]
+    bad = nz <= 0.05
+    if strict and bad.mean() > 0.05:
+        raise InputError(f"{where}: is not a tangent-space normal map: {bad.mean() * 100:.3g} % of the pixels point "
+                         f"sideways or into the surface (blue below 0.525 of full scale)")
+    nz = np.maximum(nz, 0.05)       # a slope of at most ~20 per pixel: a wall, bounded
+    # picture order: +x to the right, green = +y up the picture (OpenGL convention)
+    return (-n[..., 0] / nz, -n[..., 1] / nz)
+
+
+def frankot_chellappa(p: np.ndarray, q: np.ndarray, dx: float = 1.0, dy: float = 1.0) -> np.ndarray:
+    """Integrate a gradient field into heights (Frankot and Chellappa 1988).
+
+    The least-squares integrable surface in the Fourier domain:
+    ``Z = F^-1[ -i (wx P + wy Q) / (wx^2 + wy^2) ]`` with the mean height 0.
+    The field is mirrored to four times its size first, which makes it
+    periodic without the seam artefacts a plain FFT puts at the borders.
 
     Parameters
     ----------
-    filtered : ndarray of shape (rows, stride), uint8
-        Filtered scanlines without their filter-type byte.
-    ftypes : ndarray of shape (rows,), uint8
-        Filter type of each row (0 None, 1 Sub, 2 Up, 3 Average, 4 Paeth).
-    bpp : int
-        Bytes per pixel (1 for 8-bit gray, 2 for 16-bit gray).
+    p, q : ndarray of shape (rows, cols), float
+        dh/dx (along columns) and dh/dy (along rows, row index growing with y).
+    dx, dy : float
+        Sample spacing along x and y (any length unit; heights come out in it).
 
     Returns
     -------
-    ndarray of shape (rows, stride), uint8
-        Raw scanline bytes.
+    ndarray of shape (rows, cols), float64
+        Heights with zero mean.
     """
-    ftypes = np.asarray(ftypes)
-    if np.any(ftypes >= 3):
-        return _unfilter_kernel()(np.ascontiguousarray(filtered), ftypes.astype(np.uint8), bpp)
-    out = np.empty_like(filtered)
-    nrow, stride = filtered.shape
-    prior = np.zeros(stride, dtype=np.uint8)
-    for r in range(nrow):
-        line, t = filtered[r], ftypes[r]
-        cur = out[r]
-        if t == 0:
-            cur[:] = line
-        elif t == 2:
-            np.add(line, prior, out=cur)
-        else:  # Sub: running sum per byte lane, modulo 256
-            np.cumsum(line.reshape(-1, bpp), axis=0, dtype=np.uint8, out=cur.reshape(-1, bpp))
-        prior = cur
-    return out
-
-
-_KERNEL = None
-
-
-def _unfilter_kernel():
-    """Numba kernel for all five filters (needed for Average and Paeth rows)."""
-    global _KERNEL
-    if _KERNEL is None:
-        import numba
-
-        @numba.njit(cache=True, nogil=True)
-        def _unfilter_all(filt, ftypes, bpp):  # pragma: no cover - compiled
-            nrow, stride = filt.shape
-            out = np.empty((nrow, stride), dtype=np.uint8)
-            for r in range(nrow):
-                t = ftypes[r]
-                for i in range(stride):
-                    x = np.int32(filt[r, i])
-                    a = np.int32(out[r, i - bpp]) if i >= bpp else np.int32(0)
-                    b = np.int32(out[r - 1, i]) if r > 0 else np.int32(0)
-                    if t == 0:
-                        v = x
-                    elif t == 1:
-                        v = x + a
-                    elif t == 2:
-                        v = x + b
-                    elif t == 3:
-                        v = x + (a + b) // 2
-                    else:
-                        c = np.int32(out[r - 1, i - bpp]) if (r > 0 and i >= bpp) else np.int32(0)
-                        p = a + b - c
-                        pa = abs(p - a)
-                        pb = abs(p - b)
-                        pc = abs(p - c)
-                        if pa <= pb and pa <= pc:
-                            pred = a
-                        elif pb <= pc:
-                            pred = b
-                        else:
-                            pred = c
-                        v = x + pred
-                    out[r, i] = np.uint8(v & 0xFF)
-            return out
-
-        _KERNEL = _unfilter_all
-    return _KERNEL
-
-
-def png_info(path: str | os.PathLike) -> dict:
-    """Size and bit depth from the PNG header alone: {"cols", "rows", "bit_depth"}."""
-    path = Path(path)
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(33)
-    except FileNotFoundError:
-        raise FileFormatError(f"image '{path}': no such file") from None
-    except OSError as exc:
-        raise FileFormatError(f"image '{path}': unreadable ({exc.strerror or exc})") from None
-    if len(head) < 33 or not head.startswith(PNG_SIGNATURE) or head[12:16] != b"IHDR":
-        raise FileFormatError(f"image '{path}': not a PNG file; supported: {SUPPORTED}, or .npy")
-    width, height, depth = _parse_ihdr(head[16:29], path)
-    return {"cols": width, "rows": height, "bit_depth": depth}
+    p = np.asarray(p, dtype=np.float64)
+    q = np.asarray(q, dtype=np.float64)
+    rows, cols = p.shape
+    # even extension: p is odd in x and even in y, q the other way round
+    P = np.block([[p, -p[:, ::-1]], [p[::-1, :], -p[::-1, ::-1]]])
+    Q = np.block([[q, q[:, ::-1]], [-q[::-1, :], -q[::-1, ::-1]]])
+    wx = 2 * np.pi * np.fft.fftfreq(2 * cols, d=dx)[None, :]
+    wy = 2 * np.pi * np.fft.fftfreq(2 * rows, d=dy)[:, None]
+    denom = wx ** 2 + wy ** 2
+    denom[0, 0] = 1.0
+    Z = (-1j * wx * np.fft.fft2(P) - 1j * wy * np.fft.fft2(Q)) / denom
+    Z[0, 0] = 0.0
+    z = np.real(np.fft.ifft2(Z))[:rows, :cols]
+    return z - z.mean()
 
 
 # ----------------------------------------------------------------- writing
-def _filter_rows(raw: np.ndarray, ftypes: np.ndarray, bpp: int) -> np.ndarray:
-    """Apply PNG filters to raw scanlines (vectorised: filters read raw bytes only)."""
-    kinds = np.unique(ftypes)
-    out = np.empty_like(raw)
-    for t in kinds:
-        sel = slice(None) if len(kinds) == 1 else (ftypes == t)
-        x = raw[sel]
-        if t == 0:
-            out[sel] = x
-            continue
-        left = np.zeros_like(x)
-        left[:, bpp:] = x[:, :-bpp]
-        up = np.zeros_like(raw)
-        up[1:] = raw[:-1]
-        up = up[sel]
-        if t == 1:
-            out[sel] = x - left                       # uint8 arithmetic wraps modulo 256
-        elif t == 2:
-            out[sel] = x - up
-        elif t == 3:
-            out[sel] = x - ((left.astype(np.int16) + up) // 2).astype(np.uint8)
-        else:
-            upleft = np.zeros_like(raw)
-            upleft[1:, bpp:] = raw[:-1, :-bpp]
-            a, b, c = left.astype(np.int16), up.astype(np.int16), upleft[sel].astype(np.int16)
-            p = a + b - c
-            pa, pb, pc = np.abs(p - a), np.abs(p - b), np.abs(p - c)
-            pred = np.where((pa <= pb) & (pa <= pc), a, np.where(pb <= pc, b, c))
-            out[sel] = x - pred.astype(np.uint8)
-    return out
-
-
-def _chunk(ctype: bytes, body: bytes) -> bytes:
-    return struct.pack(">I", len(body)) + ctype + body + struct.pack(">I", zlib.crc32(ctype + body) & 0xFFFFFFFF)
-
-
-def encode_png(gray: np.ndarray, filter_type: int | str | np.ndarray = "up", level: int = 6,
-               text: dict | None = None) -> bytes:
-    """Encode a grayscale image as PNG bytes.
+def encode_png(gray: np.ndarray, text: dict | None = None) -> bytes:
+    """Encode a grey picture as PNG bytes (picture order: row 0 is the top edge).
 
     Parameters
     ----------
     gray : ndarray of shape (rows, cols), uint8 or uint16
         Gray values (bit depth follows the dtype).
-    filter_type : int, name, or ndarray of shape (rows,)
-        PNG filter for every row (0-4 or "none", "sub", "up", "average",
-        "paeth"), or one per row.
-    level : int
-        zlib compression level 0-9.
     text : dict, optional
         ``{keyword: value}`` written as PNG ``tEXt`` chunks (Latin-1).
     """
+    import io
+
+    from PIL import Image
+    from PIL.PngImagePlugin import PngInfo
+
     gray = np.asarray(gray)
     if gray.ndim != 2 or gray.size == 0:
         raise InputError(f"`gray` must be a non-empty 2-D array (got shape {gray.shape})")
     if gray.dtype == np.uint8:
-        depth, raw = 8, gray
+        im = Image.fromarray(np.ascontiguousarray(gray))          # mode L
     elif gray.dtype == np.uint16:
-        depth, raw = 16, gray.astype(">u2").view(np.uint8).reshape(gray.shape[0], -1)
+        im = Image.frombytes("I;16", (gray.shape[1], gray.shape[0]), gray.astype("<u2").tobytes())
     else:
         raise InputError(f"`gray` must be uint8 or uint16 (got {gray.dtype})")
-    rows, cols = gray.shape
-    if isinstance(filter_type, str):
-        if filter_type not in FILTER_NAMES:
-            from .errors import unknown_key
-            raise unknown_key("PNG filter", filter_type, FILTER_NAMES)
-        filter_type = FILTER_NAMES.index(filter_type)
-    ftypes = np.broadcast_to(np.asarray(filter_type, dtype=np.uint8), (rows,))
-    if ftypes.max() > 4:
-        raise InputError(f"`filter_type` must be 0-4 (got {int(ftypes.max())})")
-    filtered = _filter_rows(raw, ftypes, depth // 8)
-    scan = np.empty((rows, filtered.shape[1] + 1), dtype=np.uint8)
-    scan[:, 0] = ftypes
-    scan[:, 1:] = filtered
-    ihdr = struct.pack(">IIBBBBB", cols, rows, depth, 0, 0, 0, 0)
-    texts = b"".join(_chunk(b"tEXt", str(k).encode("latin-1") + b"\0" + str(v).encode("latin-1"))
-                     for k, v in (text or {}).items())
-    return (PNG_SIGNATURE + _chunk(b"IHDR", ihdr) + texts + _chunk(b"IDAT", zlib.compress(scan.tobytes(), level))
-            + _chunk(b"IEND", b""))
+    info = PngInfo()
+    for k, v in (text or {}).items():
+        info.add_text(str(k), str(v))
+    buf = io.BytesIO()
+    im.save(buf, format="PNG", pnginfo=info, compress_level=6)
+    return buf.getvalue()
 
 
-def write_png(path: str | os.PathLike, gray: np.ndarray, filter_type: int | str | np.ndarray = "up",
-              level: int = 6) -> Path:
-    """Write a grayscale PNG atomically (see :func:`encode_png`). Returns the path."""
-    data = encode_png(gray, filter_type, level)
+def write_png(path: str | os.PathLike, gray: np.ndarray, text: dict | None = None) -> Path:
+    """Write a grey PNG atomically (see :func:`encode_png`). Returns the path."""
+    data = encode_png(gray, text)
     path = Path(path)
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)
     return path
+
+
+def png_text(path: str | os.PathLike) -> dict:
+    """The ``tEXt`` chunks of a PNG as a dict (what :func:`write_png` recorded)."""
+    with _open(Path(path)) as im:
+        return dict(getattr(im, "text", {}) or {})
 
 
 # ----------------------------------------------------------------- npy
@@ -386,3 +439,7 @@ def read_npy(path: str | os.PathLike) -> np.ndarray:
         except (ValueError, OSError, EOFError) as exc:
             raise FileFormatError(f"array '{path}': truncated or corrupt ({exc})") from None
     return arr
+
+
+__all__ = ["PICTURE_SUFFIXES", "CHANNELS", "BT709", "Picture", "PictureWarning", "picture_info", "read_picture",
+           "looks_like_normal_map", "frankot_chellappa", "encode_png", "write_png", "png_text", "read_npy"]

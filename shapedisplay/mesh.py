@@ -152,21 +152,77 @@ def load_mesh(path) -> tuple[np.ndarray, np.ndarray, dict]:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise FileFormatError(f"mesh '{path}': cannot read {suffix[1:].upper()} file ({msg})") from None
     verts, faces, offset, count = [], [], 0, 0
+    ignored: dict = {}
     for g in geoms:
         f = getattr(g, "faces", None)
         v = getattr(g, "vertices", None)
+        if (f is None or len(f) == 0) and v is not None:
+            f = _ply_strips(g)                     # PLY triangle strips (trimesh reads them as points)
         if f is None or v is None or len(f) == 0:
+            kind = type(g).__name__
+            name = {"PointCloud": "point clouds", "Path3D": "lines/curves", "Path2D": "2-D paths"}.get(kind, kind)
+            ignored[name] = ignored.get(name, 0) + 1
             continue
         f = np.asarray(f, dtype=np.int64)
         if f.ndim != 2 or f.shape[1] != 3:
             continue
+        for what in _visual_notes(g):
+            ignored[what] = ignored.get(what, 0) + 1
         verts.append(np.asarray(v, dtype=np.float64))
         faces.append(f + offset)
         offset += len(v)
         count += 1
     if not faces:
         raise FileFormatError(f"mesh '{path}': no triangles found (empty mesh or unreadable content)")
-    return np.concatenate(verts), np.concatenate(faces), {"meshes": count, "format": suffix[1:]}
+    notes = [f"{what} of {n} mesh{'es' if n > 1 else ''} ignored" if what in _VISUALS else f"{n} {what} ignored"
+             for what, n in ignored.items()]
+    return np.concatenate(verts), np.concatenate(faces), {"meshes": count, "format": suffix[1:], "notes": notes}
+
+
+def _ply_strips(g):
+    """Triangles of a PLY ``tristrips`` element (-1 restarts a strip; alternate triangles flip winding)."""
+    raw = (getattr(g, "metadata", None) or {}).get("_ply_raw", {})
+    strips = raw.get("tristrips", {}).get("data", {}).get("vertex_indices") if isinstance(raw, dict) else None
+    if strips is None:
+        return None
+    tris = []
+    for strip in (strips if getattr(strips, "dtype", None) == object or np.ndim(strips) == 2 else [strips]):
+        run: list = []
+        for i in np.asarray(strip, dtype=np.int64).ravel():
+            if i < 0:
+                run = []
+                continue
+            run.append(int(i))
+            if len(run) >= 3:
+                a, b, c = run[-3:]
+                tris.append((a, b, c) if len(run) % 2 == 1 else (b, a, c))
+    tris = [t for t in tris if len(set(t)) == 3]         # strips repeat vertices to turn corners
+    return np.asarray(tris, dtype=np.int64).reshape(-1, 3) if tris else None
+
+
+_VISUALS = ("textures", "vertex colours", "face colours")
+
+
+def _visual_notes(g) -> list:
+    """What a geometry carries that a height field cannot: textures and colours."""
+    vis = getattr(g, "visual", None)
+    kind = getattr(vis, "kind", None)
+    if kind == "texture":
+        mat = getattr(vis, "material", None)
+        has_image = any(getattr(mat, k, None) is not None for k in ("image", "baseColorTexture"))
+        return ["textures"] if has_image else []
+    defined = getattr(vis, "defined", None)
+    if defined is None:   # a point cloud's colours (PLY strips): look at the raw vertex properties
+        raw = (getattr(g, "metadata", None) or {}).get("_ply_raw", {})
+        props = raw.get("vertex", {}).get("properties", {}) if isinstance(raw, dict) else {}
+        defined = any(k in props for k in ("red", "r", "diffuse_red"))
+    if kind == "vertex" and defined:
+        return ["vertex colours"]
+    if kind == "face" and defined:
+        return ["face colours"]
+    return []
+
+
 
 
 # ---------------------------------------------------------------------------
@@ -239,6 +295,15 @@ def _grid(value) -> tuple[int, int]:
     return rows, cols
 
 
+def _mesh_size(value):
+    """``size``: one length (uniform scale) or (width, height), metres."""
+    from .sources import _length as length, _size
+    if isinstance(value, str) and "x" not in value or isinstance(value, (int, float)):
+        v = length(value, "size", positive=True)
+        return float(v)
+    return tuple(float(x) for x in _size(value))
+
+
 def _background(value) -> float:
     from .units import parse_quantity
     if isinstance(value, str):
@@ -253,7 +318,8 @@ def _background(value) -> float:
 # mesh -> height field
 
 def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units="mm", background=0.0,
-                        supersample=1, *, supersample_mode="mean", margin=0.0, method="numba") -> HeightField:
+                        supersample=1, *, supersample_mode="mean", margin=0.0, method="numba", size=None,
+                        height_range=None) -> HeightField:
     """Project the top surface of a mesh onto a regular height field.
 
     Parameters
@@ -280,6 +346,13 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units="mm", ba
         Background border added around the footprint.
     method : {"numba", "numpy"}
         Rasteriser backend (:data:`shapedisplay.raster.METHODS`); same answer.
+    size : float, (width, height) (metres) or str, optional
+        Scale the model: one length scales it uniformly (x, y and heights)
+        so that the longer side of its footprint has that length; a pair
+        stretches the footprint to exactly width x height (heights kept).
+    height_range : (low, high) metres or str "0:2mm", optional
+        Fit the relief: the lowest point of the model goes to ``low``, the
+        highest to ``high`` (background heights follow the same map).
 
     Returns
     -------
@@ -287,7 +360,9 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units="mm", ba
         heights (rows, cols) float64 metres above the mesh's lowest point;
         ``meta`` holds ``triangles``, ``degenerate_faces_dropped``,
         ``meshes``, ``units``, ``up``, ``model_origin_m``, ``footprint_m``,
-        ``supersample``, ``supersample_mode``, ``covered_fraction``.
+        ``supersample``, ``supersample_mode``, ``covered_fraction``, ``scale``
+        (file units -> metres of height), ``notes`` (what was ignored: textures,
+        colours, points and lines).
 
     Raises
     ------
@@ -318,6 +393,12 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units="mm", ba
     if method not in raster.METHODS:
         raise unknown_key("rasteriser method", method, raster.METHODS)
     rot = up_rotation(up)
+    if size is not None:
+        size = _mesh_size(size)
+    hr = None
+    if height_range is not None:
+        from .sources import _height_range
+        hr = _height_range(height_range)
 
     verts, faces, info, name = _mesh_arrays(path)
     where = f"mesh '{name}'"
@@ -363,6 +444,7 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units="mm", ba
         lo = np.array([px[used].min(), py[used].min(), pz[used].min()])
         hi = np.array([px[used].max(), py[used].max(), pz[used].max()])
     width, height = float(hi[0] - lo[0]), float(hi[1] - lo[1])
+    file_width, file_height = width, height
     proj = float(np.abs(nz).sum()) / 2
     tiny = 1e-9 * max(diag, 1e-300)
     if width <= tiny or height <= tiny or proj <= (1e-9 * diag) ** 2:
@@ -370,7 +452,17 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units="mm", ba
             f"{where}: footprint seen along up={_up_text(up)} has zero area "
             f"({width * 1e3:.6g} x {height * 1e3:.6g} mm, projected area {proj * 1e6:.3g} mm^2); choose another `up`"
         )
-    _warn_size(where, width, height, units)
+    zscale = 1.0
+    if size is None:
+        _warn_size(where, width, height, units)
+    else:   # scale about the footprint's corner
+        if isinstance(size, float):
+            sx = sy = zscale = size / max(width, height)
+        else:
+            sx, sy = size[0] / width, size[1] / height
+        px, py, pz = lo[0] + (px - lo[0]) * sx, lo[1] + (py - lo[1]) * sy, lo[2] + (pz - lo[2]) * zscale
+        hi = lo + (hi - lo) * np.array([sx, sy, zscale])
+        width, height = float(hi[0] - lo[0]), float(hi[1] - lo[1])
 
     # --- grid
     if shape is not None:
@@ -405,6 +497,21 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units="mm", ba
         heights = blocks.mean(axis=(1, 3)) if supersample_mode == "mean" else blocks.max(axis=(1, 3))
     else:
         heights = zbuf
+    relief = float(hi[2] - lo[2])
+    m_per_unit = UNITS[units] * zscale
+    offset = 0.0
+    scale_rule = f"model in {units}" + (f", scaled x{zscale:.6g}" if zscale != 1.0 else "") \
+        + (f", footprint stretched to {width * 1e3:.6g} x {height * 1e3:.6g} mm" if isinstance(size, tuple) else "")
+    if hr is not None:
+        a = (hr[1] - hr[0]) / relief if relief > 0 else 0.0
+        heights *= a
+        heights += hr[0]
+        bg = hr[0] + a * bg
+        m_per_unit *= a
+        offset = hr[0]
+        scale_rule += (f", relief {relief * 1e3:.6g} mm fitted onto {hr[0] * 1e3:.6g}..{hr[1] * 1e3:.6g} mm"
+                       if relief > 0 else f", flat model placed at {hr[0] * 1e3:.6g} mm")
+    from .sources import height_scale
     meta = {
         "kind": "mesh",
         "triangles": int(len(faces)) + n_deg,
@@ -414,7 +521,10 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units="mm", ba
         "up": _up_text(up),
         "model_origin_m": [float(lo[0]), float(lo[1]), float(lo[2])],
         "footprint_m": [width, height],
-        "height_range_m": [0.0, float(hi[2] - lo[2])],
+        "height_range_m": [0.0, relief] if hr is None else list(hr),
+        "file_footprint_m": [file_width, file_height],
+        "scale": height_scale(units, m_per_unit, offset, scale_rule, "model height"),
+        "notes": list(info.get("notes", [])),
         "supersample": k,
         "supersample_mode": supersample_mode,
         "background_m": bg,
@@ -594,15 +704,19 @@ def save_heightmap(hf: HeightField, path, **mesh_options) -> str:
     """Write a height field to ``path``; the suffix picks the format. Atomic.
 
     ``.npy``
-        heights (rows, cols) float64 metres.
+        heights (rows, cols) float64 metres in picture order: the top view,
+        row 0 the far edge (largest y), as :func:`shapedisplay.sources.load_image`
+        reads ``.npy`` arrays.
     ``.npz``
-        ``heights``, ``dx``, ``dy``, ``x0``, ``y0`` (metres) and ``meta`` (JSON text).
+        ``heights`` in height-field order (row 0 at ``y0``, the smallest y;
+        sample (r, c) at ``(x0 + c dx, y0 + r dy)``), ``dx``, ``dy``, ``x0``,
+        ``y0`` (metres) and ``meta`` (JSON text).
     ``.png``
-        16-bit grayscale; black = lowest, white = highest sample; image row r
-        is height-field row r (nothing flipped, as :func:`shapedisplay.sources.load_image`
-        reads it). tEXt chunks record ``height_min_m``, ``height_max_m``,
-        ``dx_m``, ``dy_m`` and ``size_m`` = cols*dx x rows*dy, the ``size`` that
-        reads the image back at the same spacing.
+        16-bit grayscale top view (row 0 the far edge, x to the right, y up);
+        black = lowest, white = highest sample. tEXt chunks record
+        ``height_min_m``, ``height_max_m``, ``dx_m``, ``dy_m`` and ``size_m`` =
+        cols*dx x rows*dy, the ``size`` that reads the image back at the same
+        spacing.
     ``.stl`` / ``.ply``
         :func:`save_heightfield_mesh` with ``mesh_options``.
 
@@ -612,6 +726,7 @@ def save_heightmap(hf: HeightField, path, **mesh_options) -> str:
         One-line description of what was written.
     """
     from .atomic import atomic_path
+    from .heightfield import picture_from_grid
     from .imageio import encode_png
 
     path = Path(path)
@@ -630,8 +745,8 @@ def save_heightmap(hf: HeightField, path, **mesh_options) -> str:
     with atomic_path(path) as tmp:
         if suffix == ".npy":
             with open(tmp, "wb") as fh:
-                np.save(fh, h)
-            desc = "heights in metres (float64)"
+                np.save(fh, np.ascontiguousarray(picture_from_grid(h)))
+            desc = "heights in metres (float64), top view (row 0 = far edge)"
         elif suffix == ".npz":
             with open(tmp, "wb") as fh:
                 np.savez(fh, heights=h, dx=hf.dx, dy=hf.dy, x0=hf.x0, y0=hf.y0,
@@ -645,7 +760,7 @@ def save_heightmap(hf: HeightField, path, **mesh_options) -> str:
             text = {"height_min_m": repr(lo), "height_max_m": repr(hi), "dx_m": repr(hf.dx), "dy_m": repr(hf.dy),
                     "size_m": f"{hf.cols * hf.dx!r}x{hf.rows * hf.dy!r}",
                     "Software": "shapedisplay"}
-            tmp.write_bytes(encode_png(gray, text=text))
+            tmp.write_bytes(encode_png(np.ascontiguousarray(picture_from_grid(gray)), text=text))
             desc = (f"16-bit PNG; read it back with --size {w * 1e3:.6g}x{ht * 1e3:.6g}mm "
                     f"--height {lo * 1e3:.6g}:{hi * 1e3:.6g}mm")
     return desc

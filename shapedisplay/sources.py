@@ -9,10 +9,10 @@ Sample positions
 Grids are *cell-centred*: a region of width W split into ``cols`` cells has
 ``dx = W / cols`` and sample ``c`` at the centre of cell ``c``, i.e.
 ``x = x_left + (c + 0.5) * dx``. For an image of ``--size W x H`` this puts
-sample (r, c) at the centre of pixel (r, c): ``x = (c + 0.5) W / cols``,
-``y = (r + 0.5) H / rows``, with the image's top-left corner at (0, 0) and
-y growing downwards with the pixel row (row r of the image is row r of the
-table; nothing is flipped).
+pixel (r, c) at its centre: ``x = (c + 0.5) W / cols``,
+``y = (rows - r - 0.5) H / rows``: the picture is the top view, its
+bottom-left corner at (0, 0), x to the right and y up (picture row r is
+height-field row ``rows - 1 - r``; see :mod:`shapedisplay.heightfield`).
 
 Published profiles
 ------------------
@@ -31,10 +31,11 @@ import numpy as np
 
 from .errors import FileFormatError, InputError, unknown_key
 from .heightfield import HeightField, check_grid_size, check_spacing
+from .imageio import PICTURE_SUFFIXES   # numpy only; Pillow is imported when a picture is read
 from .units import parse_quantity
 
 #: Suffixes load_source understands, by kind.
-IMAGE_SUFFIXES = (".png", ".npy")
+IMAGE_SUFFIXES = PICTURE_SUFFIXES + (".npy",)
 MESH_SUFFIXES = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf")
 EDGE_PROFILES = ("ramp", "cosine", "step")
 LINE_PROFILES = ("cosine", "tent", "box")
@@ -449,93 +450,183 @@ def _height_range(height_range) -> tuple[float, float]:
     return lo, hi
 
 
-def load_image(path, size, height_range, *, resolution=None) -> HeightField:
-    """Height field from a grayscale PNG (8/16-bit) or a ``.npy`` array.
+#: Units of float height data (``z_units``), metres per unit.
+Z_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "nm": 1e-9}
+
+
+def _z_unit(z_units) -> tuple[str, float]:
+    name = "m" if z_units is None else str(z_units).strip()
+    if name not in Z_UNITS:
+        raise unknown_key("z unit", name, Z_UNITS)
+    return name, Z_UNITS[name]
+
+
+def height_scale(unit: str, m_per_unit: float, offset_m: float, rule: str, what: str = "data") -> dict:
+    """The scale of a source, for reports: ``height = m_per_unit * value + offset_m`` (metres).
+
+    ``what`` names the source quantity ("data", "model height", "gray level").
+    """
+    return {"source_unit": unit, "m_per_unit": float(m_per_unit), "offset_m": float(offset_m), "rule": rule,
+            "what": what}
+
+
+def fit_range(values: np.ndarray, height_range, what: str, mask=None) -> tuple[np.ndarray, float, float, str]:
+    """Fit the range of ``values`` onto ``height_range`` (lo, hi) metres, linearly.
+
+    ``mask`` (bool, same shape): only the samples inside it set the range.
+    Returns ``(heights, m_per_unit, offset_m, rule)``; constant data all go
+    to ``lo``. The caller's array is not changed.
+    """
+    lo, hi = height_range
+    vmin, vmax = _minmax_finite(values if mask is None else values[mask], what)
+    span = vmax - vmin
+    a = (hi - lo) / span if span > 0 else 0.0
+    out = np.array(values, dtype=np.float64)
+    out -= vmin
+    out *= a
+    out += lo
+    rule = (f"data range {vmin:.6g}..{vmax:.6g} fitted onto {lo * 1e3:.6g}..{hi * 1e3:.6g} mm" if span > 0
+            else f"constant data {vmin:.6g} placed at {lo * 1e3:.6g} mm")
+    return out, a, lo - a * vmin, rule
+
+
+def _minmax_finite(values: np.ndarray, what: str) -> tuple[float, float]:
+    if values.dtype.kind == "f" and not np.all(np.isfinite(values)):
+        raise InputError(f"{what}: values must be finite ({int(np.count_nonzero(~np.isfinite(values)))} "
+                         f"NaN/inf samples)")
+    return float(values.min()), float(values.max())
+
+
+def load_image(path, size, height_range, *, resolution=None, channel=None, z_units=None) -> HeightField:
+    """Height field from a picture (PNG, JPEG, TIFF, ...) or a ``.npy`` array.
+
+    Pictures and arrays are in picture order: row 0 is the top edge of the
+    top view, i.e. the largest y (see :mod:`shapedisplay.heightfield`).
 
     Parameters
     ----------
     path : path-like
-        ``.png`` (gray value 0 -> low end of ``height_range``, full scale
-        255 or 65535 -> high end, linear) or ``.npy`` (integer arrays: like
-        a PNG of that bit depth, full scale = dtype maximum; float arrays:
-        heights in metres if ``height_range`` is None, otherwise normalised
-        values 0..1 mapped onto it).
+        A picture Pillow reads (:mod:`shapedisplay.imageio`) or ``.npy``.
     size : (width, height) m or str "60x4mm"
-        Physical size of the whole image; ``dx = width / cols``,
+        Physical size of the whole picture; ``dx = width / cols``,
         ``dy = height / rows``. Samples sit at pixel centres (module docs).
         ``None`` only with ``resolution``.
-    height_range : (low, high) m or str "0:2mm"
-        Heights of gray 0 and of full scale.
+    height_range : (low, high) m or str "0:2mm", or None
+        Integer pictures and integer arrays (uint8/uint16): heights of gray 0
+        and of full scale (255 or 65535), required. Float data (float TIFF,
+        float ``.npy``, normal maps): the data's min..max is fitted onto
+        this range; None keeps the data's own scale in ``z_units``.
     resolution : float (m) or str, optional
         Pixel size (dx = dy) instead of ``size``.
+    channel : {"luminance", "r", "g", "b", "a", "normal"}, optional
+        Channel of a colour picture (:func:`shapedisplay.imageio.read_picture`).
+    z_units : {"m", "mm", "um", "nm"}, optional
+        Unit of float data (default metres). Refused for integer codes.
 
     Returns
     -------
     HeightField
-        Shape (rows, cols) of the image.
+        Shape (rows, cols) of the picture, ``meta["scale"]`` the scale from
+        source units to metres, ``meta["notes"]`` what was converted or
+        ignored, ``mask`` from the picture's alpha.
     """
+    from .heightfield import grid_from_picture
+    from .imageio import PICTURE_SUFFIXES, read_npy, read_picture
+
     path = Path(path)
     suffix = path.suffix.lower()
-    if suffix == ".png":
-        from .imageio import read_png
-        gray = read_png(path)
-        full = float(np.iinfo(gray.dtype).max)
-        if height_range is None:
-            raise InputError(f"image '{path}': `height_range` is required (heights of gray 0 and full scale)")
+    where = f"image '{path}'"
+    notes, mask, slopes, desc = [], None, None, ""
+    if suffix in PICTURE_SUFFIXES:
+        pic = read_picture(path, channel)
+        values, full, mask, slopes, desc, notes = (pic.values, pic.full_scale, pic.mask, pic.slopes,
+                                                   pic.description, list(pic.notes))
     elif suffix == ".npy":
-        from .imageio import read_npy
-        gray = read_npy(path)
-        if gray.dtype.kind in "ui":
-            if gray.dtype.itemsize > 2:
-                raise FileFormatError(f"array '{path}': integer heights must be uint8 or uint16 (got {gray.dtype}); "
-                                      f"use a float array for heights in metres")
-            full = float(np.iinfo(gray.dtype).max)
-            if height_range is None:
-                raise InputError(f"array '{path}': `height_range` is required for integer gray values")
+        where = f"array '{path}'"
+        if channel is not None:
+            raise InputError(f"`channel` applies to colour pictures, not to {where}")
+        values = read_npy(path)
+        if values.ndim == 1:
+            values = values[None, :]
+        if values.dtype.kind in "ui":
+            if values.dtype.itemsize > 2 or values.dtype.kind == "i" and values.min(initial=0) < 0:
+                raise FileFormatError(f"{where}: integer heights must be uint8 or uint16 gray codes (got "
+                                      f"{values.dtype}); use a float array for heights in a length unit")
+            full = float(np.iinfo(values.dtype).max) if values.dtype.kind == "u" else \
+                float(np.iinfo(np.uint8 if values.dtype.itemsize == 1 else np.uint16).max)
         else:
-            full = 1.0
-        if gray.ndim == 1:
-            gray = gray[None, :]
+            full = None
+        desc = f"{values.dtype} array"
     else:
         raise unknown_key("image type", suffix or "(no suffix)", IMAGE_SUFFIXES)
-    rows, cols = gray.shape
+    rows, cols = values.shape
     if rows * cols < 2:
-        raise InputError(f"image '{path}': {rows}x{cols} pixels; a height map needs at least 2 samples")
+        raise InputError(f"{where}: {rows}x{cols} pixels; a height map needs at least 2 samples")
     if size is not None and resolution is not None:
-        raise InputError(f"image '{path}': give `size` or `resolution`, not both (got size={size!r}, "
+        raise InputError(f"{where}: give `size` or `resolution`, not both (got size={size!r}, "
                          f"resolution={resolution!r})")
     if size is None:
         if resolution is None:
-            raise InputError(f"image '{path}': give `size` (physical width x height) or `resolution`")
+            raise InputError(f"{where}: give `size` (physical width x height) or `resolution`")
         dx = dy = check_spacing(_length(resolution, "resolution"), "resolution")
         w, h = cols * dx, rows * dy
     else:
         w, h = _size(size)
         dx, dy = w / cols, h / rows
-    if height_range is None:  # float .npy: heights in metres
-        if not np.all(np.isfinite(gray)):
-            bad = np.argwhere(~np.isfinite(gray))[0]
-            raise InputError(f"array '{path}': heights must be finite (first NaN/inf at row {bad[0]}, col {bad[1]})")
-        heights = np.asarray(gray, dtype=np.float64)
-        hr = None
+    hr = None if height_range is None else _height_range(height_range)
+    if mask is not None:
+        mask = np.ascontiguousarray(grid_from_picture(mask))
+    integer = full is not None and slopes is None
+    if integer and z_units is not None:
+        raise InputError(f"`z_units` applies to float data; {where} holds integer gray codes (0..{full:g}), "
+                         f"mapped by the height range")
+    if slopes is not None:                       # a normal map: integrate the slopes (metres)
+        from .imageio import frankot_chellappa
+        p, q = grid_from_picture(slopes[0]), grid_from_picture(slopes[1])
+        values = frankot_chellappa(p, q, dx, dy)
+        values -= values.min()
+        unit, per = "m", 1.0
+        notes.append("normal map integrated to heights (Frankot-Chellappa; +y = green)")
+    elif integer:
+        if hr is None:
+            raise InputError(f"{where} needs `--height` (`height_range`: heights of gray 0 and full scale, "
+                             f"e.g. 0:2mm); it holds {desc} gray codes 0..{full:g}")
+        vmin, vmax = _minmax_finite(values, where)
+        if vmin < 0 or vmax > full:
+            raise InputError(f"{where}: gray values must lie within 0..{full:g} (got {vmin:g}..{vmax:g})")
+        values = grid_from_picture(values)
+        unit, per = "gray level", None
     else:
-        hr = _height_range(height_range)
-        if gray.dtype.kind == "f" and not np.all(np.isfinite(gray)):
-            bad = np.argwhere(~np.isfinite(gray))[0]
-            raise InputError(f"array '{path}': values must be finite (first NaN/inf at row {bad[0]}, col {bad[1]})")
-        if suffix == ".npy":
-            gmin, gmax = float(gray.min()), float(gray.max())
-            if gmin < 0 or gmax > full:
-                what = "normalised float values" if gray.dtype.kind == "f" else f"{gray.dtype} gray values"
-                raise InputError(f"array '{path}': with a height range, {what} must lie within 0..{full:g} "
-                                 f"(got {gmin:g}..{gmax:g}); omit the height range to read float heights in metres")
-        heights = gray_to_heights(gray, full, hr)
-    del gray
-    desc = f"{path.name} {cols}x{rows} px, {w * 1e3:g}x{h * 1e3:g} mm"
+        unit, per = _z_unit(z_units)
+        values = grid_from_picture(values)
+    if integer:
+        heights = gray_to_heights(values, full, hr)
+        a = (hr[1] - hr[0]) / full
+        scale = height_scale(unit, a, hr[0], f"gray 0..{full:g} onto {hr[0] * 1e3:.6g}..{hr[1] * 1e3:.6g} mm",
+                             "gray level")
+    elif hr is not None:
+        heights, a, b, rule = fit_range(values, hr, where, mask)
+        scale = height_scale(unit, a, b, rule)
+    else:
+        _minmax_finite(values, where)
+        heights = np.array(values, dtype=np.float64)
+        if per != 1.0:
+            heights *= per
+        scale = height_scale(unit, per, 0.0, f"data in {unit}" + (" (integrated slopes)" if slopes is not None
+                                                                    else ""))
+    del values
+    if mask is not None:
+        m = mask
+        ground = hr[0] if hr is not None else float(heights[m].min())
+        heights[~m] = ground          # flat ground outside the shape
+        mask = m
+    desc_s = f"{path.name} {cols}x{rows} px ({desc}), {w * 1e3:g}x{h * 1e3:g} mm"
     if hr is not None:
-        desc += f", h {hr[0] * 1e3:g}..{hr[1] * 1e3:g} mm"
-    return HeightField(heights, dx, dy, 0.5 * dx, 0.5 * dy, desc,
-                       {"file": str(path), "size_m": [w, h], "height_range_m": None if hr is None else list(hr)})
+        desc_s += f", h {hr[0] * 1e3:g}..{hr[1] * 1e3:g} mm"
+    return HeightField(heights, dx, dy, 0.5 * dx, 0.5 * dy, desc_s,
+                       {"kind": "image", "file": str(path), "size_m": [w, h],
+                        "height_range_m": None if hr is None else list(hr), "scale": scale, "notes": notes,
+                        "picture": desc}, mask)
 
 
 def resolution_option(text) -> float:
@@ -546,46 +637,21 @@ def resolution_option(text) -> float:
     return v
 
 
-def image_options(path, size=None, height=None, resolution=None, *, size_flag="--size") -> dict:
-    """Parse the command-line strings of an image source into :func:`load_image` options.
-
-    ``size`` ("60x4mm", physical width x height of the whole image),
-    ``height`` ("0:2mm", heights of gray 0 and full scale) and ``resolution``
-    ("0.1mm") are strings or None; ``size_flag`` names the size option in
-    messages. An image needs a size or a resolution, and a PNG a height range.
-    """
-    from .units import parse_pair
-    opts = {}
-    if size is not None:
-        w, h = opts["size"] = parse_pair(size, "x", "m", size_flag)
-        if not (w > 0 and h > 0):
-            raise InputError(f"`{size_flag}` must be positive (got {size!r}: width={w} m, height={h} m)")
-    if height is not None:
-        opts["height_range"] = parse_pair(height, ":", "m", "--height")
-    if resolution is not None:
-        opts["resolution"] = resolution_option(resolution)
-    if size is None and resolution is None:
-        raise InputError(f"image '{path}' needs `{size_flag}` (physical width x height, e.g. 60x4mm) "
-                         f"or `--resolution`")
-    if height is None and Path(os.fspath(path)).suffix.lower() == ".png":
-        raise InputError(f"image '{path}' needs `--height` (heights of gray 0 and full scale, e.g. 0:2mm)")
-    return opts
-
-
 #: Command-line source options (library names) -> the kinds of file source each applies to.
 #: One table for every command that loads a source (compile, preview, heightmap).
 OPTION_KINDS = {
-    "size": ("image",), "height": ("image",), "resolution": ("image", "mesh"), "grid": ("image", "mesh"),
-    "up": ("mesh",), "units": ("mesh",), "supersample": ("mesh",), "supersample_mode": ("mesh",),
-    "background": ("mesh",), "margin": ("mesh",), "method": ("mesh",),
+    "size": ("image", "mesh"), "height": ("image", "mesh"), "resolution": ("image", "mesh"),
+    "channel": ("image",), "z_units": ("image",),
+    "up": ("mesh",), "units": ("mesh",), "grid": ("mesh",), "supersample": ("mesh",),
+    "supersample_mode": ("mesh",), "background": ("mesh",), "margin": ("mesh",), "method": ("mesh",),
 }
 _KIND_WORDS = {("image",): "image sources", ("mesh",): "meshes", ("image", "mesh"): "images and meshes"}
 _WHAT = {"image": "an image", "mesh": "a mesh", "scene": "a scene: it sets its own geometry and mapping",
-         "table": "a compiled table"}
+         "svg": "an SVG mockup: it sets its own geometry and mapping", "table": "a compiled table"}
 
 
 def source_kind(path) -> str:
-    """What a file is, by its suffix: "table" (.npz), "scene" (.toml), "image" or "mesh".
+    """What a file is, by its suffix: "table" (.npz), "scene" (.toml), "svg", "image" or "mesh".
 
     Any other suffix is an error listing the ones known.
     """
@@ -595,11 +661,13 @@ def source_kind(path) -> str:
         return "table"
     if suffix == ".toml":
         return "scene"
+    if suffix == ".svg":
+        return "svg"
     if suffix in IMAGE_SUFFIXES:
         return "image"
     if suffix in MESH_SUFFIXES:
         return "mesh"
-    err = unknown_key("source type", suffix or "(no suffix)", IMAGE_SUFFIXES + MESH_SUFFIXES)
+    err = unknown_key("source type", suffix or "(no suffix)", IMAGE_SUFFIXES + MESH_SUFFIXES + (".toml", ".svg"))
     raise InputError(f"source '{path}': {err}")
 
 
@@ -621,6 +689,8 @@ def check_applicable(path, given: dict, flags: dict | None = None, kinds: dict |
     for name, value in given.items():
         if value is None:
             continue
+        if name not in rules:
+            raise unknown_key("source option", name, rules)
         ok = rules[name]
         if kind not in ok:
             flag = (flags or {}).get(name, "--" + name.replace("_", "-"))
@@ -628,43 +698,98 @@ def check_applicable(path, given: dict, flags: dict | None = None, kinds: dict |
     return kind
 
 
-def source_options(path, *, size=None, height=None, resolution=None, up=None, units=None,
-                   flags: dict | None = None) -> dict:
+def _up_option(text: str):
+    if "," in text:
+        try:
+            return [float(v) for v in text.split(",")]
+        except ValueError:
+            raise InputError(f"`--up` direction must be three numbers 'dx,dy,dz' (got {text!r})") from None
+    return text
+
+
+def source_options(path, *, flags: dict | None = None, **given) -> dict:
     """:func:`load_source` keyword arguments from command-line strings (None = not given).
 
-    Options that do not apply to the kind of source are refused
-    (:func:`check_applicable`); an image's are parsed by
-    :func:`image_options`, a mesh's resolution by :func:`resolution_option`.
-    A scene or a table takes none and gets ``{}``.
+    ``given`` holds options of :data:`OPTION_KINDS` by name (``size``,
+    ``height``, ``resolution``, ``channel``, ``z_units``, ``up``, ``units``,
+    ``grid``, ...); ``flags`` how a command spells one differently
+    (``preview`` calls the physical size ``--extent``). Options that do not
+    apply to the kind of source are refused (:func:`check_applicable`). A
+    scene, an SVG mockup or a table takes none and gets ``{}``.
     """
-    flags = flags or {}
-    kind = check_applicable(path, {"size": size, "height": height, "resolution": resolution, "up": up,
-                                   "units": units}, flags)
-    if kind == "image":
-        return image_options(path, size, height, resolution, size_flag=flags.get("size", "--size"))
-    if kind == "mesh":
-        opts = {"up": up, "units": units}
-        if resolution is not None:
-            opts["resolution"] = resolution_option(resolution)
-        return {k: v for k, v in opts.items() if v is not None}
-    return {}
+    from .units import parse_pair
+
+    flags = dict(flags or {})
+
+    def flag(name):
+        return flags.get(name, "--" + name.replace("_", "-"))
+
+    kind = check_applicable(path, given, flags)
+    if kind not in ("image", "mesh"):
+        return {}
+    given = {k: v for k, v in given.items() if v is not None}
+    opts: dict = {}
+    if "size" in given:
+        text = given["size"]
+        if kind == "mesh" and "x" not in str(text):
+            opts["size"] = _length(text, flag("size"), positive=True)
+        else:
+            w, h = parse_pair(text, "x", "m", flag("size"))
+            if not (w > 0 and h > 0):
+                raise InputError(f"`{flag('size')}` must be positive (got {text!r}: width={w} m, height={h} m)")
+            opts["size"] = (w, h)
+    if "height" in given:
+        lo, hi = parse_pair(given["height"], ":", "m", flag("height"))
+        if not hi >= lo:
+            raise InputError(f"`{flag('height')}` must run low:high (got {given['height']!r})")
+        opts["height_range"] = (lo, hi)
+    if "resolution" in given:
+        opts["resolution"] = resolution_option(given["resolution"])
+    if "up" in given:
+        opts["up"] = _up_option(given["up"])
+    for name in ("channel", "z_units", "units", "grid", "supersample_mode", "background", "margin", "method"):
+        if name in given:
+            opts[name] = given[name]
+    if "supersample" in given:
+        try:
+            opts["supersample"] = int(given["supersample"])
+        except (TypeError, ValueError):
+            raise InputError(f"`{flag('supersample')}` must be a whole number (got {given['supersample']!r})") \
+                from None
+    if kind == "image" and "size" not in opts and "resolution" not in opts:
+        raise InputError(f"image '{path}' needs `{flag('size')}` (physical width x height, e.g. 60x4mm) "
+                         f"or `{flag('resolution')}`")
+    return opts
+
+
+def fits_force_range_by_default(hf: HeightField, *, n_gain_given: bool, height_given: bool) -> bool:
+    """Whether a compile fits the heights to the device's force range (:func:`forces.fit_to_force_range`).
+
+    The rule: a mesh is fitted unless the user chose its scale, with an
+    explicit height gain (``--n-gain``) or relief (``--height``). Pictures
+    and data carry the scale the user gave them and are never rescaled.
+    """
+    return hf.meta.get("kind") == "mesh" and not n_gain_given and not height_given
 
 
 def load_source(path, **opts) -> HeightField:
     """Load any file source as a height field, dispatching on its suffix.
 
-    ``.png``/``.npy`` -> :func:`load_image` (options ``size``,
-    ``height_range``, ``resolution``); ``.stl``/``.obj``/``.ply``/``.off``/
-    ``.glb``/``.gltf`` -> :func:`shapedisplay.mesh.mesh_to_heightfield`
-    (options ``resolution``, ``grid``, ``up``, ``units``, ``background``,
-    ``supersample``). Options that are None are dropped; an option the
-    loader does not take is an error naming the nearest valid one.
+    Pictures and ``.npy`` -> :func:`load_image` (options ``size``,
+    ``height_range``, ``resolution``, ``channel``, ``z_units``);
+    ``.stl``/``.obj``/``.ply``/``.off``/``.glb``/``.gltf`` ->
+    :func:`shapedisplay.mesh.mesh_to_heightfield` (options ``resolution``,
+    ``grid``, ``up``, ``units``, ``size``, ``height_range``, ``background``,
+    ``supersample``, ``supersample_mode``, ``margin``, ``method``). Options
+    that are None are dropped; an option the loader does not take is an
+    error naming the nearest valid one.
     """
     path = Path(os.fspath(path))
     suffix = path.suffix.lower()
     opts = {k: v for k, v in opts.items() if v is not None}
     if suffix in MESH_SUFFIXES:
-        valid = ("resolution", "grid", "up", "units", "background", "supersample")
+        valid = ("resolution", "grid", "up", "units", "size", "height_range", "background", "supersample",
+                 "supersample_mode", "margin", "method")
         for k in opts:
             if k not in valid:
                 raise unknown_key("mesh option", k, valid)
@@ -673,10 +798,11 @@ def load_source(path, **opts) -> HeightField:
         from .mesh import mesh_to_heightfield
         return mesh_to_heightfield(path, **opts)
     if suffix in IMAGE_SUFFIXES:
-        valid = ("size", "height_range", "resolution")
+        valid = ("size", "height_range", "resolution", "channel", "z_units")
         for k in opts:
             if k not in valid:
                 raise unknown_key("image option", k, valid)
-        return load_image(path, opts.get("size"), opts.get("height_range"), resolution=opts.get("resolution"))
+        return load_image(path, opts.get("size"), opts.get("height_range"), resolution=opts.get("resolution"),
+                          channel=opts.get("channel"), z_units=opts.get("z_units"))
     err = unknown_key("source type", suffix or "(no suffix)", IMAGE_SUFFIXES + MESH_SUFFIXES)
     raise InputError(f"source '{path}': {err}")

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from shapedisplay.imageio import PNG_SIGNATURE, _chunk, write_png
+from shapedisplay.imageio import write_png
 from shapedisplay_cli.main import main
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -62,9 +62,12 @@ def test_mapping_gains_and_device_options(tmp_path, capsys):
 
 def _bad_png(tmp_path, name, fields, payload=b"\0" * 40):
     import struct
+
+    def chunk(ctype, body):
+        return struct.pack(">I", len(body)) + ctype + body + struct.pack(">I", zlib.crc32(ctype + body) & 0xFFFFFFFF)
     p = tmp_path / name
-    p.write_bytes(PNG_SIGNATURE + _chunk(b"IHDR", struct.pack(">IIBBBBB", *fields))
-                  + _chunk(b"IDAT", zlib.compress(payload)) + _chunk(b"IEND", b""))
+    p.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", *fields))
+                  + chunk(b"IDAT", zlib.compress(payload)) + chunk(b"IEND", b""))
     return p
 
 
@@ -72,6 +75,13 @@ def _cases(tmp_path):
     write_png(tmp_path / "ok.png", np.arange(12, dtype=np.uint8).reshape(3, 4))
     write_png(tmp_path / "one.png", np.zeros((1, 1), np.uint8))
     (tmp_path / "corrupt.png").write_bytes((tmp_path / "ok.png").read_bytes()[:30])
+    good_bytes = bytearray((tmp_path / "ok.png").read_bytes())
+    i = good_bytes.index(b"IDAT") + 6
+    good_bytes[i] ^= 0xFF
+    (tmp_path / "crc.png").write_bytes(bytes(good_bytes))
+    from PIL import Image
+    flat = np.zeros((8, 8, 3), np.uint8) + np.array([128, 128, 255], np.uint8)
+    Image.fromarray(flat).save(tmp_path / "normals.png")
     np.save(tmp_path / "nan.npy", np.array([[0.0, np.inf], [0.0, 0.0]]))
     np.save(tmp_path / "empty.npy", np.zeros((0, 3)))
     ok = tmp_path / "ok.png"
@@ -82,11 +92,15 @@ def _cases(tmp_path):
     dev2.write_text('[device]\nname = "x"\ntick_rte = "1 kHz"\n')
     return {
         "missing image": ([tmp_path / "missing.png", *good], "no such file"),
-        "corrupt image": ([tmp_path / "corrupt.png", *good], "truncated"),
-        "RGB image": ([_bad_png(tmp_path, "rgb.png", (4, 3, 8, 2, 0, 0, 0)), *good],
-                      "colour type 2 (RGB) is not supported; supported: 8- or 16-bit grayscale"),
-        "1-bit image": ([_bad_png(tmp_path, "bit.png", (4, 3, 1, 0, 0, 0, 0)), *good], "bit depth 1 is not supported"),
-        "huge image": ([_bad_png(tmp_path, "huge.png", (90000, 90000, 16, 0, 0, 0, 0)), *good], "exceeds the limit"),
+        "corrupt image": ([tmp_path / "corrupt.png", *good], "not a picture Pillow can read"),
+        "short pixel data": ([_bad_png(tmp_path, "short.png", (40, 30, 8, 2, 0, 0, 0)), *good],
+                             "corrupt or truncated pixel data"),
+        "bad CRC": ([tmp_path / "crc.png", *good], "corrupt or truncated pixel data"),
+        "huge image": ([_bad_png(tmp_path, "huge.png", (90000, 90000, 16, 0, 0, 0, 0)), *good],
+                       "refused before decoding"),
+        "normal map without channel": ([tmp_path / "normals.png", *good], "`--channel normal`"),
+        "unknown channel option": ([ok, *good, "--channel", "green"], "unknown image channel 'green'"),
+        "z units of gray codes": ([ok, *good, "--z-units", "nm"], "`z_units` applies to float data"),
         "NaN heights": ([tmp_path / "nan.npy", "--size", "2x2mm"], "must be finite"),
         "empty map": ([tmp_path / "empty.npy", "--size", "2x2mm"], "at least 2 samples"),
         "one pixel": ([tmp_path / "one.png", *good], "at least 2 samples"),
@@ -105,10 +119,12 @@ def _cases(tmp_path):
         "option of another gradient method": ([ok, *good, "--sigma", "1mm"], "unknown option of gradient method 'central' 'sigma'"),
         "missing size": ([ok, "--height", "0:1mm"], "needs `--size`"),
         "mesh option on image": ([ok, *good, "--up", "y"], "`--up` applies to meshes"),
-        "unknown source": ([tmp_path / "x.bmp", *good], f"source '{tmp_path / 'x.bmp'}': unknown source type '.bmp'"),
+        "unknown source": ([tmp_path / "x.pgn", *good], f"source '{tmp_path / 'x.pgn'}': unknown source type '.pgn'"),
         "size and resolution": ([ok, *good, "--resolution", "1mm"], "give `--size` or `--resolution`, not both"),
         "huge gaussian sigma": ([ok, *good, "--gradient", "gaussian", "--sigma", "1km"], "must not exceed the map extent"),
-        "mapping gain on a scene": ([ROOT / "assets/scenes/phone.toml", "--n-gain", "2N/mm"], "`--n-gain` applies to images and meshes"),
+        "mapping gain on a scene": ([ROOT / "assets/scenes/phone.toml", "--n-gain", "2N/mm"], "`--n-gain` applies to pictures and meshes"),
+        "picture option on a scene": ([ROOT / "assets/scenes/phone.toml", "--z-units", "nm"],
+                                      "`--z-units` applies to pictures, not to scene"),
     }
 
 

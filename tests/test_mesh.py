@@ -310,14 +310,14 @@ def test_exported_solid_is_watertight_with_outward_normals(tmp_path):
 def test_save_heightmap_png_npy_npz(tmp_path):
     hf = mesh.mesh_to_heightfield(KEYCAP, resolution=0.5 * MM)
     mesh.save_heightmap(hf, tmp_path / "h.npy")
-    np.testing.assert_array_equal(np.load(tmp_path / "h.npy"), hf.heights)
+    np.testing.assert_array_equal(np.load(tmp_path / "h.npy")[::-1], hf.heights)     # top view: row 0 = far edge
     mesh.save_heightmap(hf, tmp_path / "h.npz")
     with np.load(tmp_path / "h.npz") as z:
         np.testing.assert_array_equal(z["heights"], hf.heights)
         assert float(z["dx"]) == hf.dx
     mesh.save_heightmap(hf, tmp_path / "h.png")
-    from shapedisplay.imageio import read_png
-    gray = read_png(tmp_path / "h.png")
+    from shapedisplay.imageio import read_picture
+    gray = read_picture(tmp_path / "h.png").values[::-1]
     assert gray.dtype == np.uint16 and gray.shape == hf.shape
     lo, hi = hf.heights.min(), hf.heights.max()
     np.testing.assert_allclose(lo + gray / 65535 * (hi - lo), hf.heights, atol=(hi - lo) / 65535)

@@ -86,7 +86,7 @@ def test_heightmap_command_writes_every_format(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "41x41 samples" in text and "5120 triangles from 1 mesh(es), 0 degenerate faces dropped" in text
     ref = mesh.mesh_to_heightfield(KEYCAP, resolution=0.5 * MM, margin=1 * MM)
-    np.testing.assert_array_equal(np.load(tmp_path / "keycap.npy"), ref.heights)
+    np.testing.assert_array_equal(np.load(tmp_path / "keycap.npy")[::-1], ref.heights)   # top view
     back = mesh.mesh_to_heightfield(tmp_path / "keycap.stl", resolution=0.5 * MM)
     np.testing.assert_allclose(back.heights, ref.heights + 1 * MM, atol=2e-8)
     # the PNG reads back through the image source with the size and range the command printed
@@ -100,7 +100,7 @@ def test_heightmap_command_options(tmp_path, capsys):
     rc = main(["heightmap", str(KEYCAP), "-o", str(out), "--grid", "31x61", "--up", "z",
                "--supersample", "3", "--supersample-mode", "max", "--background=-1mm", "--method", "numpy"])
     assert rc == 0
-    h = np.load(out)
+    h = np.load(out)[::-1]                    # written as the top view
     assert h.shape == (31, 61)
     ref = mesh.mesh_to_heightfield(KEYCAP, grid=(31, 61), supersample=3, supersample_mode="max",
                                    background=-1 * MM)
@@ -115,8 +115,9 @@ def test_heightmap_command_options(tmp_path, capsys):
     (["--units", "yd"], "unknown mesh units 'yd'"),
     (["--up", "q"], "`--up` must be one of x, y, z"),
     (["--up", "1,a,0"], "`--up` direction must be three numbers"),
-    (["--size", "1x1mm"], "`--size` applies to image sources"),   # was silently ignored
-    (["--height", "0:1mm"], "`--height` applies to image sources"),
+    (["--size", "0x1mm"], "`--size` must be positive"),
+    (["--height", "2:1mm"], "`--height` must run low:high"),
+    (["--channel", "r"], "`--channel` applies to pictures, not to mesh"),
 ])
 def test_heightmap_command_errors_exit_2_without_output(tmp_path, capsys, argv, pattern):
     out = tmp_path / "map.npy"
@@ -131,7 +132,7 @@ def test_heightmap_command_errors_exit_2_without_output(tmp_path, capsys, argv, 
 def test_heightmap_command_bad_files(tmp_path, capsys):
     bad = tmp_path / "cut.stl"
     bad.write_bytes(KEYCAP.read_bytes()[:1000])
-    for src, pattern in ((bad, "binary STL is truncated"), (tmp_path / "none.obj", "file not found")):
+    for src, pattern in ((bad, "binary STL is truncated"), (tmp_path / "none.obj", "no such file")):
         rc = main(["heightmap", str(src), "-o", str(tmp_path / "m.png")])
         assert rc == 2 and pattern in capsys.readouterr().err
     rc = main(["heightmap", str(KEYCAP), "-o", str(tmp_path / "m.bmp")])
@@ -149,7 +150,7 @@ def test_heightmap_mesh_options_on_an_image_are_refused(tmp_path, capsys, opt, v
     rc = main(["heightmap", str(tmp_path / "a.png"), "-o", str(tmp_path / "m.npy"), "--size", "4x3mm",
                "--height", "0:1mm", opt, value])
     err = capsys.readouterr().err
-    assert rc == 2 and f"`{opt}` applies to meshes, not to '{tmp_path / 'a.png'}'" in err
+    assert rc == 2 and f"`{opt}` applies to meshes, not to picture '{tmp_path / 'a.png'}'" in err
     assert not (tmp_path / "m.npy").exists()
 
 

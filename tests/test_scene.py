@@ -310,10 +310,11 @@ size = "8x4 mm"
 height = "0:2 mm"
 """)
     t = compile_scene(p).table
-    # pixel (r, c) of a 8x4 mm image of 4x2 px covers 2 mm; its centre is at (11 + 2c, 11 + 2r) mm
+    # pixel (r, c) of a 8x4 mm image of 4x2 px covers 2 mm; the picture is the top view (row 0 on top),
+    # so its centre is at (11 + 2c, 13 - 2r) mm
     for r in range(2):
         for c in range(4):
-            val = t.dense("normal_force")[int(round((11 + 2 * r) / 0.5)), int(round((11 + 2 * c) / 0.5))]
+            val = t.dense("normal_force")[int(round((13 - 2 * r) / 0.5)), int(round((11 + 2 * c) / 0.5))]
             assert abs(val - (0.5 + 2.0 * gray[r, c] / 65535)) <= tol(t)
 
 

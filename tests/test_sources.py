@@ -1,7 +1,4 @@
-"""Height-field sources: published profiles, primitives, PNG/npy images, arrays, dispatch."""
-import struct
-import zlib
-
+"""Height-field sources: published profiles, primitives, arrays, dispatch (pictures: test_pictures.py)."""
 import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
@@ -9,7 +6,7 @@ from hypothesis.extra import numpy as hnp
 
 from shapedisplay import sources
 from shapedisplay.errors import FileFormatError, InputError, UnitError
-from shapedisplay.imageio import PNG_SIGNATURE, _chunk, encode_png, png_info, read_png, write_png
+from shapedisplay.imageio import write_png
 
 
 # ----------------------------------------------------------------- published profiles
@@ -132,170 +129,8 @@ def test_from_array_cell_centres_and_checks():
         sources.from_array(np.zeros((1, 1)), 1e-4)
 
 
-# ----------------------------------------------------------------- PNG
-@settings(max_examples=30, deadline=None)
-@given(gray=hnp.arrays(st.sampled_from([np.uint8, np.uint16]), st.tuples(st.integers(1, 9), st.integers(1, 11))),
-       data=st.data())
-def test_png_round_trip_every_filter(tmp_path_factory, gray, data):
-    ftypes = data.draw(hnp.arrays(np.uint8, (gray.shape[0],), elements=st.integers(0, 4)))
-    p = tmp_path_factory.mktemp("png") / "g.png"
-    write_png(p, gray, ftypes)
-    back = read_png(p)
-    assert back.dtype == gray.dtype and np.array_equal(back, gray)
 
-
-@pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
-@pytest.mark.parametrize("ftype", ["none", "sub", "up", "average", "paeth"])
-def test_png_filters_agree_with_an_independent_decoder(tmp_path, dtype, ftype):
-    pil = pytest.importorskip("PIL.Image")
-    rng = np.random.default_rng(3)
-    g = rng.integers(0, np.iinfo(dtype).max, size=(23, 31), endpoint=True).astype(dtype)
-    write_png(tmp_path / "g.png", g, ftype)
-    assert np.array_equal(np.asarray(pil.open(tmp_path / "g.png")).astype(np.int64), g.astype(np.int64))
-
-
-def test_png_written_by_another_encoder(tmp_path):
-    pil = pytest.importorskip("PIL.Image")
-    y, x = np.mgrid[0:64, 0:80]
-    g = ((x * 3 + y * 5 + (x * y) % 7) % 256).astype(np.uint8)
-    pil.fromarray(g).save(tmp_path / "p.png", optimize=True)   # adaptive filters per row
-    assert np.array_equal(read_png(tmp_path / "p.png"), g)
-
-
-def _png(ihdr_fields, idat=b"", extra=b""):
-    ihdr = struct.pack(">IIBBBBB", *ihdr_fields)
-    return PNG_SIGNATURE + _chunk(b"IHDR", ihdr) + extra + _chunk(b"IDAT", idat) + _chunk(b"IEND", b"")
-
-
-@pytest.mark.parametrize("fields, match", [
-    ((4, 4, 8, 2, 0, 0, 0), r"colour type 2 \(RGB\) is not supported; supported: 8- or 16-bit grayscale"),
-    ((4, 4, 1, 0, 0, 0, 0), r"bit depth 1 is not supported; supported: 8- or 16-bit grayscale"),
-    ((4, 4, 8, 6, 0, 0, 0), r"colour type 6 \(RGBA\)"),
-    ((4, 4, 8, 3, 0, 0, 0), r"colour type 3 \(palette\)"),
-    ((4, 4, 8, 0, 0, 0, 1), r"interlaced"),
-])
-def test_png_unsupported_formats(tmp_path, fields, match):
-    p = tmp_path / "bad.png"
-    p.write_bytes(_png(fields, zlib.compress(b"\0" * 40)))
-    with pytest.raises(FileFormatError, match=match):
-        read_png(p)
-
-
-def test_png_huge_header_refused_before_decompressing(tmp_path, monkeypatch):
-    p = tmp_path / "huge.png"
-    p.write_bytes(_png((100_000, 100_000, 16, 0, 0, 0, 0), zlib.compress(b"\0" * 10)))
-
-    def no_inflate(*a, **k):
-        raise AssertionError("pixel data must not be decompressed")
-    monkeypatch.setattr("shapedisplay.imageio._inflate", no_inflate)
-    with pytest.raises(InputError, match=r"100000x100000 .* exceeds the limit"):
-        read_png(p)
-    with pytest.raises(InputError, match="exceeds the limit"):
-        png_info(p)
-
-
-def test_png_corruption(tmp_path):
-    good = encode_png(np.arange(12, dtype=np.uint8).reshape(3, 4))
-    cases = {
-        "crc": good[:40] + bytes([good[40] ^ 0xFF]) + good[41:],
-        "trunc": good[: len(good) - 20],
-        "sig": b"GIF89a" + good[6:],
-    }
-    for name, data in cases.items():
-        (tmp_path / f"{name}.png").write_bytes(data)
-    with pytest.raises(FileFormatError, match="CRC mismatch"):
-        read_png(tmp_path / "crc.png")
-    with pytest.raises(FileFormatError, match="truncated"):
-        read_png(tmp_path / "trunc.png")
-    with pytest.raises(FileFormatError, match="not a PNG file"):
-        read_png(tmp_path / "sig.png")
-    short = tmp_path / "short.png"
-    short.write_bytes(_png((4, 4, 8, 0, 0, 0, 0), zlib.compress(b"\0" * 7)))
-    with pytest.raises(FileFormatError, match="holds 7 bytes, the header needs 20"):
-        read_png(short)
-    long_ = tmp_path / "long.png"
-    long_.write_bytes(_png((4, 4, 8, 0, 0, 0, 0), zlib.compress(b"\0" * 200)))
-    with pytest.raises(FileFormatError, match="more pixel data than the header"):
-        read_png(long_)
-    badz = tmp_path / "badz.png"
-    badz.write_bytes(_png((4, 4, 8, 0, 0, 0, 0), b"not zlib at all"))
-    with pytest.raises(FileFormatError, match="corrupt compressed pixel data"):
-        read_png(badz)
-    badf = tmp_path / "badf.png"
-    badf.write_bytes(_png((2, 2, 8, 0, 0, 0, 0), zlib.compress(bytes([7, 0, 0, 0, 0, 0]))))
-    with pytest.raises(FileFormatError, match="unknown PNG filter type 7"):
-        read_png(badf)
-    with pytest.raises(FileFormatError, match="no such file"):
-        read_png(tmp_path / "missing.png")
-    with pytest.raises(FileFormatError, match="is a directory"):
-        read_png(tmp_path)
-
-
-# ----------------------------------------------------------------- load_image
-@pytest.mark.parametrize("dtype, full", [(np.uint8, 255), (np.uint16, 65535)])
-def test_gray_maps_linearly_onto_height_range(tmp_path, dtype, full):
-    g = np.array([[0, full // 2, full], [full, 0, 1]], dtype=dtype)
-    write_png(tmp_path / "m.png", g)
-    hf = sources.load_image(tmp_path / "m.png", "60x4mm", "-1:2mm")
-    assert np.allclose(hf.heights, -1e-3 + 3e-3 * g / full, rtol=0, atol=1e-15)
-    assert hf.heights[0, 0] == -1e-3 and hf.heights[0, 2] == pytest.approx(2e-3, abs=1e-18)
-    # pixel centres are the sample centres: dx = width / cols
-    assert hf.dx == pytest.approx(0.02) and hf.dy == pytest.approx(0.002)
-    assert hf.x0 == pytest.approx(0.01) and hf.y0 == pytest.approx(0.001)
-    assert hf.x[-1] == pytest.approx(0.05)
-
-
-def test_image_errors(tmp_path):
-    write_png(tmp_path / "one.png", np.zeros((1, 1), np.uint8))
-    with pytest.raises(InputError, match="at least 2 samples"):
-        sources.load_image(tmp_path / "one.png", "1x1mm", "0:1mm")
-    write_png(tmp_path / "m.png", np.zeros((2, 2), np.uint8))
-    with pytest.raises(InputError, match="`size` must be positive"):
-        sources.load_image(tmp_path / "m.png", "-1x1mm", "0:1mm")
-    with pytest.raises(InputError, match="low <= high"):
-        sources.load_image(tmp_path / "m.png", "1x1mm", (2e-3, 1e-3))
-    with pytest.raises(InputError, match="`height_range` is required"):
-        sources.load_image(tmp_path / "m.png", "1x1mm", None)
-    with pytest.raises(InputError, match=r"unknown image type '.jpg'"):
-        sources.load_image(tmp_path / "m.jpg", "1x1mm", "0:1mm")
-
-
-def test_npy_sources(tmp_path):
-    h = np.linspace(0, 1e-3, 12).reshape(3, 4)
-    np.save(tmp_path / "h.npy", h)
-    hf = sources.load_image(tmp_path / "h.npy", "4x3mm", None)
-    assert np.array_equal(hf.heights, h)
-    hf = sources.load_image(tmp_path / "h.npy", None, None, resolution="0.5mm")
-    assert hf.dx == 0.5e-3 and hf.size_m == pytest.approx((2e-3, 1.5e-3))
-    np.save(tmp_path / "g.npy", np.array([[0, 65535]], dtype=np.uint16))
-    assert np.allclose(sources.load_image(tmp_path / "g.npy", "2x1mm", "0:2mm").heights, [[0, 2e-3]])
-    np.save(tmp_path / "nan.npy", np.array([[0.0, np.nan]]))
-    with pytest.raises(InputError, match="must be finite"):
-        sources.load_image(tmp_path / "nan.npy", "2x1mm", None)
-    np.save(tmp_path / "empty.npy", np.zeros((0, 5)))
-    with pytest.raises(InputError, match="at least 2 samples"):
-        sources.load_image(tmp_path / "empty.npy", "2x1mm", None)
-    np.save(tmp_path / "cube.npy", np.zeros((2, 2, 2)))
-    with pytest.raises(FileFormatError, match=r"shape \(rows, cols\)"):
-        sources.load_image(tmp_path / "cube.npy", "2x1mm", None)
-    np.save(tmp_path / "b.npy", np.zeros((2, 2), dtype=bool))
-    with pytest.raises(FileFormatError, match="dtype bool is not supported"):
-        sources.load_image(tmp_path / "b.npy", "2x1mm", None)
-    (tmp_path / "junk.npy").write_bytes(b"garbage")
-    with pytest.raises(FileFormatError, match="not a .npy file"):
-        sources.load_image(tmp_path / "junk.npy", "2x1mm", None)
-    # with a height range, values must lie on the gray scale (they used to extrapolate silently)
-    np.save(tmp_path / "f5.npy", np.array([[0.0, 5.0]]))
-    with pytest.raises(InputError, match=r"normalised float values must lie within 0..1 \(got 0..5\)"):
-        sources.load_image(tmp_path / "f5.npy", "2x1mm", "0:1mm")
-    np.save(tmp_path / "i8.npy", np.array([[-5, 100]], dtype=np.int8))
-    with pytest.raises(InputError, match=r"int8 gray values must lie within 0..127 \(got -5..100\)"):
-        sources.load_image(tmp_path / "i8.npy", "2x1mm", "0:1mm")
-    half = np.array([[0.0, 0.5, 1.0]])
-    assert np.allclose(sources.gray_to_heights(half, 1.0, (0.0, 2e-3)), [[0.0, 1e-3, 2e-3]])
-    assert np.array_equal(half, [[0.0, 0.5, 1.0]])          # the input is not scaled in place
-
-
+# ----------------------------------------------------------------- load_source / options
 def test_load_source_dispatch(tmp_path):
     write_png(tmp_path / "m.png", np.zeros((2, 3), np.uint16))
     hf = sources.load_source(tmp_path / "m.png", size=(3e-3, 2e-3), height_range=(0, 1e-3), up=None)
@@ -308,36 +143,40 @@ def test_load_source_dispatch(tmp_path):
         sources.load_source(tmp_path / "missing.stl", resolution=1e-4)
 
 
-def test_image_options_parse_command_line_strings():
-    from shapedisplay.sources import image_options, resolution_option
-    assert image_options("m.png", "60x4mm", "0:2mm") == {"size": pytest.approx((0.06, 0.004)),
-                                                         "height_range": pytest.approx((0.0, 0.002))}
-    assert image_options("m.npy", None, None, "0.1mm") == {"resolution": pytest.approx(1e-4)}
-    with pytest.raises(InputError, match=r"image 'm.png' needs `--height`"):
-        image_options("m.png", "60x4mm", None)
+def test_source_options_parse_command_line_strings():
+    from shapedisplay.sources import resolution_option, source_options
+    assert source_options("m.png", size="60x4mm", height="0:2mm") == {
+        "size": pytest.approx((0.06, 0.004)), "height_range": pytest.approx((0.0, 0.002))}
+    assert source_options("m.npy", resolution="0.1mm", z_units="nm") == {
+        "resolution": pytest.approx(1e-4), "z_units": "nm"}
+    assert source_options("m.stl", size="60mm", height="0:3mm", up="-y") == {
+        "size": pytest.approx(0.06), "height_range": pytest.approx((0.0, 0.003)), "up": "-y"}
+    assert source_options("m.stl", size="60x40mm", up="0,1,0")["up"] == [0.0, 1.0, 0.0]
     with pytest.raises(InputError, match=r"needs `--extent`"):
-        image_options("m.png", None, "0:1mm", size_flag="--extent")
+        source_options("m.png", height="0:1mm", flags={"size": "--extent"})
     with pytest.raises(InputError, match=r"`--size` must be positive"):
-        image_options("m.png", "0x4mm", "0:1mm")
+        source_options("m.png", size="0x4mm")
     with pytest.raises(InputError, match=r"`--resolution` must be a length > 0"):
         resolution_option("-1mm")
+    with pytest.raises(InputError, match=r"`--channel` applies to image sources, not to 'm.stl' \(a mesh\)"):
+        source_options("m.stl", channel="r")
+    with pytest.raises(InputError, match=r"`--height` must run low:high"):
+        source_options("m.png", size="1x1mm", height="2:1mm")
 
 
 def test_source_kind_and_option_applicability_live_in_the_library(tmp_path):
     """One table says which command-line option applies to which source; every command asks it."""
     from shapedisplay.sources import check_applicable, source_kind, source_options
-    assert [source_kind(p) for p in ("t.npz", "s.TOML", "a.png", "b.npy", "c.stl", "d.glb")] == \
-        ["table", "scene", "image", "image", "mesh", "mesh"]
-    with pytest.raises(InputError, match=r"unknown source type '\.bmp'"):
-        source_kind("x.bmp")
+    assert [source_kind(p) for p in ("t.npz", "s.TOML", "a.png", "b.npy", "c.stl", "d.glb", "m.svg")] == \
+        ["table", "scene", "image", "image", "mesh", "mesh", "svg"]
+    with pytest.raises(InputError, match=r"unknown source type '\.pgn'"):
+        source_kind("x.pgn")
     with pytest.raises(InputError, match=r"`--up` applies to meshes, not to 'a\.png' \(an image\)"):
         check_applicable("a.png", {"up": "y"})
-    with pytest.raises(InputError, match=r"`--extent` applies to image sources, not to 'k\.stl' \(a mesh\)"):
-        source_options("k.stl", size="1x1mm", flags={"size": "--extent"})
+    with pytest.raises(InputError, match=r"`--extent` applies to images and meshes, not to 's\.toml' \(a scene"):
+        source_options("s.toml", size="1x1mm", flags={"size": "--extent"})
     with pytest.raises(InputError, match=r"`--n-gain` applies to images and meshes, not to 'p\.toml' \(a scene"):
         check_applicable("p.toml", {"n_gain": "2N/mm"}, kinds={"n_gain": ("image", "mesh")})
     assert check_applicable("p.toml", {"up": None, "size": None}) == "scene"
     assert source_options("k.stl", resolution="0.1mm", up="y") == {"resolution": pytest.approx(1e-4), "up": "y"}
-    assert source_options("a.png", size="60x4mm", height="0:2mm") == {
-        "size": pytest.approx((0.06, 0.004)), "height_range": pytest.approx((0.0, 0.002))}
     assert source_options("t.npz") == {}

@@ -54,8 +54,8 @@ def buttons() -> np.ndarray:
 
 
 if __name__ == "__main__":
-    write_png(HERE / "tent_profile.png", tent(), "up", 9)
-    write_png(HERE / "terrain_noisy.png", terrain(), "paeth", 9)
-    write_png(HERE / "buttons.png", buttons(), "paeth", 9)
+    write_png(HERE / "tent_profile.png", tent())
+    write_png(HERE / "terrain_noisy.png", terrain())
+    write_png(HERE / "buttons.png", buttons())
     for p in sorted(HERE.glob("*.png")):
         print(p.name, p.stat().st_size, "bytes")

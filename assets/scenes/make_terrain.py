@@ -29,5 +29,5 @@ def terrain(cols: int = 240, rows: int = 160) -> np.ndarray:
 
 
 if __name__ == "__main__":
-    p = write_png(HERE / "terrain.png", terrain(), "paeth", 9)
+    p = write_png(HERE / "terrain.png", terrain())
     print(p.name, p.stat().st_size, "bytes")
