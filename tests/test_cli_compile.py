@@ -100,7 +100,7 @@ def _cases(tmp_path):
                        "refused before decoding"),
         "normal map without channel": ([tmp_path / "normals.png", *good], "`--channel normal`"),
         "unknown channel option": ([ok, *good, "--channel", "green"], "unknown image channel 'green'"),
-        "z units of gray codes": ([ok, *good, "--z-units", "nm"], "`z_units` applies to float data"),
+        "z units of gray codes": ([ok, *good, "--z-units", "nm"], "`--z-units` applies to float data"),
         "NaN heights": ([tmp_path / "nan.npy", "--size", "2x2mm"], "must be finite"),
         "empty map": ([tmp_path / "empty.npy", "--size", "2x2mm"], "at least 2 samples"),
         "one pixel": ([tmp_path / "one.png", *good], "at least 2 samples"),
