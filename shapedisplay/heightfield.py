@@ -57,6 +57,32 @@ def picture_from_grid(values: np.ndarray) -> np.ndarray:
     return np.asarray(values)[::-1]
 
 
+def height_range(value) -> tuple[float, float]:
+    """``(low, high)`` metres from a pair of lengths or a string such as ``"0:2mm"``; low <= high."""
+    from .units import parse_pair, parse_quantity
+    if isinstance(value, str):
+        lo, hi = parse_pair(value, ":", "m", "height_range")
+    else:
+        try:
+            lo, hi = value
+        except (TypeError, ValueError):
+            raise InputError(f"`height_range` must be (low, high) in metres (got {value!r})") from None
+        lo, hi = (parse_quantity(v, "m", f"height_range[{i}]", bare_ok=not isinstance(v, str))
+                  for i, v in enumerate((lo, hi)))
+    if not hi >= lo:
+        raise InputError(f"`height_range` must have low <= high (got {lo} m .. {hi} m)")
+    return float(lo), float(hi)
+
+
+def height_scale(unit: str, m_per_unit: float, offset_m: float, rule: str, what: str = "data") -> dict:
+    """The scale of a source, for reports: ``height = m_per_unit * value + offset_m`` (metres).
+
+    ``what`` names the source quantity ("data", "model height", "gray level").
+    """
+    return {"source_unit": unit, "m_per_unit": float(m_per_unit), "offset_m": float(offset_m), "rule": rule,
+            "what": what}
+
+
 @dataclass(frozen=True, eq=False)
 class HeightField:
     """Heights on a regular grid.

@@ -297,11 +297,19 @@ def _grid(value) -> tuple[int, int]:
 
 def _mesh_size(value):
     """``size``: one length (uniform scale) or (width, height), metres."""
-    from .sources import _length as length, _size
+    from .units import parse_pair
     if isinstance(value, str) and "x" not in value or isinstance(value, (int, float)):
-        v = length(value, "size", positive=True)
-        return float(v)
-    return tuple(float(x) for x in _size(value))
+        return _length(value, "size")
+    if isinstance(value, str):
+        w, h = parse_pair(value, "x", "m", "size")
+    else:
+        try:
+            w, h = (_length(v, "size") for v in value)
+        except (TypeError, ValueError):
+            raise InputError(f"`size` must be a length or (width, height) (got {value!r})") from None
+    if not (w > 0 and h > 0):
+        raise InputError(f"`size` must be positive (got width={w} m, height={h} m)")
+    return float(w), float(h)
 
 
 def _background(value) -> float:
@@ -397,8 +405,8 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units="mm", ba
         size = _mesh_size(size)
     hr = None
     if height_range is not None:
-        from .sources import _height_range
-        hr = _height_range(height_range)
+        from .heightfield import height_range as parse_height_range
+        hr = parse_height_range(height_range)
 
     verts, faces, info, name = _mesh_arrays(path)
     where = f"mesh '{name}'"
@@ -511,7 +519,7 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units="mm", ba
         offset = hr[0]
         scale_rule += (f", relief {relief * 1e3:.6g} mm fitted onto {hr[0] * 1e3:.6g}..{hr[1] * 1e3:.6g} mm"
                        if relief > 0 else f", flat model placed at {hr[0] * 1e3:.6g} mm")
-    from .sources import height_scale
+    from .heightfield import height_scale
     meta = {
         "kind": "mesh",
         "triangles": int(len(faces)) + n_deg,

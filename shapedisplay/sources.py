@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import FileFormatError, InputError, unknown_key
-from .heightfield import HeightField, check_grid_size, check_spacing
+from .heightfield import HeightField, check_grid_size, check_spacing, height_range as _height_range, height_scale
 from .imageio import PICTURE_SUFFIXES   # numpy only; Pillow is imported when a picture is read
 from .units import parse_quantity
 
@@ -435,21 +435,6 @@ def gray_to_heights(gray: np.ndarray, full_scale: float, height_range) -> np.nda
     return out
 
 
-def _height_range(height_range) -> tuple[float, float]:
-    if isinstance(height_range, str):
-        from .units import parse_pair
-        lo, hi = parse_pair(height_range, ":", "m", "height_range")
-    else:
-        try:
-            lo, hi = height_range
-        except (TypeError, ValueError):
-            raise InputError(f"`height_range` must be (low, high) in metres (got {height_range!r})") from None
-        lo, hi = _length(lo, "height_range[0]"), _length(hi, "height_range[1]")
-    if not hi >= lo:
-        raise InputError(f"`height_range` must have low <= high (got {lo} m .. {hi} m)")
-    return lo, hi
-
-
 #: Units of float height data (``z_units``), metres per unit.
 Z_UNITS = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "nm": 1e-9}
 
@@ -459,15 +444,6 @@ def _z_unit(z_units) -> tuple[str, float]:
     if name not in Z_UNITS:
         raise unknown_key("z unit", name, Z_UNITS)
     return name, Z_UNITS[name]
-
-
-def height_scale(unit: str, m_per_unit: float, offset_m: float, rule: str, what: str = "data") -> dict:
-    """The scale of a source, for reports: ``height = m_per_unit * value + offset_m`` (metres).
-
-    ``what`` names the source quantity ("data", "model height", "gray level").
-    """
-    return {"source_unit": unit, "m_per_unit": float(m_per_unit), "offset_m": float(offset_m), "rule": rule,
-            "what": what}
 
 
 def fit_range(values: np.ndarray, height_range, what: str, mask=None) -> tuple[np.ndarray, float, float, str]:
