@@ -122,9 +122,9 @@ def _cases(tmp_path):
         "unknown source": ([tmp_path / "x.pgn", *good], f"source '{tmp_path / 'x.pgn'}': unknown source type '.pgn'"),
         "size and resolution": ([ok, *good, "--resolution", "1mm"], "give `--size` or `--resolution`, not both"),
         "huge gaussian sigma": ([ok, *good, "--gradient", "gaussian", "--sigma", "1km"], "must not exceed the map extent"),
-        "mapping gain on a scene": ([ROOT / "assets/scenes/phone.toml", "--n-gain", "2N/mm"], "`--n-gain` applies to pictures and meshes"),
+        "mapping gain on a scene": ([ROOT / "assets/scenes/phone.toml", "--n-gain", "2N/mm"], "`--n-gain` applies to images and meshes"),
         "picture option on a scene": ([ROOT / "assets/scenes/phone.toml", "--z-units", "nm"],
-                                      "`--z-units` applies to pictures, not to scene"),
+                                      "`--z-units` applies to image sources, not to"),
     }
 
 

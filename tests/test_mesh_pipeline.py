@@ -117,7 +117,7 @@ def test_heightmap_command_options(tmp_path, capsys):
     (["--up", "1,a,0"], "`--up` direction must be three numbers"),
     (["--size", "0x1mm"], "`--size` must be positive"),
     (["--height", "2:1mm"], "`--height` must run low:high"),
-    (["--channel", "r"], "`--channel` applies to pictures, not to mesh"),
+    (["--channel", "r"], "`--channel` applies to image sources, not to"),
 ])
 def test_heightmap_command_errors_exit_2_without_output(tmp_path, capsys, argv, pattern):
     out = tmp_path / "map.npy"
@@ -150,7 +150,7 @@ def test_heightmap_mesh_options_on_an_image_are_refused(tmp_path, capsys, opt, v
     rc = main(["heightmap", str(tmp_path / "a.png"), "-o", str(tmp_path / "m.npy"), "--size", "4x3mm",
                "--height", "0:1mm", opt, value])
     err = capsys.readouterr().err
-    assert rc == 2 and f"`{opt}` applies to meshes, not to picture '{tmp_path / 'a.png'}'" in err
+    assert rc == 2 and f"`{opt}` applies to meshes, not to '{tmp_path / 'a.png'}' (an image)" in err
     assert not (tmp_path / "m.npy").exists()
 
 
