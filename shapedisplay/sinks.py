@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import math
 import struct
-import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -133,32 +132,90 @@ def write_trace(path, result, table_checksum: str = "") -> Path:
     return Path(path)
 
 
-def read_trace(path) -> dict:
+#: Most ticks (and events) a trace file may hold: the renderer's limit of one offline render.
+MAX_TRACE_TICKS = 10_000_000
+#: Most events per tick a trace may record on average (stick-slip fires several per tick at speed).
+_EVENTS_PER_TICK = 8
+#: Most bytes of arrays one trace file may make the reader hold.
+MAX_TRACE_BYTES = 1 << 30
+_TRACE_STRINGS = ("table_checksum", "model", "burst_policy", "format")
+_TRACE_SCALARS = {"tick_rate": ("f8",), "audio_rate": ("f8",), "clipped": ("i8", "i4")}
+_EVENT_ARRAYS = ("event_time", "event_amplitude")
+
+
+def read_trace(path, required=TRACE_ARRAYS) -> dict:
     """Read a trace written by :func:`write_trace` into a dict of arrays and scalars.
 
-    Raises :class:`FileFormatError` for a missing, unreadable or foreign file.
+    The file goes through the bounded ``.npz`` reader (entry names, sizes and
+    ``.npy`` headers checked before anything is inflated; at most
+    :data:`MAX_TRACE_TICKS` ticks). Every float array must be finite, the
+    per-tick arrays of one length, ``state`` 0 or 1. ``required`` names the
+    arrays that must be present (others of :data:`TRACE_ARRAYS` are read
+    when present).
+
+    Raises :class:`FileFormatError` for a missing, unreadable, foreign or damaged file.
     """
+    from .container import NpzReader
+
     p = Path(path)
-    if not p.is_file():
-        raise FileFormatError(f"trace '{p}': no such file")
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            d = {n: z[n] for n in z.files}
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-        raise FileFormatError(f"trace '{p}': unreadable or truncated ({exc})") from None
-    missing = [n for n in TRACE_ARRAYS if n not in d]
-    if missing:
-        raise FileFormatError(f"trace '{p}': lacks arrays {missing}; not a shapedisplay trace")
-    out = {n: d[n] for n in TRACE_ARRAYS}
-    for n in ("table_checksum", "model", "burst_policy", "format"):
-        if n in d:
-            out[n] = str(d[n][0])
-    for n in ("tick_rate", "audio_rate"):
-        if n in d:
-            out[n] = float(d[n])
-    if "clipped" in d:
-        out["clipped"] = int(d["clipped"])
+    label = f"trace '{p}'"
+    if p.is_dir() or not p.is_file():
+        raise FileFormatError(f"{label}: no such file" if not p.exists() else f"{label}: is a directory")
+    names = (*TRACE_ARRAYS, *_TRACE_STRINGS, *_TRACE_SCALARS)
+    out: dict = {}
+    with NpzReader(p, label, None, max_entries=len(names) + 1, error=FileFormatError) as z:
+        missing = [n for n in required if n not in z]
+        if missing:
+            if "header" in z:
+                raise FileFormatError(f"{label}: this is a table, not a trace (use it as the input)")
+            raise FileFormatError(f"{label}: lacks arrays {missing}; not a shapedisplay trace")
+        unknown = sorted(set(z.entries) - set(names))
+        if unknown:
+            raise FileFormatError(f"{label}: unexpected entry '{unknown[0]}'; not a shapedisplay trace")
+        spent = 0
+        for n in (n for n in TRACE_ARRAYS if n in z):
+            cap = MAX_TRACE_TICKS * (_EVENTS_PER_TICK if n in _EVENT_ARRAYS else 1)
+            cap = min(cap, max(0, MAX_TRACE_BYTES - spent) // 8)
+            out[n] = z.read_array(n, ("i1", "u1", "i4", "i8", "f8") if n == "state" else ("f8", "f4"), cap,
+                                  ndim=1)
+            spent += out[n].nbytes
+        for n in _TRACE_STRINGS:
+            if n in z:
+                a = z.read_array(n, tuple(f"U{k}" for k in range(1, 257)), 1)
+                if a.size != 1:
+                    raise FileFormatError(f"{label}: '{n}' must hold one string (got {a.size})")
+                out[n] = str(a.reshape(-1)[0])
+        for n, dtypes in _TRACE_SCALARS.items():
+            if n in z:
+                v = z.read_array(n, dtypes, 1, shape=()).item()
+                out[n] = int(v) if n == "clipped" else float(v)
+    _check_trace(out, label)
     return out
+
+
+def _check_trace(d: dict, label: str) -> None:
+    n = d["t"].size
+    if n < 1:
+        raise FileFormatError(f"{label}: holds no ticks")
+    for name in (n for n in TRACE_ARRAYS if n in d):
+        a = d[name]
+        want = d["event_time"].size if name in _EVENT_ARRAYS and "event_time" in d else n
+        if name in _EVENT_ARRAYS and "event_time" not in d:
+            want = a.size
+        if a.size != want:
+            raise FileFormatError(f"{label}: array '{name}' has {a.size} values; "
+                                  f"'{'event_time' if name in _EVENT_ARRAYS else 't'}' has {want}")
+        if a.dtype.kind == "f" and not np.isfinite(a).all():
+            raise FileFormatError(f"{label}: array '{name}' holds NaN or infinite values")
+    if "state" in d and not np.all((d["state"] == 0) | (d["state"] == 1)):
+        raise FileFormatError(f"{label}: 'state' must be 0 (stick) or 1 (slip)")
+    if np.any(np.diff(d["t"]) < 0):
+        raise FileFormatError(f"{label}: times 't' must not decrease")
+    for name in ("tick_rate", "audio_rate"):
+        if name in d and not (math.isfinite(d[name]) and d[name] > 0):
+            raise FileFormatError(f"{label}: '{name}' must be finite and > 0 (got {d[name]!r})")
+    if "clipped" in d and d["clipped"] < 0:
+        raise FileFormatError(f"{label}: 'clipped' must be >= 0 (got {d['clipped']})")
 
 
 def check_plot_path(path) -> str:

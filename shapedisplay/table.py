@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import copy
 import hashlib
-import io
 import json
 import math
 import os
@@ -38,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from .atomic import atomic_path
+from .container import NpzReader
 from .errors import TableError, InputError, did_you_mean, unknown_key
 
 FORMAT_NAME = "shapedisplay-friction-table"
@@ -393,56 +393,84 @@ class FrictionTable:
         return cls._from_npz(path, f"table '{path}'", str(path))
 
     @classmethod
-    def from_bytes(cls, data: bytes, where: str = "uploaded table") -> "FrictionTable":
-        """Read and verify a table from the bytes of a table file (e.g. an upload)."""
-        return cls._from_npz(io.BytesIO(data), where, where)
+    def from_bytes(cls, data: bytes, where: str = "uploaded table", max_bytes: int | None = None) -> "FrictionTable":
+        """Read and verify a table from the bytes of a table file (e.g. an upload).
+
+        ``max_bytes`` caps the channel data it may hold (a device's table memory).
+        """
+        return cls._from_npz(bytes(data), where, where, max_bytes)
 
     @classmethod
-    def _from_npz(cls, source, label: str, where: str) -> "FrictionTable":
-        try:
-            with np.load(source, allow_pickle=False) as z:
-                if "header" not in z.files:
-                    raise TableError(f"{label}: no 'header' entry; not a shapedisplay table")
-                header = json.loads(bytes(z["header"]).decode("utf-8"))
-                arrays = {n: z[n] for n in z.files if n != "header"}
-        except TableError:
-            raise
-        except (OSError, ValueError, zipfile.BadZipFile, EOFError, KeyError, UnicodeDecodeError) as exc:
-            raise TableError(f"{label}: unreadable or truncated ({exc})") from None
+    def _from_npz(cls, source, label: str, where: str, max_bytes: int | None = None) -> "FrictionTable":
+        """The one bounded reader of table files: every cap is known before a byte is inflated.
+
+        The header is read first (at most :data:`HEADER_MAX_BYTES`, JSON depth
+        capped); its grid and channel dtypes give each channel array's cap
+        (:func:`stored_values_cap` values of the declared dtype, and
+        ``max_bytes`` in all); then the checksum, the schema of every header
+        value and the finiteness of every float channel are checked.
+        """
+        budget = MAX_TABLE_BYTES if max_bytes is None else min(int(max_bytes), MAX_TABLE_BYTES)
+        with NpzReader(source, label, None, max_entries=1 + len(CHANNELS)) as z:
+            if "header" not in z:
+                raise TableError(f"{label}: no 'header' entry; not a shapedisplay table")
+            unknown = sorted(set(z.entries) - {"header", *CHANNELS})
+            if unknown:
+                raise TableError(f"{label}: unexpected entry '{unknown[0]}'; a table holds 'header' and "
+                                 f"channel arrays only")
+            header = z.read_json("header", HEADER_MAX_BYTES)
+            if not isinstance(header, dict):
+                raise TableError(f"{label}: header must be a JSON object (got {type(header).__name__})")
+            cap, dtypes = _array_caps(header, label)
+            arrays, spent = {}, 0
+            for name in sorted(z.entries):
+                if name == "header":
+                    continue
+                if name not in dtypes:
+                    raise TableError(f"{label}: entry '{name}' is not a channel of the header "
+                                     f"(channels: {', '.join(sorted(dtypes)) or 'none'})")
+                code = np.dtype(_DTYPES[dtypes[name]]).str[1:]
+                limit = min(cap, max(0, budget - spent) // np.dtype(code).itemsize)
+                arrays[name] = z.read_array(name, (code,), limit, ndim=1)
+                spent += arrays[name].nbytes
         return cls.from_header(header, arrays, where)
 
     @classmethod
     def from_header(cls, header: dict, arrays: dict, where: str = "table") -> "FrictionTable":
         """Verify a parsed header and its channel arrays; build the table.
 
-        Raises :class:`TableError` (one line naming ``where``) for a wrong
-        format or version, a checksum mismatch, or a header whose structure
-        does not match the format (possible only for a file written by
-        something else with a recomputed checksum).
+        Raises :class:`TableError` (one line naming ``where``, the key, the
+        rule and the value) for a wrong format or version, a checksum
+        mismatch, a header value of the wrong type, range or finiteness, a
+        non-finite float channel, or a layout that does not fit the grid.
         """
         if not isinstance(header, dict):
             raise TableError(f"table '{where}': header must be a JSON object (got {type(header).__name__})")
         if header.get("format") != FORMAT_NAME:
-            raise TableError(f"table '{where}': format is {header.get('format')!r}, expected {FORMAT_NAME!r}")
+            raise TableError(f"table '{where}': format is {_short(header.get('format'))}, expected {FORMAT_NAME!r}")
         ver = header.get("format_version")
-        if ver != FORMAT_VERSION:
-            raise TableError(f"table '{where}': format_version must be {FORMAT_VERSION} (got {ver!r})")
+        if ver != FORMAT_VERSION or isinstance(ver, bool):
+            raise TableError(f"table '{where}': format_version must be {FORMAT_VERSION} (got {_short(ver)})")
         stored = header.get("checksum")
         body = {k: v for k, v in header.items() if k != "checksum"}
-        actual = _checksum(body, arrays)
+        try:
+            actual = _checksum(body, arrays)
+        except (TypeError, ValueError) as exc:     # a key or value JSON cannot write back
+            raise TableError(f"table '{where}': header cannot be checksummed ({exc})") from None
         if stored != actual:
-            raise TableError(f"table '{where}': checksum mismatch (stored {stored}, computed {actual}); file is corrupt")
+            raise TableError(f"table '{where}': checksum mismatch (stored {_short(stored)}, computed {actual}); "
+                             f"file is corrupt")
         try:
             grid, patches, blocks, quant, background, codes = _parse_layout(header, arrays)
+            check_meta(body)
         except TableError as exc:
             raise TableError(f"table '{where}': {exc}") from None
-        except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as exc:
-            raise TableError(f"table '{where}': malformed header ({exc!r})") from None
         meta = {k: v for k, v in body.items()
                 if k not in ("format", "format_version", "grid", "patches", "blocks", "channels")}
         t = cls(grid, patches, blocks, codes, quant, background, meta)
         try:
             t._check_layout()
+            check_meta_refs(t)
         except TableError as exc:
             raise TableError(f"table '{where}': {exc}") from None
         return t
@@ -481,26 +509,115 @@ class FrictionTable:
 
 #: Largest canvas a table file may declare (same bound as a height field).
 MAX_CANVAS_SAMPLES = 16384 * 16384
-_META_DICTS = ("device", "mapping", "source", "compile", "report")
+#: Stored values a table may hold per channel, as a multiple of its canvas: placed
+#: patches never overlap (at most one canvas) and toggles store their other states.
+STORED_PER_CANVAS = 8
+#: Most bytes of channel data a table file may make the reader hold (all channels).
+MAX_TABLE_BYTES = 1 << 30
+#: Largest header accepted, bytes of JSON.
+HEADER_MAX_BYTES = 8 << 20
+#: Largest magnitude of a coordinate or spacing in a table header, metres (a display is
+#: centimetres wide; a kilometre is beyond any device and keeps every product finite).
+MAX_COORDINATE_M = 1e3
+_META_DICTS = ("device", "mapping", "source", "compile", "report", "scene")
+_CHANNEL_KEYS = ("background", "dtype", "max_error", "offset", "scale", "unit")
+
+
+def _short(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _is_num(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _number(d: dict, key: str, where: str, lo: float = -math.inf, hi: float = math.inf, *,
+            lo_open: bool = False) -> float:
+    v = d.get(key)
+    if not _is_num(v):
+        raise TableError(f"header '{where}.{key}' must be a finite number (got {_short(v)})")
+    if v < lo or v > hi or (lo_open and v == lo):
+        rule = f"{'>' if lo_open else '>='} {lo:g}" if hi == math.inf else f"within {lo:g}..{hi:g}"
+        raise TableError(f"header '{where}.{key}' must be {rule} (got {v!r})")
+    return float(v)
 
 
 def _int_list(value, n: int, what: str) -> tuple:
-    if not (isinstance(value, (list, tuple)) and len(value) == n
-            and all(isinstance(v, int) and not isinstance(v, bool) and v >= 0 for v in value)):
-        raise TableError(f"{what} must be {n} non-negative integers (got {value!r})")
+    if not (isinstance(value, list) and len(value) == n and all(_is_int(v) and 0 <= v < 2 ** 31 for v in value)):
+        raise TableError(f"{what} must be {n} non-negative integers (got {_short(value)})")
     return tuple(value)
 
 
+def _object(value, where: str) -> dict:
+    if not isinstance(value, dict):
+        raise TableError(f"header '{where}' must be an object (got {_short(value)})")
+    return value
+
+
+def _grid(header: dict) -> Grid:
+    g = _object(header.get("grid"), "grid")
+    for key in ("rows", "cols"):
+        v = g.get(key)
+        if not (_is_int(v) and v >= 1):
+            raise TableError(f"header 'grid.{key}' must be an integer >= 1 (got {_short(v)})")
+    if g["rows"] * g["cols"] > MAX_CANVAS_SAMPLES:
+        raise TableError(f"grid of {g['rows']}x{g['cols']} samples exceeds the limit of {MAX_CANVAS_SAMPLES}")
+    dx = _number(g, "dx_m", "grid", 0.0, MAX_COORDINATE_M, lo_open=True)
+    dy = _number(g, "dy_m", "grid", 0.0, MAX_COORDINATE_M, lo_open=True)
+    x0 = _number(g, "x0_m", "grid", -MAX_COORDINATE_M, MAX_COORDINATE_M)
+    y0 = _number(g, "y0_m", "grid", -MAX_COORDINATE_M, MAX_COORDINATE_M)
+    if abs(x0) + dx * g["cols"] > 2 * MAX_COORDINATE_M or abs(y0) + dy * g["rows"] > 2 * MAX_COORDINATE_M:
+        raise TableError(f"header 'grid' spans beyond {2 * MAX_COORDINATE_M:g} m (got {_short(g)})")
+    return Grid(g["rows"], g["cols"], dx, dy, x0, y0)
+
+
+def stored_values_cap(grid: Grid) -> int:
+    """Most values one channel array of a table on ``grid`` may hold."""
+    return min(MAX_CANVAS_SAMPLES, STORED_PER_CANVAS * grid.rows * grid.cols)
+
+
+def _array_caps(header: dict, label: str) -> tuple[int, dict]:
+    """Per-channel element cap and declared dtypes, from the header alone (before any array is read)."""
+    try:
+        if header.get("format") != FORMAT_NAME:
+            raise TableError(f"format is {_short(header.get('format'))}, expected {FORMAT_NAME!r}")
+        grid = _grid(header)
+        channels = _object(header.get("channels"), "channels")
+        dtypes = {}
+        for n, c in channels.items():
+            if n not in CHANNELS:
+                raise TableError(f"unknown channel '{_short(n)[1:-1]}'{did_you_mean(n, CHANNELS)}")
+            if not isinstance(c, dict) or c.get("dtype") not in _DTYPES:
+                got = c.get("dtype") if isinstance(c, dict) else c
+                raise TableError(f"channel '{n}': dtype must be one of {list(_DTYPES)} (got {_short(got)})")
+            dtypes[n] = c["dtype"]
+    except TableError as exc:
+        raise TableError(f"{label}: {exc}") from None
+    return stored_values_cap(grid), dtypes
+
+
 def _parse_layout(header: dict, arrays: dict):
-    """Grid, patches, blocks and channels of a header whose checksum matched."""
-    grid = Grid.from_json(header["grid"])
-    if not (grid.rows >= 1 and grid.cols >= 1 and grid.dx > 0 and grid.dy > 0
-            and all(math.isfinite(v) for v in (grid.dx, grid.dy, grid.x0, grid.y0))):
-        raise TableError(f"grid must have rows, cols >= 1 and finite spacing > 0 (got {header['grid']!r})")
-    if grid.rows * grid.cols > MAX_CANVAS_SAMPLES:
-        raise TableError(f"grid of {grid.rows}x{grid.cols} samples exceeds the limit of {MAX_CANVAS_SAMPLES}")
+    """Grid, patches, blocks and channels of a header whose checksum matched; every value checked."""
+    for key in ("grid", "patches", "blocks", "channels"):
+        if key not in header:
+            raise TableError(f"header key '{key}' is missing")
+    grid = _grid(header)
+    cap = stored_values_cap(grid)
+    if not isinstance(header["patches"], list) or len(header["patches"]) > cap:
+        raise TableError(f"header 'patches' must be a list of at most {cap} shapes (got {_short(header['patches'])})")
+    if not isinstance(header["blocks"], list) or len(header["blocks"]) > grid.rows * grid.cols:
+        raise TableError(f"header 'blocks' must be a list of at most {grid.rows * grid.cols} blocks "
+                         f"(got {_short(header['blocks'])})")
     patches = [_int_list(s, 2, "each patch shape") for s in header["patches"]]
     blocks = [_int_list(b, 3, "each block [row0, col0, patch]") for b in header["blocks"]]
+    n_vals = sum(r * c for r, c in patches)
+    if n_vals > cap:
+        raise TableError(f"patches hold {n_vals} values; at most {cap} fit a {grid.rows}x{grid.cols} table")
     channels = header["channels"]
     if not isinstance(channels, dict):
         raise TableError(f"'channels' must be an object (got {type(channels).__name__})")
@@ -508,23 +625,172 @@ def _parse_layout(header: dict, arrays: dict):
     for n, c in channels.items():
         if n not in CHANNELS:
             raise TableError(f"unknown channel '{n}'{did_you_mean(n, CHANNELS)}")
-        if c.get("dtype") not in _DTYPES:
-            raise TableError(f"channel '{n}': dtype must be one of {list(_DTYPES)} (got {c.get('dtype')!r})")
+        where = f"channels.{n}"
+        c = _object(c, where)
+        if sorted(c) != list(_CHANNEL_KEYS):
+            raise TableError(f"header '{where}' must have exactly the keys {list(_CHANNEL_KEYS)} (got {sorted(c)})")
+        if c["dtype"] not in _DTYPES:
+            raise TableError(f"channel '{n}': dtype must be one of {list(_DTYPES)} (got {_short(c['dtype'])})")
+        if c["unit"] != CHANNELS[n][0]:
+            raise TableError(f"header '{where}.unit' must be {CHANNELS[n][0]!r} (got {_short(c['unit'])})")
+        for key in ("scale", "offset", "max_error", "background"):
+            if not _is_num(c[key]):
+                raise TableError(f"channel '{n}': scale, offset, max_error and background must be finite "
+                                 f"numbers (got {key}={_short(c[key])})")
+        scale = _number(c, "scale", where, 0.0)
+        offset = c["offset"] + 0.0
+        max_error = _number(c, "max_error", where, 0.0)
         if n not in arrays:
             raise TableError(f"channel '{n}' has no array in the file")
-        a = np.asarray(arrays[n])
-        if a.dtype != np.dtype(_DTYPES[c["dtype"]]):
-            raise TableError(f"channel '{n}': array dtype is {a.dtype}, the header says {c['dtype']}")
-        nums = [float(c[k]) for k in ("scale", "offset", "max_error", "background")]
-        if not all(math.isfinite(v) for v in nums):
-            raise TableError(f"channel '{n}': scale, offset, max_error and background must be finite (got {nums})")
-        quant[n] = Quantization(c["dtype"], nums[0], nums[1], nums[2])
-        background[n] = nums[3]
+        a = arrays[n]
+        if not isinstance(a, np.ndarray) or a.dtype != np.dtype(_DTYPES[c["dtype"]]):
+            got = a.dtype if isinstance(a, np.ndarray) else type(a).__name__
+            raise TableError(f"channel '{n}': array dtype is {got}, the header says {c['dtype']}")
+        if a.ndim != 1 or a.size != n_vals:
+            raise TableError(f"channel '{n}' holds {a.size} values; the patches need {n_vals}")
+        if c["dtype"] in ("float32", "float64"):
+            bad = int(a.size - np.count_nonzero(np.isfinite(a)))
+            if bad:
+                raise TableError(f"channel '{n}': values must be finite ({bad} NaN/inf of {a.size})")
+            top = float(np.max(np.abs(a), initial=0.0))
+        else:
+            top = float(np.iinfo(a.dtype).max)
+        if not (math.isfinite(offset + scale * top) and math.isfinite(offset - scale * top)):
+            raise TableError(f"channel '{n}': decoded values overflow (offset {offset!r} + scale {scale!r} "
+                             f"x code {top:g})")
+        quant[n] = Quantization(c["dtype"], scale, offset, max_error)
+        background[n] = c["background"] + 0.0
         codes[n] = a
+    extra = sorted(set(arrays) - set(channels))
+    if extra:
+        raise TableError(f"array '{extra[0]}' is not a channel of the header")
+    return grid, patches, blocks, quant, background, codes
+
+
+# ------------------------------------------------------------------ header schema
+def _device_schema(d: dict) -> None:
+    strings = ("name", "description")
+    numbers = ("tick_rate_hz", "audio_rate_hz", "cursor_gain", "force_sample_rate_hz", "resolution_m",
+               "lateral_force_max", "skin_stretch_max")
+    sections = {"pad": ("mass", "stiffness", "damping"), "friction": ("mu_s", "mu_k"),
+                "burst": ("carrier_hz", "rise_s", "decay_s", "gain", "max_stick_period_s")}
+    for key, v in d.items():
+        where = f"device.{key}"
+        if key in strings:
+            if not isinstance(v, str):
+                raise TableError(f"header '{where}' must be a string (got {_short(v)})")
+        elif key in numbers:
+            _number(d, key, "device")
+        elif key in ("normal_force_range", "velocity_range"):
+            if not (isinstance(v, list) and len(v) == 2 and all(_is_num(x) for x in v)):
+                raise TableError(f"header '{where}' must be 2 finite numbers (got {_short(v)})")
+        elif key == "outputs":
+            if not (isinstance(v, list) and all(isinstance(x, str) for x in v)):
+                raise TableError(f"header '{where}' must be a list of strings (got {_short(v)})")
+        elif key in sections:
+            sec = _object(v, where)
+            for k in sec:
+                if k not in sections[key]:
+                    raise TableError(f"header '{where}' has unknown key {_short(k)}")
+                _number(sec, k, where)
+        elif key == "extra":
+            _object(v, where)
+        else:
+            raise TableError(f"header 'device' has unknown key {_short(key)}")
+    from .devices import DeviceProfile     # runtime side; imported here to keep `import table` light
+    try:
+        DeviceProfile.from_json(d)
+    except (InputError, TypeError, ValueError) as exc:
+        raise TableError(f"header 'device' is not a valid device profile ({exc})") from None
+
+
+_MAPPING_NUMBERS = ("n_base", "n_gain", "slope_friction_gain", "lateral_gain", "skin_stretch",
+                    "perceptual_threshold")
+
+
+def _mapping_schema(m: dict) -> None:
+    for key, v in m.items():
+        where = f"mapping.{key}"
+        if key in _MAPPING_NUMBERS:
+            _number(m, key, "mapping")
+        elif key == "perceptual_exponent":
+            if v is not None and not (_is_num(v) and v > 0):
+                raise TableError(f"header '{where}' must be a number > 0 or null (got {_short(v)})")
+        elif key == "height":
+            if not isinstance(v, bool):
+                raise TableError(f"header '{where}' must be true or false (got {_short(v)})")
+        elif key in ("lateral", "spec"):
+            if not isinstance(v, str):
+                raise TableError(f"header '{where}' must be a string (got {_short(v)})")
+
+
+def _scene_schema(sc: dict) -> None:
+    widgets = sc.get("widgets", [])
+    if not isinstance(widgets, list):
+        raise TableError(f"header 'scene.widgets' must be a list (got {_short(widgets)})")
+    for i, w in enumerate(widgets):
+        w = _object(w, f"scene.widgets[{i}]")
+        box = w.get("bbox_m")
+        if not (isinstance(box, list) and len(box) == 4 and all(_is_num(v) for v in box)):
+            raise TableError(f"header 'scene.widgets[{i}].bbox_m' must be 4 finite numbers (got {_short(box)})")
+        for key in ("id", "type", "label"):
+            if key in w and not isinstance(w[key], str):
+                raise TableError(f"header 'scene.widgets[{i}].{key}' must be a string (got {_short(w[key])})")
+    toggles = _object(sc.get("toggles", {}), "scene.toggles")
+    for tid, t in toggles.items():
+        where = f"scene.toggles.{tid}"
+        t = _object(t, where)
+        states = _object(t.get("states"), f"{where}.states")
+        if not (_is_int(t.get("block")) and t["block"] >= 0):
+            raise TableError(f"header '{where}.block' must be a block index (got {_short(t.get('block'))})")
+        if not all(_is_int(p) and p >= 0 for p in states.values()):
+            raise TableError(f"header '{where}.states' must map each state to a patch index (got {_short(states)})")
+        if t.get("state") not in states:
+            raise TableError(f"header '{where}.state' must be one of its states {sorted(states)} "
+                             f"(got {_short(t.get('state'))})")
+
+
+def check_meta(header: dict) -> None:
+    """Check the type, range and finiteness of every header value outside the layout.
+
+    Known sections (``device``, ``mapping``, ``scene``, ``tick_rate_hz``,
+    ``velocity_range_m_s``) have a schema of their own; every other value
+    (the report, compile options, source, keys a newer writer adds) must be
+    plain JSON whose numbers are all finite.
+    """
     for key in _META_DICTS:
         if key in header and not isinstance(header[key], dict):
-            raise TableError(f"'{key}' must be an object (got {header[key]!r})")
-    return grid, patches, blocks, quant, background, codes
+            raise TableError(f"'{key}' must be an object (got {_short(header[key])})")
+    if "device" in header:
+        _device_schema(header["device"])
+    if "mapping" in header:
+        _mapping_schema(header["mapping"])
+    if "scene" in header:
+        _scene_schema(header["scene"])
+    if "tick_rate_hz" in header:
+        _number(header, "tick_rate_hz", "header", 0.0, lo_open=True)
+    if "velocity_range_m_s" in header:
+        v = header["velocity_range_m_s"]
+        if not (isinstance(v, list) and len(v) == 2 and all(_is_num(x) and x >= 0 for x in v) and v[0] <= v[1]):
+            raise TableError(f"header 'velocity_range_m_s' must be 2 finite numbers 0 <= low <= high "
+                             f"(got {_short(v)})")
+    for key, v in header.items():
+        if not is_finite_json(v):
+            raise TableError(f"header '{key}' holds a NaN or infinite number")
+
+
+def check_meta_refs(table: "FrictionTable") -> None:
+    """Indices the header's scene section gives (toggle blocks and state patches) exist."""
+    toggles = (table.meta.get("scene") or {}).get("toggles", {})
+    for tid, t in toggles.items():
+        if t["block"] >= len(table.blocks):
+            raise TableError(f"header 'scene.toggles.{tid}.block' is {t['block']}; the table has "
+                             f"{len(table.blocks)} blocks")
+        for st, p in t["states"].items():
+            if p >= len(table.patch_shapes) or table.patch_shapes[p] != table.patch_shapes[
+                    table.blocks[t["block"]][2]]:
+                raise TableError(f"header 'scene.toggles.{tid}.states.{st}' names patch {p}, which does not "
+                                 f"exist or has another shape than its block")
 
 
 def _checksum(header: dict, arrays: dict) -> str:
@@ -538,9 +804,11 @@ def _checksum(header: dict, arrays: dict) -> str:
 
 
 def is_finite_json(obj) -> bool:
-    """True if no float anywhere in ``obj`` is NaN or infinite."""
+    """True if no number anywhere in ``obj`` is NaN or infinite (or an integer beyond a float)."""
     if isinstance(obj, float):
         return math.isfinite(obj)
+    if isinstance(obj, int) and not isinstance(obj, bool):
+        return abs(obj) < 2 ** 1023
     if isinstance(obj, dict):
         return all(is_finite_json(v) for v in obj.values())
     if isinstance(obj, (list, tuple)):

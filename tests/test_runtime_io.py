@@ -269,4 +269,4 @@ def test_runtime_imports_nothing_from_the_authoring_side():
             "print(sorted(m for m in sys.modules if m.startswith('shapedisplay')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     mods = {m.split(".")[1] for m in eval(out) if m.count(".") >= 1}
-    assert mods <= {"runtime", "table", "devices", "units", "errors", "atomic", "sinks"}, mods
+    assert mods <= {"runtime", "table", "container", "devices", "units", "errors", "atomic", "sinks"}, mods

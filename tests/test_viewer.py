@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from shapedisplay import viewer
-from shapedisplay.errors import InputError, MissingDependencyError, ShapeDisplayError, TableError
+from shapedisplay.errors import FileFormatError, InputError, MissingDependencyError, ShapeDisplayError, TableError
 from shapedisplay.heightfield import HeightField
 from shapedisplay.table import FrictionTable, Grid, choose_quantization
 
@@ -194,12 +194,12 @@ def test_bad_traces_are_refused(tmp_path):
                   friction_force=np.zeros(3), state=np.zeros(3), event_time=np.zeros(0),
                   event_amplitude=np.zeros(0), table_checksum=np.array("sha256:x"))
     np.savez(p, **arrays)
-    with pytest.raises(InputError, match="normal_force.*NaN"):
+    with pytest.raises(FileFormatError, match="normal_force.*NaN"):
         viewer.load_trace(p)
     arrays["normal_force"] = np.ones(3)
     arrays["state"] = np.array([0, 2, 1])
     np.savez(p, **arrays)
-    with pytest.raises(InputError, match="state"):
+    with pytest.raises(FileFormatError, match="state"):
         viewer.load_trace(p)
 
 

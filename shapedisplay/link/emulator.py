@@ -97,18 +97,25 @@ class EmulatorConfig:
                       name=self.name, firmware=self.firmware, models=models)
 
 
-def parse_table_image(image: bytes):
+#: Most bytes of channel data an uploaded image may unpack to, per byte of table memory
+#: (a compressed table of flat regions inflates; a zip bomb stops here).
+TABLE_EXPANSION = 64
+
+
+def parse_table_image(image: bytes, max_bytes: int | None = None):
     """Parse and verify an uploaded table: the bytes of a table file (.npz) or a binary table
     image (``export --format bin``, recognised by its magic, as firmware loads it).
 
-    Returns a :class:`~shapedisplay.table.FrictionTable`; raises
+    Goes through the same bounded reader as a table file; ``max_bytes`` caps
+    the channel data it may unpack to. Returns a
+    :class:`~shapedisplay.table.FrictionTable`; raises
     :class:`~shapedisplay.errors.TableError` naming what is wrong.
     """
     from ..runtime.image import is_image, read_image
     from ..table import FrictionTable
     if is_image(image):
         return read_image(image, "uploaded table image")
-    return FrictionTable.from_bytes(image, "uploaded table")
+    return FrictionTable.from_bytes(image, "uploaded table", max_bytes=max_bytes)
 
 
 class _Fault:
@@ -558,14 +565,15 @@ class DeviceEmulator:
                              f"whole-table CRC-32 is {actual:08x}, host says {crc:08x}; upload discarded")
         from ..errors import ShapeDisplayError
         try:
-            table = parse_table_image(bytes(up["buf"]))
+            table = parse_table_image(bytes(up["buf"]), max_bytes=TABLE_EXPANSION * self.config.max_table_bytes)
             if self.config.renderer:
                 self.engine_factory(table, self.config.model, self.config.tick_rate_hz,
                                     self.config.stream_rate_hz, P.Input.POSITION)
-        except (ShapeDisplayError, ValueError, KeyError) as exc:
-            self._upload = None
+        except Exception as exc:  # noqa: BLE001 - firmware answers every rejected image the same way
+            self._upload = None          # the staged upload is discarded whatever the reason
             self.state = P.State.IDLE
-            return self._nak(f, P.Err.TABLE_INVALID, 0, f"table rejected: {exc}")
+            reason = str(exc) if isinstance(exc, ShapeDisplayError) else f"{type(exc).__name__}: {exc}"
+            return self._nak(f, P.Err.TABLE_INVALID, 0, "table rejected: " + " ".join(reason.split())[:400])
         up["table"] = table
         self.state = P.State.VERIFIED
         self._reply(f, P.Msg.VERIFIED, P.VERIFIED.pack(uid, actual, up["size"]))

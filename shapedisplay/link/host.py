@@ -82,6 +82,7 @@ class UploadReport:
     retransmits: int = 0
     restarts: int = 0
     seconds: float = 0.0
+    commit_confirmed_by_status: bool = False   # the COMMIT ack was lost; GET_STATUS showed the table active
 
     @property
     def throughput_bytes_per_s(self) -> float:
@@ -542,7 +543,28 @@ class DeviceLink:
         # Verification parses and checksums the whole table on the device: allow it more time.
         slow = max(self.timeout, 2.0)
         self.request(P.Msg.UPLOAD_END, P.UPLOAD_END.pack(uid, crc, size), (P.Msg.VERIFIED,), timeout=slow)
-        self.request(P.Msg.COMMIT, P.UPLOAD_ID.pack(uid), (P.Msg.ACK,), timeout=slow)
+        try:
+            self.request(P.Msg.COMMIT, P.UPLOAD_ID.pack(uid), (P.Msg.ACK,), timeout=slow)
+        except (LinkTimeout, DeviceRefused) as exc:
+            # Every acknowledgement may have been lost after the device committed (a resent COMMIT
+            # then finds nothing staged): ask the device what is true instead of guessing.
+            if isinstance(exc, DeviceRefused) and exc.code != P.Err.NOT_VERIFIED:
+                raise
+            self._confirm_commit(report, exc)
+
+    def _confirm_commit(self, report: UploadReport, cause: LinkError) -> None:
+        """After a COMMIT without a usable answer: read the device state and report what is true."""
+        try:
+            st = self.status()
+        except LinkError as exc:
+            raise LinkTimeout(f"device on '{self.port}' did not acknowledge COMMIT ({cause}) and did not "
+                              f"answer a status query ({exc}); whether the new table is active is unknown") from None
+        if st.active_crc == report.crc32 and st.active_size == report.size:
+            report.commit_confirmed_by_status = True
+            return
+        raise LinkError(f"device on '{self.port}' did not acknowledge COMMIT ({cause}); its status shows table "
+                        f"{st.active_crc:08x} ({st.active_size} bytes) active, not the new {report.crc32:08x}: "
+                        f"the new table is not active")
 
     # ------------------------------------------------------------ streaming
     def start(self, mode: str = "cursor", input: str = "position", monitor: bool = False) -> None:

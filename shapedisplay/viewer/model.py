@@ -127,28 +127,13 @@ class Trace:
 
 
 def load_trace(path: str | os.PathLike) -> Trace:
-    """Read a trace ``.npz`` written by ``shapedisplay.sinks.write_trace``."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileFormatError(f"trace '{path}': no such file")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            files = set(z.files)
-            missing = [k for k in (*TRACE_ARRAYS, "table_checksum") if k not in files]
-            if missing:
-                if "header" in files:
-                    raise FileFormatError(f"trace '{path}': this is a table, not a trace (use it as the input)")
-                raise FileFormatError(f"trace '{path}': lacks array(s) {missing}; not a shapedisplay trace")
-            arrays = {k: np.asarray(z[k]) for k in TRACE_ARRAYS}
-            checksum = z["table_checksum"]
-    except FileFormatError:
-        raise
-    except (OSError, ValueError, EOFError, KeyError) as exc:
-        raise FileFormatError(f"trace '{path}': unreadable or not an .npz ({exc})") from None
-    checksum = checksum.item() if checksum.ndim == 0 else checksum.ravel()[0]
-    if isinstance(checksum, bytes):
-        checksum = checksum.decode("utf-8", "replace")
-    return Trace(**arrays, table_checksum=str(checksum), source=str(path))
+    """Read a trace ``.npz`` written by ``shapedisplay.sinks.write_trace`` (through its bounded reader)."""
+    from ..sinks import read_trace
+
+    d = read_trace(path, required=(*TRACE_ARRAYS,))
+    if "table_checksum" not in d:
+        raise FileFormatError(f"trace '{path}': lacks 'table_checksum'; not a shapedisplay trace")
+    return Trace(**{k: d[k] for k in TRACE_ARRAYS}, table_checksum=d["table_checksum"], source=str(path))
 
 
 @dataclass
@@ -453,6 +438,16 @@ def widgets_of_scene(scene) -> list:
     return out
 
 
+def _is_trace(path) -> bool:
+    """True if ``path`` holds a trace's entries and no table header (read through the bounded reader)."""
+    from ..container import NpzReader
+    try:
+        with NpzReader(path, f"input '{path}'", None, max_entries=64, error=FileFormatError) as z:
+            return "header" not in z and "table_checksum" in z
+    except ShapeDisplayError:
+        return False
+
+
 def load_model(path: str | os.PathLike, scene: str | os.PathLike | None = None, **source_opts) -> PreviewModel:
     """Preview model of a file: table (.npz), scene (.toml) or source (image, mesh).
 
@@ -466,16 +461,14 @@ def load_model(path: str | os.PathLike, scene: str | os.PathLike | None = None, 
     if suffix == ".npz":
         if opts:
             raise InputError(f"table '{path}': source options {sorted(opts)} apply to images and meshes only")
-        if path.is_file():
-            try:
-                with np.load(path, allow_pickle=False) as z:
-                    is_trace = "header" not in z.files and "table_checksum" in z.files
-            except (OSError, ValueError, EOFError):
-                is_trace = False
-            if is_trace:
-                raise InputError(f"input '{path}' is a trace; give the table as input and the trace with --trace")
         from ..table import FrictionTable
-        table = FrictionTable.load(path)
+        try:
+            table = FrictionTable.load(path)
+        except TableError:
+            if _is_trace(path):
+                raise InputError(f"input '{path}' is a trace; give the table as input and the trace with --trace") \
+                    from None
+            raise
         widgets = None
         if scene:
             sc = _load_scene(scene)
