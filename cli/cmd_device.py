@@ -203,6 +203,7 @@ def run_emulate(args) -> int:
         pass
     finally:
         emu.close()
+        emu.remove_link()
     for line in emu.log[-20:]:
         print(f"  {line}", file=sys.stderr)
     return 0

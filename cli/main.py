@@ -134,6 +134,27 @@ def join_negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> li
     return CommandLine(parser, argv).argv
 
 
+#: Option destinations that name files a command writes.
+OUTPUT_DESTS = ("output", "trace_out", "plot", "link", "port_file")
+
+
+def _check_outputs(args, line: CommandLine) -> None:
+    """No output may be an input (any other argument naming an existing file) or another output."""
+    import os
+
+    from shapedisplay.atomic import check_outputs
+    outputs, inputs = {}, {}
+    for dest, value in vars(args).items():
+        if not isinstance(value, str) or not value or dest in ("command", "func"):
+            continue
+        name = line.typed.get(dest, dest.upper())
+        if dest in OUTPUT_DESTS:
+            outputs[name] = value
+        elif os.path.isfile(value):
+            inputs[name] = value
+    check_outputs(inputs, outputs)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = OneLineParser(
         prog="shapedisplay",
@@ -159,6 +180,7 @@ def main(argv=None) -> int:
         return 2
     from shapedisplay.errors import ShapeDisplayError
     try:
+        _check_outputs(args, line)
         return int(args.func(args) or 0)
     except ShapeDisplayError as exc:
         message = " ".join(line.name_options(str(exc)).split())   # one line, whatever the text held

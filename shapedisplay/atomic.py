@@ -1,7 +1,15 @@
-"""Atomic file writes: a crash never leaves a partial file under the final name."""
+"""Atomic file writes: a crash never leaves a partial file under the final name.
+
+Also the rules every command's outputs follow: an output never resolves to
+an input or to another output of the same command (:func:`check_outputs`),
+and temporary files left by a killed writer (``.NAME.XXXXXXXX.part.SUFFIX``,
+locked while their writer lives) are removed when a later write of the same
+name finds them.
+"""
 from __future__ import annotations
 
 import contextlib
+import glob
 import os
 import tempfile
 from pathlib import Path
@@ -25,24 +33,118 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     if not parent.is_dir():
         raise FileFormatError(f"output '{final}': directory '{parent}' does not exist")
     suffix = final.suffix if suffix is None else suffix
+    _remove_stale_parts(parent, final.stem, suffix)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{final.stem}.", suffix=f".part{suffix}", dir=parent)
     except OSError as exc:
         raise FileFormatError(f"output '{final}': cannot write in '{parent}' ({exc.strerror or exc})") from None
-    os.close(fd)
+    _lock(fd)                  # held while this process lives: a later writer knows the file is not stale
     tmp_path = Path(tmp)
     try:
         yield tmp_path
         # mkstemp creates 0600; give the file the permissions a plain open() would
         os.chmod(tmp_path, 0o666 & ~_umask())
         os.replace(tmp_path, final)
+        os.close(fd)
     except BaseException as exc:
         with contextlib.suppress(OSError):
             tmp_path.unlink()
+        os.close(fd)
         if isinstance(exc, OSError) and not isinstance(exc, ShapeDisplayError):
             # disk full, permissions, a name that cannot be replaced: one line, no partial file
             raise FileFormatError(f"output '{final}': cannot write ({exc.strerror or exc})") from None
         raise
+
+
+def _lock(fd: int) -> bool:
+    """Take a non-blocking exclusive lock on ``fd``; False if another process holds it (or no locks here)."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - no advisory locks on this platform
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        return False
+    return True
+
+
+def _remove_stale_parts(parent: Path, stem: str, suffix: str) -> list[Path]:
+    """Remove ``.STEM.*.partSUFFIX`` files in ``parent`` whose writer is gone (their lock is free).
+
+    A writer holds an exclusive lock on its temporary file until it renames or
+    removes it; a file whose lock can be taken was left by a killed process.
+    Where the platform has no locks nothing is removed (a live writer could
+    not be told from a dead one).
+    """
+    removed = []
+    pattern = os.path.join(glob.escape(str(parent)), f".{glob.escape(stem)}.*.part{glob.escape(suffix)}")
+    for name in glob.glob(pattern):
+        try:
+            fd = os.open(name, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+        except OSError:
+            continue
+        try:
+            if _lock(fd) and os.path.isfile(name):
+                os.unlink(name)
+                removed.append(Path(name))
+        except OSError:
+            pass
+        finally:
+            os.close(fd)
+    return removed
+
+
+def prepare_output_dir(path: str | os.PathLike) -> str:
+    """Create the output folder ``path`` if missing and check that files can be written in it.
+
+    Called before any work, so a long computation never ends in a write that fails.
+    """
+    out = os.fspath(path)
+    if os.path.exists(out) and not os.path.isdir(out):
+        raise FileFormatError(f"output folder '{out}' is a file")
+    try:
+        os.makedirs(out, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=".write-test.", dir=out)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise FileFormatError(f"output folder '{out}': cannot write ({exc.strerror or exc})") from None
+    return out
+
+
+def check_outputs(inputs: dict, outputs: dict) -> None:
+    """Refuse outputs that resolve to an input or to another output.
+
+    Parameters
+    ----------
+    inputs, outputs : dict
+        ``{name as the user gave it (option or argument): path}``; None values are skipped.
+
+    Raises
+    ------
+    FileFormatError
+        One line naming both, e.g. "`-o` 'in.png' is the input SOURCE 'in.png'; refusing to overwrite an input".
+    """
+    def same(a, b) -> bool:
+        if os.path.realpath(a) == os.path.realpath(b):
+            return True
+        try:
+            return os.path.samefile(a, b)          # hard links, bind mounts
+        except OSError:
+            return False
+
+    outs = [(name, os.fspath(p)) for name, p in outputs.items() if p]
+    ins = [(name, os.fspath(p)) for name, p in inputs.items() if p]
+    for i, (oname, opath) in enumerate(outs):
+        for iname, ipath in ins:
+            if same(opath, ipath):
+                raise FileFormatError(f"`{oname}` '{opath}' is the input {iname} '{ipath}'; "
+                                      f"refusing to overwrite an input")
+        for oname2, opath2 in outs[:i]:
+            if same(opath, opath2):
+                raise FileFormatError(f"`{oname}` '{opath}' is also the output of `{oname2}`; "
+                                      f"give each output its own file")
 
 
 def _umask() -> int:

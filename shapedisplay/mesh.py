@@ -80,6 +80,12 @@ DEFAULT_LONG_SIDE = 512
 _AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 
 
+#: Largest mesh file read, bytes, checked before the file is parsed.
+MAX_MESH_BYTES = 512 * 1024 * 1024
+#: Most triangles a binary STL may declare in its header (10 M triangles = 500 MB of STL).
+MAX_MESH_TRIANGLES = 10_000_000
+
+
 class ImplausibleSizeWarning(UserWarning):
     """The mesh footprint is implausibly small or large for a screen (unit confusion?)."""
 
@@ -95,6 +101,8 @@ def _check_stl(path: Path) -> None:
     if len(head) >= 84:
         (n,) = struct.unpack("<I", head[80:84])
         if size == 84 + 50 * n:
+            if n > MAX_MESH_TRIANGLES:
+                raise FileFormatError(f"mesh '{path}': {n} triangles exceed the limit of {MAX_MESH_TRIANGLES}")
             return  # consistent binary STL
     if head[:5].lower() == b"solid":
         with open(path, "rb") as f:
@@ -140,6 +148,9 @@ def load_mesh(path) -> tuple[np.ndarray, np.ndarray, dict]:
         raise FileFormatError(f"mesh '{path}': file is not readable (permission denied)")
     if path.stat().st_size == 0:
         raise FileFormatError(f"mesh '{path}': file is empty (0 bytes)")
+    if path.stat().st_size > MAX_MESH_BYTES:
+        raise FileFormatError(f"mesh '{path}': {path.stat().st_size} bytes exceed the limit of {MAX_MESH_BYTES} "
+                              f"(simplify the mesh)")
     if suffix == ".stl":
         _check_stl(path)
     trimesh = require("trimesh", "mesh", "Loading meshes")

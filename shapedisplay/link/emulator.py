@@ -41,6 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..devices import TICK_RATE_RANGE
+from ..errors import FileFormatError
 from . import protocol as P
 from .engine import RenderEngine, warm_engine
 from .framing import Frame, FrameDecoder, crc32, encode_frame
@@ -100,6 +101,24 @@ class EmulatorConfig:
 #: Most bytes of channel data an uploaded image may unpack to, per byte of table memory
 #: (a compressed table of flat regions inflates; a zip bomb stops here).
 TABLE_EXPANSION = 64
+
+
+def check_link_path(link: str) -> None:
+    """Refuse a ``--link`` name that would replace a file the emulator did not create.
+
+    Only a missing name or a symbolic link to a device node (a stale link of an
+    earlier emulator, ``/dev/pts/N``) may be (re)placed; the folder must exist.
+    """
+    parent = os.path.dirname(os.path.abspath(link))
+    if not os.path.isdir(parent):
+        raise FileFormatError(f"`--link` '{link}': folder '{parent}' does not exist")
+    if os.path.islink(link):
+        if not os.readlink(link).startswith("/dev/"):
+            raise FileFormatError(f"`--link` '{link}' is a link to '{os.readlink(link)}', not to a device; "
+                                  f"refusing to replace it")
+    elif os.path.lexists(link):
+        raise FileFormatError(f"`--link` '{link}' exists and is not a link to a device; refusing to replace it "
+                              f"(give a new name)")
 
 
 def parse_table_image(image: bytes, max_bytes: int | None = None):
@@ -198,9 +217,17 @@ class DeviceEmulator:
         self._master, self._slave = master, slave
         self.tty = os.ttyname(slave)
         if link is not None:
+            if link != getattr(self, "_link", None):
+                check_link_path(link)
             tmp = f"{link}.{os.getpid()}.tmp"
-            os.symlink(self.tty, tmp)
-            os.replace(tmp, link)
+            try:
+                os.symlink(self.tty, tmp)
+                os.replace(tmp, link)
+            except OSError as exc:
+                for fd in (master, slave):
+                    os.close(fd)
+                self._master = self._slave = None
+                raise FileFormatError(f"`--link` '{link}': cannot create the link ({exc.strerror or exc})") from None
             self._link = link
         self.port = link or getattr(self, "_link", None) or self.tty
         return self.port
@@ -230,6 +257,17 @@ class DeviceEmulator:
                 self._io_thread.join(timeout)
         finally:
             self.close()
+            self.remove_link()
+
+    def remove_link(self) -> None:
+        """Remove the stable link this device created, if it still points at one of its ptys."""
+        link = getattr(self, "_link", None)
+        if link and os.path.islink(link) and os.readlink(link).startswith("/dev/"):
+            try:
+                os.unlink(link)
+            except OSError:
+                pass
+        self._link = None
 
     def close(self) -> None:
         """Stop the threads and close both pty ends (the port disappears)."""

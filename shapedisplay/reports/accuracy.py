@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..atomic import prepare_output_dir
 from ..errors import ShapeDisplayError
 from . import common
 from .peers import PEER_METHODS, konyo_ivp, stribeck_ivp
@@ -421,8 +422,7 @@ def run(out_dir, quick=False, progress=True, plots=True, stream=None) -> dict:
 
     Returns the report dict (as written to JSON).
     """
-    out_dir = os.fspath(out_dir)
-    os.makedirs(out_dir, exist_ok=True)
+    out_dir = prepare_output_dir(out_dir)
     stream = stream if stream is not None else sys.stderr
     cases = build_cases(quick)
     plan = [(c, _model_settings(c) + _peer_settings(c, quick)) for c in cases]

@@ -46,6 +46,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..atomic import prepare_output_dir
 from ..errors import ShapeDisplayError
 from . import common
 from .peers import stribeck_mu
@@ -558,8 +559,7 @@ def _run_table_case(case, rec, quick):
 # ================================================================ the report
 def run(out_dir, quick=False, progress=True, plots=True, stream=None) -> dict:
     """Run the stability report; write ``stability.json``, ``stability.md`` and verdict-map PNGs."""
-    out_dir = os.fspath(out_dir)
-    os.makedirs(out_dir, exist_ok=True)
+    out_dir = prepare_output_dir(out_dir)
     stream = stream if stream is not None else sys.stderr
     cases = build_sweeps(quick)
     bar = common.Progress(len(cases), "stability", stream=stream, enabled=progress)

@@ -42,6 +42,13 @@ from ..devices import check_tick_rate
 
 #: Most ticks one offline cursor path may hold.
 MAX_TICKS = 10_000_000
+#: Largest cursor coordinate accepted, metres. A tactile display is centimetres wide; beyond
+#: a kilometre a position is a unit mistake or garbage, and products such as V*t lose precision.
+MAX_POSITION_M = 1e3
+#: Fastest stroke accepted, m/s (a finger moves at most a few m/s; this is far beyond).
+MAX_SPEED_M_S = 1e3
+#: Largest CSV recording read (trace or force file), bytes: MAX_TICKS rows of ~60 characters.
+MAX_CSV_BYTES = 600 * 1024 * 1024
 
 
 def check_ticks(duration: float, rate: float, what: str) -> int:
@@ -85,6 +92,10 @@ class CursorPath:
                 raise InputError(f"cursor `{name}` must have shape {t.shape} (got {a.shape})")
             if not np.all(np.isfinite(a)):
                 raise InputError(f"cursor path '{self.source}': `{name}` holds NaN or infinite values")
+            if name != "t" and a.size and float(np.max(np.abs(a))) > MAX_POSITION_M:
+                i = int(np.argmax(np.abs(a)))
+                raise InputError(f"cursor path '{self.source}': `{name}` must be within +-{MAX_POSITION_M:g} m "
+                                 f"(got {name}[{i}]={a[i]:.6g} m)")
         if np.any(np.diff(t) <= 0):
             i = int(np.argmax(np.diff(t) <= 0))
             raise InputError(f"cursor path '{self.source}': time must increase strictly "
@@ -112,9 +123,15 @@ def _parse_point(text: str, stroke: str):
     m = _POINT.match(text)
     if not m:
         raise InputError(f"stroke {stroke!r}: cannot read point {text.strip()!r}; write 'x,y' in mm, e.g. '0,10'")
-    x, y = float(m.group(1)), float(m.group(3))
+    try:
+        x, y = float(m.group(1)), float(m.group(3))
+    except ValueError:
+        raise InputError(f"stroke {stroke!r}: cannot read point {text.strip()!r}; write 'x,y' in mm, e.g. '0,10'") \
+            from None
     if not (math.isfinite(x) and math.isfinite(y)):
         raise InputError(f"stroke {stroke!r}: point {text.strip()!r} is not finite")
+    if max(abs(x), abs(y)) * 1e-3 > MAX_POSITION_M:
+        raise InputError(f"stroke {stroke!r}: point {text.strip()!r} lies beyond +-{MAX_POSITION_M:g} m")
     return x * 1e-3, y * 1e-3
 
 
@@ -132,6 +149,8 @@ def parse_stroke(text: str, tick_rate: float) -> CursorPath:
     speed = parse_quantity(rest.strip(), "m/s", "stroke speed")
     if not speed > 0:
         raise InputError(f"stroke {text!r}: speed must be > 0 (got {rest.strip()!r})")
+    if speed > MAX_SPEED_M_S:
+        raise InputError(f"stroke {text!r}: speed must be <= {MAX_SPEED_M_S:g} m/s (got {rest.strip()!r})")
     if repeat < 1:
         raise InputError(f"stroke {text!r}: repeat count must be >= 1 (got x{repeat})")
     m1 = re.match(r"^\s*(-?[0-9.eE+-]+)\s*(mm)?\s*:\s*(-?[0-9.eE+-]+)\s*(mm)?\s*$", path_txt)
@@ -151,6 +170,9 @@ def parse_stroke(text: str, tick_rate: float) -> CursorPath:
     if repeat > 1:
         if pts[0] != pts[-1]:
             raise InputError(f"stroke {text!r}: 'x{repeat}' repeats only closed paths (use '<->')")
+        # the duration is known from one lap: refuse before the repeated points are built
+        lap = sum(math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in zip(pts, pts[1:]))
+        check_ticks(repeat * lap / speed, rate, f"stroke {text!r}")
         pts = pts + pts[1:] * (repeat - 1)
     P = np.array(pts, dtype=np.float64)
     seg = np.hypot(np.diff(P[:, 0]), np.diff(P[:, 1]))
@@ -171,12 +193,23 @@ def parse_stroke(text: str, tick_rate: float) -> CursorPath:
 
 def _read_csv(path, what: str, ncols: tuple[int, ...]):
     p = os.fspath(path)
+    rows = []
     try:
+        size = os.stat(p).st_size
+        if size > MAX_CSV_BYTES:
+            raise FileFormatError(f"{what} '{p}': {size} bytes exceed the limit of {MAX_CSV_BYTES} "
+                                  f"(at most {MAX_TICKS:,} rows are played)")
         with open(p, newline="", encoding="utf-8") as fh:
-            rows = [r for r in csv.reader(fh) if r and not r[0].lstrip().startswith("#")]
+            for r in csv.reader(fh):
+                if r and not r[0].lstrip().startswith("#"):
+                    if len(rows) > MAX_TICKS or len(r) > 8:
+                        raise FileFormatError(f"{what} '{p}': more than {MAX_TICKS:,} rows or 8 columns")
+                    rows.append(r)
     except FileNotFoundError:
         raise FileFormatError(f"{what} '{p}': no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except IsADirectoryError:
+        raise FileFormatError(f"{what} '{p}': is a directory") from None
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise FileFormatError(f"{what} '{p}': unreadable ({exc})") from None
     header = None
     if rows:

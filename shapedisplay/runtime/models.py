@@ -167,6 +167,10 @@ class KarnoppModel(PadModel):
         return P
 
 
+#: Shortest slip substep the Stribeck integrator resolves, s (a pad needing less is refused).
+MIN_SUBSTEP_S = 1e-9
+
+
 class StribeckModel(PadModel):
     """Imaizumi fingerpad with Stribeck friction on a vibrating contactor (DESIGN 3.4).
 
@@ -222,7 +226,26 @@ class StribeckModel(PadModel):
         P[pads.P_CA] = amp
         P[pads.P_CW] = 2 * math.pi * hz
         P[pads.P_HSUB] = self._hsub
+        self._check_resolvable(P[pads.P_SA], P[pads.P_SB])
         return P
+
+    def _check_resolvable(self, a: float, b: float) -> None:
+        """Refuse a pad whose self-excitation no substep the kernel takes can resolve.
+
+        On the negative Stribeck slope the slip step is limited to
+        ``0.5 m / (W |dmu/dv| - c)``; the steepest slope is at zero relative
+        speed, ``W |dmu/dv| = (mu_s - mu_k) a - b`` whatever the load. Below
+        :data:`MIN_SUBSTEP_S` the step would round to nothing (the pad's mass
+        is too small for its friction curve) and the result would be NaN.
+        """
+        pad, fr = self.device.pad, self.device.friction
+        growth = (fr.mu_s - fr.mu_k) * a - b - pad.damping     # N*s/m of negative damping, at most
+        if growth > 0 and 0.5 * pad.mass / growth < MIN_SUBSTEP_S:
+            raise ModelError(
+                f"model 'stribeck' cannot resolve this pad: its friction slope self-excites it with a time "
+                f"constant of {pad.mass / growth:.3g} s (pad mass {pad.mass:g} kg against "
+                f"{growth:.3g} N*s/m of negative damping), below the {2 * MIN_SUBSTEP_S:g} s the integrator "
+                f"resolves; use a pad mass >= {2 * MIN_SUBSTEP_S * growth:.3g} kg or model 'exact'")
 
 
 class TanhModel(PadModel):
