@@ -48,7 +48,7 @@ def test_back_and_forth_and_repeat():
     ("0,2 -> 60,2 @ 20 mm/s x3", "closed"),
     ("a,b -> 60,2 @ 20 mm/s", "cannot read point"),
     ("", "needs a speed"),
-    ("-1e308,2 -> 1e308,2 @ 20 mm/s", "more than the 10,000,000 ticks"),
+    ("-1e308,2 -> 1e308,2 @ 20 mm/s", r"lies beyond \+-1000 m"),
     ("0,2 -> 60,2 @ 1e-300 mm/s", "more than the 10,000,000 ticks"),
     ("0,2 -> 6e4,2 @ 1 mm/s", "more than the 10,000,000 ticks"),   # 6e8 ticks: refused before allocation
 ])
