@@ -116,6 +116,7 @@ def run_upload(args) -> int:
 def run_play(args) -> int:
     import numpy as np
 
+    from shapedisplay.link.engine import actuator_blocks
     from shapedisplay.link.framing import crc32
     from shapedisplay.runtime import Renderer, parse_stroke
     table, image = _read_table(args.table)
@@ -137,7 +138,7 @@ def run_play(args) -> int:
             rep = link.stream(cursor.x, cursor.y, monitor=bool(args.output))
         else:
             r = Renderer(table, model=args.model, tick_rate=float(caps.tick_rate_hz))
-            blocks = device_blocks(r, cursor, caps.samples_per_cursor)
+            blocks = actuator_blocks(r, cursor.x, cursor.y, caps.samples_per_cursor)
             rep = link.stream(blocks, mode="actuator", monitor=bool(args.output))
     print(f"played {rep.rendered} of {rep.sent} cursor samples in {rep.seconds:.3f} s on {args.port}")
     for line in rep.problems():
@@ -152,12 +153,6 @@ def run_play(args) -> int:
     return 1 if rep.overruns else 0
 
 
-def device_blocks(renderer, cursor, per):
-    """Host-side rendering for --mode actuator: (n - 1, per) drive blocks (tick 0 carries no burst)."""
-    from shapedisplay.link.engine import render_stream
-    return render_stream(renderer, cursor.x, cursor.y, per)[1:].reshape(-1, per)
-
-
 def run_emulate(args) -> int:
     import signal
     import sys
@@ -166,8 +161,8 @@ def run_emulate(args) -> int:
     from shapedisplay.link.emulator import DeviceEmulator, EmulatorConfig
     from shapedisplay.errors import InputError
     from shapedisplay.devices import TICK_RATE_RANGE
-    from shapedisplay.units import parse_quantity
-    mem = _parse_bytes(args.memory)
+    from shapedisplay.units import parse_byte_size, parse_quantity
+    mem = parse_byte_size(args.memory, "memory", lo=1024, hi=2**31)
     tick = parse_quantity(args.tick_rate, "Hz", "tick_rate")
     stream = parse_quantity(args.stream_rate, "Hz", "stream_rate")
     lo, hi = TICK_RATE_RANGE
@@ -207,18 +202,3 @@ def run_emulate(args) -> int:
     for line in emu.log[-20:]:
         print(f"  {line}", file=sys.stderr)
     return 0
-
-
-def _parse_bytes(text: str) -> int:
-    from shapedisplay.errors import InputError
-    units = {"b": 1, "kb": 1000, "kib": 1024, "mb": 10**6, "mib": 1024**2}
-    t = str(text).strip().lower().replace(" ", "")
-    num = t.rstrip("abcdefghijklmnopqrstuvwxyz")
-    unit = t[len(num):] or "b"
-    try:
-        value = float(num) * units[unit]
-    except (ValueError, KeyError):
-        raise InputError(f"`--memory` must be a size like '64 KiB' or '65536 B' (got {text!r})") from None
-    if not (1024 <= value <= 2**31):
-        raise InputError(f"`--memory` must be within 1 KiB..2 GiB (got {text!r})")
-    return int(value)

@@ -15,7 +15,7 @@ import math
 import re
 from typing import Tuple
 
-from .errors import UnitError
+from .errors import InputError, UnitError
 
 Dim = Tuple[int, int, int]  # exponents of (m, kg, s)
 
@@ -221,3 +221,37 @@ def format_quantity(value: float, unit: str) -> str:
     """Format an SI value in ``unit`` with 4 significant digits: ``"2 N/mm"``."""
     scale, _ = parse_unit(unit)
     return f"{value / scale:.4g} {unit}"
+
+
+#: Byte-size units: decimal (kB, MB) and binary (KiB, MiB, GiB).
+BYTE_UNITS = {"b": 1, "kb": 1000, "kib": 1024, "mb": 10**6, "mib": 1024**2, "gb": 10**9, "gib": 1024**3}
+
+
+def parse_byte_size(text, field: str, lo: int | None = None, hi: int | None = None) -> int:
+    """A size in bytes from ``"64 KiB"``, ``"65536 B"`` or ``"65536"`` (bytes), checked against ``lo..hi``.
+
+    Raises :class:`~shapedisplay.errors.InputError` naming ``field``, the rule and the value.
+    """
+    t = str(text).strip().lower().replace(" ", "")
+    num = t.rstrip("abcdefghijklmnopqrstuvwxyz")
+    unit = t[len(num):] or "b"
+    try:
+        value = float(num) * BYTE_UNITS[unit]
+    except (ValueError, KeyError):
+        raise InputError(f"`{field}` must be a size like '64 KiB' or '65536 B' (got {text!r})") from None
+    if not math.isfinite(value) or value != int(value):
+        raise InputError(f"`{field}` must be a whole number of bytes (got {text!r})")
+    if (lo is not None and value < lo) or (hi is not None and value > hi):
+        raise InputError(f"`{field}` must be within {format_byte_size(lo or 0)}..{format_byte_size(hi)} "
+                         f"(got {text!r})")
+    return int(value)
+
+
+def format_byte_size(n) -> str:
+    """``1024`` -> ``"1 KiB"``, ``2**31`` -> ``"2 GiB"``; sizes that are no whole binary unit in bytes."""
+    if n is None:
+        return "inf"
+    for name, f in (("GiB", 1024**3), ("MiB", 1024**2), ("KiB", 1024)):
+        if n >= f and n % f == 0:
+            return f"{n // f} {name}"
+    return f"{n} B"

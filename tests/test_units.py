@@ -4,7 +4,7 @@ import math
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from shapedisplay.errors import UnitError
+from shapedisplay.errors import InputError, UnitError
 from shapedisplay.units import format_quantity, parse_pair, parse_quantity, parse_unit
 
 
@@ -91,3 +91,15 @@ def test_format_quantity():
 def test_length_prefixes_scale_exactly(v, unit_scale):
     unit, scale = unit_scale
     assert parse_quantity(f"{v!r} {unit}", "m", "x") == pytest.approx(v * scale, rel=1e-12, abs=1e-300)
+
+
+def test_byte_sizes_parse_with_units_and_ranges():
+    from shapedisplay.units import parse_byte_size
+    assert parse_byte_size("64 KiB", "memory") == 65536
+    assert parse_byte_size("65536", "memory") == 65536
+    assert parse_byte_size("1.5 kB", "memory") == 1500
+    assert parse_byte_size("2 GiB", "memory", lo=1024, hi=2**31) == 2**31
+    for bad, rule in (("12 parsecs", "a size like"), ("0.5 B", "a whole number"), ("nan B", "a size like|a whole"),
+                      ("3 GiB", r"within 1 KiB\.\.2 GiB"), ("100 B", r"within 1 KiB\.\.2 GiB")):
+        with pytest.raises(InputError, match=rf"`memory` must be ({rule})"):
+            parse_byte_size(bad, "memory", lo=1024, hi=2**31)

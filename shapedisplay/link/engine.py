@@ -59,6 +59,15 @@ def render_stream(renderer, x, y, per: int) -> np.ndarray:
     return out
 
 
+def actuator_blocks(renderer, x, y, per: int) -> np.ndarray:
+    """Host-side rendering for an actuator-stream device: drive blocks of shape (n - 1, per).
+
+    One block of ``per`` tick values per cursor sample after the first (tick 0
+    carries no burst and is not sent), as :func:`render_stream` renders them.
+    """
+    return render_stream(renderer, x, y, per)[1:].reshape(-1, per)
+
+
 def force_to_position(prev_pos, prev_v, fx: float, fy: float, alpha: float, dt: float):
     """One step of ``v = alpha f`` with the trapezoid rule (as :func:`runtime.cursor.force_input`)."""
     vx, vy = alpha * fx, alpha * fy
