@@ -238,7 +238,7 @@ def quantization_for(name: str, values: np.ndarray, device, options: CompileOpti
 # ----------------------------------------------------------------- meta
 def table_meta(device, mapping: MappingOptions, options: CompileOptions, source_description: str,
                source_sha256: str, report: dict | None = None) -> dict:
-    """The table header's free part (DESIGN 5).
+    """The table header's free part.
 
     Keys: ``device`` (:meth:`DeviceProfile.to_json`: pad, friction, burst,
     rates, ranges), ``mapping`` (incl. ``slope_friction_gain`` K_mu and

@@ -45,7 +45,7 @@ OUTPUTS = ("burst", "lateral", "skin_stretch", "normal", "contactor")
 
 @dataclass(frozen=True)
 class PadParams:
-    """1-DOF fingerpad (DESIGN 3.1). Published Konyo values by default."""
+    """1-DOF fingerpad (Konyo et al.). Published Konyo values by default."""
 
     mass: float = 1.0e-6        # kg
     stiffness: float = 2.0e3    # N/m   (2.0 N/mm)
@@ -90,7 +90,7 @@ class FrictionParams:
 
 @dataclass(frozen=True)
 class BurstParams:
-    """Vibrotactile burst at each stick-to-slip transition (DESIGN 3.1)."""
+    """Vibrotactile burst at each stick-to-slip transition (Konyo et al.)."""
 
     carrier_hz: float = 300.0     # Hz; > 200 Hz targets Pacinian receptors
     rise_s: float = 0.005         # s, linear rise

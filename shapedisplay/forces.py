@@ -1,6 +1,6 @@
 """Force mapping: from heights and slopes to the channels a device renders.
 
-Mappings (DESIGN 3.2-3.6), all on arrays of shape (rows, cols):
+Mappings, all on arrays of shape (rows, cols):
 
 height
     ``N = n_base + n_gain * h`` (n_base is the published N1 = 0.5 N), clamped to
@@ -20,7 +20,7 @@ lateral cue
     to the device's ``lateral_force_max`` (direction kept).
 skin stretch
     Tactor stiffness ``k_s = mu_s N_ref / delta_target`` with ``N_ref =
-    n_base`` (DESIGN 3.5); at breakaway the stretch is ``delta = mu_s N / k_s
+    n_base`` (Provancher and Sylvester); at breakaway the stretch is ``delta = mu_s N / k_s
     = delta_target * N / n_base``, clamped to ``skin_stretch_max``.
 
 Which channels a table keeps is decided by :func:`needed_channels`: a
@@ -49,7 +49,7 @@ LATERAL_LAWS = ("off", "gradient", "normal")
 #: Defaults used when a mapping spec names a cue without its gain.
 DEFAULT_SLOPE_FRICTION_GAIN = 0.2      # per unit slope: mu rises 0.2 on a 45 deg uphill
 DEFAULT_LATERAL_GAIN = 1.0             # N per unit slope
-DEFAULT_SKIN_STRETCH = 0.55e-3         # m, a studied stretch level (DESIGN 3.5)
+DEFAULT_SKIN_STRETCH = 0.55e-3         # m, a studied stretch level (Provancher and Sylvester)
 #: Device outputs that render friction (and so use normal force and slopes).
 FRICTION_OUTPUTS = ("burst", "skin_stretch", "contactor", "normal")
 

@@ -17,7 +17,7 @@ height-field row ``rows - 1 - r``; see :mod:`shapedisplay.heightfield`).
 Published profiles
 ------------------
 :func:`ramp_profile` and :func:`tent_profile` express the normal-force
-profiles of DESIGN 3.2 as heights: with the height mapping
+normal-force profiles as heights: with the height mapping
 ``N = n_base + n_gain * h`` and ``n_base = n1`` they give exactly the
 published N(x) at every sample (:func:`ramp_force`, :func:`tent_force`).
 """
@@ -117,7 +117,7 @@ def _field(heights, dx, dy, source: str, **meta) -> HeightField:
 
 # ----------------------------------------------------------------- published profiles
 def ramp_force(x, l1, l2, n1=0.5, n2=None, k=None, l0=0.0, l3=None):
-    """Published ramp (plateau) normal-force profile N(x) of DESIGN 3.2, newtons.
+    """Published ramp (plateau) normal-force profile N(x), newtons.
 
     ``N = n1`` for x < l1, ``k (x - l1) + n1`` for l1 <= x < l2, ``n2``
     beyond; ``k = (n2 - n1) / (l2 - l1)`` (give ``n2`` or ``k``).
@@ -129,7 +129,7 @@ def ramp_force(x, l1, l2, n1=0.5, n2=None, k=None, l0=0.0, l3=None):
 
 
 def tent_force(x, l1, l2, n1=0.5, n2=None, k=None, l0=0.0, l3=None, l4=None):
-    """Published tent (bump) normal-force profile N(x) of DESIGN 3.2, newtons.
+    """Published tent (bump) normal-force profile N(x), newtons.
 
     ``n1`` for x < l1, ``k (x - l1) + n1`` up to the apex at ``l2``,
     ``-k (x - l2) + n2`` down to ``l3 = 2 l2 - l1``, then ``n1``.
@@ -184,7 +184,7 @@ def _profile_field(force, l0, l_end, n1, n_gain, dx, rows, dy, source, meta) -> 
 
 def ramp_profile(l1, l2, l3, *, n1=0.5, n2=None, k=None, l0=0.0, n_gain=1000.0, dx=1e-4,
                  rows: int = 1, dy=None) -> HeightField:
-    """Published ramp/plateau profile (DESIGN 3.2) as a height field.
+    """Published ramp/plateau profile as a height field.
 
     Parameters
     ----------
@@ -221,7 +221,7 @@ def ramp_profile(l1, l2, l3, *, n1=0.5, n2=None, k=None, l0=0.0, n_gain=1000.0, 
 
 def tent_profile(l1, l2, l4, *, n1=0.5, n2=None, k=None, l0=0.0, l3=None, n_gain=1000.0, dx=1e-4,
                  rows: int = 1, dy=None) -> HeightField:
-    """Published tent (bump) profile (DESIGN 3.2) as a height field.
+    """Published tent (bump) profile as a height field.
 
     Rises with rate k from ``n1`` at ``l1`` to ``n2`` at ``l2``, falls back
     with the same rate to ``n1`` at ``l3 = 2 l2 - l1`` (if given, ``l3`` must

@@ -123,7 +123,7 @@ def test_pad_kernel_bit_exact(sd_vectors, tmp_path, case, rate, name):
 
 
 def test_restick_closed_form_matches_python(sd_vectors, tmp_path):
-    """The V -> 0 limit of the re-stick force, through the C kernel (exact answer, DESIGN 3.1)."""
+    """The V -> 0 limit of the re-stick force, through the C kernel (exact answer, the Konyo pad)."""
     model = _jump()
     p = model.device.pad
     fr = model.device.friction

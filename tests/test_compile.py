@@ -23,7 +23,7 @@ RIG = load_device("desktop-rig")
 
 
 def test_tent_height_map_reproduces_published_tent():
-    # DESIGN 3.2 tent: N1 = 0.5 N, L1 = 10 mm, L2 = 25 mm, k = 0.15 N/mm (N2 = 2.75 N), L4 = 50 mm
+    # published tent: N1 = 0.5 N, L1 = 10 mm, L2 = 25 mm, k = 0.15 N/mm (N2 = 2.75 N), L4 = 50 mm
     hf = sources.tent_profile("10mm", "25mm", "50mm", n1="0.5N", k="0.15 N/mm", n_gain="2 N/mm", dx="0.1mm")
     res = compile_heightfield(hf, "linear-slider", MappingOptions(n_base=0.5, n_gain=2000.0))
     t = res.table

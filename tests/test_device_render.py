@@ -14,7 +14,7 @@ from shapedisplay.table import FrictionTable, Grid, choose_quantization
 
 
 def tent_table(device="handheld-stick"):
-    """Published tent profile (DESIGN 3.2): N1 = 0.5 N, N2 = 2.5 N over 15..45 mm, 0.25 mm grid."""
+    """Published tent profile: N1 = 0.5 N, N2 = 2.5 N over 15..45 mm, 0.25 mm grid."""
     dev = load_device(device)
     x = np.arange(241) * 0.25e-3
     n = np.interp(x, [0, 0.015, 0.030, 0.045, 0.060], [0.5, 0.5, 2.5, 0.5, 0.5])

@@ -318,7 +318,7 @@ def test_imaizumi_study_matches_quasi_static_sliding_and_rises_as_relative_speed
 
 
 def test_tanh_regularised_friction_error_against_exact():
-    """tanh option (DESIGN 4): periods converge to exact as eps -> 0; creep below breakaway; |f| <= mu_s N."""
+    """tanh option: periods converge to exact as eps -> 0; creep below breakaway; |f| <= mu_s N."""
     kw = dict(V=0.05, N=2.0, pad=KONYO, friction=FrictionParams(0.5, 0.3), tick_rate=10_000, duration=0.1)
     ex = simulate_pad("exact", **kw)
     p_ex = np.diff(ex.event_time)[1:].mean()

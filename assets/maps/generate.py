@@ -4,7 +4,7 @@
 
 tent_profile.png   16-bit, 600x40 px. Compile with --size 60x4mm --height 0:2mm
                    --n-base 0.5N --n-gain 2N/mm to get the published tent N(x)
-                   (DESIGN 3.2): N1 = 0.5 N, N2 = 4.5 N, L1 = 10 mm, L2 = 30 mm,
+                   : N1 = 0.5 N, N2 = 4.5 N, L1 = 10 mm, L2 = 30 mm,
                    L3 = 50 mm, L4 = 60 mm (k = 0.2 N/mm), at the pixel centres.
 terrain_noisy.png  16-bit, 256x256 px: smooth hills plus fine noise; try
                    --size 40x40mm --height 0:1mm --gradient gaussian --sigma 0.5mm.

@@ -411,11 +411,6 @@ def qualifies(r) -> bool:
             and r.get("period_rel_max") is not None and r["period_rel_max"] <= PERIOD_TOL)
 
 
-def _err_axis(r):
-    """Error plotted on the work-precision chart: event-time RMS normalised by the reference period."""
-    return r.get("event_rms_rel")
-
-
 # ================================================================ the report
 def run(out_dir, quick=False, progress=True, plots=True, stream=None) -> dict:
     """Run the accuracy report and write ``accuracy.json``, ``accuracy.md`` and PNGs into ``out_dir``.

@@ -10,14 +10,14 @@ speed baseline of the accuracy report.
 Two systems
 -----------
 :func:`konyo_ivp`
-    The Konyo pad (DESIGN 3.1): stick ``x' = V(t)``; breakaway when
+    The Konyo pad: stick ``x' = V(t)``; breakaway when
     ``|k x + c V| = mu_s N(t)``; slip ``m x'' + c x' + k x = s mu_k N(t)``;
     re-stick when the relative velocity ``-s (x' - V)`` falls through zero
     and ``|k x + c V| <= mu_s N``, otherwise the slip continues with the
     friction sign flipped.
 :func:`stribeck_ivp`
     The Imaizumi pad with Stribeck friction on a vibrating contactor
-    (DESIGN 3.4), same conventions as the ``stribeck`` kernel
+    (Imaizumi et al.), same conventions as the ``stribeck`` kernel
     (:func:`shapedisplay.runtime.pads._stribeck_tick`): ``u`` is the spring
     stretch, ``vr = u' + V - x_c'`` the relative velocity, stick while the
     needed friction ``m x_c'' + c u' + k u`` stays within ``mu_s W``.
@@ -223,7 +223,7 @@ def konyo_ivp(method, rtol, *, m, k, c, mu_s, mu_k, V, N, t_end, breaks=(), x_sc
 
 
 def stribeck_mu(vr_abs, W, mu_s, mu_k, a, b):
-    """Stribeck coefficient ``mu_k + (mu_s - mu_k) exp(-a |vr|/W) + b |vr|/W`` (DESIGN 3.4)."""
+    """Stribeck coefficient ``mu_k + (mu_s - mu_k) exp(-a |vr|/W) + b |vr|/W`` (Imaizumi et al.)."""
     u = vr_abs / W
     return mu_k + (mu_s - mu_k) * math.exp(-a * u) + b * u
 

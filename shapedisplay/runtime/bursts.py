@@ -1,4 +1,4 @@
-"""Vibrotactile bursts at stick-to-slip events (DESIGN 3.1).
+"""Vibrotactile bursts at stick-to-slip events (Konyo et al.'s Vib-Touch bursts).
 
 Each event at time ``t_e`` with amplitude ``A`` plays
 ``A * env(t - t_e) * sin(2 pi f_c (t - t_e))`` for ``t >= t_e``: the carrier

@@ -260,7 +260,7 @@ def load_trace_csv(path, tick_rate: float | None = None) -> CursorPath:
 
 def force_input(forces, alpha: float, force_rate: float, tick_rate: float, start=(0.0, 0.0),
                 source: str = "force input") -> CursorPath:
-    """Pointing-stick force to cursor motion, ``v = alpha f`` (DESIGN 3.2).
+    """Pointing-stick force to cursor motion, ``v = alpha f`` (alpha in m/(N s)).
 
     Parameters
     ----------

@@ -1,7 +1,7 @@
 """Published stimulus sets run through the pad models.
 
 :func:`imaizumi_study` — lateral vibration of a contactor under a sliding
-finger (Imaizumi et al., DESIGN 3.4): stimuli #0 still, #1 3 Hz 1.25 mm,
+finger (Imaizumi et al.): stimuli #0 still, #1 3 Hz 1.25 mm,
 #2 6 Hz 0.625 mm, #3 6 Hz 1.25 mm, #4 9 Hz 1.25 mm, at finger speeds 0.1
 and 0.04 m/s, on the Stribeck pad (m = 1e-4 kg, k = 1e3 N/m, c = 1 N s/m,
 mu_s = 2.1, mu_k = 1.4, a = 55, b = 1.9, W = 1 N).

@@ -13,7 +13,7 @@ A scene is a TOML file::
     [device]
     profile = "handheld-stick"  # bundled name or a path to a device TOML
 
-    [mapping]                   # how height becomes force (DESIGN 3.2, 3.3)
+    [mapping]                   # how height becomes force
     n_base = "0.5 N"            # N1, the force on flat ground
     n_gain = "1 N/mm"           # extra normal force per mm of height
     direction = "symmetric"     # or "one-sided": bump uphill, dent downhill

@@ -35,9 +35,6 @@ from .fields import (Canvas, Ctx, OVERLAP_RULES, SceneError, Widget, choice, len
 #: perception saturates above ~15 mm at 0.15 N/mm.
 DEFAULT_RAMP = "10 mm"
 EDGES = ("linear", "cosine", "tent")
-#: Notional cross size of a widget on a 1-D canvas (its geometry is evaluated on
-#: the centre line, so only the length along x matters).
-_1D_CROSS = 1.0
 
 
 # --------------------------------------------------------------- shapes
