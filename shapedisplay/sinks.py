@@ -189,33 +189,39 @@ def read_trace(path, required=TRACE_ARRAYS) -> dict:
             if n in z:
                 v = z.read_array(n, dtypes, 1, shape=()).item()
                 out[n] = int(v) if n == "clipped" else float(v)
-    _check_trace(out, label)
+    check_trace_arrays(out, label)
     return out
 
 
-def _check_trace(d: dict, label: str) -> None:
+def check_trace_arrays(d: dict, label: str, error=FileFormatError) -> None:
+    """The rules of a trace's arrays (read from a file or built in memory); raises ``error`` naming ``label``.
+
+    Ticks >= 1, per-tick arrays of one length, as many event amplitudes as
+    event times, floats finite, ``state`` 0 or 1, ``t`` not decreasing, rates
+    finite and > 0, ``clipped`` >= 0.
+    """
     n = d["t"].size
     if n < 1:
-        raise FileFormatError(f"{label}: holds no ticks")
+        raise error(f"{label}: holds no ticks")
     for name in (n for n in TRACE_ARRAYS if n in d):
         a = d[name]
         want = d["event_time"].size if name in _EVENT_ARRAYS and "event_time" in d else n
         if name in _EVENT_ARRAYS and "event_time" not in d:
             want = a.size
         if a.size != want:
-            raise FileFormatError(f"{label}: array '{name}' has {a.size} values; "
+            raise error(f"{label}: array '{name}' has {a.size} values; "
                                   f"'{'event_time' if name in _EVENT_ARRAYS else 't'}' has {want}")
         if a.dtype.kind == "f" and not np.isfinite(a).all():
-            raise FileFormatError(f"{label}: array '{name}' holds NaN or infinite values")
+            raise error(f"{label}: array '{name}' holds NaN or infinite values")
     if "state" in d and not np.all((d["state"] == 0) | (d["state"] == 1)):
-        raise FileFormatError(f"{label}: 'state' must be 0 (stick) or 1 (slip)")
+        raise error(f"{label}: 'state' must be 0 (stick) or 1 (slip)")
     if np.any(np.diff(d["t"]) < 0):
-        raise FileFormatError(f"{label}: times 't' must not decrease")
+        raise error(f"{label}: times 't' must not decrease")
     for name in ("tick_rate", "audio_rate"):
         if name in d and not (math.isfinite(d[name]) and d[name] > 0):
-            raise FileFormatError(f"{label}: '{name}' must be finite and > 0 (got {d[name]!r})")
+            raise error(f"{label}: '{name}' must be finite and > 0 (got {d[name]!r})")
     if "clipped" in d and d["clipped"] < 0:
-        raise FileFormatError(f"{label}: 'clipped' must be >= 0 (got {d['clipped']})")
+        raise error(f"{label}: 'clipped' must be >= 0 (got {d['clipped']})")
 
 
 def check_plot_path(path) -> str:

@@ -90,26 +90,11 @@ class Trace:
     source: str = ""
 
     def __post_init__(self):
-        n = None
-        for name, kind in TRACE_ARRAYS.items():
-            a = np.asarray(getattr(self, name), dtype=np.float64).ravel()
-            if not np.all(np.isfinite(a)):
-                raise InputError(f"trace {self.source!r}: array '{name}' holds NaN or infinite values")
-            if kind == "t":
-                if n is None:
-                    n = a.size
-                elif a.size != n:
-                    raise InputError(f"trace {self.source!r}: array '{name}' has {a.size} values; 't' has {n}")
-            setattr(self, name, a)
-        if n is None or n < 1:
-            raise InputError(f"trace {self.source!r}: holds no ticks")
-        if self.event_time.size != self.event_amplitude.size:
-            raise InputError(f"trace {self.source!r}: {self.event_time.size} event times but "
-                             f"{self.event_amplitude.size} event amplitudes")
-        if np.any(np.diff(self.t) < 0):
-            raise InputError(f"trace {self.source!r}: times 't' must not decrease")
-        if not np.all((self.state == 0) | (self.state == 1)):
-            raise InputError(f"trace {self.source!r}: 'state' must be 0 (stick) or 1 (slip)")
+        from ..sinks import check_trace_arrays
+        for name in TRACE_ARRAYS:
+            a = np.asarray(getattr(self, name)).ravel()
+            setattr(self, name, a if name == "state" else a.astype(np.float64))
+        check_trace_arrays({k: getattr(self, k) for k in TRACE_ARRAYS}, f"trace {self.source!r}", InputError)
         self.state = self.state.astype(np.int8)
         self.table_checksum = str(self.table_checksum)
 
