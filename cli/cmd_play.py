@@ -36,14 +36,12 @@ def register(sub) -> None:
 
 def run(args) -> int:
     import json
-    from contextlib import ExitStack
 
-    from shapedisplay.atomic import atomic_path
     from shapedisplay.devices import load_device
     from shapedisplay.errors import InputError
     from shapedisplay.runtime.cursor import load_force_csv, load_trace_csv, parse_stroke
     from shapedisplay.runtime.renderer import Renderer
-    from shapedisplay.sinks import SAMPLE_FORMATS, check_plot_path, plot_trace, write_trace, write_wav
+    from shapedisplay.sinks import SAMPLE_FORMATS, check_plot_path, play_to_files
     from shapedisplay.errors import unknown_key
     from shapedisplay.table import FrictionTable
     from shapedisplay.units import parse_quantity
@@ -76,18 +74,8 @@ def run(args) -> int:
         except ValueError:
             raise InputError(f"`--start` must be 'x,y' in mm (got {args.start!r})") from None
         cursor = load_force_csv(args.force, r.device.cursor_gain, r.tick_rate, (sx, sy))
-    # all outputs or none: each is written to a temporary file beside its final
-    # name and renamed only once every one of them has been written
-    with ExitStack() as outputs:
-        wav_tmp = outputs.enter_context(atomic_path(args.output))
-        trace_tmp = outputs.enter_context(atomic_path(args.trace_out, suffix=".npz")) if args.trace_out else None
-        plot_tmp = outputs.enter_context(atomic_path(args.plot)) if args.plot else None
-        res = r.render(cursor)
-        write_wav(wav_tmp, res.audio, res.audio_rate, args.format)
-        if trace_tmp is not None:
-            write_trace(trace_tmp, res, table.checksum())
-        if plot_tmp is not None:
-            plot_trace(plot_tmp, res)
+    res = play_to_files(r, cursor, args.output, args.format, trace=args.trace_out, plot=args.plot,
+                        table_checksum=table.checksum())
     s = res.summary()
     if args.json:
         print(json.dumps(s, indent=2))

@@ -224,6 +224,31 @@ def check_trace_arrays(d: dict, label: str, error=FileFormatError) -> None:
         raise error(f"{label}: 'clipped' must be >= 0 (got {d['clipped']})")
 
 
+def play_to_files(renderer, cursor, wav, sample_format: str = "float32", trace=None, plot=None,
+                  table_checksum: str = ""):
+    """Render ``cursor`` with ``renderer`` and write the WAV, and the trace and plot when asked: all or none.
+
+    Every output goes to a temporary file beside its final name (opened before
+    the render, so an unwritable place fails first) and is renamed only once
+    all of them are written; an error leaves no output behind.
+
+    Returns the :class:`~shapedisplay.runtime.renderer.RenderResult`.
+    """
+    from contextlib import ExitStack
+
+    with ExitStack() as outputs:
+        wav_tmp = outputs.enter_context(atomic_path(wav))
+        trace_tmp = outputs.enter_context(atomic_path(trace, suffix=".npz")) if trace else None
+        plot_tmp = outputs.enter_context(atomic_path(plot)) if plot else None
+        res = renderer.render(cursor)
+        write_wav(wav_tmp, res.audio, res.audio_rate, sample_format)
+        if trace_tmp is not None:
+            write_trace(trace_tmp, res, table_checksum)
+        if plot_tmp is not None:
+            plot_trace(plot_tmp, res)
+    return res
+
+
 def check_plot_path(path) -> str:
     """Check that a plot can be written to ``path``: a suffix from :data:`PLOT_FORMATS` and matplotlib installed.
 
