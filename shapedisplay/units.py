@@ -140,6 +140,17 @@ def parse_unit(unit: str, field: str = "unit") -> tuple[float, Dim]:
     return scale, dim
 
 
+#: The unit a hint proposes for a quantity stored in an SI unit: the unit designers
+#: write it in (lengths in mm on a screen, stiffness in N/mm, speeds in mm/s).
+NATURAL_UNITS = {"m": "mm", "N/m": "N/mm", "m/s": "mm/s", "N*s/m": "N*s/mm", "m/(N*s)": "mm/(N*s)",
+                 "1/m": "1/mm"}
+
+
+def natural_unit(unit: str) -> str:
+    """The unit to propose in a hint for a value stored in ``unit`` (``"m"`` -> ``"mm"``)."""
+    return NATURAL_UNITS.get(unit.replace(" ", ""), unit)
+
+
 def parse_quantity(value, unit: str, field: str, *, bare_ok: bool = False) -> float:
     """Parse ``value`` into a float expressed in ``unit`` (usually SI).
 
@@ -165,7 +176,7 @@ def parse_quantity(value, unit: str, field: str, *, bare_ok: bool = False) -> fl
     if isinstance(value, (int, float)):
         if not bare_ok and target_dim != (0, 0, 0):
             raise UnitError(
-                f"`{field}` needs a unit, e.g. '{value} {unit}' (got bare number {value!r})"
+                f"`{field}` needs a unit, e.g. '{value} {natural_unit(unit)}' (got bare number {value!r})"
             )
         out = float(value)
     elif isinstance(value, str):
@@ -173,12 +184,12 @@ def parse_quantity(value, unit: str, field: str, *, bare_ok: bool = False) -> fl
         if not m and _NON_FINITE.match(value):
             raise UnitError(f"`{field}` must be finite (got {value!r})")
         if not m:
-            raise UnitError(f"`{field}` must be a number with a unit such as '2 {unit}' (got {value!r})")
+            raise UnitError(f"`{field}` must be a number with a unit such as '2 {natural_unit(unit)}' (got {value!r})")
         number, unit_text = float(m.group(1)), m.group(2)
         if not unit_text:
             if not bare_ok and target_dim != (0, 0, 0):
                 raise UnitError(
-                    f"`{field}` needs a unit, e.g. '{m.group(1)} {unit}' (got bare number {value!r})"
+                    f"`{field}` needs a unit, e.g. '{m.group(1)} {natural_unit(unit)}' (got bare number {value!r})"
                 )
             out = number
         else:

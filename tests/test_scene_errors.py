@@ -221,3 +221,64 @@ def test_vertical_widget_on_a_1d_canvas(tmp_path, wtype):
 def test_type_defaults_must_be_a_table(tmp_path):
     msg = err(tmp_path, '[defaults]\nbutton = "2 mm"\n' + BUTTON)
     assert "`defaults.button` must be a table [defaults.button]" in msg and "'2 mm'" in msg
+
+
+# --------------------------------------------------------------- detents, overlaps, unit hints
+SLIDER = '[[widget]]\nid = "vol"\ntype = "slider"\nposition = "5,5 mm"\nsize = "60x8 mm"\n'
+
+
+def test_detents_as_a_count_are_evenly_spaced_with_no_detent_at_the_ends(tmp_path):
+    w = load_scene(scene(tmp_path, SLIDER + "detents = 5\n")).widgets[0]
+    assert w.params["detents"] == 5 and w.params["detent_spacing"] == pytest.approx(0.060 / 6)
+    same = load_scene(scene(tmp_path, SLIDER + 'detents = "10 mm"\n')).widgets[0]
+    assert same.params["detents"] == 5 and same.params["detent_spacing"] == pytest.approx(0.010)
+    assert check_scene(scene(tmp_path, SLIDER + "detents = 5\n")) == []
+    assert load_scene(scene(tmp_path, SLIDER + 'detents = "5"\n')).widgets[0].params["detents"] == 5
+
+
+def test_a_spacing_that_does_not_divide_the_track_is_warned_about(tmp_path):
+    (msg,) = check_scene(scene(tmp_path, SLIDER + 'detents = "14 mm"\n'))
+    assert "widget[0] 'vol'" in msg and "do not divide the 60 mm track: 4 detents, the last gap is 4 mm" in msg
+    assert "detents = 4 spaces them evenly (12 mm apart)" in msg
+
+
+@pytest.mark.parametrize("value, pattern", [
+    ('"5 m"', r"`widget\[0\].detents` spacing 5000 mm leaves no detent on the 60 mm track"),
+    ("0.5", r"`widget\[0\].detents` must be a whole count \(e.g. 5\) or a spacing with its unit"),
+    ("0", None),
+    ("-3", r"`widget\[0\].detents` as a count must be 1..1000 \(got -3\)"),
+    ('"12"', None),
+])
+def test_bad_detents(tmp_path, value, pattern):
+    if pattern is None:
+        load_scene(scene(tmp_path, SLIDER + f"detents = {value}\n"))
+        return
+    msg = err(tmp_path, SLIDER + f"detents = {value}\n")
+    assert re.search(pattern, msg), msg
+
+
+def test_overlapping_widgets_warn_unless_both_choose_a_rule(tmp_path):
+    two = BUTTON + '[[widget]]\nid = "dot"\ntype = "button"\nposition = "25,12 mm"\nsize = "10x6 mm"\n'
+    def overlaps(text):
+        return [w for w in check_scene(scene(tmp_path, text)) if " overlap on " in w]
+    (msg,) = overlaps(two)
+    # where both rise above flat ground (the boxes' shared edge samples are at height 0)
+    assert "widget[0] 'ok' and widget[1] 'dot' overlap on 97 samples (x 25.5..29.5 mm, y 12.5..17.5 mm)" in msg
+    assert "`overlap` = 'max' (the higher wins)" in msg and "set `overlap` on both" in msg
+    chosen = two.replace('size = "20x10 mm"\n', 'size = "20x10 mm"\noverlap = "add"\n') + 'overlap = "add"\n'
+    assert overlaps(chosen) == []
+    # boxes that touch without both shapes rising on the same sample do not warn
+    apart = BUTTON + '[[widget]]\nid = "far"\ntype = "button"\nposition = "30,10 mm"\nsize = "10x10 mm"\n'
+    assert overlaps(apart) == []
+
+
+def test_unit_hints_propose_millimetres_and_newtons(tmp_path):
+    msg = err(tmp_path, BUTTON + "height = 2\n", exc=UnitError)
+    assert "e.g. '2 mm'" in msg
+    msg = err(tmp_path, SLIDER + "detents = \"5 furlong\"\n", exc=UnitError)
+    assert "unknown unit 'furlong'" in msg
+    msg = err(tmp_path, BUTTON + "force = 2\n", exc=UnitError)
+    assert "e.g. '2 N'" in msg
+    from shapedisplay.units import parse_quantity
+    with pytest.raises(UnitError, match=r"e.g. '2 N/mm'"):
+        parse_quantity("2", "N/m", "n_gain")

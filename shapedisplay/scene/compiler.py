@@ -319,10 +319,53 @@ def combined_height_warnings(scene: Scene, grps: list[dict], warned: list[str]) 
     return out
 
 
+def overlap_warnings(scene: Scene, grps: list[dict]) -> list[str]:
+    """Widgets whose shapes (not just boxes) overlap, when the file did not choose how they combine.
+
+    Two height widgets overlap where both have a nonzero height on the same
+    sample; they then combine by their ``overlap`` rule (``max`` unless
+    written). The warning is left out when both widgets set ``overlap``.
+    """
+    out = []
+    ws = scene.widgets
+    is_1d = scene.canvas.is_1d
+    s = scene.canvas.spacing
+    for g in grps:
+        mem = [ws[i] for i in g["members"]]
+        for a in range(len(mem)):
+            for b in range(a + 1, len(mem)):
+                wa, wb = mem[a], mem[b]
+                if WIDGET_TYPES[wa.type].data_layer or WIDGET_TYPES[wb.type].data_layer:
+                    continue
+                if (wa.overlap_given and wb.overlap_given) or not _overlap(_box(wa), _box(wb)):
+                    continue
+                ba, bb = _box(wa), _box(wb)
+                region = (max(ba[0], bb[0]), max(ba[1], bb[1]), min(ba[2], bb[2]), min(ba[3], bb[3]))
+                both = None
+                for w in (wa, wb):
+                    (lr, lc, nr, nc), u, v, W, H = _widget_local(w, *region, is_1d)
+                    hv = np.broadcast_to(WIDGET_TYPES[w.type].heights(w.params, u, v, W, H, is_1d), (nr, nc))
+                    nz = np.abs(hv) > 1e-12
+                    both = nz if both is None else both & nz
+                if both is None or not both.any():
+                    continue
+                rr, cc = np.nonzero(both)
+                x0, x1 = (region[1] + cc.min()) * s, (region[1] + cc.max()) * s
+                y0, y1 = (region[0] + rr.min()) * s, (region[0] + rr.max()) * s
+                where = f"x {x0 * 1e3:.4g}..{x1 * 1e3:.4g} mm" + ("" if is_1d else f", y {y0 * 1e3:.4g}..{y1 * 1e3:.4g} mm")
+                out.append(f"{wa.where} and {wb.where} overlap on {int(both.sum())} samples ({where}); their heights "
+                           f"combine by `overlap` = '{wa.overlap}' ({_RULE_WORDS[wa.overlap]}); set `overlap` on both "
+                           f"(max, min, add or over) to choose the rule and silence this warning")
+    return out
+
+
+_RULE_WORDS = {"max": "the higher wins", "min": "the lower wins", "add": "heights add up", "over": "the later wins"}
+
+
 def scene_warnings(scene: Scene, grps: list[dict]) -> list[str]:
-    """Every warning of a scene: placement (clipping, snapping, detents, ramps) and heights the device
-    cannot render, alone or combined."""
-    warned = list(scene.warnings) + height_warnings(scene)
+    """Every warning of a scene: placement (clipping, snapping, detents, ramps), overlapping widgets
+    without a chosen rule, and heights the device cannot render, alone or combined."""
+    warned = list(scene.warnings) + overlap_warnings(scene, grps) + height_warnings(scene)
     return warned + combined_height_warnings(scene, grps, warned)
 
 

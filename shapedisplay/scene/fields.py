@@ -81,6 +81,7 @@ class Widget:
     clipped: bool = False
     label: str = ""
     box: tuple = (0, 0, 0, 0)   # (row0, col0, row1, col1) inclusive, clipped to the canvas
+    overlap_given: bool = False  # `overlap` written in the file (or its [defaults]), not the built-in max
 
     @property
     def where(self) -> str:

@@ -59,7 +59,7 @@ size = "60x8 mm"
 track = "groove"            # or "ridge"
 value = 0.3                 # thumb position 0..1
 height = "1.5 mm"           # thumb height above the track
-detents = "10 mm"           # or "off"
+detents = 5                 # a count (evenly spaced, none at the ends), a spacing "10 mm", or "off"
 
 [[widget]]
 id = "mute"

@@ -291,7 +291,8 @@ class Slider(WidgetType):
     Keys: ``track`` groove|ridge, ``track_width``, ``track_depth`` (height of a
     ridge track), ``track_ramp``, ``value`` (0..1, thumb position), ``thumb_size``
     (diameter), thumb strength ``height``/``force``/``force_step``/``level``,
-    ``detents`` (spacing, e.g. "10 mm", or "off"), ``detent_height``,
+    ``detents`` (a count, e.g. 5, or a spacing, e.g. "10 mm", or "off"; see
+    :func:`_detents` for where they sit), ``detent_height``,
     ``detent_width``, ``orientation`` auto|horizontal|vertical.
     """
 
@@ -327,15 +328,10 @@ class Slider(WidgetType):
                                         f"(got {raw.get('thumb_size', f'{ts * 1e3:g} mm')!r})")
         ts = min(ts, L)
         th = resolve_strength(raw, self.strength_keys, 1, "1.5 mm", fp, w)
-        spacing = 0.0
-        det = raw.get("detents", "off")
-        if det not in ("off", False, 0):
-            spacing = length(det, fp + "detents", ctx, where, positive=True)
+        spacing, n_det = _detents(raw.get("detents", "off"), L, w)
         dh = length(raw.get("detent_height", "0.3 mm"), fp + "detent_height", ctx, where, nonneg=True)
         dw = length(raw.get("detent_width", "1 mm"), fp + "detent_width", ctx, where, positive=True)
-        n_det = 0
         if spacing:
-            n_det = max(0, math.ceil(L / spacing - 1e-9) - 1)
             res = w.device.resolution_m
             felt = max(0, math.ceil(L / res - 1e-9) - 1)
             if spacing < res:
@@ -381,6 +377,39 @@ class Slider(WidgetType):
             h = h + p["detent_height"] * det * mask
         out = h + 0.0 * (u + v)
         return out  # (rows, cols) whichever way the widget runs
+
+
+def _detents(value, L: float, w: "PlaceCtx") -> tuple[float, int]:
+    """(spacing m, count) of a slider's detents from ``detents`` = "off", a count or a spacing.
+
+    The rule: detent k sits at ``k * spacing`` from the start of the track,
+    k = 1, 2, ...; the ends of the track (where it ramps) never get one. A
+    count N gives ``spacing = L / (N + 1)``: N detents and N + 1 equal gaps.
+    A spacing that does not divide L leaves a shorter last gap (warned); a
+    spacing as long as the track leaves no detent (an error).
+    """
+    fp = w.fp + "detents"
+    if value in ("off", False, 0):
+        return 0.0, 0
+    if isinstance(value, int) and not isinstance(value, bool) or isinstance(value, str) and value.strip().isdigit():
+        n = int(value)
+        if not 1 <= n <= 1000:
+            raise w.error("detents", f"as a count must be 1..1000 (got {value!r})")
+        return L / (n + 1), n
+    if isinstance(value, float):
+        raise w.error("detents", f"must be a whole count (e.g. 5) or a spacing with its unit (e.g. \"10 mm\"), "
+                                 f"or \"off\" (got {value!r})")
+    spacing = length(value, fp, w.ctx, w.where, positive=True)
+    n = max(0, math.ceil(L / spacing - 1e-9) - 1)
+    if n == 0:
+        raise w.error("detents", f"spacing {spacing * 1e3:g} mm leaves no detent on the {L * 1e3:g} mm track "
+                                 f"(detents sit at whole spacings from its start, never at its ends); use a "
+                                 f"shorter spacing or a count such as detents = 5 (got {value!r})")
+    last = L - n * spacing
+    if abs(last - spacing) > 1e-6 * spacing:
+        w.warn(f"`detents` every {spacing * 1e3:g} mm do not divide the {L * 1e3:g} mm track: {n} detents, the last "
+               f"gap is {last * 1e3:.4g} mm; detents = {n} spaces them evenly ({L / (n + 1) * 1e3:.4g} mm apart)")
+    return spacing, n
 
 
 class Toggle(WidgetType):
@@ -770,4 +799,4 @@ def place_widget(wt: WidgetType, raw: dict, index: int, wid: str, canvas: Canvas
     params = wt.finish(raw, W, H, w)
     box = (max(row0, 0), max(col0, 0), min(r_end, canvas.rows - 1), min(c_end, canvas.cols - 1))
     return Widget(wid, wt.name, index, params, col0, row0, ncols, nrows, s, overlap, clipped,
-                  str(raw.get("label", "")), box)
+                  str(raw.get("label", "")), box, "overlap" in raw)
