@@ -132,3 +132,50 @@ def derived_bounds(r, outs, unit_roundoff: float, libm_ulps: float = 1.0):
     d_drive = (w + 1.0 / b.rise_s) * dt + (8.0 + 4.0 * n_rot) * u * max(libm_ulps, 1.0)
     d_force = K * u * F.max() + k * v_min * dt
     return dt, d_drive, d_force
+
+
+# ------------------------------------------------------------------ Cortex-M4F under QEMU
+QEMU_M4 = ["qemu-system-arm", "-M", "mps2-an386", "-nographic", "-monitor", "none", "-serial", "none"]
+#: -icount shift: every instruction advances virtual time by 2^ICOUNT_SHIFT ns, and SysTick (25 MHz
+#: system clock of the MPS2 board) by 2^ICOUNT_SHIFT * 0.025 counts: 1.6 counts per instruction, so
+#: one instruction is resolved and the 24-bit SysTick holds 10.4 million instructions per tick.
+ICOUNT_SHIFT = 6
+COUNTS_PER_INSTRUCTION = 2 ** ICOUNT_SHIFT * 25e6 / 1e9
+
+
+def build_m4(out_dir, defs=()):
+    """`make -C runtime-c m4` into ``out_dir`` (a copy of the build directory); returns the ELF and
+    the size line (text, data, bss)."""
+    import shutil
+    import subprocess
+    from pathlib import Path
+    cdir = Path(__file__).resolve().parent.parent / "shapedisplay" / "runtime_c"
+    src = Path(out_dir) / "src"
+    shutil.copytree(cdir, src, ignore=shutil.ignore_patterns("build", "wasm", "sd_vectors", "sd_bench"))
+    res = subprocess.run(["make", "-s", "-C", str(src), "m4", f"M4_DEFS={' '.join(defs)}"],
+                         capture_output=True, text=True, timeout=300)
+    if res.returncode != 0:
+        raise RuntimeError(f"make m4 failed:\n{res.stderr}")
+    text, data, bss = (int(v) for v in res.stdout.strip().splitlines()[-1].split()[:3])
+    return src / "build" / "sd_m4.elf", (text, data, bss)
+
+
+def run_m4(elf, mode: str, payload: bytes, tmp_path, icount: bool = False) -> bytes:
+    """Run the harness in ``mode`` (vectors | bench) on ``payload``; returns its output file."""
+    import subprocess
+    fin, fout = tmp_path / f"m4-{mode}.in", tmp_path / f"m4-{mode}.out"
+    fin.write_bytes(payload)
+    cmd = [*QEMU_M4, *(["-icount", f"shift={ICOUNT_SHIFT}"] if icount else []), "-semihosting-config",
+           f"enable=on,target=native,arg=sd_m4,arg={mode},arg={fin},arg={fout}", "-kernel", str(elf)]
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    if res.returncode != 0:
+        raise RuntimeError(f"the M4F harness exited with {res.returncode}: {res.stderr[-500:]}")
+    return fout.read_bytes()
+
+
+def m4_instructions(raw: bytes) -> np.ndarray:
+    """Instructions per sd_renderer_step from the bench output (the measurement's own cost removed)."""
+    c = np.frombuffer(raw, "<u4").astype(np.float64)
+    if (c >= 0xFFFFF0).any():
+        raise RuntimeError("a tick ran past the 24-bit SysTick range (10.4 million instructions)")
+    return (c[:-1] - c[-1]) / COUNTS_PER_INSTRUCTION

@@ -1,0 +1,118 @@
+/* harness.c -- the shared test vectors and the instruction-count benchmark on a Cortex-M4F.
+ *
+ * Runs under QEMU (machine mps2-an386) with semihosting; arguments from the command line
+ * (`-semihosting-config enable=on,arg=sd_m4,arg=MODE,arg=IN,arg=OUT`):
+ *   vectors IN OUT   play a binary table image as `sd_vectors image` does on the host (same input
+ *                    and output layout: tests/runtime_vectors.py)
+ *   bench   IN OUT   the same input; OUT = u32 SysTick counts of every sd_renderer_step call,
+ *                    then u32 the count of an empty measurement (the overhead to subtract).
+ *                    With `-icount shift=S`, counts / (2^S * 0.025) = instructions.
+ * All memory is static; the runtime allocates nothing.
+ */
+#include <stdint.h>
+#include <string.h>
+#include "../sd_runtime.h"
+#include "m4.h"
+
+#define IN_MAX (1u << 20)
+#define TICKS_MAX 100000
+
+static uint64_t in_buf[IN_MAX / 8];
+static sd_image_t img;
+static sd_renderer_t R;
+static double audio[1u << 16];
+static uint32_t counts[TICKS_MAX];
+
+static const uint8_t *cur, *end;
+
+static const void *take(uint32_t n)
+{
+    const uint8_t *p = cur;
+    if ((uint32_t)(end - cur) < n) m4_exit(2);
+    cur += (n + 7u) & ~7u;
+    return p;
+}
+
+static int64_t take_i64(void)
+{
+    int64_t v;
+    memcpy(&v, take(8), 8);
+    return v;
+}
+
+static double take_f64(void)
+{
+    double v;
+    memcpy(&v, take(8), 8);
+    return v;
+}
+
+int main(void)
+{
+    static char cmd[512];
+    char *argv[4] = {0};
+    int argc = 0, bench;
+    char *p;
+    int32_t fd, got;
+    int64_t size, n, i, n_audio = 0;
+    const double *x, *y;
+    sd_config_t C;
+    int rc;
+    if (m4_cmdline(cmd, sizeof cmd) != 0) return 2;
+    for (p = cmd; *p && argc < 4;) {           /* split on spaces */
+        while (*p == ' ') *p++ = 0;
+        if (*p) argv[argc++] = p;
+        while (*p && *p != ' ') p++;
+    }
+    if (argc != 4) return 2;
+    bench = strcmp(argv[1], "bench") == 0;
+    fd = m4_open(argv[2], 0);
+    if (fd < 0) return 2;
+    got = m4_read(fd, in_buf, sizeof in_buf);
+    m4_close(fd);
+    cur = (const uint8_t *)in_buf;
+    end = cur + got;
+    size = take_i64();
+    rc = sd_image_load(&img, take((uint32_t)size), (size_t)size);
+    if (rc != SD_OK) return 4;
+    sd_image_config(&img, &C);
+    C.policy = (int)take_i64();
+    C.model = (int)take_i64();
+    C.tick_rate = take_f64();
+    C.audio_rate = take_f64();
+    n = take_i64();
+    if (n < 1 || n > TICKS_MAX) return 2;
+    x = (const double *)take((uint32_t)(8 * n));
+    y = (const double *)take((uint32_t)(8 * n));
+    if (sd_renderer_init(&R, &img.table, &C) != SD_OK) return 3;
+    fd = m4_open(argv[3], 1);
+    if (fd < 0) return 2;
+    for (i = 0; i < n; i++) {
+        if (bench) {
+            m4_count_start();
+            sd_renderer_step(&R, x[i], y[i]);
+            counts[i] = m4_count_read();
+        } else {
+            sd_renderer_step(&R, x[i], y[i]);
+            m4_write(fd, R.out, sizeof R.out);
+            if (n_audio + R.n_audio > (int64_t)(sizeof audio / sizeof audio[0])) return 2;
+            memcpy(audio + n_audio, R.audio, (size_t)R.n_audio * sizeof(double));
+            n_audio += R.n_audio;
+        }
+    }
+    if (bench) {
+        m4_count_start();
+        counts[n] = m4_count_read();        /* the measurement's own cost */
+        m4_write(fd, counts, (uint32_t)(4 * (n + 1)));
+    } else {
+        int64_t counters[3];
+        m4_write(fd, &n_audio, 8);
+        m4_write(fd, audio, (uint32_t)(8 * n_audio));
+        counters[0] = R.clipped;
+        counters[1] = R.events_total;
+        counters[2] = R.events_dropped;
+        m4_write(fd, counters, sizeof counters);
+    }
+    m4_close(fd);
+    return 0;
+}

@@ -1,0 +1,60 @@
+"""The Cortex-M4F build (arm-none-eabi-gcc, newlib-nano libm) under QEMU (mps2-an386).
+
+`make -C runtime-c m4` builds a bare-metal harness that reads the shared vectors through Arm
+semihosting and plays them; the outputs are compared with the Python renderer by the derived
+bounds of runtime_vectors.derived_bounds (newlib's libm is not glibc's).
+"""
+import shutil
+
+import numpy as np
+import pytest
+
+from shapedisplay.runtime import renderer as R_
+
+from runtime_vectors import (CASES, build_m4, case_setup, derived_bounds, image_payload, m4_instructions,
+                             parse_outputs, run_m4)
+from test_c_runtime import py_render
+
+_MISSING = [t for t in ("arm-none-eabi-gcc", "qemu-system-arm", "make") if shutil.which(t) is None]
+pytestmark = pytest.mark.skipif(
+    bool(_MISSING) and shutil.which("apt-get") is None,
+    reason=f"no {_MISSING} and no apt-get to install them (scripts/install-system-deps.sh --with-toolchains)")
+
+
+@pytest.fixture(scope="module")
+def m4(tmp_path_factory):
+    assert not _MISSING, f"{_MISSING} missing: run scripts/install-system-deps.sh --with-toolchains"
+    return build_m4(tmp_path_factory.mktemp("m4"))
+
+
+@pytest.mark.parametrize("dtype, kind, policy, tick, audio, model", CASES)
+def test_m4_plays_the_shared_vectors(m4, tmp_path, dtype, kind, policy, tick, audio, model):
+    elf, _ = m4
+    table, r, x, y, img = case_setup(dtype, kind, policy, tick, audio, model, seconds=0.12)
+    po, pa, (pclip, pev) = py_render(r, x, y)
+    co, ca, (cclip, cev, cdrop) = parse_outputs(run_m4(elf, "vectors", image_payload(img, r, x, y), tmp_path),
+                                                len(x))
+    names = R_.OUT_NAMES
+    assert pev > 10 and cev == pev and cdrop == 0 and ca.size == pa.size
+    for name in ("t", "x", "y", "vx", "vy", "normal_force", "events", "state", "audio_samples", "pad_speed"):
+        np.testing.assert_array_equal(co[:, names.index(name)], po[:, names.index(name)], err_msg=name)
+    dt, d_drive, d_force = derived_bounds(r, po, 2.0 ** -53)
+    assert np.abs(co[:, names.index("drive")] - po[:, names.index("drive")]).max() <= d_drive
+    assert np.abs(ca - pa).max() <= d_drive
+    assert np.abs(co[:, names.index("friction_force")] - po[:, names.index("friction_force")]).max() <= d_force
+
+
+def test_m4_instruction_counts_are_measured(m4, tmp_path):
+    """The benchmark's counter: per-tick instruction counts under -icount are positive, repeatable,
+    and a tick with stick-slip events costs more than a tick stuck throughout."""
+    elf, (text, data, bss) = m4
+    assert 10_000 < text < 200_000
+    table, r, x, y, img = case_setup("uint16", "diagonal", "retrigger", 10_000.0, 48_000.0, "jump", seconds=0.03)
+    payload = image_payload(img, r, x, y)
+    a = m4_instructions(run_m4(elf, "bench", payload, tmp_path, icount=True))
+    b = m4_instructions(run_m4(elf, "bench", payload, tmp_path, icount=True))
+    np.testing.assert_array_equal(a, b)                  # deterministic: counts, not time
+    po, _, _ = py_render(r, x, y)
+    ev = po[:, R_.OUT_NAMES.index("events")] > 0
+    assert a.size == len(x) and (a > 50).all()
+    assert np.median(a[ev]) > np.median(a[~ev])
