@@ -112,3 +112,47 @@ def test_runtime_and_link_import_no_authoring_module(package):
         outside = sorted(d for d in _closure(g, mod) - RUNTIME_SIDE
                          if not d.startswith(RUNTIME_PACKAGES))
         assert not outside, f"{mod} imports authoring modules {outside}"
+
+
+def _docs():
+    root = PACKAGE.parent
+    return [root / "README.md", *sorted((root / "docs").glob("*.md")), *sorted(PACKAGE.rglob("README.md"))]
+
+
+def test_imports_named_in_the_docs_exist():
+    """Every ``from shapedisplay... import ...`` line in README.md and docs/ names something that exists."""
+    import importlib
+    import importlib.util
+    import re
+    lines = set()
+    for doc in _docs():
+        for m in re.finditer(r"^\s*from (shapedisplay[\w.]*) import ([\w, ]+?)\s*(?:#.*)?$", doc.read_text(), re.M):
+            lines.add((doc.name, m.group(1), tuple(n.strip() for n in m.group(2).split(","))))
+    assert lines
+    for doc, module, names in sorted(lines):
+        mod = importlib.import_module(module)
+        for name in names:
+            assert hasattr(mod, name) or importlib.util.find_spec(f"{module}.{name}"), \
+                f"{doc}: 'from {module} import {name}' names nothing"
+
+
+def test_dotted_names_and_paths_in_the_docs_exist():
+    """``shapedisplay.x.y`` names and ``shapedisplay/x/y.py`` paths written in the docs are still there."""
+    import importlib
+    import re
+    root = PACKAGE.parent
+    for doc in _docs():
+        text = doc.read_text()
+        for dotted in sorted(set(re.findall(r"\bshapedisplay(?:\.[A-Za-z_]\w*)+", text))):
+            parts = dotted.split(".")
+            for i in range(len(parts), 0, -1):          # the longest importable module, then attributes
+                try:
+                    obj = importlib.import_module(".".join(parts[:i]))
+                except ImportError:
+                    continue
+                for attr in parts[i:]:
+                    assert hasattr(obj, attr), f"{doc.name}: '{dotted}' does not exist"
+                    obj = getattr(obj, attr)
+                break
+        for path in sorted(set(re.findall(r"\bshapedisplay/[\w/]+\.\w+", text))):
+            assert (root / path).exists(), f"{doc.name}: path '{path}' does not exist"

@@ -1,4 +1,4 @@
-"""The C runtime (``runtime-c/``) as the emulator's rendering engine, through ctypes.
+"""The C runtime (``shapedisplay/runtime_c/``) as the emulator's rendering engine, through ctypes.
 
 ``shapedisplay device emulate --engine c`` compiles the C99 runtime with the
 system C compiler into a shared library (once per source version, in a cache
@@ -9,8 +9,9 @@ microcontroller would. The C runtime is bit-identical to the Python renderer
 (``tests/test_c_runtime.py``), so the samples are the same as with the
 default Python engine.
 
-Only for the emulator on a development machine: it needs the repository's
-``runtime-c/`` sources and a C compiler.
+It needs a C compiler; the C sources ship inside the package
+(``shapedisplay/runtime_c/``, which ``runtime-c/`` in a checkout links to), so
+it works from an installed wheel too.
 """
 from __future__ import annotations
 
