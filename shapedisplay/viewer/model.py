@@ -441,11 +441,12 @@ def load_model(path: str | os.PathLike, scene: str | os.PathLike | None = None, 
     dropped) go to :func:`shapedisplay.sources.load_source`.
     """
     path = Path(os.fspath(path))
-    suffix = path.suffix.lower()
+    from ..sources import load_source, source_kind
+    kind = source_kind(path)
     opts = {k: v for k, v in source_opts.items() if v is not None}
-    if suffix == ".npz":
-        if opts:
-            raise InputError(f"table '{path}': source options {sorted(opts)} apply to images and meshes only")
+    if kind in ("table", "scene") and opts:
+        raise InputError(f"{kind} '{path}': source options {sorted(opts)} apply to images and meshes only")
+    if kind == "table":
         from ..table import FrictionTable
         try:
             table = FrictionTable.load(path)
@@ -460,9 +461,7 @@ def load_model(path: str | os.PathLike, scene: str | os.PathLike | None = None, 
             _check_scene_fits(sc, table, path)
             widgets = widgets_of_scene(sc)
         return model_from_table(table, title=path.name, widgets=widgets)
-    if suffix == ".toml":
-        if opts:
-            raise InputError(f"scene '{path}': source options {sorted(opts)} apply to images and meshes only")
+    if kind == "scene":
         sc = _load_scene(path)
         from ..scene import scene_heightfield
         hf = scene_heightfield(sc)
@@ -476,7 +475,6 @@ def load_model(path: str | os.PathLike, scene: str | os.PathLike | None = None, 
         return model
     if scene:
         raise InputError(f"`--scene` draws widget outlines on a table; '{path}' is a source")
-    from ..sources import load_source
     return model_from_heightfield(load_source(path, **opts))
 
 
