@@ -156,3 +156,13 @@ def test_dotted_names_and_paths_in_the_docs_exist():
                 break
         for path in sorted(set(re.findall(r"\bshapedisplay/[\w/]+\.\w+", text))):
             assert (root / path).exists(), f"{doc.name}: path '{path}' does not exist"
+
+
+def test_c_runtime_checks_the_same_tick_rate_range():
+    """The C runtime cannot import the range; its own check must hold the numbers of devices.TICK_RATE_RANGE."""
+    import re
+    from shapedisplay.devices import TICK_RATE_RANGE
+    src = (PACKAGE / "runtime_c" / "sd_render.c").read_text()
+    found = re.findall(r"tick_rate\s*>=\s*([\d.eE+]+)f?\s*&&\s*\w+->tick_rate\s*<=\s*([\d.eE+]+)", src)
+    assert found, "sd_render.c: no tick-rate range check found"
+    assert {(float(lo), float(hi)) for lo, hi in found} == {TICK_RATE_RANGE}
