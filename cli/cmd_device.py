@@ -160,26 +160,11 @@ def run_emulate(args) -> int:
     from shapedisplay.atomic import write_text
     from shapedisplay.link.emulator import DeviceEmulator, EmulatorConfig
     from shapedisplay.errors import InputError
-    from shapedisplay.devices import TICK_RATE_RANGE
-    from shapedisplay.units import parse_byte_size, parse_quantity
-    mem = parse_byte_size(args.memory, "memory", lo=1024, hi=2**31)
-    tick = parse_quantity(args.tick_rate, "Hz", "tick_rate")
-    stream = parse_quantity(args.stream_rate, "Hz", "stream_rate")
-    lo, hi = TICK_RATE_RANGE
-    if not (lo <= stream <= tick <= hi) or tick % stream:
-        raise InputError(f"`tick_rate` must be a multiple of `stream_rate`, both within {lo:g} Hz..{hi / 1e3:g} kHz "
-                         f"(got {tick:g} Hz, {stream:g} Hz)")
-    if args.queue < 1 or args.baud < 0:
-        raise InputError(f"`--queue` must be >= 1 and `--baud` >= 0 (got {args.queue}, {args.baud})")
     if args.timeout is not None and args.timeout <= 0:
         raise InputError(f"`--timeout` must be > 0 seconds (got {args.timeout})")
-    if not args.no_renderer:
-        from shapedisplay.runtime.models import MODELS
-        if args.model not in MODELS:
-            from shapedisplay.errors import unknown_key
-            raise unknown_key("model", args.model, MODELS)
-    cfg = EmulatorConfig(max_table_bytes=mem, queue_capacity=args.queue, stream_rate_hz=int(stream),
-                         tick_rate_hz=int(tick), model=args.model, renderer=not args.no_renderer, baud=args.baud)
+    cfg = EmulatorConfig.from_text(memory=args.memory, tick_rate=args.tick_rate, stream_rate=args.stream_rate,
+                                   queue=args.queue, model=args.model, renderer=not args.no_renderer,
+                                   baud=args.baud)
     engine = None
     if args.engine == "c" and not args.no_renderer:
         from shapedisplay.link.c_engine import CEngine, library
