@@ -29,22 +29,11 @@ def run(args) -> int:
     from pathlib import Path
 
     from shapedisplay.errors import InputError
-    from shapedisplay.sources import IMAGE_SUFFIXES, MESH_SUFFIXES, image_options, resolution_option
+    from shapedisplay.sources import source_options
     from shapedisplay.studio.server import serve
 
     src = Path(args.source)
-    suffix = src.suffix.lower()
-    opts = {}
-    if suffix in IMAGE_SUFFIXES:
-        opts = image_options(src, args.size, args.height, args.resolution)
-    else:
-        given = [f"--{k}" for k in ("size", "height") if getattr(args, k) is not None]
-        if suffix not in MESH_SUFFIXES and args.resolution is not None:
-            given.append("--resolution")
-        if given:
-            raise InputError(f"`{given[0]}` applies to image (and --resolution to mesh) sources, not to '{src}'")
-        if args.resolution is not None:
-            opts["resolution"] = resolution_option(args.resolution)
+    opts = source_options(src, size=args.size, height=args.height, resolution=args.resolution)
     if args.model not in ("exact", "jump"):
         raise InputError(f"`--model` must be exact or jump for the page's C runtime (got {args.model!r})")
     serve(src, device=args.device, port=args.port, host=args.host, allow_remote=args.allow_remote,
