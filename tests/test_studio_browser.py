@@ -114,6 +114,28 @@ def _mouse_stroke(page, points, steps=40, pause_ms=12):
     page.mouse.up()
 
 
+#: JavaScript helpers: a recorded stroke's typed arrays as base64 (Playwright's JSON of long arrays is slow).
+PACK = """const b64 = (u8) => { let s = ''; for (let i = 0; i < u8.length; i += 32768)
+    s += String.fromCharCode.apply(null, u8.subarray(i, i + 32768)); return btoa(s); };
+const pack = (s) => { const o = {}; for (const k of ['t', 'x', 'y', 'event_time', 'event_amplitude', 'audio',
+    'normal_force', 'friction_force']) o[k] = {dtype: s[k] instanceof Float32Array ? 'f4' : 'f8',
+    data: b64(new Uint8Array(s[k].buffer, s[k].byteOffset, s[k].byteLength))}; return o; };
+"""
+
+
+def _arrays(packed: dict) -> dict:
+    import base64
+    out = {}
+    for k, v in packed.items():
+        if isinstance(v, dict) and "dtype" in v:
+            out[k] = np.frombuffer(base64.b64decode(v["data"]), "<" + v["dtype"]).astype(np.float64)
+        elif k == "wav":
+            out[k] = base64.b64decode(v)
+        else:
+            out[k] = v
+    return out
+
+
 def _assert_same_as_python(rec, table, tick_rate):
     t = np.asarray(rec["t"])
     assert np.array_equal(t, np.arange(t.size) / tick_rate)
@@ -138,18 +160,14 @@ def test_scripted_stroke_offline_and_live_match_the_python_renderer(page, tmp_pa
     _mouse_stroke(page, [(0.062, 0.010), (0.062, 0.080), (0.040, 0.125)])
     # the stroke played live by the AudioWorklet (C runtime in WebAssembly) ...
     page.wait_for_function("studio.lastStroke !== null", timeout=20000)
-    live = page.evaluate("""(() => { const s = studio.lastStroke; const a = (k) => Array.from(s[k]);
-        return {t: a('t'), x: a('x'), y: a('y'), event_time: a('event_time'), event_amplitude: a('event_amplitude'),
-                audio: a('audio'), normal_force: a('normal_force'), friction_force: a('friction_force'),
-                ticks: s.ticks, csv: studio.traceCSV()}; })()""")
+    live = _arrays(page.evaluate(PACK + """(() => { const s = studio.lastStroke;
+        return Object.assign(pack(s), {ticks: s.ticks, csv: studio.traceCSV(), wav: b64(new Uint8Array(studio.wav()))});
+        })()"""))
     assert live["ticks"] > 1000
     _assert_same_as_python(live, table, 10000.0)
     # ... and the recorded pointer stroke rendered through an OfflineAudioContext
-    off = page.evaluate("""(async () => { const p = studio.pointerTicks(); const s = await studio.renderOffline(p.x, p.y);
-        const a = (k) => Array.from(s[k]);
-        return {t: a('t'), x: a('x'), y: a('y'), event_time: a('event_time'), event_amplitude: a('event_amplitude'),
-                audio: a('audio'), normal_force: a('normal_force'), friction_force: a('friction_force'),
-                wall_ms: s.wall_ms, quanta: s.quanta}; })()""")
+    off = _arrays(page.evaluate(PACK + """(async () => { const p = studio.pointerTicks();
+        return pack(await studio.renderOffline(p.x, p.y)); })()"""))
     _assert_same_as_python(off, table, 10000.0)
     # the page's trace CSV replays with the CLI: same events, times within 1e-6 s, same drive
     csv = tmp_path / "stroke.csv"
@@ -169,7 +187,7 @@ def test_scripted_stroke_offline_and_live_match_the_python_renderer(page, tmp_pa
     # ... and the drive: the page's WAV download and the replay's WAV hold the same samples
     from shapedisplay.sinks import read_wav
     replay, rate = read_wav(tmp_path / "replay.wav")
-    (tmp_path / "page.wav").write_bytes(bytes(page.evaluate("Array.from(new Uint8Array(studio.wav()))")))
+    (tmp_path / "page.wav").write_bytes(live["wav"])
     mine, rate2 = read_wav(tmp_path / "page.wav")
     assert rate == rate2 == 48000 and mine.size == replay.size
     assert np.max(np.abs(mine - replay)) < 1e-6
@@ -225,3 +243,30 @@ def test_requests_without_token_or_from_another_host_are_refused(page):
     r = ctx.request.get(f"{base}/api/state?token={page.studio.token}",
                         headers={"Host": "rebind.example:" + base.rsplit(":", 1)[1]})
     assert r.status == 403
+
+
+def test_pointing_stick_mode_moves_the_cursor_at_alpha_f(page):
+    page.select_option("#mode", "stick")
+    try:
+        page.evaluate("studio.lastStroke = null")
+        if page.evaluate("studio.node === null"):
+            page.click("#feel")
+            page.wait_for_function("studio.node !== null && studio.ctx.state === 'running'", timeout=20000)
+        ax, ay = page.evaluate("studio.screenOf(0.020, 0.080)")
+        bx, _ = page.evaluate("studio.screenOf(0.030, 0.080)")          # drag 10 mm to the right: f = 0.5 N
+        page.mouse.move(ax, ay)
+        page.mouse.down()
+        page.mouse.move(bx, ay, steps=4)
+        page.wait_for_timeout(600)
+        page.mouse.up()
+        page.wait_for_function("studio.lastStroke !== null", timeout=20000)
+        s = _arrays(page.evaluate(PACK + "pack(studio.lastStroke)"))
+        drag_mm = page.evaluate("studio.lastPointer[studio.lastPointer.length - 2].x - studio.lastPointer[0].x") * 1e3
+        alpha = page.evaluate("studio.state.runtime.cursor_gain")                  # m/(N s)
+        v = np.diff(s["x"]) * 10000.0
+        expected = alpha * 0.05 * drag_mm                                         # 0.05 N per mm of drag
+        held = np.abs(v - expected) < 1e-9 * expected
+        assert abs(drag_mm - 10) < 0.2 and held.sum() > 2000     # held for most of the 0.6 s at v = alpha f
+        assert np.allclose(s["y"], s["y"][0])          # no sideways drag, no sideways motion
+    finally:
+        page.select_option("#mode", "direct")

@@ -217,3 +217,37 @@ def test_error_line_points_at_the_field(tmp_path, old, new, needle):
         compile_scene(p)
     line = error_line(text, str(exc.value))
     assert needle in text.splitlines()[line - 1]
+
+
+def test_a_file_the_scene_references_recompiles_it(tmp_path):
+    from PIL import Image
+    src = PHONE.parent
+    shutil.copy(src / "map.toml", tmp_path / "map.toml")
+    shutil.copy(src / "terrain.png", tmp_path / "terrain.png")
+    s = StudioProcess(tmp_path / "map.toml")
+    try:
+        st0 = s.wait_state(lambda st: st["table_generation"] is not None, timeout=60)
+        img = np.asarray(Image.open(tmp_path / "terrain.png"))
+        Image.fromarray((img // 2).astype(img.dtype)).save(tmp_path / "terrain.png")
+        st1 = s.wait_state(lambda st: st["table_generation"] > st0["table_generation"], timeout=60)
+        assert st1["checksum"] != st0["checksum"] and st1["error"] is None
+    finally:
+        s.stop()
+
+
+def test_snapshot_is_the_3d_preview_with_the_stroke(studio):
+    pytest.importorskip("pyvista")
+    n = 200
+    t = np.arange(n) / 1e4
+    stroke = {"t": t.tolist(), "x": np.full(n, 0.062).tolist(), "y": np.linspace(0.01, 0.03, n).tolist(),
+              "normal_force": np.ones(n).tolist(), "friction_force": np.full(n, 0.3).tolist(),
+              "state": [0] * n, "event_time": [0.005], "event_amplitude": [0.1]}
+    status, body = studio.get("/api/snapshot", method="POST", data=json.dumps({"stroke": stroke}).encode())
+    assert status == 200 and body[:8] == b"\x89PNG\r\n\x1a\n"
+    from io import BytesIO
+
+    from PIL import Image
+    img = np.asarray(Image.open(BytesIO(body)).convert("RGB"))
+    assert img.shape[0] > 100 and img.std() > 10        # a picture, not a blank frame
+    status, body = studio.get("/api/snapshot", method="POST", data=b"[1, 2]")
+    assert status == 400 and b"JSON object" in body
