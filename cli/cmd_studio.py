@@ -9,7 +9,7 @@ def register(sub) -> None:
                     "a top view of the table, the compile report, a scene editor and live stick-slip feel "
                     "(the C runtime as WebAssembly in the browser's audio thread). Saving the scene recompiles "
                     "and swaps the table without a reload. Prints the URL (with its access token).")
-    p.add_argument("source", help="scene (.toml), image (.png/.npy), mesh or table (.npz)")
+    p.add_argument("source", help="scene (.toml or .svg mockup), image (.png/.npy), mesh or table (.npz)")
     p.add_argument("--device", help="device profile: bundled name or TOML under the source's folder")
     p.add_argument("--port", type=int, default=8765, help="TCP port (default 8765; 0 = any free port)")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1, this computer only)")
@@ -26,16 +26,13 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from pathlib import Path
-
     from shapedisplay.errors import InputError
     from shapedisplay.sources import source_options
     from shapedisplay.studio.server import serve
 
-    src = Path(args.source)
-    opts = source_options(src, size=args.size, height=args.height, resolution=args.resolution)
+    opts = source_options(args.source, size=args.size, height=args.height, resolution=args.resolution)
     if args.model not in ("exact", "jump"):
         raise InputError(f"`--model` must be exact or jump for the page's C runtime (got {args.model!r})")
-    serve(src, device=args.device, port=args.port, host=args.host, allow_remote=args.allow_remote,
+    serve(args.source, device=args.device, port=args.port, host=args.host, allow_remote=args.allow_remote,
           open_browser=not args.no_browser, out_dir=args.out, source_options=opts, model=args.model)
     return 0

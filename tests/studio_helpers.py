@@ -27,7 +27,11 @@ class StudioProcess:
         self._url = threading.Event()
         self.url = None
         threading.Thread(target=self._read, daemon=True).start()
-        if not self._url.wait(timeout):
+        end = time.monotonic() + timeout
+        while not self._url.wait(0.1):
+            if self.proc.poll() is not None or time.monotonic() > end:
+                break
+        if self.url is None:
             self.stop()
             raise RuntimeError(f"studio printed no URL in {timeout} s: {self.lines} {self.proc.stderr.read()}")
         m = re.match(r"http://([^/]+)/\?token=(\S+)", self.url)

@@ -17,24 +17,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import FileFormatError, InputError, ShapeDisplayError
-from ..sources import IMAGE_SUFFIXES, MESH_SUFFIXES
+from ..sources import source_kind
 
-#: Source kinds by suffix.
-SCENE_SUFFIXES = (".toml",)
-TABLE_SUFFIXES = (".npz",)
 #: Largest scene text the page may save, bytes.
 MAX_SCENE_BYTES = 1 << 20
-
-
-def source_kind(path: Path) -> str:
-    """'scene', 'image', 'mesh' or 'table' from the suffix of ``path``."""
-    suffix = path.suffix.lower()
-    for kind, suffixes in (("scene", SCENE_SUFFIXES), ("image", IMAGE_SUFFIXES), ("mesh", MESH_SUFFIXES),
-                           ("table", TABLE_SUFFIXES)):
-        if suffix in suffixes:
-            return kind
-    raise InputError(f"studio source '{path}' must be a scene (.toml), an image ({', '.join(IMAGE_SUFFIXES)}), "
-                     f"a mesh ({', '.join(MESH_SUFFIXES)}) or a table (.npz) (got suffix {suffix!r})")
 
 
 def inside(path: Path, root: Path) -> bool:
@@ -74,7 +60,7 @@ class Session:
     Parameters
     ----------
     source : Path
-        Scene (.toml), image, mesh or table (.npz).
+        Scene (.toml or an .svg mockup), image, mesh or table (.npz).
     device : str or None
         Device profile (bundled name or a TOML under the source's folder);
         None keeps the scene's or the table's own.
@@ -185,13 +171,14 @@ class Session:
             table = FrictionTable.load(self.source)
             report = table.meta.get("report") or {}
             return table, report, (format_report(report) if report.get("grid") else "")
-        if self.kind == "scene":
+        if self.kind in ("scene", "svg"):
             from ..scene import compile_scene, format_widget_report
             try:
                 text = self.source.read_text(encoding="utf-8")
             except (OSError, UnicodeDecodeError) as exc:
                 raise FileFormatError(f"scene '{self.source}': unreadable ({exc})") from None
-            self._check_scene_reads(text)
+            if self.kind == "scene":
+                self._check_scene_reads(text)
             device = load_device(self.device) if self.device else None
             result = compile_scene(self.source, device=device)
             report_text = format_report(result.report) + "\n" + format_widget_report(result.report)
