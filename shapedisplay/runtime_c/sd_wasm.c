@@ -21,6 +21,10 @@
  *   sd_wasm_outputs(), sd_wasm_audio(), sd_wasm_audio_count()   last tick's outputs / samples
  *   sd_wasm_audio_cap()          most samples one tick writes (ceil(audio_rate / tick_rate) + 2)
  *   sd_wasm_counter(i)           0 clipped, 1 events, 2 events dropped, 3 position faults, 4 ticks
+ *   sd_wasm_tick_events()        stick-to-slip events of the last tick (those still in the event ring);
+ *   sd_wasm_event_times(), sd_wasm_event_amplitudes()   where their times (s) and amplitudes start
+ *   sd_wasm_sample(x, y)         bilinear value of every slot (SD_NSLOT doubles) at (x, y) m: a read-out
+ *                                with the renderer's own lookup
  *
  * Real-time rule: after load/configure nothing allocates or grows memory; a step is bounded work.
  */
@@ -34,6 +38,7 @@ static sd_image_t img, staged;
 static sd_renderer_t R;
 static sd_config_t cfg;
 static int loaded, ready;
+static double samples[SD_NSLOT];
 static uintptr_t act_lo, act_hi;          /* the active image's bytes */
 
 extern unsigned char __heap_base;
@@ -158,4 +163,30 @@ EXPORT(sd_wasm_counter) double sd_wasm_counter(int which)
     case 2: return (double)R.events_dropped;
     default: return 0.0;
     }
+}
+
+/* The last tick's new events are the newest entries of the renderer's event ring. */
+EXPORT(sd_wasm_tick_events) int32_t sd_wasm_tick_events(void)
+{
+    long n = ready ? (long)R.out[SD_O_NEV] : 0;
+    return (int32_t)(n < R.n_rec ? n : R.n_rec);
+}
+EXPORT(sd_wasm_event_times) uint32_t sd_wasm_event_times(void)
+{
+    return (uint32_t)(uintptr_t)(R.ev_t + (R.n_rec - sd_wasm_tick_events()));
+}
+EXPORT(sd_wasm_event_amplitudes) uint32_t sd_wasm_event_amplitudes(void)
+{
+    return (uint32_t)(uintptr_t)(R.ev_a + (R.n_rec - sd_wasm_tick_events()));
+}
+
+EXPORT(sd_wasm_sample) uint32_t sd_wasm_sample(double x, double y)
+{
+    int s;
+    if (!loaded) {
+        for (s = 0; s < SD_NSLOT; s++) samples[s] = 0.0;
+    } else {
+        sd_sample_slots(&img.table, x, y, samples);
+    }
+    return (uint32_t)(uintptr_t)samples;
 }

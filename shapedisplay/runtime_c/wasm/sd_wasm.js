@@ -8,6 +8,8 @@
 //   const drive = rt.step(x, y);       // one tick, cursor in metres
 //   rt.audio();                        // Float64Array view: the last tick's audio samples
 //   rt.outputs();                      // {t, x, y, vx, vy, normal_force, ...} of the last tick
+//   rt.tickEvents();                   // {t, a}: the last tick's stick-to-slip events (Float64Array views)
+//   rt.sample(x, y);                   // {normal_force, ...}: every stored channel at (x, y), same lookup
 //   const n = rt.run(xy, out);         // many ticks: xy = Float64Array [x0, y0, x1, y1, ...];
 //                                      // audio written to `out` (Float32Array or Float64Array of at
 //                                      // least ticks x audioCap() samples); returns the count written
@@ -18,6 +20,9 @@ export const MODELS = {jump: 0, exact: 1};
 export const POLICIES = {retrigger: 0, add: 1, max: 2};
 export const OUT_NAMES = ["t", "x", "y", "vx", "vy", "normal_force", "friction_force", "state", "lateral_x",
                           "lateral_y", "skin_stretch", "events", "drive", "audio_samples", "pad_speed"];
+// table channels in the runtime's slot order (SD_SLOT_*)
+export const SLOTS = ["normal_force", "friction_scale", "burst_gain", "grad_x", "grad_y", "lateral_x", "lateral_y",
+                      "skin_stretch", "breakaway_force", "kinetic_force"];
 // settings stored in the table image (sd_wasm_set / sd_wasm_param index)
 export const PARAMS = ["pad_mass_kg", "pad_stiffness_n_per_m", "pad_damping_ns_per_m", "burst_gain",
                        "max_stick_period_s", "mu_s", "mu_k", "slope_friction_gain", "skin_stretch_target_m",
@@ -96,6 +101,18 @@ export class SdRuntime {
     const v = this._f64(this.x.sd_wasm_outputs(), OUT_NAMES.length);
     const o = {};
     OUT_NAMES.forEach((n, i) => { o[n] = v[i]; });
+    return o;
+  }
+
+  tickEvents() {
+    const n = this.x.sd_wasm_tick_events();
+    return {t: this._f64(this.x.sd_wasm_event_times(), n), a: this._f64(this.x.sd_wasm_event_amplitudes(), n)};
+  }
+
+  sample(x, y) {
+    const v = this._f64(this.x.sd_wasm_sample(x, y), SLOTS.length);
+    const o = {};
+    SLOTS.forEach((n, i) => { o[n] = v[i]; });
     return o;
   }
 
