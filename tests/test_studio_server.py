@@ -85,7 +85,7 @@ def test_runtime_gets_the_tables_binary_image(studio):
     table = FrictionTable.from_bytes(studio.get("/api/table")[1])
     assert len(image) == layout["bytes"] and read_image(image).checksum() == table.checksum()
     assert sorted(c["name"] for c in layout["channels"]) == table.channels
-    assert layout["tick_rate"] == 10000.0 and layout["audio_rate"] == 48000.0 and layout["model"] == 1   # exact
+    assert layout["tick_rate"] == 10000.0 and layout["audio_rate"] == 48000.0 and layout["model"] == "exact"
 
 
 def test_wasm_module_has_no_imports(studio):

@@ -14,7 +14,8 @@ Security (the page can make a sound card drive a tactor, and it edits files):
 Routes (all under the token):
 ``GET /`` the page; ``GET /static/NAME`` its scripts; ``GET /api/state`` what
 the page shows (JSON); ``GET /api/table`` the current table (.npz bytes);
-``GET /api/runtime.wasm`` the C runtime as WebAssembly; ``GET /api/runtime``
+``GET /api/runtime.wasm`` the C runtime as WebAssembly (``/static/sd_wasm.js``
+its wrapper); ``GET /api/runtime``
 the current table's binary image for it (with a JSON head); ``GET /api/map.png?channel=NAME`` the top
 view; ``GET/PUT /api/scene`` the scene text; ``GET /api/export/FORMAT``;
 ``POST /api/snapshot`` the 3D preview; ``WS /ws`` a message per compile.
@@ -33,7 +34,8 @@ from ..errors import InputError, ShapeDisplayError
 
 WEB = Path(__file__).resolve().parent / "web"
 #: Files served under /static/ (nothing else from disk is ever served).
-STATIC = {"studio.js": "text/javascript", "worklet.js": "text/javascript", "studio.css": "text/css"}
+STATIC = {"studio.js": "text/javascript", "worklet.js": "text/javascript", "studio.css": "text/css",
+          "sd_wasm.js": "text/javascript"}
 #: Largest request body accepted (scene text, a recorded stroke for the snapshot), bytes.
 MAX_BODY = 64 << 20
 
@@ -181,7 +183,10 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
         name = request.path_params["name"]
         if name not in STATIC:
             return PlainTextResponse("not found", status_code=404)
-        return Response((WEB / name).read_bytes(), media_type=STATIC[name], headers={"Cache-Control": "no-store"})
+        from ..runtime.wasm import WRAPPER
+        path = WRAPPER if name == "sd_wasm.js" else WEB / name
+        body = path.read_text(encoding="utf-8").replace("{{TOKEN}}", token)   # module imports carry the token
+        return Response(body, media_type=STATIC[name], headers={"Cache-Control": "no-store"})
 
     async def state(request):
         return JSONResponse(studio.state())

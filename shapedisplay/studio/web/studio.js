@@ -1,7 +1,8 @@
-// The studio page. It draws the top view the server renders, reads values with the C runtime
-// (WebAssembly, a second instance on this thread), plays the table with the C runtime in an
-// AudioWorklet, edits the scene, charts and records strokes. No renderer is written here.
-"use strict";
+// The studio page (an ES module). It draws the top view the server renders, reads values with
+// the C runtime (WebAssembly through sd_wasm.js, a second instance on this thread), plays the
+// table with the C runtime in an AudioWorklet, edits the scene, charts and records strokes.
+// No renderer is written here.
+import {SdRuntime} from "/static/sd_wasm.js?token={{TOKEN}}";
 
 const token = document.body.dataset.token;
 const withToken = (p) => p + (p.includes("?") ? "&" : "?") + "token=" + encodeURIComponent(token);
@@ -28,7 +29,7 @@ async function loadModule() {
   if (!studio.module) {
     const bytes = await (await fetchOk("/api/runtime.wasm")).arrayBuffer();
     studio.module = await WebAssembly.compile(bytes);
-    studio.hover = (await WebAssembly.instantiate(studio.module, {})).exports;
+    studio.hover = SdRuntime.fromModule(studio.module);
   }
   return studio.module;
 }
@@ -42,20 +43,13 @@ async function fetchRuntime() {
 
 // Bind the table image to the read-out instance (the same lookup the renderer uses).
 function bindHover(layout, payload) {
-  const w = studio.hover;
-  const base = w.sdw_reserve(layout.bytes);
-  new Uint8Array(w.memory.buffer, base, layout.bytes).set(new Uint8Array(payload));
-  const rc = w.sdw_bind(base, layout.bytes);
-  if (rc !== 0) throw new Error(`the C runtime refused the table image (code ${rc})`);
+  studio.hover.loadTable(new Uint8Array(payload));
 }
 
 // Every stored channel at (x, y) metres, by the C runtime's bilinear lookup.
 studio.readout = function (x, y) {
-  const w = studio.hover, lay = studio.layout;
-  const p = w.sdw_sample(x, y);
-  const v = new Float64Array(w.memory.buffer, p, w.sdw_n_slots());
-  const out = {};
-  for (const c of lay.channels) out[c.name] = v[c.slot];
+  const all = studio.hover.sample(x, y), out = {};
+  for (const c of studio.layout.channels) out[c.name] = all[c.name];
   return out;
 };
 

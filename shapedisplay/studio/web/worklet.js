@@ -1,8 +1,8 @@
 // AudioWorklet of the studio: the C runtime (WebAssembly) plays the table in the audio thread.
 //
-// Every rendering step is the C renderer's (sd_renderer_step through sd_studio.c); this file
-// only moves the cursor to the tick times, queues the renderer's audio samples for the output,
-// and records the stroke. Real-time rules: no allocation per tick or per render quantum (all
+// Every rendering step is the C renderer's (sd_runtime.wasm through its wrapper sd_wasm.js);
+// this file only moves the cursor to the tick times, queues the renderer's audio samples for
+// the output, and records the stroke. Real-time rules: no allocation per tick or per render quantum (all
 // buffers are made when a table is bound); a message is posted ~30 times a second (meters)
 // and once at the end of a stroke (the recording).
 //
@@ -14,6 +14,8 @@
 // Scripted strokes ({type: "script", x: Float64Array, y: Float64Array}) give one position per
 // tick: the offline test and benchmark path (OfflineAudioContext).
 
+import {SdRuntime, OUT_NAMES} from "/static/sd_wasm.js?token={{TOKEN}}";
+
 const MAX_TICKS = 300000;          // one stroke recorded: 30 s at 10 kHz
 const MAX_EVENTS = 200000;
 const RING = 16384;                // audio samples queued for the output
@@ -24,7 +26,7 @@ class StudioRenderer extends AudioWorkletProcessor {
     const o = (options && options.processorOptions) || {};
     this.delay = o.delay !== undefined ? o.delay : 0.02;
     this.mode = "direct";
-    this.wasm = null;
+    this.rt = null;
     this.ready = false;
     this.points = [];
     this.touching = false;
@@ -37,7 +39,7 @@ class StudioRenderer extends AudioWorkletProcessor {
     this.port.onmessage = (e) => this.onMessage(e.data);
     // Offline renders hand everything over at construction: nothing waits on a message.
     if (o.module) {
-      this.wasm = new WebAssembly.Instance(o.module, {}).exports;
+      this.rt = SdRuntime.fromModule(o.module);
       if (o.layout) this.bind(o.layout, o.payload);
       if (o.script) this.script = {x: o.script.x, y: o.script.y, i: 0};
     }
@@ -45,10 +47,8 @@ class StudioRenderer extends AudioWorkletProcessor {
 
   onMessage(m) {
     if (m.type === "module") {
-      WebAssembly.instantiate(m.module, {}).then((inst) => {
-        this.wasm = inst.exports;
-        this.port.postMessage({type: "module-ready"});
-      });
+      this.rt = SdRuntime.fromModule(m.module);
+      this.port.postMessage({type: "module-ready"});
     } else if (m.type === "table") {
       this.bind(m.layout, m.payload);
     } else if (m.type === "cursor") {
@@ -61,29 +61,30 @@ class StudioRenderer extends AudioWorkletProcessor {
     }
   }
 
-  // Load a table image (shapedisplay.studio.wasm.table_payload) and start a renderer on it.
+  // Load a table image (shapedisplay.studio.wasm.table_payload) and (re)start the renderer on it.
   bind(layout, payload) {
-    const w = this.wasm;
-    const base = w.sdw_reserve(layout.bytes);
-    if (!base) {
-      this.port.postMessage({type: "table-ready", generation: layout.generation, rc: -100});
-      return;
+    let rc = 0;
+    try {
+      this.rt.loadTable(new Uint8Array(payload));
+      this.rt.configure({model: layout.model, policy: layout.policy, tickRate: layout.tick_rate,
+                         audioRate: layout.audio_rate});
+    } catch (err) {
+      rc = err.code || -1;
     }
-    new Uint8Array(w.memory.buffer, base, layout.bytes).set(new Uint8Array(payload));
-    const rc = w.sdw_load(base, layout.bytes, layout.tick_rate, layout.audio_rate, layout.policy, layout.model);
+    const w = this.rt.x;
+    this.w = w;
     const g = layout.grid;
     this.tickRate = layout.tick_rate;
     this.alpha = layout.cursor_gain;
     this.extent = [g.x0, g.y0, g.x0 + (g.cols - 1) * g.dx, g.y0 + (g.rows - 1) * g.dy];
-    const o = layout.out_names;
+    const o = OUT_NAMES;
     this.iT = o.indexOf("t"); this.iN = o.indexOf("normal_force"); this.iF = o.indexOf("friction_force");
     this.iState = o.indexOf("state"); this.iNev = o.indexOf("events"); this.iDrive = o.indexOf("drive");
     this.iNaudio = o.indexOf("audio_samples");
-    const buf = w.memory.buffer;
-    this.out = new Float64Array(buf, w.sdw_out(), w.sdw_n_out());
-    this.audio = new Float64Array(buf, w.sdw_audio(), 4096);
-    this.evT = new Float64Array(buf, w.sdw_event_times(), 4096);
-    this.evA = new Float64Array(buf, w.sdw_event_amplitudes(), 4096);
+    // views made once per table (loading may grow the memory); a tick reads through them
+    this.mem = new Float64Array(w.memory.buffer);
+    this.out = new Float64Array(w.memory.buffer, w.sd_wasm_outputs(), OUT_NAMES.length);
+    this.audioAt = w.sd_wasm_audio() >> 3;
     if (!this.rec) {
       this.rec = {
         t: new Float64Array(MAX_TICKS), x: new Float64Array(MAX_TICKS), y: new Float64Array(MAX_TICKS),
@@ -99,7 +100,7 @@ class StudioRenderer extends AudioWorkletProcessor {
   }
 
   startStroke(tInput, x, y) {
-    this.wasm.sdw_reset(0.0);
+    this.w.sd_wasm_reset(0.0);
     this.touching = true;
     this.k = 0;
     this.tStart = tInput;            // input time of tick 0
@@ -114,7 +115,7 @@ class StudioRenderer extends AudioWorkletProcessor {
     const n = r.ticks, ne = r.events, ns = r.samples;
     this.port.postMessage({
       type: "stroke", reason: reason, generation: this.generation, ticks: n, lost: r.lost,
-      tickRate: this.tickRate, clipped: this.wasm.sdw_clipped(),
+      tickRate: this.tickRate, clipped: this.w.sd_wasm_counter(0),
       t: r.t.slice(0, n), x: r.x.slice(0, n), y: r.y.slice(0, n), normal_force: r.n.slice(0, n),
       friction_force: r.f.slice(0, n), state: r.state.slice(0, n), drive: r.drive.slice(0, n),
       event_time: r.evT.slice(0, ne), event_amplitude: r.evA.slice(0, ne), audio: r.audio.slice(0, ns),
@@ -133,11 +134,11 @@ class StudioRenderer extends AudioWorkletProcessor {
   }
 
   tick(x, y) {
-    const w = this.wasm, r = this.rec, out = this.out;
-    w.sdw_step(x, y);
-    const nev = out[this.iNev], na = out[this.iNaudio];
+    const w = this.w, r = this.rec, out = this.out, mem = this.mem;
+    w.sd_wasm_step(x, y);
+    const na = out[this.iNaudio];
     for (let i = 0; i < na; i++) {
-      const s = this.audio[i];
+      const s = mem[this.audioAt + i];
       this.ring[(this.ringRead + this.ringCount) % RING] = s;
       this.ringCount++;
       if (r.samples < r.audio.length) r.audio[r.samples++] = s;
@@ -146,10 +147,11 @@ class StudioRenderer extends AudioWorkletProcessor {
       const j = r.ticks++;
       r.t[j] = out[this.iT]; r.x[j] = x; r.y[j] = y; r.n[j] = out[this.iN]; r.f[j] = out[this.iF];
       r.state[j] = out[this.iState]; r.drive[j] = out[this.iDrive];
+      const nev = w.sd_wasm_tick_events();
       if (nev > 0) {
-        const nrec = w.sdw_n_recent();
-        for (let e = nrec - nev; e < nrec; e++) {
-          if (r.events < MAX_EVENTS) { r.evT[r.events] = this.evT[e]; r.evA[r.events] = this.evA[e]; r.events++; }
+        const pt = w.sd_wasm_event_times() >> 3, pa = w.sd_wasm_event_amplitudes() >> 3;
+        for (let e = 0; e < nev; e++) {
+          if (r.events < MAX_EVENTS) { r.evT[r.events] = mem[pt + e]; r.evA[r.events] = mem[pa + e]; r.events++; }
         }
       }
     } else {
