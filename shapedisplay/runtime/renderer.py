@@ -95,7 +95,7 @@ _RING = 4096
 #: sha256 of pads.py + lookup.py + bursts.py, whose kernels :func:`online_step` compiles in.
 #: numba keys the on-disk cache of a function on its own file only: without this line a change
 #: to those files would leave a stale compiled ``online_step`` (tests check the value).
-KERNEL_SOURCES_SHA256 = "2db92a708417c879f0a0d5bfb8a0a3a0a4f8a95c94afa83233f739d7e1341ab8"
+KERNEL_SOURCES_SHA256 = "e0cbe2e68e4a9e1d5fc61e77894deb7e03371e09473c8e0318881e7f05c85ff7"
 
 
 @njit(cache=True)
