@@ -111,15 +111,12 @@ def _float(text, name):
 def build_options(args):
     """(MappingOptions, CompileOptions) from parsed arguments."""
     from shapedisplay.compile import CompileOptions
-    from shapedisplay.forces import EXPONENTS, MappingOptions
+    from shapedisplay.forces import MappingOptions
     from shapedisplay.units import parse_quantity
 
     def q(value, unit, name, bare_ok=False):
         return None if value is None else parse_quantity(value, unit, name, bare_ok=bare_ok)
 
-    perceptual = None
-    if args.perceptual is not None:
-        perceptual = args.perceptual if args.perceptual in EXPONENTS else _float(args.perceptual, "--perceptual")
     mapping = MappingOptions.parse(
         args.mapping,
         n_base=q(args.n_base, "N", "--n-base"),
@@ -127,7 +124,7 @@ def build_options(args):
         slope_friction_gain=q(args.slope_gain, "1", "--slope-gain", bare_ok=True),
         lateral_gain=q(args.lateral_gain, "N", "--lateral-gain"),
         skin_stretch=q(args.skin_stretch, "m", "--skin-stretch"),
-        perceptual_exponent=perceptual,
+        perceptual_exponent=args.perceptual,
     )
     gkw = {}
     if args.sigma is not None:

@@ -125,6 +125,7 @@ class CommandLine:
 
 #: Option destination -> the library parameter names it is passed as.
 PARAMETER_ALIASES = {
+    "perceptual": ("perceptual_exponent",),
     "weber": ("weber_fraction",),
 }
 

@@ -34,7 +34,7 @@ from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
 
-from .errors import InputError, unknown_key
+from .errors import InputError, did_you_mean, unknown_key
 from .heightfield import HeightField
 from .units import parse_quantity
 
@@ -92,10 +92,15 @@ class MappingOptions:
     perceptual_threshold: float = 0.0   # N
 
     def __post_init__(self):
-        if isinstance(self.perceptual_exponent, str):
-            if self.perceptual_exponent not in EXPONENTS:
-                raise unknown_key("perceptual exponent", self.perceptual_exponent, EXPONENTS)
-            object.__setattr__(self, "perceptual_exponent", EXPONENTS[self.perceptual_exponent])
+        if isinstance(self.perceptual_exponent, str):       # a dimension of EXPONENTS, or a number
+            b = self.perceptual_exponent.strip()
+            if b not in EXPONENTS:
+                try:
+                    float(b)
+                except ValueError:
+                    raise InputError(f"mapping `perceptual_exponent` must be a number > 0 or one of "
+                                     f"{', '.join(EXPONENTS)} (got {b!r}){did_you_mean(b, EXPONENTS)}") from None
+            object.__setattr__(self, "perceptual_exponent", EXPONENTS[b] if b in EXPONENTS else float(b))
         for name, unit in (("n_base", "N"), ("n_gain", "N/m"), ("slope_friction_gain", "1"),
                            ("lateral_gain", "N"), ("skin_stretch", "m"), ("perceptual_threshold", "N")):
             v = getattr(self, name)
