@@ -126,6 +126,9 @@ class CommandLine:
 #: Option destination -> the library parameter names it is passed as.
 PARAMETER_ALIASES = {
     "perceptual": ("perceptual_exponent",),
+    "tick_rate": ("tick_rate_hz",),
+    "stream_rate": ("stream_rate_hz",),
+    "queue": ("queue_capacity",),
     "weber": ("weber_fraction",),
 }
 

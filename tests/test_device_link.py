@@ -514,9 +514,9 @@ def test_emulator_config_from_text_checks_every_rule():
     cfg = EmulatorConfig.from_text(memory="64 KiB", tick_rate="20 kHz", stream_rate="2 kHz", queue=16)
     assert (cfg.max_table_bytes, cfg.tick_rate_hz, cfg.stream_rate_hz, cfg.samples_per_cursor) == (65536, 20000, 2000, 10)
     for kw, rule in (({"tick_rate": "10 kHz", "stream_rate": "3 kHz"}, "multiple"),
-                     ({"tick_rate": "1000.5 Hz", "stream_rate": "1000.5 Hz"}, "whole hertz"),
-                     ({"tick_rate": "400 kHz"}, "within 100 Hz..192 kHz"),
-                     ({"memory": "12 parsecs"}, "`memory`"), ({"queue": 0}, "`queue`"),
+                     ({"tick_rate": "1000.5 Hz", "stream_rate": "1000.5 Hz"}, "whole number of hertz"),
+                     ({"tick_rate": "400 kHz"}, r"`tick_rate_hz` must be an integer in 100\.\.192000"),
+                     ({"memory": "12 parsecs"}, "`memory`"), ({"queue": 0}, "`queue_capacity`"),
                      ({"model": "exactt"}, "did you mean 'exact'")):
         with pytest.raises(InputError, match=rule):
             EmulatorConfig.from_text(**kw)
