@@ -61,7 +61,7 @@ def main() -> int:
             page.wait_for_function("studio.node && studio.ctx.state === 'running'", timeout=20000)
 
             # 1. edit -> view and playing
-            view, playing, compile_ms = [], [], []
+            view, playing, compile_ms, message = [], [], [], []
             for i in range(REPEATS):
                 gen = page.evaluate("studio.tableGeneration")
                 text = good.replace("level = 3 ", f"level = {4 + i % 2} ")
@@ -74,11 +74,13 @@ def main() -> int:
                                        timeout=20000)
                 sw = page.evaluate("studio.swaps.find(s => s.generation === studio.tableGeneration)")
                 view.append(sw["t_view"] - t_write)
+                message.append(sw["t_message"] - t_write)
                 playing.append(sw["t_playing"] - t_write)
                 t0 = time.perf_counter()
                 compile_scene(scene)
                 compile_ms.append((time.perf_counter() - t0) * 1e3)
             print("edit saved -> new table, phone scene, ms over", REPEATS, "edits")
+            print(f"  page told (watch, compile, prepare) {stats(message)}")
             print(f"  view updated        {stats(view)}")
             print(f"  new table playing   {stats(playing)}   (target <= 250 ms)")
             print(f"  baseline: compile   {stats(compile_ms)}   "

@@ -139,6 +139,13 @@ def test_save_from_page_writes_the_scene_and_exports_go_to_the_output_folder(stu
     assert status == 200 and b"#define" in body and (out / "phone.h").read_bytes() == body
     status, body = studio.get("/api/export/table")
     assert status == 200 and (out / "phone.npz").is_file()
+    st = json.loads(studio.get("/api/state")[1])
+    assert {"table", "json", "c", "bin"} <= set(st["export_formats"])
+    for fmt in st["export_formats"]:                       # every format the library exports, as buttons
+        assert studio.get(f"/api/export/{fmt}")[0] == 200, fmt
+    from shapedisplay.runtime.image import read_image
+    assert read_image((out / "phone.bin").read_bytes()).checksum() == \
+        FrictionTable.load(out / "phone.npz").checksum()
     assert studio.get("/api/export/../../etc")[0] in (400, 404)
     assert studio.get("/api/export/nope")[0] == 400
     before = sorted(p.name for p in studio.folder.iterdir())

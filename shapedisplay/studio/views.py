@@ -31,17 +31,25 @@ def colour_map_png(table, channel: str) -> bytes:
     table.require(channel)
     values = table.dense(channel)
     lo, hi = channel_range(table, channel)
-    u = (values - lo) / (hi - lo) if hi > lo else np.zeros_like(values)
-    pos = np.clip(u, 0.0, 1.0) * (len(VIRIDIS) - 1)
-    i0 = np.minimum(np.floor(pos).astype(np.int64), len(VIRIDIS) - 2)
-    w = (pos - i0)[..., None]
-    rgb = VIRIDIS[i0] * (1.0 - w) + VIRIDIS[i0 + 1] * w
-    img = np.ascontiguousarray(np.round(rgb[::-1]).astype(np.uint8))      # y up: last row on top
+    u = (values - lo) * (1.0 / (hi - lo)) if hi > lo else np.zeros_like(values)
+    idx = np.clip(np.rint(u * 255.0), 0, 255).astype(np.uint8)[::-1]        # y up: last row on top
+    img = np.ascontiguousarray(_LUT[idx])
     if img.shape[0] == 1:
         img = np.repeat(img, ROWS_1D, axis=0)
     buf = io.BytesIO()
-    Image.fromarray(img, "RGB").save(buf, format="PNG")
+    Image.fromarray(img, "RGB").save(buf, format="PNG", compress_level=1)
     return buf.getvalue()
+
+
+def _lut() -> np.ndarray:
+    """256 x 3 uint8: :data:`VIRIDIS` interpolated linearly at 256 levels."""
+    pos = np.linspace(0.0, len(VIRIDIS) - 1, 256)
+    i0 = np.minimum(np.floor(pos).astype(np.int64), len(VIRIDIS) - 2)
+    w = (pos - i0)[:, None]
+    return np.round(VIRIDIS[i0] * (1.0 - w) + VIRIDIS[i0 + 1] * w).astype(np.uint8)
+
+
+_LUT = _lut()
 
 
 def snapshot_png(table, channel: str = "normal_force", stroke: dict | None = None,
