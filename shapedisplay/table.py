@@ -422,7 +422,7 @@ class FrictionTable:
             header = z.read_json("header", HEADER_MAX_BYTES)
             if not isinstance(header, dict):
                 raise TableError(f"{label}: header must be a JSON object (got {type(header).__name__})")
-            cap, dtypes = _array_caps(header, label)
+            cap, dtypes = array_caps(header, label)
             arrays, spent = {}, 0
             for name in sorted(z.entries):
                 if name == "header":
@@ -533,6 +533,10 @@ def _is_int(v) -> bool:
     return isinstance(v, int) and not isinstance(v, bool)
 
 
+def _is_dtype(v) -> bool:
+    return isinstance(v, str) and v in _DTYPES
+
+
 def _is_num(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
@@ -582,7 +586,7 @@ def stored_values_cap(grid: Grid) -> int:
     return min(MAX_CANVAS_SAMPLES, STORED_PER_CANVAS * grid.rows * grid.cols)
 
 
-def _array_caps(header: dict, label: str) -> tuple[int, dict]:
+def array_caps(header: dict, label: str) -> tuple[int, dict]:
     """Per-channel element cap and declared dtypes, from the header alone (before any array is read)."""
     try:
         if header.get("format") != FORMAT_NAME:
@@ -593,7 +597,7 @@ def _array_caps(header: dict, label: str) -> tuple[int, dict]:
         for n, c in channels.items():
             if n not in CHANNELS:
                 raise TableError(f"unknown channel '{_short(n)[1:-1]}'{did_you_mean(n, CHANNELS)}")
-            if not isinstance(c, dict) or c.get("dtype") not in _DTYPES:
+            if not isinstance(c, dict) or not _is_dtype(c.get("dtype")):
                 got = c.get("dtype") if isinstance(c, dict) else c
                 raise TableError(f"channel '{n}': dtype must be one of {list(_DTYPES)} (got {_short(got)})")
             dtypes[n] = c["dtype"]
@@ -630,7 +634,7 @@ def _parse_layout(header: dict, arrays: dict):
         c = _object(c, where)
         if sorted(c) != list(_CHANNEL_KEYS):
             raise TableError(f"header '{where}' must have exactly the keys {list(_CHANNEL_KEYS)} (got {sorted(c)})")
-        if c["dtype"] not in _DTYPES:
+        if not _is_dtype(c["dtype"]):
             raise TableError(f"channel '{n}': dtype must be one of {list(_DTYPES)} (got {_short(c['dtype'])})")
         if c["unit"] != CHANNELS[n][0]:
             raise TableError(f"header '{where}.unit' must be {CHANNELS[n][0]!r} (got {_short(c['unit'])})")
@@ -746,7 +750,7 @@ def _scene_schema(sc: dict) -> None:
             raise TableError(f"header '{where}.block' must be a block index (got {_short(t.get('block'))})")
         if not all(_is_int(p) and p >= 0 for p in states.values()):
             raise TableError(f"header '{where}.states' must map each state to a patch index (got {_short(states)})")
-        if t.get("state") not in states:
+        if not isinstance(t.get("state"), str) or t["state"] not in states:
             raise TableError(f"header '{where}.state' must be one of its states {sorted(states)} "
                              f"(got {_short(t.get('state'))})")
 

@@ -27,7 +27,8 @@ import numpy as np
 
 from ..atomic import write_bytes
 from ..errors import TableError
-from ..table import FrictionTable
+from ..container import parse_json
+from ..table import HEADER_MAX_BYTES, FrictionTable, array_caps
 
 #: Channel slots of the image, in order (part of the format; equal to the renderer's slots, which
 #: the C runtime's SD_SLOT_* enum mirrors -- a test checks all three agree). Kept here so reading an
@@ -196,13 +197,21 @@ def read_image(data: bytes, where: str = "table image") -> FrictionTable:
     mo, ml = h["meta_off"], h["meta_len"]
     if not (HEADER_SIZE <= mo and mo + ml <= len(data) - 4):
         raise TableError(f"{where}: meta section {mo}+{ml} lies outside the {len(data)}-byte image")
-    try:
-        header = json.loads(data[mo:mo + ml].decode("utf-8"))
-    except (UnicodeDecodeError, ValueError) as exc:
-        raise TableError(f"{where}: meta section is not JSON ({exc})") from None
+    if ml > HEADER_MAX_BYTES:
+        raise TableError(f"{where}: meta section of {ml} bytes exceeds the limit of {HEADER_MAX_BYTES}")
+    # the same bounded rules as a table file: JSON depth capped, NaN/Infinity refused, every header
+    # value checked by FrictionTable.from_header below
+    header = parse_json(data[mo:mo + ml], f"{where}, meta section")
     if not isinstance(header, dict) or not isinstance(header.get("channels"), dict):
         raise TableError(f"{where}: meta section lacks the table header")
     n_values = h["n_values"]
+    try:
+        cap, _ = array_caps(header, where)
+    except TableError:
+        cap = 0                      # from_header names the fault; no array is read beyond the frame
+    if not 0 <= n_values <= cap:
+        raise TableError(f"{where}: n_values is {n_values}; the header's grid allows 0..{cap}")
+    _check_binary_matches_header(h, header, where)
     arrays = {}
     for name, spec in header["channels"].items():
         if name not in SLOTS or not isinstance(spec, dict) or spec.get("dtype") not in _DTYPE_CODES:
@@ -217,6 +226,25 @@ def read_image(data: bytes, where: str = "table image") -> FrictionTable:
             raise TableError(f"{where}: channel {name!r} data {at}..{end} lies outside the image")
         arrays[name] = np.frombuffer(data, dt, n_values, at).astype(dt.newbyteorder("="))
     return FrictionTable.from_header(header, arrays, where)
+
+
+def _check_binary_matches_header(h: dict, header: dict, where: str) -> None:
+    """The binary fields the C runtime reads must say what the checked JSON header says."""
+    import math
+    g = header.get("grid") if isinstance(header.get("grid"), dict) else {}
+    pairs = [("rows", h["rows"], g.get("rows")), ("cols", h["cols"], g.get("cols")), ("dx", h["dx"], g.get("dx_m")),
+             ("dy", h["dy"], g.get("dy_m")), ("x0", h["x0"], g.get("x0_m")), ("y0", h["y0"], g.get("y0_m"))]
+    for name, spec in header["channels"].items():
+        if name in SLOTS and isinstance(spec, dict):
+            pairs += [(f"{name}_{k}", h[f"{name}_{k}"], spec.get(k)) for k in ("scale", "offset", "background")]
+    for name, binary, text in pairs:
+        if not (isinstance(text, (int, float)) and not isinstance(text, bool) and binary == text):
+            raise TableError(f"{where}: binary field {name} = {binary!r} differs from the header's {text!r}")
+    for i in range(N_PARAMS):
+        v = h[f"param_{i}"]
+        if not math.isfinite(v):
+            raise TableError(f"{where}: renderer setting {PARAMS[i] if i < len(PARAMS) else i} must be finite "
+                             f"(got {v!r})")
 
 
 def is_image(data: bytes) -> bool:

@@ -213,7 +213,7 @@ def parse_scene(data: dict, path: str = "<scene>", base_dir: Path | None = None,
         if "type" not in raw:
             raise ctx.error(where, f"widget[{i}].type", f"is required; one of {', '.join(sorted(WIDGET_TYPES))}")
         wtype = raw["type"]
-        if wtype not in WIDGET_TYPES:
+        if not isinstance(wtype, str) or wtype not in WIDGET_TYPES:
             hint = did_you_mean(str(wtype), WIDGET_TYPES)
             raise ctx.error(where, f"widget[{i}].type",
                             f"names an unknown widget type {wtype!r}{hint}; valid: {', '.join(sorted(WIDGET_TYPES))}")
