@@ -10,7 +10,9 @@
    wall time / quanta, as a fraction of the quantum's duration (2.67 ms).
    Baseline in the same run: the Python renderer (numba) on the same stroke.
 3. Cursor-to-sound latency as the browser reports it: baseLatency +
-   outputLatency of the live AudioContext, plus the studio's input delay.
+   outputLatency of the live AudioContext, plus the studio's input delay
+   (the cursor is rendered 1.5 pointer intervals behind the pointer, at
+   least 20 ms, so that every tick lies between two pointer events).
 
 Run: .venv/bin/python benchmarks/bench_studio.py  (needs chromium and playwright)
 """
@@ -114,7 +116,8 @@ def main() -> int:
             total = (lat["base"] + lat["output"]) * 1e3
             print(f"audio latency as the browser reports it: baseLatency {lat['base'] * 1e3:.1f} ms + outputLatency "
                   f"{lat['output'] * 1e3:.1f} ms = {total:.1f} ms at {lat['rate']:.0f} Hz; "
-                  f"plus the studio's 20 ms input delay and < 1 tick: cursor to sound {total + 20.1:.1f} ms")
+                  f"plus the studio's input delay (1.5 pointer intervals, at least 20 ms) and < 1 tick: "
+                  f"cursor to sound {total + 20.1:.1f} ms with a mouse reporting at 60 Hz or faster")
             browser.close()
     finally:
         scene.write_text(good)

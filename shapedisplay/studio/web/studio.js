@@ -267,7 +267,7 @@ async function startFeel() {
   $("feel").textContent = "Feel on";
   $("feel").disabled = true;
   studio.latency = {base: studio.ctx.baseLatency, output: studio.ctx.outputLatency || 0};
-  $("status").textContent = `audio ${rate} Hz · latency ${(1e3 * (studio.latency.base + studio.latency.output)).toFixed(1)} ms + 20 ms input delay`;
+  $("status").textContent = `audio ${rate} Hz · output latency ${(1e3 * (studio.latency.base + studio.latency.output)).toFixed(1)} ms`;
 }
 
 function onWorklet(e) {
@@ -282,16 +282,20 @@ function onWorklet(e) {
   }
 }
 
+// Audio-context time of a pointer event (timeStamp on the performance clock): the render clock
+// (currentTime, what the worklet is computing now), not the output clock, so that the worklet,
+// rendering `delay` behind currentTime, finds every tick between two pointer events.
 function ctxTime(ts) {
-  const ctx = studio.ctx;
-  const o = ctx.getOutputTimestamp ? ctx.getOutputTimestamp() : null;
-  if (o && o.performanceTime) return o.contextTime + (ts - o.performanceTime) / 1000;
-  return ctx.currentTime;
+  return studio.ctx.currentTime - (performance.now() - ts) / 1000;
 }
 
 // Pointer -> worklet. Direct mode: positions. Stick mode: drag displacement -> force.
 const STICK_N_PER_MM = 0.05;       // pointing-stick force per mm of drag on the screen
 let down = null, pressed = false;
+// The worklet renders the cursor this far behind the pointer so that every tick lies between
+// two pointer events: 1.5 pointer intervals (measured on the moves), 20 ms at least, 80 ms at most.
+let gapMs = 16, lastMove = null;
+function inputDelay() { return Math.min(Math.max(1.5 * gapMs, 20), 80) / 1000; }
 function pointer(kind, e) {
   const [x, y] = eventPos(e);
   if (kind === "down") pressed = true;
@@ -302,9 +306,9 @@ function pointer(kind, e) {
   if ($("mode").value === "stick") {
     if (kind === "down") down = {x, y};
     const fx = kind === "up" ? 0 : (x - down.x) * 1e3 * STICK_N_PER_MM, fy = kind === "up" ? 0 : (y - down.y) * 1e3 * STICK_N_PER_MM;
-    studio.node.port.postMessage({type: "cursor", kind, t, x: fx, y: fy, px: down.x, py: down.y});
+    studio.node.port.postMessage({type: "cursor", kind, t, x: fx, y: fy, px: down.x, py: down.y, delay: inputDelay()});
   } else {
-    studio.node.port.postMessage({type: "cursor", kind, t, x, y});
+    studio.node.port.postMessage({type: "cursor", kind, t, x, y, delay: inputDelay()});
   }
   if (kind === "up") down = null;
 }
@@ -478,7 +482,12 @@ function connect() {
 function init() {
   const wrap = $("map-wrap");
   wrap.addEventListener("pointerdown", (e) => { wrap.setPointerCapture(e.pointerId); studio.lastPointer = []; pointer("down", e); });
-  wrap.addEventListener("pointermove", (e) => { hover(e); if (pressed) pointer("move", e); });
+  wrap.addEventListener("pointermove", (e) => {
+    if (lastMove !== null && e.timeStamp > lastMove) gapMs += 0.1 * (Math.min(e.timeStamp - lastMove, 200) - gapMs);
+    lastMove = e.timeStamp;
+    hover(e);
+    if (pressed) pointer("move", e);
+  });
   wrap.addEventListener("pointerup", (e) => pointer("up", e));
   $("channel").addEventListener("change", () => showMap().then(drawOverlay));
   $("mode").addEventListener("change", () => studio.node && studio.node.port.postMessage({type: "mode", mode: $("mode").value}));

@@ -9,8 +9,9 @@
 // Cursor input (messages {type: "cursor", kind: "down" | "move" | "up", t, x, y}):
 //   direct mode: (x, y) is the cursor position in metres at audio-context time t;
 //   stick mode:  (x, y) is the pointing-stick force in newtons; v = alpha f moves the cursor.
-// The cursor is rendered `delay` seconds behind the input so that every tick falls between
-// two input points (linear interpolation); a stroke runs from "down" to "up".
+// The cursor is rendered `delay` seconds (sent with "down", from the pointer's event rate)
+// behind the input so that every tick falls between two input points (linear interpolation);
+// a stroke runs from "down" to "up".
 // Scripted strokes ({type: "script", x: Float64Array, y: Float64Array}) give one position per
 // tick: the offline test and benchmark path (OfflineAudioContext).
 
@@ -206,9 +207,9 @@ class StudioRenderer extends AudioWorkletProcessor {
     if (this.ready) {
       if (!this.touching && !this.script && this.points.length) {
         // a "down" that is due starts a stroke (its start position: the down point itself)
-        const now = currentTime - this.delay;
         while (this.points.length && this.points[0].kind !== "down") this.points.shift();
-        if (this.points.length && this.points[0].t <= now) {
+        const delay = this.points.length && this.points[0].delay !== undefined ? this.points[0].delay : this.delay;
+        if (this.points.length && this.points[0].t <= currentTime - delay) {
           const d = this.points[0];
           this.startStroke(d.t, this.mode === "stick" ? d.px : d.x, this.mode === "stick" ? d.py : d.y);
         }
