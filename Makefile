@@ -6,7 +6,7 @@ SD     := $(VENV)/bin/shapedisplay
 STAMP  := $(VENV)/.installed
 OUT    := out
 
-.PHONY: install test demo bench report clean
+.PHONY: install test demo bench report generate clean
 
 $(STAMP): pyproject.toml scripts/install-system-deps.sh
 	sh scripts/install-system-deps.sh --with-xvfb --with-studio --with-toolchains
@@ -41,6 +41,11 @@ report: $(STAMP)
 	@mkdir -p $(OUT)/report
 	$(SD) report accuracy -o $(OUT)/report
 	$(SD) report stability -o $(OUT)/report
+
+# Files derived from the runtime's model registry and layouts (dispatch.py, runtime_c/sd_layout.h,
+# KERNEL_SOURCES_SHA256 lines): run after changing a kernel or adding a model; tests check they are current.
+generate: $(STAMP)
+	$(PY) -m shapedisplay.runtime.codegen
 
 clean:
 	rm -rf $(OUT) build *.egg-info

@@ -67,7 +67,7 @@ def main() -> int:
         print(f"{name:8s} kernel @10 kHz, V=50 mm/s, N=2 N: {nn / dt / 1e6:7.1f} M ticks/s, "
               f"{rt:9.0f}x real time, {dt / base:6.1f}x baseline time{flag}")
     # the tick loop alone on preallocated buffers (what a host with its own buffers pays)
-    from shapedisplay.runtime import pads
+    from shapedisplay.runtime.dispatch import run_ticks
     dev = load_device(None)
     tt = np.arange(n) / rate
     ins = [np.full(n, v) for v in (0.05, 2.0, dev.friction.mu_s, dev.friction.mu_k, 1.0)]
@@ -75,7 +75,7 @@ def main() -> int:
     evs = [np.empty(n // 4 + 1024) for _ in range(2)]
     for name in ("jump", "exact"):
         m = get_model(name, dev)
-        dt = best_of(lambda: pads.run_ticks(m.model_id, m.new_state(), m.params, tt, *ins, *outs, *evs), 15)
+        dt = best_of(lambda: run_ticks(m.model_id, m.new_state()[0], m.params, tt, *ins, *outs, *evs), 15)
         print(f"{name:8s} tick loop only (preallocated buffers): {n / dt / 1e6:7.1f} M ticks/s, "
               f"{seconds / dt:9.0f}x real time, {dt / base:6.1f}x baseline time")
     # full offline render over a table (lookups + kernel + burst audio)

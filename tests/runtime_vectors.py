@@ -4,18 +4,16 @@ Every target plays the same binary table image with the same settings and
 stroke; the outputs are compared with the Python renderer. Input of
 ``sd_vectors image`` (and of the wasm and M4 harnesses): i64 image size, the
 image, zero padding to 8 bytes, i64 policy, i64 model, f64 tick rate, f64
-audio rate, i64 n, f64 x[n], f64 y[n]. Output: f64 out[n][15]
-(renderer.OUT_NAMES), i64 n_audio, f64 audio[n_audio], i64 clipped, events,
+audio rate, i64 n, f64 x[n], f64 y[n]. Output: sd_outputs_t out[n]
+(layouts.OUTPUTS records), i64 n_audio, f64 audio[n_audio], i64 clipped, events,
 events dropped.
 """
 import struct
 
 import numpy as np
 
-from shapedisplay.runtime import renderer as R_
 from shapedisplay.runtime.image import to_image
-
-MODELS = {"jump": 0, "exact": 1}
+from shapedisplay.runtime.layouts import OUTPUTS
 
 # (table dtype, stroke, policy, tick rate, audio rate, model): the cases every target runs
 CASES = [
@@ -31,14 +29,13 @@ def image_payload(image: bytes, r, x, y) -> bytes:
     y = np.asarray(y, "<f8")
     pad = b"\0" * (-len(image) % 8)
     return (struct.pack("<q", len(image)) + image + pad
-            + struct.pack("<qq", r._policy, MODELS[r.model.name]) + struct.pack("<dd", r.tick_rate, r.audio_rate)
+            + struct.pack("<qq", r.config["policy"], r.config["model"]) + struct.pack("<dd", r.tick_rate, r.audio_rate)
             + struct.pack("<q", x.size) + x.tobytes() + y.tobytes())
 
 
 def parse_outputs(raw: bytes, n: int):
-    nout = len(R_.OUT_NAMES)
-    outs = np.frombuffer(raw[:8 * n * nout], "<f8").reshape(n, nout)
-    pos = 8 * n * nout
+    pos = OUTPUTS.itemsize * n
+    outs = np.frombuffer(raw[:pos], OUTPUTS)
     (na,) = struct.unpack_from("<q", raw, pos)
     audio = np.frombuffer(raw[pos + 8:pos + 8 + 8 * na], "<f8")
     counters = struct.unpack_from("<qqq", raw, pos + 8 + 8 * na)
@@ -90,11 +87,11 @@ class WasmRunner:
         per_tick = int(np.ceil(r.audio_rate / r.tick_rate)) + 2
         xy = np.empty(2 * n, "<f8")
         xy[0::2], xy[1::2] = x, y
-        nout = len(R_.OUT_NAMES)
-        sizes = (16 * n, 8 * nout * n, 8 * per_tick * n)
+        sizes = (16 * n, OUTPUTS.itemsize * n, 8 * per_tick * n)
         rc = self.load(image)
         assert rc == 0, rc
-        rc = self.call("sd_wasm_configure", MODELS[r.model.name], r._policy, r.tick_rate, r.audio_rate)
+        rc = self.call("sd_wasm_configure", int(r.config["model"]), int(r.config["policy"]), r.tick_rate,
+                       r.audio_rate)
         assert rc == 0, rc
         assert self.call("sd_wasm_audio_cap") == per_tick
         p = self.call("sd_wasm_scratch", sum(sizes))
@@ -102,7 +99,7 @@ class WasmRunner:
         self.write(xy_p, xy.tobytes())
         na = self.call("sd_wasm_run", xy_p, n, out_p, audio_p, per_tick * n)
         assert na >= 0
-        outs = np.frombuffer(self.read(out_p, sizes[1]), "<f8").reshape(n, nout)
+        outs = np.frombuffer(self.read(out_p, sizes[1]), OUTPUTS)
         audio = np.frombuffer(self.read(audio_p, 8 * na), "<f8")
         return outs, audio, tuple(int(self.call("sd_wasm_counter", i)) for i in range(3))
 
@@ -112,12 +109,11 @@ def derived_bounds(r, outs, unit_roundoff: float, libm_ulps: float = 1.0):
     differ in libm (each result within ``libm_ulps`` ulp) and/or precision (``unit_roundoff`` u):
     ``(dt_event, d_drive, d_force)`` -- event-time, drive/audio-sample and friction-force bounds.
     The derivation is in runtime_c/README.md ("Tolerance"); ``outs`` are the reference per-tick
-    outputs (renderer.OUT_NAMES)."""
+    outputs (layouts.OUTPUTS records)."""
     u = unit_roundoff
-    names = R_.OUT_NAMES
-    F = np.abs(outs[:, names.index("friction_force")])
-    V = np.abs(outs[:, names.index("pad_speed")])
-    ev = outs[:, names.index("events")] > 0
+    F = np.abs(outs["friction_force"])
+    V = np.abs(outs["pad_speed"])
+    ev = outs["events"] > 0
     k = r.device.pad.stiffness
     x_max = F.max() / k                           # largest spring stretch seen, m
     v_min = V[ev].min() if ev.any() else 1.0      # slowest surface speed at an event, m/s

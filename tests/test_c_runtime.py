@@ -16,12 +16,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from shapedisplay.runtime import pads
-from shapedisplay.runtime.models import get_model, run_kernel
+from shapedisplay.runtime.layouts import GRID, OUTPUTS, RENDER_CONFIG, record
+from shapedisplay.runtime.models import MODEL_IDS, get_model, run_kernel
 from shapedisplay.devices import BurstParams, FrictionParams, PadParams, load_device
 
 ROOT = Path(__file__).resolve().parent.parent
-C_MODELS = {"jump": 0, "exact": 1}
 CDIR = ROOT / "shapedisplay" / "runtime_c"
 CFLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-pedantic", "-Werror", "-ffp-contract=off"]
 LIB = ("sd_pad.c", "sd_exact.c", "sd_render.c", "sd_image.c")      # the runtime library (no host tool)
@@ -53,13 +52,12 @@ def _run(exe, mode, payload: bytes, tmp_path) -> bytes:
 
 
 # ------------------------------------------------------------------ pad kernel vectors
-# Input:  f64 params[5] (m, k, c, B, max_stick_period), i64 model (0 jump, 1 exact), i64 n,
-#         f64 t[n], V[n], N[n], mus[n], muk[n], gain[n]
+# Input:  sd_pad_params_t (the bytes of the model's layouts.PAD_PARAMS record), i64 model id
+#         (SD_MODEL_*, = model.model_id), i64 n, f64 t[n], V[n], N[n], mus[n], muk[n], gain[n]
 # Output: f64 f[n], phase[n], x[n], i64 n_ev, f64 ev_t[n_ev], ev_a[n_ev]
 def pad_vectors(exe, tmp_path, model, t, V, N, mus, muk, gain):
-    P = model.params
-    payload = (np.array([P[pads.P_M], P[pads.P_K], P[pads.P_C], P[pads.P_B], P[pads.P_TMAX]], "<f8").tobytes()
-               + struct.pack("<qq", C_MODELS[model.name], t.size)
+    payload = (model.params.tobytes()
+               + struct.pack("<qq", model.model_id, t.size)
                + b"".join(np.asarray(a, "<f8").tobytes() for a in (t, V, N, mus, muk, gain)))
     raw = _run(exe, "pad", payload, tmp_path)
     n = t.size
@@ -144,12 +142,12 @@ def test_restick_closed_form_matches_python(sd_vectors, tmp_path):
 
 
 # ------------------------------------------------------------------ renderer vectors
-# Input:  f64 cfg[14] (m, k, c, B, max_stick, mu_s, mu_k, K_mu, skin_target, tick_rate, audio_rate,
-#         carrier, rise, decay), i64 policy, i64 model (0 jump, 1 exact); table: i64 rows, cols, f64 dx, dy, x0, y0, i64 n_blocks,
+# Input:  sd_config_t (the bytes of Renderer.config, a layouts.RENDER_CONFIG record); table:
+#         sd_grid_t (a layouts.GRID record), i64 n_blocks,
 #         i64 blocks[n_blocks][5], i64 n_values, per slot (renderer.SLOTS order): i64 dtype (-1 absent;
 #         0 u8, 1 u16, 2 f32, 3 f64) then f64 scale, offset, background and the codes;
 #         i64 n, f64 x[n], y[n].
-# Output: f64 out[n][15] (renderer.OUT_NAMES), i64 n_audio, f64 audio[n_audio], i64 clipped, events,
+# Output: sd_outputs_t out[n] (layouts.OUTPUTS records), i64 n_audio, f64 audio[n_audio], i64 clipped, events,
 #         events dropped.
 from shapedisplay.runtime import Renderer                      # noqa: E402
 from shapedisplay.runtime import renderer as R_                # noqa: E402
@@ -159,18 +157,12 @@ _DT = {"uint8": 0, "uint16": 1, "float32": 2, "float64": 3}
 
 
 def render_payload(r: Renderer, x, y) -> bytes:
-    P = r.model.params
-    cfg = r._cfg
-    b = r.device.burst
-    head = np.array([P[pads.P_M], P[pads.P_K], P[pads.P_C], P[pads.P_B], P[pads.P_TMAX],
-                     cfg[R_.CFG_MUS], cfg[R_.CFG_MUK], cfg[R_.CFG_KMU], cfg[R_.CFG_SST],
-                     r.tick_rate, r.audio_rate, b.carrier_hz, b.rise_s, b.decay_s], "<f8").tobytes()
-    head += struct.pack("<qq", r._policy, C_MODELS[r.model.name])
+    head = r.config.tobytes()
     t = r.table
     g = t.grid
     off = t.patch_offsets()
     blocks = np.array([[r0, c0, *t.patch_shapes[p], off[p]] for r0, c0, p in t.blocks], "<i8").reshape(-1, 5)
-    tab = struct.pack("<qq", g.rows, g.cols) + np.array([g.dx, g.dy, g.x0, g.y0], "<f8").tobytes()
+    tab = record(GRID, rows=g.rows, cols=g.cols, dx=g.dx, dy=g.dy, x0=g.x0, y0=g.y0).tobytes()
     tab += struct.pack("<q", len(blocks)) + blocks.tobytes() + struct.pack("<q", int(off[-1]))
     for name in R_.SLOTS:
         if name not in t.channels:
@@ -188,9 +180,8 @@ def render_payload(r: Renderer, x, y) -> bytes:
 def c_render(exe, tmp_path, r, x, y):
     raw = _run(exe, "render", render_payload(r, x, y), tmp_path)
     n = len(x)
-    nout = len(R_.OUT_NAMES)
-    outs = np.frombuffer(raw[:8 * n * nout], "<f8").reshape(n, nout)
-    pos = 8 * n * nout
+    pos = OUTPUTS.itemsize * n
+    outs = np.frombuffer(raw[:pos], OUTPUTS)
     (na,) = struct.unpack_from("<q", raw, pos)
     audio = np.frombuffer(raw[pos + 8:pos + 8 + 8 * na], "<f8")
     counters = struct.unpack_from("<qqq", raw, pos + 8 + 8 * na)
@@ -203,8 +194,15 @@ def py_render(r, x, y):
     for xi, yi in zip(x, y):
         r.step(float(xi), float(yi))
         outs.append(r.last.copy())
-        audio.append(r.audio_block[:int(r.last[R_.O_NAUDIO])].copy())
-    return np.array(outs), np.concatenate(audio), (r.clipped, r.event_count)
+        audio.append(r.audio_block[:int(r.last["audio_samples"])].copy())
+    return np.array(outs, dtype=OUTPUTS), np.concatenate(audio), (r.clipped, r.event_count)
+
+
+def assert_outputs_equal(c_outs, py_outs):
+    """Every per-tick output (an OUTPUTS field), bit for bit."""
+    assert c_outs.dtype == py_outs.dtype == OUTPUTS
+    for name in OUTPUTS.names:
+        np.testing.assert_array_equal(c_outs[name], py_outs[name], err_msg=name)
 
 
 def widget_table(dtype="uint16", kmu=0.4, sparse=True):
@@ -262,7 +260,7 @@ def test_renderer_bit_exact(sd_vectors, tmp_path, dtype, kind, policy, tick, aud
     co, ca, (cclip, cev, cdrop) = c_render(sd_vectors, tmp_path, r, x, y)
     assert pev > 20 and cev == pev                      # stick-slip happened, same event count
     assert cclip == pclip and cdrop == 0
-    np.testing.assert_array_equal(co, po)               # every per-tick output, bit for bit
+    assert_outputs_equal(co, po)               # every per-tick output, bit for bit
     np.testing.assert_array_equal(ca, pa)               # every audio sample, bit for bit
     assert np.count_nonzero(pa) > 0.2 * pa.size
 
@@ -279,7 +277,7 @@ def test_renderer_bit_exact_1d_published_tent(sd_vectors, tmp_path):
     po, pa, (pclip, pev) = py_render(r, x, np.zeros_like(x))
     co, ca, (cclip, cev, _) = c_render(sd_vectors, tmp_path, r, x, np.zeros_like(x))
     assert cev == pev > 100
-    np.testing.assert_array_equal(co, po)
+    assert_outputs_equal(co, po)
     np.testing.assert_array_equal(ca, pa)
 
 
@@ -312,21 +310,26 @@ def test_table_from_c_header_export(tmp_path, dtype, sparse, kmu):
     (na,) = struct.unpack_from("<q", raw, 8 * x.size)
     audio = np.frombuffer(raw[8 * x.size + 8:], "<f8")
     assert pev > 20 and na == pa.size
-    np.testing.assert_array_equal(drive, po[:, R_.O_DRIVE])
+    np.testing.assert_array_equal(drive, po["drive"])
     np.testing.assert_array_equal(audio, pa)
 
 
 def test_c_renderer_init_refuses_bad_parameters(sd_vectors, tmp_path):
-    """sd_renderer_init validates before binding: mu_k > mu_s, a 50 Hz tick, no normal force."""
+    """sd_renderer_init validates before binding: mu_k > mu_s, a 50 Hz tick, no pad mass, a model with no C tick."""
     table = widget_table("uint16", kmu=0.0)
     r = Renderer(table, model="jump", tick_rate=10_000.0)
     good = render_payload(r, [0.0, 1e-4], [0.0, 0.0])
-    cfg = np.frombuffer(good[:14 * 8], "<f8").copy()
-    for idx, value in ((6, 0.9), (9, 50.0), (0, 0.0)):       # mu_k, tick_rate, mass
+    size = RENDER_CONFIG.itemsize
+    cfg = np.frombuffer(good[:size], RENDER_CONFIG).copy()
+    for field, value in (("mu_k", 0.9), ("tick_rate", 50.0), (("pad", "mass"), 0.0),
+                         ("model", MODEL_IDS["tanh"])):      # tanh has no C tick
         bad = cfg.copy()
-        bad[idx] = value
+        if isinstance(field, tuple):
+            bad[field[0]][field[1]] = value
+        else:
+            bad[field] = value
         fin, fout = tmp_path / "bad.in", tmp_path / "bad.out"
-        fin.write_bytes(bad.tobytes() + good[14 * 8:])
+        fin.write_bytes(bad.tobytes() + good[size:])
         res = subprocess.run([str(sd_vectors), "render", str(fin), str(fout)], capture_output=True, text=True,
                              timeout=60)
         assert res.returncode == 3 and "sd_renderer_init failed (-3)" in res.stderr

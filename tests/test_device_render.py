@@ -114,4 +114,4 @@ def test_step_period_first_sample_is_tick_zero():
     buf = np.empty(10)
     assert step_period(r, None, 0.01, 0.0, 10, buf) == 1 and buf[0] == 0.0
     assert step_period(r, (0.01, 0.0), 0.011, 0.0, 10, buf) == 10
-    assert r.last[1] == 0.011       # O_X: the last tick sits exactly on the new sample
+    assert r.last["x"] == 0.011       # the last tick sits exactly on the new sample

@@ -16,7 +16,6 @@ import pytest
 
 from shapedisplay.exchange.widgetmap import toggle_states, widget_map
 from shapedisplay.export import c_header, export_c, export_json
-from shapedisplay.runtime import renderer as R_
 from shapedisplay.runtime.renderer import Renderer
 from shapedisplay.scene import compile_scene
 from shapedisplay.scene.compiler import select_state
@@ -98,7 +97,7 @@ def test_c_runtime_plays_both_toggle_states_from_the_header_alone(phone, phone_p
     audio_py = []
     for a, b in zip(x, y):
         r.step(float(a), float(b))
-        audio_py.append(r.audio_block[:int(r.last[R_.O_NAUDIO])].copy())
+        audio_py.append(r.audio_block[:int(r.last["audio_samples"])].copy())
     drive_c, audio_c = _play(exe, x, y, tmp_path, toggle, idx[state])
     assert r.event_count > 20
     np.testing.assert_array_equal(drive_c, drive_py)

@@ -9,8 +9,6 @@ import shutil
 import numpy as np
 import pytest
 
-from shapedisplay.runtime import renderer as R_
-
 from runtime_vectors import (CASES, build_m4, case_setup, derived_bounds, image_payload, m4_instructions,
                              parse_outputs, run_m4)
 from test_c_runtime import py_render
@@ -34,14 +32,13 @@ def test_m4_plays_the_shared_vectors(m4, tmp_path, dtype, kind, policy, tick, au
     po, pa, (pclip, pev) = py_render(r, x, y)
     co, ca, (cclip, cev, cdrop) = parse_outputs(run_m4(elf, "vectors", image_payload(img, r, x, y), tmp_path),
                                                 len(x))
-    names = R_.OUT_NAMES
     assert pev > 10 and cev == pev and cdrop == 0 and ca.size == pa.size
     for name in ("t", "x", "y", "vx", "vy", "normal_force", "events", "state", "audio_samples", "pad_speed"):
-        np.testing.assert_array_equal(co[:, names.index(name)], po[:, names.index(name)], err_msg=name)
+        np.testing.assert_array_equal(co[name], po[name], err_msg=name)
     dt, d_drive, d_force = derived_bounds(r, po, 2.0 ** -53)
-    assert np.abs(co[:, names.index("drive")] - po[:, names.index("drive")]).max() <= d_drive
+    assert np.abs(co["drive"] - po["drive"]).max() <= d_drive
     assert np.abs(ca - pa).max() <= d_drive
-    assert np.abs(co[:, names.index("friction_force")] - po[:, names.index("friction_force")]).max() <= d_force
+    assert np.abs(co["friction_force"] - po["friction_force"]).max() <= d_force
 
 
 def test_m4_instruction_counts_are_measured(m4, tmp_path):
@@ -55,6 +52,6 @@ def test_m4_instruction_counts_are_measured(m4, tmp_path):
     b = m4_instructions(run_m4(elf, "bench", payload, tmp_path, icount=True))
     np.testing.assert_array_equal(a, b)                  # deterministic: counts, not time
     po, _, _ = py_render(r, x, y)
-    ev = po[:, R_.OUT_NAMES.index("events")] > 0
+    ev = po["events"] > 0
     assert a.size == len(x) and (a > 50).all()
     assert np.median(a[ev]) > np.median(a[~ev])

@@ -12,7 +12,7 @@ from shapedisplay.errors import InputError, ModelError, TableError
 from shapedisplay.runtime.bursts import envelope, render_bursts
 from shapedisplay.runtime.cursor import CursorPath, parse_stroke
 from shapedisplay.runtime.models import simulate_pad
-from shapedisplay.runtime.renderer import O_F, O_LX, O_NAUDIO, Renderer
+from shapedisplay.runtime.renderer import Renderer
 from shapedisplay.table import FrictionTable, Grid, choose_quantization
 
 
@@ -34,9 +34,9 @@ def step_through(r, cp):
     F, LX, audio = [], [], []
     for x, y in zip(cp.x, cp.y):
         r.step(x, y)
-        F.append(r.last[O_F])
-        LX.append(r.last[O_LX])
-        audio.extend(r.audio_block[:int(r.last[O_NAUDIO])])
+        F.append(r.last["friction_force"])
+        LX.append(r.last["lateral_x"])
+        audio.extend(r.audio_block[:int(r.last["audio_samples"])])
     return np.array(F), np.array(LX), np.array(audio)
 
 
@@ -314,17 +314,17 @@ def test_online_step_allocates_nothing_per_tick_in_compiled_code():
     from shapedisplay.runtime.renderer import online_step
 
     @njit
-    def host_loop(model, W, blocks, data, ev, audio, xs, i0, i1):
+    def host_loop(rec, blocks, data, bg, ev, audio, xs, i0, i1):
         acc = 0.0
         for i in range(i0, i1):
-            acc += online_step(model, W, blocks, data, ev, audio, xs[i], 0.0)
+            acc += online_step(rec, blocks, data, bg, ev, audio, xs[i], 0.0)
         return acc
 
     r = Renderer(ramp_table(), device=quiet_device(), model="exact", tick_rate=10_000)
     from numba.core.runtime import _nrt_python      # counts of numba's allocator (NUMBA_NRT_STATS at run time)
     _nrt_python.memsys_enable_stats()
     xs = parse_stroke("0,0 <-> 60,0 @ 40 mm/s", 10_000).x
-    args = (r._model_id, r._W, r._blocks, r._data, r._ev, r._audio, xs)
+    args = (r.online_record, r._blocks, r._data, r._bg, r._ev, r._audio, xs)
     r.reset()
     host_loop(*args, 0, 10)                        # compile
     used = []
@@ -349,13 +349,21 @@ def test_online_step_equals_offline_for_the_other_models(model):
 
 
 def test_renderer_source_names_the_kernels_it_compiles_in():
-    """online_step is cached by numba keyed on renderer.py alone; renderer.py must change with its kernels."""
+    """online_step is cached by numba keyed on renderer.py alone; renderer.py must change with its kernels.
+
+    Every module whose cached kernels call into other files carries the sha256 of those files
+    (written by `make generate`); pads.py reaches online_step through dispatch.py.
+    """
     import hashlib
+    import importlib
     from pathlib import Path
 
-    from shapedisplay.runtime import renderer
+    from shapedisplay.runtime import codegen, renderer
     here = Path(renderer.__file__).parent
-    blob = b"".join((here / n).read_bytes() for n in ("pads.py", "lookup.py", "bursts.py"))
-    assert renderer.KERNEL_SOURCES_SHA256 == hashlib.sha256(blob).hexdigest(), (
-        "pads.py, lookup.py or bursts.py changed: set renderer.KERNEL_SOURCES_SHA256 to "
-        f"{hashlib.sha256(blob).hexdigest()!r} so that numba recompiles the cached online_step")
+    assert set(codegen.KERNEL_DEPENDENCIES["renderer.py"]) >= {"dispatch.py", "lookup.py", "bursts.py"}
+    assert codegen.KERNEL_DEPENDENCIES["dispatch.py"] == ("pads.py",)
+    for name, deps in codegen.KERNEL_DEPENDENCIES.items():
+        mod = importlib.import_module(f"shapedisplay.runtime.{name[:-3]}")
+        blob = b"".join((here / n).read_bytes() for n in deps)
+        assert mod.KERNEL_SOURCES_SHA256 == hashlib.sha256(blob).hexdigest(), (
+            f"{', '.join(deps)} changed: run `make generate` so that numba recompiles the cached kernels of {name}")

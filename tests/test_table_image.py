@@ -13,7 +13,7 @@ from shapedisplay.runtime import image as I
 from shapedisplay.table import FrictionTable, Grid, choose_quantization
 
 from runtime_vectors import CASES, case_setup, image_payload, parse_outputs
-from test_c_runtime import CDIR, CFLAGS, LIB, _cc, py_render, widget_table
+from test_c_runtime import CDIR, CFLAGS, LIB, _cc, assert_outputs_equal, py_render, widget_table
 
 
 def _reseal(buf: bytearray) -> bytes:
@@ -36,9 +36,11 @@ def test_image_slots_are_the_renderer_and_c_slots():
     import re
     from shapedisplay.runtime.renderer import SLOTS
     assert I.SLOTS == SLOTS
-    header = (CDIR / "sd_runtime.h").read_text()
+    header = (CDIR / "sd_layout.h").read_text()         # the C enums, generated from runtime.layouts
     enum = re.search(r"enum \{\s*(SD_SLOT_NORMAL_FORCE.*?)SD_NSLOT", header, re.S).group(1)
-    assert [e.strip() for e in enum.split(",") if e.strip()] == [f"SD_SLOT_{n.upper()}" for n in SLOTS]
+    entries = [e.split("=")[0].strip() for e in enum.split(",") if e.strip()]
+    assert entries == [f"SD_SLOT_{n.upper()}" for n in SLOTS]
+    assert [int(e.split("=")[1]) for e in enum.split(",") if e.strip()] == list(range(len(SLOTS)))
 
 
 def test_image_header_holds_the_renderer_settings():
@@ -122,7 +124,7 @@ def test_c_runtime_plays_the_image_bit_exact(sd_vectors_image, tmp_path, dtype, 
     assert res.returncode == 0, res.stderr
     co, ca, (cclip, cev, cdrop) = parse_outputs(fout.read_bytes(), len(x))
     assert pev > 20 and cev == pev and cclip == pclip and cdrop == 0
-    np.testing.assert_array_equal(co, po)
+    assert_outputs_equal(co, po)
     np.testing.assert_array_equal(ca, pa)
 
 

@@ -10,8 +10,8 @@ import subprocess
 import numpy as np
 import pytest
 
-from shapedisplay.runtime import renderer as R_
 from shapedisplay.runtime import wasm
+from shapedisplay.runtime.models import MODEL_IDS
 
 from runtime_vectors import CASES, WasmRunner, case_setup, derived_bounds
 from test_c_runtime import CDIR, py_render
@@ -48,14 +48,13 @@ def test_wasm_plays_the_shared_vectors(module_path, dtype, kind, policy, tick, a
     table, r, x, y, img = case_setup(dtype, kind, policy, tick, audio, model)
     po, pa, (pclip, pev) = py_render(r, x, y)
     co, ca, (cclip, cev, cdrop) = WasmRunner(module_path).play(img, r, x, y)
-    names = R_.OUT_NAMES
     assert pev > 20 and cev == pev and cdrop == 0 and ca.size == pa.size
     for name in ("t", "x", "y", "vx", "vy", "normal_force", "events", "state", "audio_samples", "pad_speed"):
-        np.testing.assert_array_equal(co[:, names.index(name)], po[:, names.index(name)], err_msg=name)
+        np.testing.assert_array_equal(co[name], po[name], err_msg=name)
     dt, d_drive, d_force = derived_bounds(r, po, 2.0 ** -53)
-    assert np.abs(co[:, names.index("drive")] - po[:, names.index("drive")]).max() <= d_drive
+    assert np.abs(co["drive"] - po["drive"]).max() <= d_drive
     assert np.abs(ca - pa).max() <= d_drive
-    assert np.abs(co[:, names.index("friction_force")] - po[:, names.index("friction_force")]).max() <= d_force
+    assert np.abs(co["friction_force"] - po["friction_force"]).max() <= d_force
     assert abs(cclip - pclip) <= np.count_nonzero(np.abs(np.abs(pa) - 1.0) <= d_drive)
 
 
@@ -66,9 +65,10 @@ def test_wasm_refuses_damaged_images_and_swaps_tables():
     assert w.load(img[:900] + bytes([img[900] ^ 4]) + img[901:]) == -13
     assert w.call("sd_wasm_step", 0.01, 0.0) == 0.0            # nothing loaded: silent, no trap
     assert w.load(img) == 0
-    assert w.call("sd_wasm_configure", 0, 0, 10_000.0, 48_000.0) == 0
-    assert w.call("sd_wasm_configure", 0, 0, 50.0, 48_000.0) == -3          # tick rate out of range
-    assert w.call("sd_wasm_configure", 0, 0, 10_000.0, 44_100.0) == 0
+    jump = MODEL_IDS["jump"]
+    assert w.call("sd_wasm_configure", jump, 0, 10_000.0, 48_000.0) == 0
+    assert w.call("sd_wasm_configure", jump, 0, 50.0, 48_000.0) == -3       # tick rate out of range
+    assert w.call("sd_wasm_configure", jump, 0, 10_000.0, 44_100.0) == 0
     assert w.load(img) == 0                                     # a swap keeps the configured rates
     assert w.load(b"SDTI" + img[4:-4] + b"\0\0\0\0") == -13     # a bad swap keeps the table playing
     drive = [w.call("sd_wasm_step", xi, 0.004) for xi in np.linspace(0.0, 0.05, 400)]

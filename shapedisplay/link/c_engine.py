@@ -26,27 +26,16 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..runtime.layouts import RENDER_CONFIG, ctypes_struct
 from .engine import RenderEngine
 
 #: The C runtime sources, shipped inside the package (``runtime-c/`` in a checkout links here).
 RUNTIME_C = Path(__file__).resolve().parent.parent / "runtime_c"
 SOURCES = ("sd_pad.c", "sd_exact.c", "sd_render.c", "sd_image.c")
 CFLAGS = ("-std=c99", "-O2", "-ffp-contract=off", "-fPIC", "-shared")
-_MODELS = {"jump": 0, "exact": 1}
-_POLICIES = {"retrigger": 0, "add": 1, "max": 2}
-
-
-class _PadParams(ctypes.Structure):
-    _fields_ = [(n, ctypes.c_double) for n in ("mass", "stiffness", "damping", "burst_gain", "max_stick_period",
-                                                "sig", "wn2", "disc", "wd", "tp", "e_tp")] + \
-               [("under", ctypes.c_int), ("prepared", ctypes.c_int)]
-
-
-class _Config(ctypes.Structure):
-    _fields_ = [("pad", _PadParams)] + \
-               [(n, ctypes.c_double) for n in ("mu_s", "mu_k", "k_mu", "skin_target", "tick_rate", "audio_rate",
-                                               "carrier_hz", "rise_s", "decay_s")] + \
-               [("policy", ctypes.c_int), ("model", ctypes.c_int)]
+#: Models with a C tick (``sd_model_tick``); ids are shared with the Python registry.
+C_MODELS = ("exact", "jump")
+_Config = ctypes_struct(RENDER_CONFIG)
 
 
 _LIB = None
@@ -102,8 +91,8 @@ class CRenderer:
     def __init__(self, table, model: str = "jump", tick_rate: float | None = None):
         from ..runtime import Renderer
         from ..runtime.image import to_image
-        if model not in _MODELS:
-            raise InputError(f"the C engine offers models {sorted(_MODELS)} (got {model!r})")
+        if model not in C_MODELS:
+            raise InputError(f"the C engine offers models {sorted(C_MODELS)} (got {model!r})")
         py = Renderer(table, model=model, tick_rate=tick_rate)
         self.device = py.device
         lib = library()
@@ -119,7 +108,7 @@ class CRenderer:
         cfg = _Config()
         lib.sd_image_config(self._image, ctypes.byref(cfg))
         cfg.tick_rate, cfg.audio_rate = py.tick_rate, py.audio_rate
-        cfg.policy, cfg.model = _POLICIES[py.burst_policy], _MODELS[model]
+        cfg.policy, cfg.model = int(py.config["policy"]), int(py.config["model"])     # numbered as in C
         self._cfg = cfg
         self._state = ctypes.create_string_buffer(lib.sd_renderer_size())
         # sd_image_t starts with its sd_table_t: the image object's address is the table's

@@ -227,7 +227,6 @@ def _run_pad(p, model_name, rate, duration, stribeck=False, substep_s=None):
     negative friction slope shows up as a growing oscillation that ends in
     stick-slip, and a positive one as a decaying perturbation.
     """
-    from ..runtime import pads
     from ..runtime.models import get_model, run_kernel
     from ..errors import InputError
     from ..devices import check_tick_rate
@@ -249,17 +248,17 @@ def _run_pad(p, model_name, rate, duration, stribeck=False, substep_s=None):
         state = model.new_state()
         mu = stribeck_mu(abs(p["V"]), p["N"], p["mu_s"], p["mu_k"], p["a"], p["b"]) if p["N"] > 0 else 0.0
         sgn = 1.0 if p["V"] >= 0 else -1.0
-        state[pads.S_PHASE] = 1.0
-        state[pads.S_X] = -sgn * mu * p["N"] / p["k"]
-        state[pads.S_V] = 0.01 * p["V"]
-        state[pads.S_S] = -sgn
-        state[pads.S_F] = -sgn * mu * p["N"]
+        state["phase"] = 1.0
+        state["x"] = -sgn * mu * p["N"] / p["k"]
+        state["v"] = 0.01 * p["V"]
+        state["s"] = -sgn
+        state["f"] = -sgn * mu * p["N"]
     else:
         V[0] = 0.0
     S, f, st, x, v, wf, wd, et, ea = run_kernel(model, t, V, p["N"] * ones, p["mu_s"] * ones, p["mu_k"] * ones,
                                                 ones, state=state)
-    return {"f": f, "x": x, "v": v, "state": st, "events": int(et.size), "blow": float(S[pads.S_BLOW]),
-            "blow_t": float(S[pads.S_BLOWT]), "ev_a": ea}
+    return {"f": f, "x": x, "v": v, "state": st, "events": int(et.size), "blow": float(S["diverged"]),
+            "blow_t": float(S["diverged_at"]), "ev_a": ea}
 
 
 def slip_energy_growth(p, r) -> float:

@@ -24,8 +24,10 @@ import numpy as np
 from numba import njit
 
 from ..errors import InputError, unknown_key
+from .layouts import BURST_POLICIES, Policy
 
-BURST_POLICIES = {"retrigger": 0, "add": 1, "max": 2}
+#: See shapedisplay.runtime.codegen: numba's cache does not notice changes to layouts.py (Policy).
+KERNEL_SOURCES_SHA256 = "d2d95fa93cc7c70a62ddb679f69f765fd66b4815edf8e82915c0b27c82800449"
 #: Most audio samples one offline render writes (1000 s at 48 kHz; 384 MB as float64).
 MAX_AUDIO_SAMPLES = 48_000_001
 
@@ -40,6 +42,7 @@ def audio_length(duration: float, rate: float) -> int:
 
 
 def policy_id(name: str) -> int:
+    """Number of burst policy ``name`` (:data:`~.layouts.BURST_POLICIES`, shared with C)."""
     if name not in BURST_POLICIES:
         raise unknown_key("burst policy", name, BURST_POLICIES)
     return BURST_POLICIES[name]
@@ -66,7 +69,7 @@ def burst_value(t, ev_t, ev_a, lo, hi, carrier, rise, decay, policy):
     if hi <= lo:
         return 0.0
     w = 2.0 * math.pi * carrier
-    if policy == 0:
+    if policy == Policy.RETRIGGER:
         tau = t - ev_t[hi - 1]
         if tau >= dur:
             return 0.0
@@ -78,7 +81,7 @@ def burst_value(t, ev_t, ev_a, lo, hi, carrier, rise, decay, policy):
         if tau >= dur or tau < 0.0:
             continue
         e = ev_a[i] * envelope(tau, rise, decay)
-        if policy == 1:
+        if policy == Policy.ADD:
             acc += e * math.sin(w * tau)
         elif e > best:
             best = e
@@ -110,7 +113,7 @@ def synth(ev_t, ev_a, n_ev, t_origin, rate, j0, j1, carrier, rise, decay, policy
         t = t_origin + j / rate
         while hi < n_ev and ev_t[hi] < t:
             hi += 1
-        if policy == 0:
+        if policy == Policy.RETRIGGER:
             # one burst at a time: the carrier advances by a rotation per sample
             # (re-anchored with sin/cos at each new burst and at each call)
             val = 0.0

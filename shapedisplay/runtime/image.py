@@ -29,12 +29,9 @@ from ..atomic import write_bytes
 from ..errors import TableError
 from ..container import parse_json
 from ..table import HEADER_MAX_BYTES, FrictionTable, array_caps
-
-#: Channel slots of the image, in order (part of the format; equal to the renderer's slots, which
-#: the C runtime's SD_SLOT_* enum mirrors -- a test checks all three agree). Kept here so reading an
-#: image does not import the renderer's compiled kernels.
-SLOTS = ("normal_force", "friction_scale", "burst_gain", "grad_x", "grad_y", "lateral_x", "lateral_y",
-         "skin_stretch", "breakaway_force", "kinetic_force")
+# the image's channel slots, in order, are the renderer's (C's SD_SLOT_*): part of the format, so
+# reordering them needs a new VERSION (layouts imports no compiled kernel)
+from .layouts import SLOTS
 
 MAGIC = b"SDTI"
 VERSION = 1

@@ -12,9 +12,7 @@ import numpy as np
 from numba import njit
 
 from ..table import FrictionTable
-
-#: Layout of the grid vector ``g``: rows, cols, dx, dy, x0, y0.
-G_ROWS, G_COLS, G_DX, G_DY, G_X0, G_Y0 = range(6)
+from .layouts import GRID, record
 
 
 def pack_channels(table: FrictionTable, names: list[str]):
@@ -25,10 +23,10 @@ def pack_channels(table: FrictionTable, names: list[str]):
     blocks : ndarray (n_blocks, 5), int64 — row0, col0, rows, cols, offset
     data : ndarray (len(names), n_values), float64 — decoded values, SI
     background : ndarray (len(names),), float64
-    grid : ndarray (6,), float64 — rows, cols, dx, dy, x0, y0
+    grid : :data:`~.layouts.GRID` record — rows, cols, dx, dy, x0, y0
     """
     g = table.grid
-    grid = np.array([g.rows, g.cols, g.dx, g.dy, g.x0, g.y0], dtype=np.float64)
+    grid = record(GRID, rows=g.rows, cols=g.cols, dx=g.dx, dy=g.dy, x0=g.x0, y0=g.y0)[0]
     if not names:
         return np.zeros((0, 5), np.int64), np.zeros((0, 1)), np.zeros(0), grid
     rows = []
@@ -77,10 +75,10 @@ def _axis_cell(p, origin, spacing, count):
 
 @njit(cache=True)
 def sample_all(blocks, data, bg, grid, x, y, out):
-    """Bilinear values of every packed channel at (x, y) metres into ``out[:n_channels]``."""
-    rows = int(grid[G_ROWS])
-    cols = int(grid[G_COLS])
-    c0, c1, tx = _axis_cell(x, grid[G_X0], grid[G_DX], cols)
+    """Bilinear values of every packed channel at (x, y) metres into ``out[:n_channels]`` (``grid``: a GRID record)."""
+    rows = grid.rows
+    cols = grid.cols
+    c0, c1, tx = _axis_cell(x, grid.x0, grid.dx, cols)
     nch = bg.shape[0]
     if rows == 1:
         i0 = cell_index(blocks, 0, c0)
@@ -88,7 +86,7 @@ def sample_all(blocks, data, bg, grid, x, y, out):
         for ch in range(nch):
             out[ch] = _value(data, bg, ch, i0) * (1 - tx) + _value(data, bg, ch, i1) * tx
         return
-    r0, r1, ty = _axis_cell(y, grid[G_Y0], grid[G_DY], rows)
+    r0, r1, ty = _axis_cell(y, grid.y0, grid.dy, rows)
     i00 = cell_index(blocks, r0, c0)
     i01 = cell_index(blocks, r0, c1)
     i10 = cell_index(blocks, r1, c0)

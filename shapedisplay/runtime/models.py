@@ -35,6 +35,7 @@ from ..devices import BurstParams, DeviceProfile, FrictionParams, PadParams, che
 from ..errors import InputError, ModelError, unknown_key
 from ..units import parse_quantity
 from . import pads
+from .layouts import PAD_PARAMS, PAD_STATE, record
 
 
 def _extra_q(device: DeviceProfile, section: str, key: str, unit: str, default: float, bare_ok=False) -> float:
@@ -47,12 +48,18 @@ def _extra_q(device: DeviceProfile, section: str, key: str, unit: str, default: 
 class PadModel:
     """Base class: validated parameters packed for the numba kernels.
 
-    Subclasses set ``name``, ``model_id``, ``needs`` (table channels the
-    model cannot run without) and may extend :meth:`pack`.
+    Subclasses set ``name``, ``kernel`` (their tick function in
+    :mod:`.pads`), ``needs`` (table channels the model cannot run without)
+    and may extend :meth:`pack`. The model id is the position in
+    :data:`MODELS` (shared with the C runtime's ``SD_MODEL_*``).
     """
 
     name = "base"
-    model_id = -1
+    #: The numba tick function (signature in :mod:`.pads`).
+    kernel = None
+    #: Stuck ticks run inline in the offline loop (a pad with ``stiffness``/``damping`` whose tick starts
+    #: with :func:`pads._stuck_whole_tick`): None, "with_work" or "without_work" (friction/damper work).
+    stick_fast_path: str | None = None
     needs: tuple = ()      # N comes from ``normal_force`` or, if not stored, the header's constant
     #: True if the pad mass/stiffness/damping of the device are used.
     uses_pad = True
@@ -67,19 +74,19 @@ class PadModel:
             raise InputError(f"model '{self.name}' takes no options (got {sorted(options)})")
         self.params = self.pack()
 
-    def pack(self) -> np.ndarray:
-        """Parameter vector for :func:`pads.model_tick` (float64, ``PARAM_SIZE``)."""
+    @property
+    def model_id(self) -> int:
+        """Position in :data:`MODELS` (the kernel number of :mod:`.dispatch` and of ``SD_MODEL_*`` in C)."""
+        return MODEL_IDS[self.name]
+
+    def pack(self) -> np.void:
+        """Parameters for the kernel: a :data:`~.layouts.PAD_PARAMS` record."""
         d = self.device
-        P = np.zeros(pads.PARAM_SIZE, dtype=np.float64)
-        P[pads.P_M] = d.pad.mass
-        P[pads.P_K] = d.pad.stiffness
-        P[pads.P_C] = d.pad.damping
-        P[pads.P_B] = d.burst.gain
-        P[pads.P_TMAX] = d.burst.max_stick_period_s
-        P[pads.P_HSUB] = 1.0
-        return P
+        return record(PAD_PARAMS, mass=d.pad.mass, stiffness=d.pad.stiffness, damping=d.pad.damping,
+                      burst_gain=d.burst.gain, max_stick_period=d.burst.max_stick_period_s, substep=1.0)[0]
 
     def new_state(self) -> np.ndarray:
+        """A fresh state: a one-element :data:`~.layouts.PAD_STATE` array."""
         return pads.new_state()
 
     def __repr__(self) -> str:
@@ -97,7 +104,8 @@ class ExactModel(PadModel):
     """
 
     name = "exact"
-    model_id = pads.MODEL_EXACT
+    kernel = pads.exact_tick
+    stick_fast_path = "with_work"
 
 
 class JumpModel(PadModel):
@@ -132,7 +140,8 @@ class JumpModel(PadModel):
     """
 
     name = "jump"
-    model_id = pads.MODEL_JUMP
+    kernel = pads.jump_tick
+    stick_fast_path = "without_work"
     #: Stated bound: relative period error <= BOUND_PER_R * r for r <= BOUND_R_MAX, zeta <= BOUND_ZETA_MAX.
     BOUND_PER_R = 0.02
     BOUND_R_MAX = 0.25
@@ -151,7 +160,7 @@ class KarnoppModel(PadModel):
     """
 
     name = "karnopp"
-    model_id = pads.MODEL_KARNOPP
+    kernel = pads.karnopp_tick
     uses_pad = False
 
     def pack(self) -> np.ndarray:
@@ -162,8 +171,8 @@ class KarnoppModel(PadModel):
             raise ModelError(f"karnopp `spring` must be > 0 (got {kk} N/m)")
         if not vt >= 0:
             raise ModelError(f"karnopp `velocity_threshold` must be >= 0 (got {vt} m/s)")
-        P[pads.P_KK] = kk
-        P[pads.P_VT] = vt
+        P["karnopp_spring"] = kk
+        P["karnopp_v_threshold"] = vt
         return P
 
 
@@ -193,7 +202,7 @@ class StribeckModel(PadModel):
     """
 
     name = "stribeck"
-    model_id = pads.MODEL_STRIBECK
+    kernel = pads.stribeck_tick
 
     def __init__(self, device=None, variant="stribeck", contactor_hz=None, contactor_amplitude_m=None,
                  substep_s=2e-6):
@@ -212,21 +221,21 @@ class StribeckModel(PadModel):
         d = self.device
         pre = self.variant == "premax"
         if pre:   # published pre-maximum variant; [stribeck] a, b describe the plain curve
-            P[pads.P_SA], P[pads.P_SB] = 86.0, 2.0
+            P["stribeck_a"], P["stribeck_b"] = 86.0, 2.0
         else:
-            P[pads.P_SA] = _extra_q(d, "stribeck", "a", "1", 55.0, True)
-            P[pads.P_SB] = _extra_q(d, "stribeck", "b", "1", 1.9, True)
-        P[pads.P_SP] = _extra_q(d, "stribeck", "p", "1", 400.0, True)
-        P[pads.P_SD] = _extra_q(d, "stribeck", "d", "1", 0.005, True)
-        P[pads.P_SVAR] = 1.0 if pre else 0.0
+            P["stribeck_a"] = _extra_q(d, "stribeck", "a", "1", 55.0, True)
+            P["stribeck_b"] = _extra_q(d, "stribeck", "b", "1", 1.9, True)
+        P["stribeck_p"] = _extra_q(d, "stribeck", "p", "1", 400.0, True)
+        P["stribeck_d"] = _extra_q(d, "stribeck", "d", "1", 0.005, True)
+        P["stribeck_variant"] = 1 if pre else 0
         hz = self._chz if self._chz is not None else _extra_q(d, "contactor", "frequency", "Hz", 0.0)
         amp = self._camp if self._camp is not None else _extra_q(d, "contactor", "amplitude", "m", 0.0)
         if not (hz >= 0 and amp >= 0 and math.isfinite(hz) and math.isfinite(amp)):
             raise InputError(f"contactor frequency and amplitude must be >= 0 (got {hz} Hz, {amp} m)")
-        P[pads.P_CA] = amp
-        P[pads.P_CW] = 2 * math.pi * hz
-        P[pads.P_HSUB] = self._hsub
-        self._check_resolvable(P[pads.P_SA], P[pads.P_SB])
+        P["contactor_amplitude"] = amp
+        P["contactor_omega"] = 2 * math.pi * hz
+        P["substep"] = self._hsub
+        self._check_resolvable(P["stribeck_a"], P["stribeck_b"])
         return P
 
     def _check_resolvable(self, a: float, b: float) -> None:
@@ -273,7 +282,7 @@ class TanhModel(PadModel):
     """
 
     name = "tanh"
-    model_id = pads.MODEL_TANH
+    kernel = pads.tanh_tick
 
     def __init__(self, device=None, eps_m_s=1e-4, substep_s=1e-6):
         for name, val in (("eps_m_s", eps_m_s), ("substep_s", substep_s)):
@@ -285,8 +294,8 @@ class TanhModel(PadModel):
 
     def pack(self) -> np.ndarray:
         P = super().pack()
-        P[pads.P_EPS] = self._eps
-        P[pads.P_HSUB] = self._hsub
+        P["tanh_eps"] = self._eps
+        P["substep"] = self._hsub
         return P
 
 
@@ -294,17 +303,18 @@ class EulerModel(PadModel):
     """Forward Euler, one step per tick. Diverges on the Konyo pad unless h < 2 zeta/omega_n (~5 us)."""
 
     name = "euler"
-    model_id = pads.MODEL_EULER
+    kernel = pads.euler_tick
 
 
 class Rk4Model(PadModel):
     """Classical RK4, one step per tick. Diverges on the Konyo pad unless h < 2.8/omega_n (~63 us)."""
 
     name = "rk4"
-    model_id = pads.MODEL_RK4
+    kernel = pads.rk4_tick
 
 
-#: Registry: model name -> class. A new model is one class plus one line here.
+#: Registry: model name -> class. A new model is one class plus one line here (append: the
+#: position is the model id, shared with C); then ``make generate`` (see :mod:`shapedisplay.runtime`).
 MODELS: dict[str, type[PadModel]] = {
     "exact": ExactModel,
     "jump": JumpModel,
@@ -314,10 +324,22 @@ MODELS: dict[str, type[PadModel]] = {
     "rk4": Rk4Model,
     "tanh": TanhModel,
 }
+#: Model ids: position in :data:`MODELS`.
+MODEL_IDS = {name: i for i, name in enumerate(MODELS)}
+
+
+def registry_entries() -> tuple:
+    """``(name, kernel function name, stick fast path)`` per model in id order: what :mod:`.dispatch` is generated from."""
+    return tuple((name, cls.kernel.__name__, cls.stick_fast_path) for name, cls in MODELS.items())
+
 
 
 def get_model(model, device: DeviceProfile | None = None, **options) -> PadModel:
     """Instantiate ``model`` (a name, a :class:`PadModel` subclass or instance)."""
+    from . import dispatch      # generated from MODELS (imported here so `make generate` never needs it)
+    if dispatch.REGISTRY != registry_entries():
+        raise ModelError("shapedisplay/runtime/dispatch.py was generated from another model registry than "
+                         "runtime.models.MODELS; regenerate it with `make generate`")
     if isinstance(model, PadModel):
         return model
     if isinstance(model, type) and issubclass(model, PadModel):
@@ -372,29 +394,32 @@ class PadResult:
 def run_kernel(model: PadModel, t, V, N, mus, muk, gain, state=None):
     """Run ``model`` over per-tick inputs (arrays of shape (n,)); grow the event buffer as needed.
 
-    Returns ``(state, friction, phase, x, v, wf, wd, ev_t, ev_a)``. The six
+    ``state`` (optional) is the initial :data:`~.layouts.PAD_STATE` (record or one-element array).
+    Returns ``(state, friction, phase, x, v, wf, wd, ev_t, ev_a)``, ``state`` the final record. The six
     per-tick arrays are the rows of one ``(6, n)`` block (one large
     allocation faults its pages in far faster than six separate ones; with
     the tick loop at ~100 M ticks/s, fresh memory is most of the cost).
     """
+    from . import dispatch
     n = t.shape[0]
     cap = n // 8 + 1024          # grown and re-run if a path has more events
-    S0 = model.new_state() if state is None else state
+    S0 = model.new_state() if state is None else np.array(state, dtype=PAD_STATE).reshape(1)
     block = np.empty((6, n))
     out_f, out_s, out_x, out_v, out_wf, out_wd = block
     while True:
         S = S0.copy()
         ev_t = np.empty(cap)
         ev_a = np.empty(cap)
-        n_ev = pads.run_ticks(model.model_id, S, model.params, t, V, N, mus, muk, gain,
-                              out_f, out_s, out_x, out_v, out_wf, out_wd, ev_t, ev_a)
+        n_ev = dispatch.run_ticks(model.model_id, S[0], model.params, t, V, N, mus, muk, gain,
+                                  out_f, out_s, out_x, out_v, out_wf, out_wd, ev_t, ev_a)
         if n_ev <= cap:
             break
         cap = n_ev + 64
-    if S[pads.S_TRUNC] > 0:
+    st = S[0]
+    if st["truncated"] > 0:
         raise ModelError(f"model '{model.name}' exceeded {pads.MAX_EVENTS_PER_TICK} phase changes in one tick "
-                         f"({int(S[pads.S_TRUNC])} ticks); inputs are outside the model's range")
-    return S, out_f, out_s, out_x, out_v, out_wf, out_wd, ev_t[:n_ev].copy(), ev_a[:n_ev].copy()
+                         f"({int(st['truncated'])} ticks); inputs are outside the model's range")
+    return st, out_f, out_s, out_x, out_v, out_wf, out_wd, ev_t[:n_ev].copy(), ev_a[:n_ev].copy()
 
 
 def _as_ticks(value, n, field):
@@ -463,8 +488,8 @@ def simulate_pad(model="exact", V=0.05, N=2.0, pad: PadParams | None = None,
     S, f, st, x, v, wf, wd, et, ea = run_kernel(m, t, Va, Na, dev.friction.mu_s * ones,
                                              dev.friction.mu_k * ones, ones)
     div = None
-    if S[pads.S_BLOW] != 0:
-        div = float(S[pads.S_BLOWT])
+    if S["diverged"] != 0:
+        div = float(S["diverged_at"])
         if on_divergence == "raise":
             raise ModelError(divergence_message(m, rate, div))
     return PadResult(t, x, v, f, st.astype(np.int8), wf, wd, et, ea, m.name, rate, div)

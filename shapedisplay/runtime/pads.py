@@ -1,16 +1,17 @@
 """Per-tick numba kernels of the fingerpad / friction models.
 
 Functions for advancing a 1-DOF fingerpad pressed on a moving surface by one
-renderer tick, in float64 SI units (m, s, N, kg). Every model shares one
-calling convention so the offline fast path and the online ``step()`` run
-the same code:
+renderer tick, in float64 SI units (m, s, N, kg). Every model's kernel has
+one signature, so the offline fast path and the online ``step()`` run the
+same code (both through :mod:`.dispatch`, generated from the model
+registry):
 
-``n_ev = model_tick(model_id, S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev)``
+``n_ev = NAME_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev)``
 
-``S`` : ndarray (STATE_SIZE,), float64
-    The model state, updated in place (layout ``S_*`` below).
-``P`` : ndarray (PARAM_SIZE,), float64
-    Parameters (layout ``P_*`` below), packed by :mod:`.models`.
+``st`` : :data:`~.layouts.PAD_STATE` record
+    The model state, updated in place (``st.x``, ``st.phase``, ...).
+``prm`` : :data:`~.layouts.PAD_PARAMS` record
+    Parameters, packed by the model class in :mod:`.models`.
 ``t0, h`` : float
     Start time of the tick and its length, s.
 ``V`` : float
@@ -55,19 +56,9 @@ import math
 import numpy as np
 from numba import njit
 
-# ----------------------------------------------------------------- layouts
-S_PHASE, S_X, S_V, S_S, S_F, S_AGE, S_NCAP, S_WF, S_WD, S_TSLIP, S_XR, S_BLOW, S_BLOWT, \
-    S_TRUNC, S_NEV, S_VR = range(16)
-STATE_SIZE = 16
+from .layouts import PAD_STATE, record
 
-P_M, P_K, P_C, P_B, P_TMAX, P_KK, P_VT, P_SA, P_SB, P_SP, P_SD, P_SVAR, P_CA, P_CW, P_HSUB = range(15)
-PARAM_SIZE = 16
-
-MODEL_EXACT, MODEL_JUMP, MODEL_KARNOPP, MODEL_STRIBECK, MODEL_EULER, MODEL_RK4 = range(6)
-MODEL_TANH = 6
-#: Regularisation width of the ``tanh`` model (breakaway slip speed, m/s), in the spare parameter slot.
-P_EPS = 15
-
+# ----------------------------------------------------------------- state
 #: Safety cap on phase changes inside one tick (never reached by physical inputs).
 MAX_EVENTS_PER_TICK = 200_000
 _ADMIT = 1.0 - 1e-9      # re-stick admissible if |f| <= _ADMIT * mu_s N
@@ -76,11 +67,8 @@ _TWO_PI = 2.0 * math.pi
 
 
 def new_state() -> np.ndarray:
-    """A fresh state: stuck, spring relaxed, no normal-force cap."""
-    S = np.zeros(STATE_SIZE, dtype=np.float64)
-    S[S_NCAP] = np.inf
-    S[S_S] = 1.0
-    return S
+    """A fresh state (one-element :data:`~.layouts.PAD_STATE` array): stuck, spring relaxed, no normal-force cap."""
+    return record(PAD_STATE, s=1.0, ncap=np.inf)
 
 
 # ================================================================ oscillator
@@ -318,7 +306,7 @@ def _sgn(x):
 
 
 @njit(cache=True)
-def _stuck_whole_tick(S, P, h, V, N, mus, work):
+def _stuck_whole_tick(st, prm, h, V, N, mus, work):
     """Fast path shared by the exact and jump ticks: True if the pad stays stuck for the whole tick.
 
     The stick force is linear in time, so both ends inside the static limit
@@ -326,22 +314,22 @@ def _stuck_whole_tick(S, P, h, V, N, mus, work):
     friction and damper work of the tick if ``work``). Off while a maximum
     stick period is set.
     """
-    if S[S_PHASE] != 0.0 or P[P_TMAX] != 0.0:
+    if st.phase != 0.0 or prm.max_stick_period != 0.0:
         return False
-    k = P[P_K]
-    xe = S[S_X] + V * h
-    fa = k * S[S_X] + P[P_C] * V
-    fe = k * xe + P[P_C] * V
+    k = prm.stiffness
+    xe = st.x + V * h
+    fa = k * st.x + prm.damping * V
+    fe = k * xe + prm.damping * V
     thr = mus * N
     if not (abs(fa) < thr and abs(fe) < thr):
         return False
     if work:
-        S[S_WF] = fa * V * h + 0.5 * k * V * V * h * h
-        S[S_WD] = P[P_C] * V * V * h
-    S[S_X] = xe
-    S[S_V] = V
-    S[S_F] = fe
-    S[S_NEV] = 0.0
+        st.work_friction = fa * V * h + 0.5 * k * V * V * h * h
+        st.work_damping = prm.damping * V * V * h
+    st.x = xe
+    st.v = V
+    st.f = fe
+    st.n_events = 0
     return True
 
 
@@ -382,36 +370,36 @@ def _breakaway(f, V, forced, mus, ncap):
 
 
 @njit(cache=True)
-def _finish_tick(S, x, phase, s, age, ncap, k, c, V, N, muk, nev):
+def _finish_tick(st, x, phase, s, age, ncap, k, c, V, N, muk, nev):
     """Write the end-of-tick state shared by the exact and jump ticks (friction force included)."""
-    S[S_X] = x
-    S[S_PHASE] = phase
-    S[S_S] = s
-    S[S_AGE] = age
-    S[S_NCAP] = ncap
-    S[S_NEV] = nev
+    st.x = x
+    st.phase = phase
+    st.s = s
+    st.age = age
+    st.ncap = ncap
+    st.n_events = nev
     if phase == 0.0:
-        S[S_F] = k * x + c * V
+        st.f = k * x + c * V
     else:
         Neff = N if N < ncap else ncap
-        S[S_F] = s * muk * Neff
+        st.f = s * muk * Neff
 
 
 @njit(cache=True)
-def _exact_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
-    if _stuck_whole_tick(S, P, h, V, N, mus, True):
+def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
+    if _stuck_whole_tick(st, prm, h, V, N, mus, True):
         return n_ev
-    m = P[P_M]
-    k = P[P_K]
-    c = P[P_C]
-    B = P[P_B] * gain
-    tmax = P[P_TMAX]
-    x = S[S_X]
-    v = S[S_V]
-    phase = S[S_PHASE]
-    s = S[S_S]
-    age = S[S_AGE]
-    ncap = S[S_NCAP]
+    m = prm.mass
+    k = prm.stiffness
+    c = prm.damping
+    B = prm.burst_gain * gain
+    tmax = prm.max_stick_period
+    x = st.x
+    v = st.v
+    phase = st.phase
+    s = st.s
+    age = st.age
+    ncap = st.ncap
     wf = 0.0
     wdmp = 0.0
     t = 0.0
@@ -421,7 +409,7 @@ def _exact_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
     while t < h:
         it += 1
         if it > MAX_EVENTS_PER_TICK:
-            S[S_TRUNC] += 1.0
+            st.truncated += 1
             break
         rem = h - t
         if phase == 0.0:
@@ -476,10 +464,10 @@ def _exact_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
             # grazing touch that is not a re-stick: keep slipping past it; the
             # next touch or crossing is at least one extremum (pi / omega_d) away
             tmin = 0.5 * math.pi * math.sqrt(m / k)
-    S[S_V] = v
-    S[S_WF] = wf
-    S[S_WD] = wdmp
-    _finish_tick(S, x, phase, s, age, ncap, k, c, V, N, muk, n_ev - nev0)
+    st.v = v
+    st.work_friction = wf
+    st.work_damping = wdmp
+    _finish_tick(st, x, phase, s, age, ncap, k, c, V, N, muk, n_ev - nev0)
     return n_ev
 
 
@@ -527,27 +515,27 @@ def jump_restick(m, c, k, s, xb, V, muk, N):
 
 
 @njit(cache=True)
-def _jump_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
-    if _stuck_whole_tick(S, P, h, V, N, mus, False):
+def jump_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
+    if _stuck_whole_tick(st, prm, h, V, N, mus, False):
         return n_ev
-    m = P[P_M]
-    k = P[P_K]
-    c = P[P_C]
-    B = P[P_B] * gain
-    tmax = P[P_TMAX]
-    x = S[S_X]
-    phase = S[S_PHASE]
-    s = S[S_S]
-    age = S[S_AGE]
-    ncap = S[S_NCAP]
-    tsl = S[S_TSLIP]
+    m = prm.mass
+    k = prm.stiffness
+    c = prm.damping
+    B = prm.burst_gain * gain
+    tmax = prm.max_stick_period
+    x = st.x
+    phase = st.phase
+    s = st.s
+    age = st.age
+    ncap = st.ncap
+    tsl = st.slip_left
     t = 0.0
     nev0 = n_ev
     it = 0
     while t < h:
         it += 1
         if it > MAX_EVENTS_PER_TICK:
-            S[S_TRUNC] += 1.0
+            st.truncated += 1
             break
         rem = h - t
         if phase == 0.0:
@@ -565,10 +553,25 @@ def _jump_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
             s, ncap = _breakaway(f, V, forced, mus, ncap)
             n_ev = _record(ev_t, ev_a, n_ev, t0 + t, B * abs(k * x))
             Neff = N if N < ncap else ncap
-            tsl, xr = jump_restick(m, c, k, s, x, V, muk, Neff)
+            # jump_restick is a pure function: steady strokes repeat its inputs exactly, so the
+            # last result is reused when they do (same bits in, same bits out)
+            if st.memo_valid != 0 and st.memo_s == s and st.memo_x == x and st.memo_v == V \
+                    and st.memo_muk == muk and st.memo_n == Neff:
+                tsl = st.memo_slip_time
+                xr = st.memo_x_restick
+            else:
+                tsl, xr = jump_restick(m, c, k, s, x, V, muk, Neff)
+                st.memo_valid = 1
+                st.memo_s = s
+                st.memo_x = x
+                st.memo_v = V
+                st.memo_muk = muk
+                st.memo_n = Neff
+                st.memo_slip_time = tsl
+                st.memo_x_restick = xr
             if thr <= 0.0 or abs(k * xr + c * V) > thr:
                 tsl = np.inf
-            S[S_XR] = xr
+            st.x_restick = xr
             phase = 1.0
             age = 0.0
             continue
@@ -589,26 +592,26 @@ def _jump_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
             break
         t += tsl
         tsl = 0.0
-        x = S[S_XR]
+        x = st.x_restick
         phase = 0.0
         ncap = np.inf
         age = 0.0
-    S[S_V] = V
-    S[S_TSLIP] = tsl
-    _finish_tick(S, x, phase, s, age, ncap, k, c, V, N, muk, n_ev - nev0)
+    st.v = V
+    st.slip_left = tsl
+    _finish_tick(st, x, phase, s, age, ncap, k, c, V, N, muk, n_ev - nev0)
     return n_ev
 
 
 # ================================================================ karnopp
 @njit(cache=True)
-def _karnopp_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
-    """Modified Karnopp virtual spring (DESIGN 3.5); ``S_X`` is the spring stretch."""
-    kk = P[P_KK]
-    vt = P[P_VT]
-    B = P[P_B] * gain
-    z = S[S_X]
-    phase = S[S_PHASE]
-    s = S[S_S]
+def karnopp_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
+    """Modified Karnopp virtual spring (DESIGN 3.5); ``st.x`` is the spring stretch."""
+    kk = prm.karnopp_spring
+    vt = prm.karnopp_v_threshold
+    B = prm.burst_gain * gain
+    z = st.x
+    phase = st.phase
+    s = st.s
     nev0 = n_ev
     thr = mus * N
     kin = muk * N
@@ -632,12 +635,12 @@ def _karnopp_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
             z = s * kin / kk
         else:
             z = zn
-    S[S_X] = z
-    S[S_V] = V
-    S[S_PHASE] = phase
-    S[S_S] = s
-    S[S_F] = kk * z
-    S[S_NEV] = n_ev - nev0
+    st.x = z
+    st.v = V
+    st.phase = phase
+    st.s = s
+    st.f = kk * z
+    st.n_events = n_ev - nev0
     return n_ev
 
 
@@ -663,14 +666,14 @@ def stribeck_mu(vr_abs, W, mus, muk, a, b, p, d, variant):
 
 
 @njit(cache=True)
-def _contactor(P, t):
-    A = P[P_CA]
-    w = P[P_CW]
+def _contactor(prm, t):
+    A = prm.contactor_amplitude
+    w = prm.contactor_omega
     return A * math.sin(w * t), A * w * math.cos(w * t), -A * w * w * math.sin(w * t)
 
 
 @njit(cache=True)
-def _stribeck_slip(P, u, du, s, V, W, mus, muk, ta, dur):
+def _stribeck_slip(prm, u, du, s, V, W, mus, muk, ta, dur):
     """Slip of the Imaizumi pad over ``dur`` seconds from ``ta``; returns (u, du, s, phase, F).
 
     Adaptive exponential Rosenbrock steps: the friction is linearised about
@@ -679,47 +682,47 @@ def _stribeck_slip(P, u, du, s, V, W, mus, muk, ta, dur):
     below e^0.5 (the self-excitation is physical; the step only resolves it).
     Stops early at a re-stick and finishes the span in stick.
     """
-    m = P[P_M]
-    k = P[P_K]
-    c = P[P_C]
-    var = int(P[P_SVAR])
+    m = prm.mass
+    k = prm.stiffness
+    c = prm.damping
+    var = prm.stribeck_variant
     t = ta
     tend = ta + dur
     F = 0.0
     while t < tend:
-        xca, dxca, ddxca = _contactor(P, t)
+        xca, dxca, ddxca = _contactor(prm, t)
         vr0 = du + V - dxca
         if var == 1:
             sr = _sgn(vr0)
         else:
             sr = -s if vr0 == 0.0 else _sgn(vr0)
-        mu, dmu = stribeck_mu(abs(vr0), W, mus, muk, P[P_SA], P[P_SB], P[P_SP], P[P_SD], var)
+        mu, dmu = stribeck_mu(abs(vr0), W, mus, muk, prm.stribeck_a, prm.stribeck_b, prm.stribeck_p, prm.stribeck_d, var)
         F0 = -sr * mu * W
         ceff = c + dmu * W
-        hs = min(P[P_HSUB], tend - t)
+        hs = min(prm.substep, tend - t)
         if ceff < 0.0:
             hs = min(hs, 0.5 * m / (-ceff))
         if hs < 1e-12 * max(1.0, abs(t)):
             hs = tend - t
         # F(vr) ~ F0 - dmu W (vr - vr0) with vr = u' + V - xc'(mid): a linear
         # oscillator m u'' + (c + dmu W) u' + k u = F0 - dmu W (V - xc'(mid) - vr0)
-        _, dxcm, _ = _contactor(P, t + 0.5 * hs)
+        _, dxcm, _ = _contactor(prm, t + 0.5 * hs)
         ueq = (F0 - dmu * W * (V - dxcm - vr0)) / k
         y1, v1 = osc(m, ceff, k, u - ueq, du, hs)
         un = y1 + ueq
         dun = v1
         tb = t + hs
-        xcb, dxcb, ddxcb = _contactor(P, tb)
+        xcb, dxcb, ddxcb = _contactor(prm, tb)
         vr1 = dun + V - dxcb
         if var == 0 and vr0 != 0.0 and _sgn(vr1) != _sgn(vr0):
             # relative velocity crossed zero: re-stick if the needed friction is admissible
             fr = vr0 / (vr0 - vr1)
             tc = t + fr * hs
-            xcc, dxcc, ddxcc = _contactor(P, tc)
+            xcc, dxcc, ddxcc = _contactor(prm, tc)
             uc = u + fr * (un - u)
             Fst = m * ddxcc + c * (dxcc - V) + k * uc
             if abs(Fst) <= mus * W:
-                xce, dxce, ddxce = _contactor(P, tend)
+                xce, dxce, ddxce = _contactor(prm, tend)
                 u = uc + (xce - xcc) - V * (tend - tc)
                 du = dxce - V
                 return u, du, s, 0.0, m * ddxce + c * du + k * u
@@ -728,7 +731,7 @@ def _stribeck_slip(P, u, du, s, V, W, mus, muk, ta, dur):
         du = dun
         t = tb
         if vr1 != 0.0:
-            mu1, _ = stribeck_mu(abs(vr1), W, mus, muk, P[P_SA], P[P_SB], P[P_SP], P[P_SD], var)
+            mu1, _ = stribeck_mu(abs(vr1), W, mus, muk, prm.stribeck_a, prm.stribeck_b, prm.stribeck_p, prm.stribeck_d, var)
             F = -_sgn(vr1) * mu1 * W
             s = -_sgn(vr1)
         else:
@@ -737,36 +740,36 @@ def _stribeck_slip(P, u, du, s, V, W, mus, muk, ta, dur):
 
 
 @njit(cache=True)
-def _stribeck_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
+def stribeck_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
     """Imaizumi pad on a laterally vibrating contactor, finger bone at speed ``V``.
 
-    ``S_X`` is the spring stretch u = x_p - x_f, ``S_V`` its rate; ``W = N``.
+    ``st.x`` is the spring stretch u = x_p - x_f, ``st.v`` its rate; ``W = N``.
     Stick: the pad moves with the contactor (u' = x_c' - V, exact);
     breakaway when the needed friction ``m x_c'' + c u' + k u`` exceeds
     ``mu_s W`` (located by bisection to ~1e-18 s). Slip: the friction is
     linearised about the current relative velocity and the resulting linear
-    oscillator is solved in closed form over substeps of at most ``P_HSUB``
+    oscillator is solved in closed form over substeps of at most ``prm.substep``
     (an exponential Rosenbrock step: stable on the stiff pre-maximum branch
     and on the self-exciting negative Stribeck slope). Re-stick at a zero of
     the relative velocity when the needed friction is within ``mu_s W``.
-    The friction force ``F`` on the pad is reported in ``S_F``.
+    The friction force ``F`` on the pad is reported in ``st.f``.
     """
-    m = P[P_M]
-    k = P[P_K]
-    c = P[P_C]
-    B = P[P_B] * gain
+    m = prm.mass
+    k = prm.stiffness
+    c = prm.damping
+    B = prm.burst_gain * gain
     W = N
-    u = S[S_X]
-    du = S[S_V]
-    phase = S[S_PHASE]
-    s = S[S_S]
-    F = S[S_F]
+    u = st.x
+    du = st.v
+    phase = st.phase
+    s = st.s
+    F = st.f
     nev0 = n_ev
-    nsub = int(math.ceil(h / P[P_HSUB] - 1e-9))
+    nsub = int(math.ceil(h / prm.substep - 1e-9))
     if nsub < 1:
         nsub = 1
     hs = h / nsub
-    premax = int(P[P_SVAR]) == 1
+    premax = prm.stribeck_variant == 1
     for i in range(nsub):
         ta = t0 + i * hs
         if premax:
@@ -775,18 +778,18 @@ def _stribeck_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
             # |vr| <= d W, left (the stick-to-slip event, located to one
             # substep) when |vr| >= 2 d W, clear of the jump of mu at d W
             # (the hysteresis keeps round-off from chattering there).
-            u, du, s, _, F = _stribeck_slip(P, u, du, s, V, W, mus, muk, ta, hs)
-            _, dxc, _ = _contactor(P, ta + hs)
+            u, du, s, _, F = _stribeck_slip(prm, u, du, s, V, W, mus, muk, ta, hs)
+            _, dxc, _ = _contactor(prm, ta + hs)
             avr = abs(du + V - dxc)
-            if phase == 0.0 and avr >= 2.0 * P[P_SD] * W:
+            if phase == 0.0 and avr >= 2.0 * prm.stribeck_d * W:
                 n_ev = _record(ev_t, ev_a, n_ev, ta + hs, B * abs(k * u))
                 phase = 1.0
-            elif phase == 1.0 and avr <= P[P_SD] * W:
+            elif phase == 1.0 and avr <= prm.stribeck_d * W:
                 phase = 0.0
             continue
         if phase == 0.0:
-            xca, dxca, ddxca = _contactor(P, ta)
-            xcb, dxcb, ddxcb = _contactor(P, ta + hs)
+            xca, dxca, ddxca = _contactor(prm, ta)
+            xcb, dxcb, ddxcb = _contactor(prm, ta + hs)
             ub = u + (xcb - xca) - V * hs
             Fb = m * ddxcb + c * (dxcb - V) + k * ub
             if abs(Fb) <= mus * W:
@@ -798,13 +801,13 @@ def _stribeck_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
             hi = hs
             for _ in range(60):
                 mid = 0.5 * (lo + hi)
-                xcm, dxcm, ddxcm = _contactor(P, ta + mid)
+                xcm, dxcm, ddxcm = _contactor(prm, ta + mid)
                 Fm = m * ddxcm + c * (dxcm - V) + k * (u + (xcm - xca) - V * mid)
                 if abs(Fm) > mus * W:
                     hi = mid
                 else:
                     lo = mid
-            xcm, dxcm, ddxcm = _contactor(P, ta + hi)
+            xcm, dxcm, ddxcm = _contactor(prm, ta + hi)
             u = u + (xcm - xca) - V * hi
             du = dxcm - V
             Fb = m * ddxcm + c * du + k * u
@@ -812,15 +815,15 @@ def _stribeck_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
             s = _sgn(Fb)
             phase = 1.0
             if hs - hi > 0.0:
-                u, du, s, phase, F = _stribeck_slip(P, u, du, s, V, W, mus, muk, ta + hi, hs - hi)
+                u, du, s, phase, F = _stribeck_slip(prm, u, du, s, V, W, mus, muk, ta + hi, hs - hi)
             continue
-        u, du, s, phase, F = _stribeck_slip(P, u, du, s, V, W, mus, muk, ta, hs)
-    S[S_X] = u
-    S[S_V] = du
-    S[S_PHASE] = phase
-    S[S_S] = s
-    S[S_F] = F
-    S[S_NEV] = n_ev - nev0
+        u, du, s, phase, F = _stribeck_slip(prm, u, du, s, V, W, mus, muk, ta, hs)
+    st.x = u
+    st.v = du
+    st.phase = phase
+    st.s = s
+    st.f = F
+    st.n_events = n_ev - nev0
     return n_ev
 
 
@@ -851,7 +854,7 @@ def tanh_friction(w, N, mus, muk, eps):
 
 
 @njit(cache=True)
-def _tanh_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
+def tanh_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
     """Konyo pad with tanh-regularised friction: no stick state, only creep inside ``|w| < eps``.
 
     Linearly implicit exponential substeps: the friction is linearised about
@@ -860,19 +863,19 @@ def _tanh_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
     increment form (stable and free of cancellation for the very stiff
     ``f' ~ mu_k N / v_C``). A substep that would carry the
     slip speed through zero from outside the band is cut at the crossing, so
-    the saturated friction cannot overshoot. ``S_PHASE`` reports slip while
+    the saturated friction cannot overshoot. ``st.phase`` reports slip while
     ``|w| >= 2 eps`` (entered: the burst event, interpolated inside the
     substep) and stick again once ``|w| <= eps``.
     """
-    m = P[P_M]
-    k = P[P_K]
-    c = P[P_C]
-    B = P[P_B] * gain
-    eps = P[P_EPS]
-    hmax = P[P_HSUB]
-    x = S[S_X]
-    v = S[S_V]
-    phase = S[S_PHASE]
+    m = prm.mass
+    k = prm.stiffness
+    c = prm.damping
+    B = prm.burst_gain * gain
+    eps = prm.tanh_eps
+    hmax = prm.substep
+    x = st.x
+    v = st.v
+    phase = st.phase
     nev0 = n_ev
     vc = 0.1 * eps
     if phase == 0.0 and abs(V - v) > 2.0 * eps:
@@ -882,7 +885,7 @@ def _tanh_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
     while t < h:
         it += 1
         if it > MAX_EVENTS_PER_TICK:
-            S[S_TRUNC] += 1.0
+            st.truncated += 1
             break
         w0 = V - v
         f0, df = tanh_friction(w0, N, mus, muk, eps)
@@ -915,39 +918,39 @@ def _tanh_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
         v = v1
         t = t + hs if t + hs < h else h
     f, _ = tanh_friction(V - v, N, mus, muk, eps)
-    S[S_X] = x
-    S[S_V] = v
-    S[S_PHASE] = phase
-    S[S_F] = f
-    S[S_WF] = 0.0
-    S[S_WD] = 0.0
-    S[S_NEV] = n_ev - nev0
+    st.x = x
+    st.v = v
+    st.phase = phase
+    st.f = f
+    st.work_friction = 0.0
+    st.work_damping = 0.0
+    st.n_events = n_ev - nev0
     return n_ev
 
 
 # ================================================================ naive baselines
 @njit(cache=True)
-def _explicit_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev, rk4):
+def _explicit_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev, rk4):
     """One fixed explicit step per tick (forward Euler or RK4) with stick/slip switching.
 
     Kept only to show where naive integration fails (DESIGN 4): on the
     Konyo pad forward Euler needs h < 2 zeta / omega_n ~ 5 us and RK4
     h < 2.8 / omega_n ~ 63 us. Blow-up (|x| beyond a physical bound, or a
-    non-finite state) sets ``S_BLOW`` and freezes the state at zero.
+    non-finite state) sets ``st.diverged`` and freezes the state at zero.
     """
-    m = P[P_M]
-    k = P[P_K]
-    c = P[P_C]
-    B = P[P_B] * gain
-    x = S[S_X]
-    v = S[S_V]
-    phase = S[S_PHASE]
-    s = S[S_S]
+    m = prm.mass
+    k = prm.stiffness
+    c = prm.damping
+    B = prm.burst_gain * gain
+    x = st.x
+    v = st.v
+    phase = st.phase
+    s = st.s
     nev0 = n_ev
     thr = mus * N
-    if S[S_BLOW] != 0.0:
-        S[S_F] = 0.0
-        S[S_NEV] = 0.0
+    if st.diverged != 0:
+        st.f = 0.0
+        st.n_events = 0
         return n_ev
     if phase == 0.0:
         x += V * h
@@ -983,136 +986,29 @@ def _explicit_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev, rk4):
                 s = -s
     limit = 10.0 * (max(mus, muk) * N / k + abs(V) * (h + math.sqrt(m / k))) + 1e-6
     if not (math.isfinite(x) and math.isfinite(v)) or abs(x) > limit:
-        S[S_BLOW] = 1.0
-        S[S_BLOWT] = t0 + h
+        st.diverged = 1
+        st.diverged_at = t0 + h
         x = 0.0
         v = 0.0
         phase = 0.0
-    S[S_X] = x
-    S[S_V] = v
-    S[S_PHASE] = phase
-    S[S_S] = s
-    S[S_F] = (k * x + c * V) if phase == 0.0 else s * muk * N
-    if S[S_BLOW] != 0.0:
-        S[S_F] = 0.0
-    S[S_NEV] = n_ev - nev0
+    st.x = x
+    st.v = v
+    st.phase = phase
+    st.s = s
+    st.f = (k * x + c * V) if phase == 0.0 else s * muk * N
+    if st.diverged != 0:
+        st.f = 0.0
+    st.n_events = n_ev - nev0
     return n_ev
 
 
-# ================================================================ dispatch
 @njit(cache=True)
-def model_tick(model, S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
-    """Advance model number ``model`` by one tick (see module docstring)."""
-    if model == MODEL_EXACT:
-        return _exact_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev)
-    if model == MODEL_JUMP:
-        return _jump_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev)
-    if model == MODEL_KARNOPP:
-        return _karnopp_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev)
-    if model == MODEL_STRIBECK:
-        return _stribeck_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev)
-    if model == MODEL_EULER:
-        return _explicit_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev, False)
-    if model == MODEL_TANH:
-        return _tanh_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev)
-    return _explicit_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev, True)
+def euler_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
+    """Forward Euler, one step per tick (see :func:`_explicit_tick`)."""
+    return _explicit_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev, False)
 
 
 @njit(cache=True)
-def _store(S, i, out_f, out_state, out_x, out_v, out_wf, out_wd):
-    out_f[i] = S[S_F]
-    out_state[i] = S[S_PHASE]
-    out_x[i] = S[S_X]
-    out_v[i] = S[S_V]
-    out_wf[i] = S[S_WF]
-    out_wd[i] = S[S_WD]
-
-
-@njit(cache=True)
-def run_ticks(model, S, P, t, V, N, mus, muk, gain, out_f, out_state, out_x, out_v, out_wf, out_wd, ev_t, ev_a):
-    """Offline fast path: advance over ``n`` ticks.
-
-    Tick ``i`` runs from ``t[i-1]`` to ``t[i]`` with inputs ``V[i], N[i], ...``
-    (tick 0 has zero length and only reports the initial state). Writes
-    per-tick outputs (state at the end of the tick) into ``out_*`` (shape
-    (n,)) and returns the total number of events (may exceed ``ev_t.size``;
-    then only the first ``ev_t.size`` are stored). The model branch is taken
-    once, outside the tick loop.
-    """
-    n = t.shape[0]
-    n_ev = 0
-    if n == 0:
-        return 0
-    S[S_WF] = 0.0
-    S[S_WD] = 0.0
-    _store(S, 0, out_f, out_state, out_x, out_v, out_wf, out_wd)
-    if model == MODEL_EXACT or model == MODEL_JUMP:
-        # Stuck ticks (the common case) are handled inline with the stretch in a
-        # register; the model's tick function runs when a breakaway may happen
-        # or the pad slips. Same arithmetic as the fast path inside the ticks.
-        k = P[P_K]
-        c = P[P_C]
-        fast_ok = P[P_TMAX] == 0.0
-        x = S[S_X]
-        phase = S[S_PHASE]
-        synced = True
-        for i in range(1, n):
-            Vi = V[i]
-            h = t[i] - t[i - 1]
-            if fast_ok and phase == 0.0:
-                xe = x + Vi * h
-                fa = k * x + c * Vi
-                fe = k * xe + c * Vi
-                thr = mus[i] * N[i]
-                if abs(fa) < thr and abs(fe) < thr:
-                    x = xe
-                    out_f[i] = fe
-                    out_state[i] = 0.0
-                    out_x[i] = xe
-                    out_v[i] = Vi
-                    if model == MODEL_EXACT:
-                        out_wf[i] = fa * Vi * h + 0.5 * k * Vi * Vi * h * h
-                        out_wd[i] = c * Vi * Vi * h
-                    else:
-                        out_wf[i] = 0.0
-                        out_wd[i] = 0.0
-                    synced = False
-                    continue
-            if not synced:
-                S[S_X] = x
-            if model == MODEL_EXACT:
-                n_ev = _exact_tick(S, P, t[i - 1], h, Vi, N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
-            else:
-                n_ev = _jump_tick(S, P, t[i - 1], h, Vi, N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
-            _store(S, i, out_f, out_state, out_x, out_v, out_wf, out_wd)
-            x = S[S_X]
-            phase = S[S_PHASE]
-            synced = True
-        if not synced:
-            S[S_X] = x
-            S[S_V] = V[n - 1]
-            S[S_F] = out_f[n - 1]
-            S[S_WF] = out_wf[n - 1]
-            S[S_WD] = out_wd[n - 1]
-            S[S_NEV] = 0.0
-    elif model == MODEL_KARNOPP:
-        for i in range(1, n):
-            n_ev = _karnopp_tick(S, P, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a,
-                                 n_ev)
-            _store(S, i, out_f, out_state, out_x, out_v, out_wf, out_wd)
-    elif model == MODEL_STRIBECK:
-        for i in range(1, n):
-            n_ev = _stribeck_tick(S, P, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a,
-                                  n_ev)
-            _store(S, i, out_f, out_state, out_x, out_v, out_wf, out_wd)
-    elif model == MODEL_TANH:
-        for i in range(1, n):
-            n_ev = _tanh_tick(S, P, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
-            _store(S, i, out_f, out_state, out_x, out_v, out_wf, out_wd)
-    else:
-        rk4 = model == MODEL_RK4
-        for i in range(1, n):
-            n_ev = _explicit_tick(S, P, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a,
-                                  n_ev, rk4)
-            _store(S, i, out_f, out_state, out_x, out_v, out_wf, out_wd)
-    return n_ev
+def rk4_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
+    """Classical RK4, one step per tick (see :func:`_explicit_tick`)."""
+    return _explicit_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev, True)

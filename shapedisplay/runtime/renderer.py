@@ -36,10 +36,10 @@ Real-time rules for :meth:`Renderer.step`
   into preallocated buffers (:attr:`Renderer.last` values,
   :attr:`audio_block`), the event ring has a fixed size. Only the call from
   Python allocates (and frees before returning) small objects: the float
-  returned, and numba's wrappers of the five workspace arrays. A hard
-  real-time host calls :func:`online_step` from its own compiled loop (with
-  ``Renderer._model_id, _W, _blocks, _data, _ev, _audio``; tested to
-  allocate nothing per tick) or uses the C runtime.
+  returned, and numba's wrappers of the record and the workspace arrays. A
+  hard real-time host calls :func:`online_step` from its own compiled loop
+  (with ``Renderer.online_record, _blocks, _data, _bg, _ev, _audio``; tested
+  to allocate nothing per tick) or uses the C runtime.
 * Work per call is one table lookup (a scan over the table's blocks), one
   model tick, and the audio samples of the tick; the exact model adds one
   closed-form root search per phase change.
@@ -61,67 +61,50 @@ from ..devices import DeviceProfile, check_tick_rate, load_device
 from ..errors import InputError, ModelError, TableError
 from ..table import FrictionTable
 from ..units import parse_quantity
-from . import pads
 from .bursts import audio_length, burst_value, policy_id, render_bursts, synth
 from .cursor import CursorPath
+from .dispatch import model_tick
+from .layouts import NSLOT, ONLINE, OUTPUTS, RENDER_CONFIG, SLOTS, Policy, Slot, record
 from .lookup import sample_all
 from .models import PadModel, divergence_message, get_model, run_kernel
 
-#: Table channels the renderer reads, in slot order.
-SLOTS = ("normal_force", "friction_scale", "burst_gain", "grad_x", "grad_y", "lateral_x", "lateral_y",
-         "skin_stretch", "breakaway_force", "kinetic_force")
-C_N, C_FS, C_BG, C_GX, C_GY, C_LX, C_LY, C_SS, C_BK, C_KF = range(len(SLOTS))
-NSLOT = len(SLOTS)
-
-# cfg vector: mu_s, mu_k, K_mu, default skin target, then presence flags per slot, then the
-# constant normal force of a table that stores no normal_force channel
-CFG_MUS, CFG_MUK, CFG_KMU, CFG_SST, CFG_HAS = 0, 1, 2, 3, 4
-CFG_N0 = CFG_HAS + NSLOT
-
-# workspace layout for the online path (one float64 array)
-W_S, W_P, W_I, W_CFG, W_BP, W_VALS, W_OUT, W_BG, W_GRID, W_SLOT, W_TMP = 0, 16, 32, 48, 64, 72, 88, 104, 120, 128, 144
-W_SIZE = 160
-# internal registers (W_I + ...)
-I_TICK, I_XP, I_YP, I_AX, I_AY, I_T0, I_RATE, I_NEXTJ, I_NREC, I_CLIP, I_NEVTOT, I_DROPPED = range(12)
-# burst params (W_BP + ...)
-B_RATE, B_CAR, B_RISE, B_DEC, B_POL = range(5)
-# per-tick outputs (W_OUT + ...)
-O_T, O_X, O_Y, O_VX, O_VY, O_N, O_F, O_STATE, O_LX, O_LY, O_SS, O_NEV, O_DRIVE, O_NAUDIO, O_V = range(15)
-OUT_NAMES = ("t", "x", "y", "vx", "vy", "normal_force", "friction_force", "state", "lateral_x", "lateral_y",
-             "skin_stretch", "events", "drive", "audio_samples", "pad_speed")
+#: Names of the per-tick outputs of :meth:`Renderer.step` (fields of :data:`~.layouts.OUTPUTS`).
+OUT_NAMES = OUTPUTS.names
 
 _RING = 4096
 
-#: sha256 of pads.py + lookup.py + bursts.py, whose kernels :func:`online_step` compiles in.
-#: numba keys the on-disk cache of a function on its own file only: without this line a change
-#: to those files would leave a stale compiled ``online_step`` (tests check the value).
-KERNEL_SOURCES_SHA256 = "e0cbe2e68e4a9e1d5fc61e77894deb7e03371e09473c8e0318881e7f05c85ff7"
+#: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
+#: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
+KERNEL_SOURCES_SHA256 = "fa16699b6731d3ad486eddcd82f16cf118461d8a26b4ea30a1cf8262b88e23d9"
 
 
 @njit(cache=True)
-def _derive(vals, cfg, vx, vy, speed):
-    """Per-tick model inputs from the looked-up channel values: (N, mu_s, mu_k, gain)."""
-    N = vals[C_N] if cfg[CFG_HAS + C_N] != 0.0 else cfg[CFG_N0]
+def _derive(vals, cfg, slot_channel, vx, vy, speed):
+    """Per-tick model inputs from the slot values: (N, mu_s, mu_k, gain).
+
+    ``cfg`` is a RENDER_CONFIG record; slot ``s`` is stored if ``slot_channel[s] >= 0``.
+    """
+    N = vals[Slot.NORMAL_FORCE] if slot_channel[Slot.NORMAL_FORCE] >= 0 else cfg.normal_force_constant
     if N < 0.0:
         N = 0.0
-    fs = vals[C_FS] if cfg[CFG_HAS + C_FS] != 0.0 else 1.0
+    fs = vals[Slot.FRICTION_SCALE] if slot_channel[Slot.FRICTION_SCALE] >= 0 else 1.0
     if fs < 0.0:
         fs = 0.0
-    mus = cfg[CFG_MUS] * fs
-    muk = cfg[CFG_MUK] * fs
-    if cfg[CFG_HAS + C_BK] != 0.0 and N > 0.0:
-        mus = max(vals[C_BK], 0.0) / N
-    if cfg[CFG_HAS + C_KF] != 0.0 and N > 0.0:
-        muk = max(vals[C_KF], 0.0) / N
-    if cfg[CFG_KMU] != 0.0 and speed > 0.0 and cfg[CFG_HAS + C_GX] != 0.0:
-        gy = vals[C_GY] if cfg[CFG_HAS + C_GY] != 0.0 else 0.0
-        slope = (vals[C_GX] * vx + gy * vy) / speed
+    mus = cfg.mu_s * fs
+    muk = cfg.mu_k * fs
+    if slot_channel[Slot.BREAKAWAY_FORCE] >= 0 and N > 0.0:
+        mus = max(vals[Slot.BREAKAWAY_FORCE], 0.0) / N
+    if slot_channel[Slot.KINETIC_FORCE] >= 0 and N > 0.0:
+        muk = max(vals[Slot.KINETIC_FORCE], 0.0) / N
+    if cfg.k_mu != 0.0 and speed > 0.0 and slot_channel[Slot.GRAD_X] >= 0:
+        gy = vals[Slot.GRAD_Y] if slot_channel[Slot.GRAD_Y] >= 0 else 0.0
+        slope = (vals[Slot.GRAD_X] * vx + gy * vy) / speed
         if slope > 0.0:
-            mus += cfg[CFG_KMU] * slope
-            muk += cfg[CFG_KMU] * slope
+            mus += cfg.k_mu * slope
+            muk += cfg.k_mu * slope
     if muk > mus:
         muk = mus
-    gain = vals[C_BG] if cfg[CFG_HAS + C_BG] != 0.0 else 1.0
+    gain = vals[Slot.BURST_GAIN] if slot_channel[Slot.BURST_GAIN] >= 0 else 1.0
     if gain < 0.0:
         gain = 0.0
     return N, mus, muk, gain
@@ -141,8 +124,8 @@ def _axis_speed(vx, vy, ax, ay):
 
 
 @njit(cache=True)
-def prepare_inputs(t, x, y, vals, cfg, V, vx, vy, N, mus, muk, gain):
-    """Offline: per-tick velocities and model inputs (arrays of shape (n,))."""
+def prepare_inputs(t, x, y, vals, cfg, slot_channel, V, vx, vy, N, mus, muk, gain):
+    """Offline: per-tick velocities and model inputs (arrays of shape (n,); ``vals`` (NSLOT, n))."""
     n = t.shape[0]
     ax = 1.0
     ay = 0.0
@@ -156,22 +139,20 @@ def prepare_inputs(t, x, y, vals, cfg, V, vx, vy, N, mus, muk, gain):
             vy[i] = (y[i] - y[i - 1]) / h
         V[i], ax, ay = _axis_speed(vx[i], vy[i], ax, ay)
         sp = abs(V[i])
-        N[i], mus[i], muk[i], gain[i] = _derive(vals[:, i], cfg, vx[i], vy[i], sp)
+        N[i], mus[i], muk[i], gain[i] = _derive(vals[:, i], cfg, slot_channel, vx[i], vy[i], sp)
 
 
-def _derive_config(present, mu_s: float, mu_k: float, kmu: float = 0.0, sst: float = 0.0,
-                   n_const: float | None = None) -> np.ndarray:
-    """The cfg vector :func:`_derive` reads: device friction, K_mu, skin target, channel presence and
-    the constant N of a table without ``normal_force``."""
-    cfg = np.zeros(16)
-    cfg[CFG_MUS] = mu_s
-    cfg[CFG_MUK] = mu_k
-    cfg[CFG_KMU] = kmu
-    cfg[CFG_SST] = sst
-    cfg[CFG_N0] = n_const or 0.0
-    for i, name in enumerate(SLOTS):
-        cfg[CFG_HAS + i] = 1.0 if name in present else 0.0
-    return cfg
+def _derive_config(mu_s: float, mu_k: float, kmu: float = 0.0, sst: float = 0.0, n_const: float | None = None,
+                   **settings) -> np.void:
+    """The RENDER_CONFIG record :func:`_derive` reads: device friction, K_mu, skin target and the
+    constant N of a table without ``normal_force`` (plus any other ``settings`` fields)."""
+    return record(RENDER_CONFIG, mu_s=mu_s, mu_k=mu_k, k_mu=kmu, skin_target=sst,
+                  normal_force_constant=n_const or 0.0, **settings)[0]
+
+
+def _slot_channels(present) -> np.ndarray:
+    """Packed channel of each slot (position in ``present``), -1 where the table lacks it."""
+    return np.array([present.index(n) if n in present else -1 for n in SLOTS], dtype=np.int64)
 
 
 def friction_limits(channels: dict, mu_s: float, mu_k: float) -> tuple[np.ndarray, np.ndarray]:
@@ -208,26 +189,26 @@ def friction_limits(channels: dict, mu_s: float, mu_k: float) -> tuple[np.ndarra
     t = np.arange(n, dtype=np.float64)          # any increasing times: the cursor stands still
     still = np.zeros(n)
     V, vx, vy, N, mus, muk, gain = arrs = np.empty((7, n))
-    prepare_inputs(t, still, still, vals, _derive_config(present, mu_s, mu_k), *arrs)
+    prepare_inputs(t, still, still, vals, _derive_config(mu_s, mu_k), _slot_channels(present), *arrs)
     return (mus * N).reshape(shape), (muk * N).reshape(shape)
 
 
 @njit(cache=True)
-def online_step(model, W, blocks, data, ev, audio, x, y):
-    """Online: one tick at cursor position (x, y) m. Returns the burst drive value."""
-    S = W[W_S:W_S + 16]
-    P = W[W_P:W_P + 16]
-    I = W[W_I:W_I + 16]
-    cfg = W[W_CFG:W_CFG + 16]
-    bp = W[W_BP:W_BP + 8]
-    vals = W[W_VALS:W_VALS + 16]
-    out = W[W_OUT:W_OUT + 16]
-    bg = W[W_BG:W_BG + int(W[W_SLOT + 15])]
-    grid = W[W_GRID:W_GRID + 8]
-    tmp = W[W_TMP:W_TMP + 16]
-    k = I[I_TICK]
-    rate = I[I_RATE]
-    t = I[I_T0] + k / rate
+def online_step(R, blocks, data, bg, ev, audio, x, y):
+    """Online: one tick at cursor position (x, y) m. Returns the burst drive value.
+
+    ``R`` is an :data:`~.layouts.ONLINE` record (state, settings, counters and
+    outputs); ``blocks, data, bg`` the packed table (:func:`.lookup.pack_channels`);
+    ``ev`` the (2, ring) event times and amplitudes; ``audio`` the tick's audio block.
+    """
+    st = R.pad
+    cfg = R.cfg
+    run = R.run
+    out = R.out
+    vals = R.vals
+    k = run.tick
+    rate = cfg.tick_rate
+    t = run.t0 + k / rate
     if k == 0.0:
         h = 0.0
         vx = 0.0
@@ -235,31 +216,31 @@ def online_step(model, W, blocks, data, ev, audio, x, y):
         xm = x
         ym = y
     else:
-        h = t - (I[I_T0] + (k - 1.0) / rate)
-        vx = (x - I[I_XP]) / h
-        vy = (y - I[I_YP]) / h
-        xm = 0.5 * (x + I[I_XP])
-        ym = 0.5 * (y + I[I_YP])
-    V, ax, ay = _axis_speed(vx, vy, I[I_AX], I[I_AY])
-    I[I_AX] = ax
-    I[I_AY] = ay
+        h = t - (run.t0 + (k - 1.0) / rate)
+        vx = (x - run.xp) / h
+        vy = (y - run.yp) / h
+        xm = 0.5 * (x + run.xp)
+        ym = 0.5 * (y + run.yp)
+    V, ax, ay = _axis_speed(vx, vy, run.ax, run.ay)
+    run.ax = ax
+    run.ay = ay
     if bg.shape[0] > 0:
-        sample_all(blocks, data, bg, grid, xm, ym, tmp)
+        sample_all(blocks, data, bg, R.grid, xm, ym, R.scratch)
     for s in range(NSLOT):
-        j = int(W[W_SLOT + s])
-        vals[s] = tmp[j] if j >= 0 else 0.0
-    N, mus, muk, gain = _derive(vals, cfg, vx, vy, abs(V))
+        j = R.slot_channel[s]
+        vals[s] = R.scratch[j] if j >= 0 else 0.0
+    N, mus, muk, gain = _derive(vals, cfg, R.slot_channel, vx, vy, abs(V))
     ev_t = ev[0]
     ev_a = ev[1]
     # forget bursts that have finished
-    dur = bp[B_RISE] + bp[B_DEC]
-    nrec = int(I[I_NREC])
+    dur = cfg.rise_s + cfg.decay_s
+    nrec = run.n_recent
     drop = 0
     while drop < nrec and ev_t[drop] + dur <= t - h:
         drop += 1
     if nrec > ev_t.shape[0] // 2 and drop == 0:
         drop = nrec - ev_t.shape[0] // 4
-        I[I_DROPPED] += drop
+        run.events_dropped += drop
     if drop > 0:
         for i in range(drop, nrec):
             ev_t[i - drop] = ev_t[i]
@@ -267,51 +248,51 @@ def online_step(model, W, blocks, data, ev, audio, x, y):
         nrec -= drop
     nev = 0
     if h > 0.0:
-        n1 = pads.model_tick(model, S, P, t - h, h, V, N, mus, muk, gain, ev_t, ev_a, nrec)
+        n1 = model_tick(cfg.model, st, cfg.pad, t - h, h, V, N, mus, muk, gain, ev_t, ev_a, nrec)
         nev = n1 - nrec
         if n1 > ev_t.shape[0]:
-            I[I_DROPPED] += n1 - ev_t.shape[0]
+            run.events_dropped += n1 - ev_t.shape[0]
             n1 = ev_t.shape[0]
         nrec = n1
-    I[I_NREC] = nrec
-    I[I_NEVTOT] += nev
+    run.n_recent = nrec
+    run.events_total += nev
     # audio samples with times in (t - h, t]
-    j0 = int(I[I_NEXTJ])
-    j1 = int(math.floor((t - I[I_T0]) * bp[B_RATE] + 1e-9)) + 1
+    j0 = run.next_sample
+    j1 = int(math.floor((t - run.t0) * cfg.audio_rate + 1e-9)) + 1
     if j1 - j0 > audio.shape[0]:
         j0 = j1 - audio.shape[0]
     if j1 > j0:
-        I[I_CLIP] += synth(ev_t, ev_a, nrec, I[I_T0], bp[B_RATE], j0, j1, bp[B_CAR], bp[B_RISE], bp[B_DEC],
-                           int(bp[B_POL]), audio)
-    I[I_NEXTJ] = j1
+        run.clipped += synth(ev_t, ev_a, nrec, run.t0, cfg.audio_rate, j0, j1, cfg.carrier_hz, cfg.rise_s,
+                             cfg.decay_s, cfg.policy, audio)
+    run.next_sample = j1
     hi = 0
     while hi < nrec and ev_t[hi] < t:
         hi += 1
-    lo = hi - 1 if int(bp[B_POL]) == 0 else 0
+    lo = hi - 1 if cfg.policy == Policy.RETRIGGER else 0
     if lo < 0:
         lo = 0
-    drive = burst_value(t, ev_t, ev_a, lo, hi, bp[B_CAR], bp[B_RISE], bp[B_DEC], int(bp[B_POL]))
+    drive = burst_value(t, ev_t, ev_a, lo, hi, cfg.carrier_hz, cfg.rise_s, cfg.decay_s, cfg.policy)
     drive = min(max(drive, -1.0), 1.0)
-    f = S[pads.S_F]
-    out[O_T] = t
-    out[O_X] = x
-    out[O_Y] = y
-    out[O_VX] = vx
-    out[O_VY] = vy
-    out[O_V] = V
-    out[O_N] = N
-    out[O_F] = f
-    out[O_STATE] = S[pads.S_PHASE]
-    out[O_LX] = vals[C_LX]
-    out[O_LY] = vals[C_LY]
-    target = vals[C_SS] if cfg[CFG_HAS + C_SS] != 0.0 else cfg[CFG_SST]
-    out[O_SS] = target * f / (mus * N) if mus * N > 0.0 else 0.0
-    out[O_NEV] = nev
-    out[O_DRIVE] = drive
-    out[O_NAUDIO] = max(j1 - j0, 0)
-    I[I_XP] = x
-    I[I_YP] = y
-    I[I_TICK] = k + 1.0
+    f = st.f
+    out.t = t
+    out.x = x
+    out.y = y
+    out.vx = vx
+    out.vy = vy
+    out.pad_speed = V
+    out.normal_force = N
+    out.friction_force = f
+    out.state = st.phase
+    out.lateral_x = vals[Slot.LATERAL_X]
+    out.lateral_y = vals[Slot.LATERAL_Y]
+    target = vals[Slot.SKIN_STRETCH] if R.slot_channel[Slot.SKIN_STRETCH] >= 0 else cfg.skin_target
+    out.skin_stretch = target * f / (mus * N) if mus * N > 0.0 else 0.0
+    out.events = nev
+    out.drive = drive
+    out.audio_samples = max(j1 - j0, 0)
+    run.xp = x
+    run.yp = y
+    run.tick = k + 1.0
     return drive
 
 
@@ -471,13 +452,19 @@ class Renderer:
         self._policy = policy_id(burst_policy)
         self.present = [name for name in SLOTS if name in table.channels]
         kmu, sst = mapping_settings(table, dev)
-        self._cfg = _derive_config(self.present, dev.friction.mu_s, dev.friction.mu_k, kmu, sst,
-                                   self.normal_force_constant)
+        b = dev.burst
+        #: The renderer's settings, a RENDER_CONFIG record (the C runtime's sd_config_t, byte for byte).
+        self.config = _derive_config(dev.friction.mu_s, dev.friction.mu_k, kmu, sst, self.normal_force_constant,
+                                     tick_rate=self.tick_rate, audio_rate=self.audio_rate, carrier_hz=b.carrier_hz,
+                                     rise_s=b.rise_s, decay_s=b.decay_s, policy=self._policy,
+                                     model=self.model.model_id)
+        self.config["pad"] = self.model.params
+        self._slot_channel = _slot_channels(self.present)
         self._build_online()
         self.reset()
         # warm the compiled step on a scratch copy (compilation never happens in the real-time loop)
-        W = self._W.copy()
-        online_step(self.model.model_id, W, self._blocks, self._data, self._ev.copy(), self._audio.copy(), 0.0, 0.0)
+        R = self._R.copy()
+        online_step(R[0], self._blocks, self._data, self._bg, self._ev.copy(), self._audio.copy(), 0.0, 0.0)
 
     # ------------------------------------------------------------------ offline
     def _inputs(self, cp: CursorPath):
@@ -493,7 +480,7 @@ class Renderer:
             if name in self.present:
                 vals[i] = self.table.sample(name, xm, ym)
         V, vx, vy, N, mus, muk, gain = arrs = np.empty((7, n))       # one block: fewer page faults
-        prepare_inputs(t, x, y, vals, self._cfg, *arrs)
+        prepare_inputs(t, x, y, vals, self.config, self._slot_channel, *arrs)
         return vals, V, vx, vy, N, mus, muk, gain
 
     def render(self, cursor: CursorPath) -> RenderResult:
@@ -509,9 +496,10 @@ class Renderer:
         audio_length(cp.duration, self.audio_rate)     # refuse an impossible stream before the work
         vals, V, vx, vy, N, mus, muk, gain = self._inputs(cp)
         S, f, st, _, _, _, _, et, ea = run_kernel(self.model, cp.t, V, N, mus, muk, gain)
-        if S[pads.S_BLOW] != 0:
-            raise ModelError(divergence_message(self.model, self.tick_rate, float(S[pads.S_BLOWT])))
-        target = vals[C_SS] if "skin_stretch" in self.present else np.full(cp.t.size, self._cfg[CFG_SST])
+        if S["diverged"] != 0:
+            raise ModelError(divergence_message(self.model, self.tick_rate, float(S["diverged_at"])))
+        target = vals[Slot.SKIN_STRETCH] if "skin_stretch" in self.present else \
+            np.full(cp.t.size, self.config["skin_target"])
         lim = mus * N
         with np.errstate(divide="ignore", invalid="ignore"):
             ss = np.where(lim > 0, target * f / np.where(lim > 0, lim, 1.0), 0.0)
@@ -520,82 +508,72 @@ class Renderer:
                                        b.decay_s, self.burst_policy)
         # f is a row of the kernel's output block: copy it so the result does not hold the whole block
         return RenderResult(cp.t.copy(), cp.x.copy(), cp.y.copy(), vx, vy, N, f.copy(), st.astype(np.int8),
-                            vals[C_LX].copy(), vals[C_LY].copy(), ss, et, ea, audio, self.audio_rate, clipped,
+                            vals[Slot.LATERAL_X].copy(), vals[Slot.LATERAL_Y].copy(), ss, et, ea, audio, self.audio_rate, clipped,
                             self.model.name, self.tick_rate, self.burst_policy, mus)
 
     # ------------------------------------------------------------------ online
     def _build_online(self):
         from .lookup import pack_channels
         blocks, data, bg, grid = pack_channels(self.table, self.present)
-        self._blocks, self._data = blocks, data
-        W = np.zeros(W_SIZE)
-        W[W_P:W_P + 16] = self.model.params
-        W[W_CFG:W_CFG + 16] = self._cfg
-        b = self.device.burst
-        W[W_BP + B_RATE] = self.audio_rate
-        W[W_BP + B_CAR] = b.carrier_hz
-        W[W_BP + B_RISE] = b.rise_s
-        W[W_BP + B_DEC] = b.decay_s
-        W[W_BP + B_POL] = self._policy
-        W[W_BG:W_BG + len(bg)] = bg
-        W[W_GRID:W_GRID + 6] = grid
-        for i, name in enumerate(SLOTS):
-            W[W_SLOT + i] = self.present.index(name) if name in self.present else -1
-        W[W_SLOT + 15] = len(self.present)
-        self._W0 = W
+        self._blocks, self._data, self._bg = blocks, data, bg
+        R0 = np.zeros(1, ONLINE)
+        R0["cfg"] = self.config
+        R0["grid"] = grid
+        R0["slot_channel"] = self._slot_channel
+        self._R0 = R0
+        self._R = R0.copy()
         self._ev = np.zeros((2, _RING))
         self._audio = np.zeros(int(math.ceil(self.audio_rate / self.tick_rate)) + 2)
         self.audio_block = self._audio
-        self._model_id = self.model.model_id
+        #: The online state as one record (argument of :func:`online_step`).
+        self.online_record = self._R[0]
 
     def reset(self, t0: float = 0.0) -> None:
         """Start a new online run at cursor time ``t0`` (s): state stuck and relaxed, no bursts."""
-        if not hasattr(self, "_W"):
-            self._W = self._W0.copy()
-        W = self._W
-        W[:] = self._W0
-        W[W_S:W_S + 16] = self.model.new_state()
-        W[W_I + I_AX] = 1.0
-        W[W_I + I_T0] = float(t0)
-        W[W_I + I_RATE] = self.tick_rate
+        R = self._R
+        R[:] = self._R0
+        R["pad"] = self.model.new_state()
+        R["run"]["ax"] = 1.0
+        R["run"]["t0"] = float(t0)
         self._ev[:] = 0.0
         self._audio[:] = 0.0
-        #: Per-tick outputs of the last :meth:`step` (a view; see ``OUT_NAMES``).
-        self.last = W[W_OUT:W_OUT + len(OUT_NAMES)]
+        #: Per-tick outputs of the last :meth:`step`: an OUTPUTS record (a view; ``last["drive"]``).
+        self.last = R["out"][0]
 
     def step(self, x: float, y: float) -> float:
         """Advance one tick with the cursor at (x, y) metres; return the burst drive in [-1, 1].
 
-        Outputs of the tick are in :attr:`last` (indexed by ``O_*``, names in
-        ``OUT_NAMES``; also :meth:`outputs`) and the tick's audio samples in
+        Outputs of the tick are in :attr:`last` (fields named in ``OUT_NAMES``;
+        also :meth:`outputs`) and the tick's audio samples in
         ``audio_block[:audio_samples]``. Allocation-free; see the
         real-time rules in the module docstring.
         """
-        drive = online_step(self._model_id, self._W, self._blocks, self._data, self._ev, self._audio, x, y)
-        if self._W[W_S + pads.S_BLOW] != 0.0:
-            raise ModelError(divergence_message(self.model, self.tick_rate, float(self._W[W_S + pads.S_BLOWT])))
+        drive = online_step(self.online_record, self._blocks, self._data, self._bg, self._ev, self._audio, x, y)
+        pad = self.online_record["pad"]
+        if pad["diverged"] != 0:
+            raise ModelError(divergence_message(self.model, self.tick_rate, float(pad["diverged_at"])))
         return drive
 
     def outputs(self) -> dict:
         """The last tick's outputs as a dict (allocates; not for the real-time loop)."""
-        return {name: float(v) for name, v in zip(OUT_NAMES, self.last)}
+        return {name: float(self.last[name]) for name in OUT_NAMES}
 
     @property
     def audio_samples(self) -> int:
         """Number of valid samples in :attr:`audio_block` after the last :meth:`step`."""
-        return int(self._W[W_OUT + O_NAUDIO])
+        return int(self.last["audio_samples"])
 
     @property
     def clipped(self) -> int:
         """Audio samples limited to full scale since :meth:`reset`."""
-        return int(self._W[W_I + I_CLIP])
+        return int(self._R["run"]["clipped"][0])
 
     @property
     def event_count(self) -> int:
         """Stick-to-slip events since :meth:`reset`."""
-        return int(self._W[W_I + I_NEVTOT])
+        return int(self._R["run"]["events_total"][0])
 
     def recent_events(self):
         """(times, amplitudes) of the bursts still sounding (copies)."""
-        n = int(self._W[W_I + I_NREC])
+        n = int(self._R["run"]["n_recent"][0])
         return self._ev[0, :n].copy(), self._ev[1, :n].copy()

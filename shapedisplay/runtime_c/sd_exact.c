@@ -1,6 +1,6 @@
 /* sd_exact.c -- the exact event-driven Konyo pad (model "exact"), one renderer tick at a time.
  *
- * A port of shapedisplay/runtime/pads.py (_exact_tick, slip_search, _polish, _w, osc,
+ * A port of shapedisplay/runtime/pads.py (exact_tick, slip_search, _polish, _w, osc,
  * _next_acc_zero), operation for operation in IEEE double precision (rules in sd_pad.c).
  * Stick phases are linear in time; slip phases are closed-form damped oscillations under
  * kinetic friction; re-stick is bracketed between the closed-form extrema of the pad velocity
@@ -154,18 +154,18 @@ static int slip_search(double m, double c, double k, double y0, double v0, doubl
     }
 }
 
-int sd_exact_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double t0, double h, double V, double N,
+int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, double V, double N,
                   double mus, double muk, double gain, double *ev_t, double *ev_a, int cap, int n_ev)
 {
     double m, k, c, B, tmax, x, v, phase, s, age, ncap, t, Neff, tmin;
     int nev0;
     long it;
     if (stuck_whole_tick(S, P, h, V, N, mus)) return n_ev;
-    m = P->mass;
-    k = P->stiffness;
-    c = P->damping;
-    B = P->burst_gain * gain;
-    tmax = P->max_stick_period;
+    m = P->p.mass;
+    k = P->p.stiffness;
+    c = P->p.damping;
+    B = P->p.burst_gain * gain;
+    tmax = P->p.max_stick_period;
     x = S->x;
     v = S->v;
     phase = S->phase;

@@ -124,14 +124,15 @@ int sd_image_load(sd_image_t *img, const void *data, size_t size)
     for (b = 0; b < (int64_t)n_entries; b++)
         if ((int64_t)list[b] >= n_blocks) return SD_ERR_IMAGE_LAYOUT;
 
-    img->table.rows = (int32_t)rows;
-    img->table.cols = (int32_t)cols;
-    img->table.dx = f64le(p + 64);
-    img->table.dy = f64le(p + 72);
-    img->table.x0 = f64le(p + 80);
-    img->table.y0 = f64le(p + 88);
-    if (!(img->table.dx > 0.0 && img->table.dy > 0.0 && isfinite(img->table.dx) && isfinite(img->table.dy)
-          && isfinite(img->table.x0) && isfinite(img->table.y0)))
+    img->table.grid.rows = (int32_t)rows;
+    img->table.grid.cols = (int32_t)cols;
+    img->table.grid.dx = f64le(p + 64);
+    img->table.grid.dy = f64le(p + 72);
+    img->table.grid.x0 = f64le(p + 80);
+    img->table.grid.y0 = f64le(p + 88);
+    if (!(img->table.grid.dx > 0.0 && img->table.grid.dy > 0.0 && isfinite(img->table.grid.dx)
+          && isfinite(img->table.grid.dy)
+          && isfinite(img->table.grid.x0) && isfinite(img->table.grid.y0)))
         return SD_ERR_IMAGE_VALUE;
     for (s = 0; s < SD_IMAGE_NPARAM; s++) {
         img->params[s] = f64le(p + 96 + 8 * s);

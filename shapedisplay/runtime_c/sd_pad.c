@@ -1,6 +1,6 @@
 /* sd_pad.c -- the quasi-static "jump" stick-slip pad model, one renderer tick at a time.
  *
- * A line-by-line port of shapedisplay/runtime/pads.py (_jump_tick, jump_restick and the
+ * A line-by-line port of shapedisplay/runtime/pads.py (jump_tick, jump_restick and the
  * under-damped branches of osc and _next_acc_zero). Every floating-point operation is
  * written in the same order as the Python/numba kernel, in IEEE double precision, with
  * the same libm functions (exp, sin, cos, atan2, sqrt, fmod), so on a host with the same
@@ -10,11 +10,13 @@
  *
  * No allocation, no recursion; work per tick is O(1) plus O(1) per stick-slip event.
  */
+#include <string.h>
 #include "sd_pad_common.h"
 
-void sd_pad_prepare(sd_pad_params_t *P)
+void sd_pad_prepare(sd_pad_t *P, const sd_pad_params_t *params)
 {
-    double m = P->mass, c = P->damping, k = P->stiffness;
+    double m = params->mass, c = params->damping, k = params->stiffness;
+    P->p = *params;
     P->sig = 0.5 * c / m;
     P->wn2 = k / m;
     P->disc = P->sig * P->sig - P->wn2;
@@ -22,15 +24,14 @@ void sd_pad_prepare(sd_pad_params_t *P)
     P->wd = P->under ? sqrt(-P->disc) : 0.0;
     P->tp = P->under ? SD_PI / P->wd : 0.0;
     P->e_tp = P->under ? exp(-P->sig * P->tp) : 0.0;
-    P->prepared = 1;
 }
 
 /* The same operations as pads.jump_restick, with the pad constants (sig, wn2, disc, wd, pi/wd,
  * exp(-sig pi/wd)) computed once by sd_pad_prepare from the same expressions. */
-static void restick(const sd_pad_params_t *P, double s, double xb, double V, double muk, double N,
+static void restick(const sd_pad_t *P, double s, double xb, double V, double muk, double N,
                     double *slip_time, double *x_restick)
 {
-    double m = P->mass, c = P->damping, k = P->stiffness;
+    double m = P->p.mass, c = P->p.damping, k = P->p.stiffness;
     double sig = P->sig, wn2 = P->wn2, wd, xeq, y0, tp, e, yp, vp, ap, tz1, ypk, vpk, dt;
     *slip_time = INFINITY;
     *x_restick = xb;
@@ -57,47 +58,40 @@ static void restick(const sd_pad_params_t *P, double s, double xb, double V, dou
 void sd_jump_restick(double m, double c, double k, double s, double xb, double V, double muk, double N,
                      double *slip_time, double *x_restick)
 {
-    sd_pad_params_t P;
-    P.mass = m;
-    P.damping = c;
-    P.stiffness = k;
-    sd_pad_prepare(&P);
+    sd_pad_params_t params;
+    sd_pad_t P;
+    memset(&params, 0, sizeof params);
+    params.mass = m;
+    params.damping = c;
+    params.stiffness = k;
+    sd_pad_prepare(&P, &params);
     restick(&P, s, xb, V, muk, N, slip_time, x_restick);
 }
 
 void sd_pad_reset(sd_pad_state_t *S)
 {
-    S->x = 0.0;
-    S->v = 0.0;
-    S->phase = 0.0;
+    memset(S, 0, sizeof *S);
     S->s = 1.0;
-    S->age = 0.0;
     S->ncap = INFINITY;
-    S->tsl = 0.0;
-    S->xr = 0.0;
-    S->f = 0.0;
-    S->truncated = 0;
-    S->n_events = 0;
-    S->memo_valid = 0;
 }
 
-int sd_jump_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double t0, double h, double V, double N,
+int sd_jump_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, double V, double N,
                  double mus, double muk, double gain, double *ev_t, double *ev_a, int cap, int n_ev)
 {
     double x, phase, s, age, ncap, tsl, t, Neff, k, c, B, tmax;
     int nev0;
     long it;
     if (stuck_whole_tick(S, P, h, V, N, mus)) return n_ev;
-    k = P->stiffness;
-    c = P->damping;
-    B = P->burst_gain * gain;
-    tmax = P->max_stick_period;
+    k = P->p.stiffness;
+    c = P->p.damping;
+    B = P->p.burst_gain * gain;
+    tmax = P->p.max_stick_period;
     x = S->x;
     phase = S->phase;
     s = S->s;
     age = S->age;
     ncap = S->ncap;
-    tsl = S->tsl;
+    tsl = S->slip_left;
     t = 0.0;
     nev0 = n_ev;
     it = 0;
@@ -141,24 +135,24 @@ int sd_jump_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double t0, double 
             Neff = N < ncap ? N : ncap;
             /* restick is a pure function: steady strokes repeat its inputs exactly, so the last
              * result is reused when they do (same bits in, same bits out). */
-            if (S->memo_valid && S->memo_in[0] == s && S->memo_in[1] == x && S->memo_in[2] == V
-                && S->memo_in[3] == muk && S->memo_in[4] == Neff) {
-                tsl = S->memo_out[0];
-                xr = S->memo_out[1];
+            if (S->memo_valid && S->memo_s == s && S->memo_x == x && S->memo_v == V && S->memo_muk == muk
+                && S->memo_n == Neff) {
+                tsl = S->memo_slip_time;
+                xr = S->memo_x_restick;
             } else {
                 restick(P, s, x, V, muk, Neff, &tsl, &xr);
                 S->memo_valid = 1;
-                S->memo_in[0] = s;
-                S->memo_in[1] = x;
-                S->memo_in[2] = V;
-                S->memo_in[3] = muk;
-                S->memo_in[4] = Neff;
-                S->memo_out[0] = tsl;
-                S->memo_out[1] = xr;
+                S->memo_s = s;
+                S->memo_x = x;
+                S->memo_v = V;
+                S->memo_muk = muk;
+                S->memo_n = Neff;
+                S->memo_slip_time = tsl;
+                S->memo_x_restick = xr;
             }
             /* a re-stick force beyond the static limit (or no static friction) is no re-stick */
             if (thr <= 0.0 || fabs(k * xr + c * V) > thr) tsl = INFINITY;
-            S->xr = xr;
+            S->x_restick = xr;
             phase = 1.0;
             age = 0.0;
             continue;
@@ -183,13 +177,13 @@ int sd_jump_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double t0, double 
         }
         t += tsl;
         tsl = 0.0;
-        x = S->xr;
+        x = S->x_restick;
         phase = 0.0;
         ncap = INFINITY;
         age = 0.0;
     }
     S->v = V;
-    S->tsl = tsl;
+    S->slip_left = tsl;
     finish_tick(S, x, phase, s, age, ncap, k, c, V, N, muk, n_ev - nev0);
     return n_ev;
 }

@@ -93,14 +93,14 @@ static inline void finish_tick(sd_pad_state_t *S, double x, double phase, double
 }
 
 /* Fast path of both models: stuck for the whole tick (the stick force is linear in time, so
- * both ends inside the static limit means no breakaway in between) -- as pads._jump_tick and
- * pads._exact_tick. Returns 1 and advances the state if it applies, 0 otherwise. */
-static inline int stuck_whole_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double h, double V, double N,
+ * both ends inside the static limit means no breakaway in between) -- as pads.jump_tick and
+ * pads.exact_tick. Returns 1 and advances the state if it applies, 0 otherwise. */
+static inline int stuck_whole_tick(sd_pad_state_t *S, const sd_pad_t *P, double h, double V, double N,
                                    double mus)
 {
-    if (S->phase == 0.0 && P->max_stick_period == 0.0) {
-        double k_ = P->stiffness, xe = S->x + V * h;
-        double fa = k_ * S->x + P->damping * V, fe = k_ * xe + P->damping * V, thr_ = mus * N;
+    if (S->phase == 0.0 && P->p.max_stick_period == 0.0) {
+        double k_ = P->p.stiffness, xe = S->x + V * h;
+        double fa = k_ * S->x + P->p.damping * V, fe = k_ * xe + P->p.damping * V, thr_ = mus * N;
         if (fabs(fa) < thr_ && fabs(fe) < thr_) {
             S->x = xe;
             S->v = V;

@@ -69,10 +69,10 @@ static void axis_cell(double pos, double origin, double step, long n, long *i0, 
 /* Bilinear value of every slot at (x, y) metres into out[SD_NSLOT] (0 for absent slots). */
 void sd_sample_slots(const sd_table_t *T, double x, double y, double *out)
 {
-    long rows = T->rows, cols = T->cols, c0, c1, r0, r1;
+    long rows = T->grid.rows, cols = T->grid.cols, c0, c1, r0, r1;
     double tx, ty;
     int s;
-    axis_cell(x, T->x0, T->dx, cols, &c0, &c1, &tx);
+    axis_cell(x, T->grid.x0, T->grid.dx, cols, &c0, &c1, &tx);
     if (rows == 1) {
         long i0 = sd_cell_index(T, 0, c0), i1 = sd_cell_index(T, 0, c1);
         for (s = 0; s < SD_NSLOT; s++) {
@@ -81,7 +81,7 @@ void sd_sample_slots(const sd_table_t *T, double x, double y, double *out)
         }
         return;
     }
-    axis_cell(y, T->y0, T->dy, rows, &r0, &r1, &ty);
+    axis_cell(y, T->grid.y0, T->grid.dy, rows, &r0, &r1, &ty);
     {
         long i00 = sd_cell_index(T, r0, c0), i01 = sd_cell_index(T, r0, c1);
         long i10 = sd_cell_index(T, r1, c0), i11 = sd_cell_index(T, r1, c1);
@@ -244,13 +244,24 @@ static void derive(const sd_renderer_t *R, const double *vals, double vx, double
 }
 
 /* ------------------------------------------------------------------ renderer */
+/* The pad models with a C tick, by model id (the registry of the Python runtime numbers them). */
+static const sd_tick_fn TICKS[SD_NMODEL] = {
+    [SD_MODEL_EXACT] = sd_exact_tick,
+    [SD_MODEL_JUMP] = sd_jump_tick,
+};
+
+sd_tick_fn sd_model_tick(int model)
+{
+    return model >= 0 && model < SD_NMODEL ? TICKS[model] : NULL;
+}
+
 size_t sd_renderer_size(void) { return sizeof(sd_renderer_t); }
 
 int sd_renderer_init(sd_renderer_t *R, const sd_table_t *table, const sd_config_t *cfg)
 {
     const sd_pad_params_t *p = &cfg->pad;
     if (!R || !table || !cfg) return SD_ERR_ARG;
-    if (table->rows < 1 || table->cols < 1 || !(table->dx > 0.0) || !(table->dy > 0.0) || table->n_blocks < 0)
+    if (table->grid.rows < 1 || table->grid.cols < 1 || !(table->grid.dx > 0.0) || !(table->grid.dy > 0.0) || table->n_blocks < 0)
         return SD_ERR_TABLE;
     if (!table->slot[SD_SLOT_NORMAL_FORCE]) return SD_ERR_TABLE;     /* the pad models need N */
     if (cfg->k_mu > 0.0 && !table->slot[SD_SLOT_GRAD_X]) return SD_ERR_TABLE;  /* slope friction needs grad */
@@ -263,10 +274,11 @@ int sd_renderer_init(sd_renderer_t *R, const sd_table_t *table, const sd_config_
         return SD_ERR_PARAM;
     if (!(cfg->carrier_hz > 0.0) || !(cfg->rise_s > 0.0) || !(cfg->decay_s > 0.0)) return SD_ERR_PARAM;
     if (cfg->policy < SD_RETRIGGER || cfg->policy > SD_MAX) return SD_ERR_PARAM;
-    if (cfg->model != SD_MODEL_JUMP && cfg->model != SD_MODEL_EXACT) return SD_ERR_PARAM;
+    if (!sd_model_tick(cfg->model)) return SD_ERR_PARAM;
     R->table = table;
     R->cfg = *cfg;
-    sd_pad_prepare(&R->cfg.pad);
+    sd_pad_prepare(&R->pad_model, &cfg->pad);
+    R->tick_fn = sd_model_tick(cfg->model);
     R->audio_cap = cfg->audio_rate > 0.0 ? (long)ceil(cfg->audio_rate / cfg->tick_rate) + 2 : 0;
     if (R->audio_cap > SD_AUDIO_BLOCK_MAX) return SD_ERR_PARAM;
     sd_renderer_reset(R, 0.0);
@@ -276,30 +288,22 @@ int sd_renderer_init(sd_renderer_t *R, const sd_table_t *table, const sd_config_
 void sd_renderer_reset(sd_renderer_t *R, double t0)
 {
     sd_pad_reset(&R->pad);
-    R->tick = 0.0;
-    R->xp = 0.0;
-    R->yp = 0.0;
-    R->ax = 1.0;
-    R->ay = 0.0;
-    R->t0 = t0;
-    R->next_j = 0;
-    R->n_rec = 0;
-    R->clipped = 0;
-    R->events_total = 0;
-    R->events_dropped = 0;
+    memset(&R->run, 0, sizeof R->run);
+    R->run.ax = 1.0;
+    R->run.t0 = t0;
     R->n_audio = 0;
     memset(R->ev_t, 0, sizeof R->ev_t);
     memset(R->ev_a, 0, sizeof R->ev_a);
     memset(R->audio, 0, sizeof R->audio);
-    memset(R->out, 0, sizeof R->out);
+    memset(&R->out, 0, sizeof R->out);
 }
 
 double sd_renderer_step(sd_renderer_t *R, double x, double y)
 {
     double vals[SD_NSLOT];
-    double k = R->tick, rate = R->cfg.tick_rate, t = R->t0 + k / rate;
+    double k = R->run.tick, rate = R->cfg.tick_rate, t = R->run.t0 + k / rate;
     double h, vx, vy, xm, ym, V, N, mus, muk, gain, dur, drive, f, target;
-    long nrec = R->n_rec, drop = 0, nev = 0, j0, j1, hi, lo, i;
+    long nrec = R->run.n_recent, drop = 0, nev = 0, j0, j1, hi, lo, i;
     const long cap = SD_EVENT_RING;
     if (k == 0.0) {
         h = 0.0;
@@ -308,13 +312,13 @@ double sd_renderer_step(sd_renderer_t *R, double x, double y)
         xm = x;
         ym = y;
     } else {
-        h = t - (R->t0 + (k - 1.0) / rate);
-        vx = (x - R->xp) / h;
-        vy = (y - R->yp) / h;
-        xm = 0.5 * (x + R->xp);
-        ym = 0.5 * (y + R->yp);
+        h = t - (R->run.t0 + (k - 1.0) / rate);
+        vx = (x - R->run.xp) / h;
+        vy = (y - R->run.yp) / h;
+        xm = 0.5 * (x + R->run.xp);
+        ym = 0.5 * (y + R->run.yp);
     }
-    axis_speed(vx, vy, &R->ax, &R->ay, &V);
+    axis_speed(vx, vy, &R->run.ax, &R->run.ay, &V);
     sd_sample_slots(R->table, xm, ym, vals);
     derive(R, vals, vx, vy, fabs(V), &N, &mus, &muk, &gain);
     /* forget bursts that have finished */
@@ -322,7 +326,7 @@ double sd_renderer_step(sd_renderer_t *R, double x, double y)
     while (drop < nrec && R->ev_t[drop] + dur <= t - h) drop += 1;
     if (nrec > cap / 2 && drop == 0) {
         drop = nrec - cap / 4;
-        R->events_dropped += drop;
+        R->run.events_dropped += drop;
     }
     if (drop > 0) {
         for (i = drop; i < nrec; i++) {
@@ -332,30 +336,27 @@ double sd_renderer_step(sd_renderer_t *R, double x, double y)
         nrec -= drop;
     }
     if (h > 0.0) {
-        long n1 = R->cfg.model == SD_MODEL_EXACT
-                      ? sd_exact_tick(&R->pad, &R->cfg.pad, t - h, h, V, N, mus, muk, gain, R->ev_t, R->ev_a,
-                                      (int)cap, (int)nrec)
-                      : sd_jump_tick(&R->pad, &R->cfg.pad, t - h, h, V, N, mus, muk, gain, R->ev_t, R->ev_a,
-                                     (int)cap, (int)nrec);
+        long n1 = R->tick_fn(&R->pad, &R->pad_model, t - h, h, V, N, mus, muk, gain, R->ev_t, R->ev_a, (int)cap,
+                             (int)nrec);
         nev = n1 - nrec;
         if (n1 > cap) {
-            R->events_dropped += n1 - cap;
+            R->run.events_dropped += n1 - cap;
             n1 = cap;
         }
         nrec = n1;
     }
-    R->n_rec = nrec;
-    R->events_total += nev;
+    R->run.n_recent = nrec;
+    R->run.events_total += nev;
     /* audio samples with times in (t - h, t] */
     R->n_audio = 0;
     if (R->audio_cap > 0) {
-        j0 = R->next_j;
-        j1 = (long)floor((t - R->t0) * R->cfg.audio_rate + 1e-9) + 1;
+        j0 = R->run.next_sample;
+        j1 = (long)floor((t - R->run.t0) * R->cfg.audio_rate + 1e-9) + 1;
         if (j1 - j0 > R->audio_cap) j0 = j1 - R->audio_cap;
         if (j1 > j0)
-            R->clipped += synth(R->ev_t, R->ev_a, nrec, R->t0, R->cfg.audio_rate, j0, j1, R->cfg.carrier_hz,
+            R->run.clipped += synth(R->ev_t, R->ev_a, nrec, R->run.t0, R->cfg.audio_rate, j0, j1, R->cfg.carrier_hz,
                                 R->cfg.rise_s, R->cfg.decay_s, R->cfg.policy, R->audio);
-        R->next_j = j1;
+        R->run.next_sample = j1;
         R->n_audio = j1 - j0 > 0 ? j1 - j0 : 0;
     }
     hi = nrec;      /* sorted events: the backward count equals the forward scan of online_step */
@@ -366,24 +367,24 @@ double sd_renderer_step(sd_renderer_t *R, double x, double y)
                         R->cfg.policy);
     drive = py_min(py_max(drive, -1.0), 1.0);
     f = R->pad.f;
-    R->out[SD_O_T] = t;
-    R->out[SD_O_X] = x;
-    R->out[SD_O_Y] = y;
-    R->out[SD_O_VX] = vx;
-    R->out[SD_O_VY] = vy;
-    R->out[SD_O_V] = V;
-    R->out[SD_O_N] = N;
-    R->out[SD_O_F] = f;
-    R->out[SD_O_STATE] = R->pad.phase;
-    R->out[SD_O_LX] = vals[SD_SLOT_LATERAL_X];
-    R->out[SD_O_LY] = vals[SD_SLOT_LATERAL_Y];
+    R->out.t = t;
+    R->out.x = x;
+    R->out.y = y;
+    R->out.vx = vx;
+    R->out.vy = vy;
+    R->out.pad_speed = V;
+    R->out.normal_force = N;
+    R->out.friction_force = f;
+    R->out.state = R->pad.phase;
+    R->out.lateral_x = vals[SD_SLOT_LATERAL_X];
+    R->out.lateral_y = vals[SD_SLOT_LATERAL_Y];
     target = R->table->slot[SD_SLOT_SKIN_STRETCH] ? vals[SD_SLOT_SKIN_STRETCH] : R->cfg.skin_target;
-    R->out[SD_O_SS] = mus * N > 0.0 ? target * f / (mus * N) : 0.0;
-    R->out[SD_O_NEV] = (double)nev;
-    R->out[SD_O_DRIVE] = drive;
-    R->out[SD_O_NAUDIO] = (double)R->n_audio;
-    R->xp = x;
-    R->yp = y;
-    R->tick = k + 1.0;
+    R->out.skin_stretch = mus * N > 0.0 ? target * f / (mus * N) : 0.0;
+    R->out.events = (double)nev;
+    R->out.drive = drive;
+    R->out.audio_samples = (double)R->n_audio;
+    R->run.xp = x;
+    R->run.yp = y;
+    R->run.tick = k + 1.0;
     return drive;
 }

@@ -15,6 +15,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include "sd_layout.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -24,47 +25,38 @@ extern "C" {
 #define SD_MAX_EVENTS_PER_TICK 200000L
 
 /* ------------------------------------------------------------------ pad model */
-typedef struct {
-    double mass;              /* kg */
-    double stiffness;         /* N/m */
-    double damping;           /* N*s/m */
-    double burst_gain;        /* B, output amplitude per newton of breakaway force */
-    double max_stick_period;  /* s; 0 = off */
-    /* derived by sd_pad_prepare (call after setting the fields above; sd_renderer_init does) */
-    double sig, wn2, disc, wd, tp, e_tp;
-    int under, prepared;
-} sd_pad_params_t;
+/* The parameters (sd_pad_params_t) and the state (sd_pad_state_t) of a pad model are laid out in
+ * sd_layout.h, generated from the Python runtime's definitions (shapedisplay/runtime/layouts.py). */
 
+/* A pad model's parameters with the constants derived from them at load (sd_pad_prepare). */
 typedef struct {
-    double x;        /* spring stretch, m */
-    double v;        /* pad velocity, m/s */
-    double phase;    /* 0 stick, 1 slip */
-    double s;        /* sign of the friction force */
-    double age;      /* time in the current stick phase, s */
-    double ncap;     /* normal-force cap set by a forced breakaway, N (inf = none) */
-    double tsl;      /* remaining slip time, s (inf = steady sliding) */
-    double xr;       /* stretch at the coming re-stick, m */
-    double f;        /* friction force at the end of the last tick, N */
-    long truncated;  /* ticks cut at SD_MAX_EVENTS_PER_TICK */
-    long n_events;   /* events in the last tick */
-    int memo_valid;  /* last re-stick inputs/outputs (a pure function; reused on exact repeats) */
-    double memo_in[5], memo_out[2];
-} sd_pad_state_t;
+    sd_pad_params_t p;
+    double sig, wn2, disc, wd, tp, e_tp;   /* c/2m, k/m, sig^2 - wn2, damped frequency, pi/wd, exp(-sig tp) */
+    int under;                             /* under-damped (disc < 0) */
+} sd_pad_t;
 
+/* A fresh state: stuck, spring relaxed, no normal-force cap (pads.new_state). */
 void sd_pad_reset(sd_pad_state_t *S);
-/* Compute the derived pad constants; required before sd_jump_tick. */
-void sd_pad_prepare(sd_pad_params_t *P);
+/* Copy the parameters and compute the derived pad constants; required before a tick. */
+void sd_pad_prepare(sd_pad_t *P, const sd_pad_params_t *params);
 
-/* Advance the jump model by one tick [t0, t0 + h] at surface velocity V (m/s), normal force N,
+/* One tick of a pad model: advance [t0, t0 + h] at surface velocity V (m/s), normal force N,
  * coefficients mus/muk and burst-gain multiplier gain. Stick-to-slip events (time s, burst
  * amplitude) are written to ev_t/ev_a[n_ev..cap-1]; returns the new event count (it may exceed
  * cap: the extra events are counted, not stored). */
-int sd_jump_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double t0, double h, double V, double N,
+typedef int (*sd_tick_fn)(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, double V, double N,
+                          double mus, double muk, double gain, double *ev_t, double *ev_a, int cap, int n_ev);
+
+/* The quasi-static jump model (pads.jump_tick). */
+int sd_jump_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, double V, double N,
                  double mus, double muk, double gain, double *ev_t, double *ev_a, int cap, int n_ev);
 
-/* The exact event-driven pad model (pads._exact_tick), same calling convention. */
-int sd_exact_tick(sd_pad_state_t *S, const sd_pad_params_t *P, double t0, double h, double V, double N,
+/* The exact event-driven pad model (pads.exact_tick). */
+int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, double V, double N,
                   double mus, double muk, double gain, double *ev_t, double *ev_a, int cap, int n_ev);
+
+/* The tick function of model id SD_MODEL_*, or NULL if the C runtime does not implement it. */
+sd_tick_fn sd_model_tick(int model);
 
 /* Closed-form slip outcome (see pads.jump_restick): slip time (inf = steady sliding) and the
  * spring stretch at re-stick. */
@@ -82,20 +74,12 @@ typedef struct {
     double background;     /* value outside every block */
 } sd_channel_t;
 
-/* Renderer slots: the channels the renderer reads (same order as renderer.SLOTS). */
-enum {
-    SD_SLOT_NORMAL_FORCE, SD_SLOT_FRICTION_SCALE, SD_SLOT_BURST_GAIN, SD_SLOT_GRAD_X, SD_SLOT_GRAD_Y,
-    SD_SLOT_LATERAL_X, SD_SLOT_LATERAL_Y, SD_SLOT_SKIN_STRETCH, SD_SLOT_BREAKAWAY_FORCE, SD_SLOT_KINETIC_FORCE,
-    SD_NSLOT
-};
-
 /* A friction-envelope table: the arrays of `shapedisplay export --format c` plug in directly:
  *   sd_channel_t n = {NAME_normal_force_codes, SD_U16, NAME_normal_force_scale, ...};
- *   sd_table_t T = {NAME_ROWS, NAME_COLS, NAME_dx_m, NAME_dy_m, NAME_x0_m, NAME_y0_m,
+ *   sd_table_t T = {{NAME_ROWS, NAME_COLS, NAME_dx_m, NAME_dy_m, NAME_x0_m, NAME_y0_m},
  *                   NAME_N_BLOCKS, NAME_blocks, {&n, 0, ...}};                                  */
 typedef struct {
-    int32_t rows, cols;                 /* canvas samples; sample (r, c) at (x0 + c dx, y0 + r dy) */
-    double dx, dy, x0, y0;              /* m */
+    sd_grid_t grid;                     /* canvas: rows, cols, spacing, origin (sd_layout.h) */
     int32_t n_blocks;
     const int32_t (*blocks)[5];         /* row0, col0, rows, cols, offset; never overlapping */
     const sd_channel_t *slot[SD_NSLOT]; /* NULL = channel not stored */
@@ -120,37 +104,22 @@ double sd_envelope(double tau, double rise, double decay);
 #define SD_AUDIO_BLOCK_MAX 4096 /* audio samples per tick, >= ceil(audio_rate / tick_rate) + 2 */
 #endif
 
-enum { SD_RETRIGGER = 0, SD_ADD = 1, SD_MAX = 2 };               /* burst overlap policies */
-enum { SD_MODEL_JUMP = 0, SD_MODEL_EXACT = 1 };                  /* pad models */
 enum { SD_OK = 0, SD_ERR_ARG = -1, SD_ERR_TABLE = -2, SD_ERR_PARAM = -3 };
 
-/* Per-tick outputs, indices into sd_renderer_t.out (same as renderer.OUT_NAMES). */
-enum {
-    SD_O_T, SD_O_X, SD_O_Y, SD_O_VX, SD_O_VY, SD_O_N, SD_O_F, SD_O_STATE, SD_O_LX, SD_O_LY, SD_O_SS, SD_O_NEV,
-    SD_O_DRIVE, SD_O_NAUDIO, SD_O_V, SD_NOUT
-};
-
-typedef struct {
-    sd_pad_params_t pad;     /* m, k, c, burst gain B, max stick period */
-    double mu_s, mu_k;       /* device friction coefficients */
-    double k_mu;             /* slope friction gain (table meta mapping.slope_friction_gain) */
-    double skin_target;      /* m, default skin-stretch target */
-    double tick_rate;        /* Hz, 100 .. 192000 */
-    double audio_rate;       /* Hz, 1000 .. 384000; 0 = no audio, drive per tick only */
-    double carrier_hz, rise_s, decay_s;
-    int policy;              /* SD_RETRIGGER, SD_ADD, SD_MAX */
-    int model;               /* SD_MODEL_JUMP (default, 0) or SD_MODEL_EXACT */
-} sd_config_t;
-
+/* The renderer settings (sd_config_t), its counters (sd_run_state_t) and per-tick outputs
+ * (sd_outputs_t) are laid out in sd_layout.h, as the Python renderer's records. cfg.model is an
+ * SD_MODEL_* id of a model with a C tick (sd_model_tick); cfg.audio_rate 0 = no audio. */
 typedef struct {
     const sd_table_t *table;
     sd_config_t cfg;
+    sd_pad_t pad_model;                 /* cfg.pad with its derived constants */
+    sd_tick_fn tick_fn;                 /* sd_model_tick(cfg.model) */
     sd_pad_state_t pad;
-    double tick, xp, yp, ax, ay, t0;
-    long next_j, n_rec, clipped, events_total, events_dropped, n_audio, audio_cap;
+    sd_run_state_t run;
+    long n_audio, audio_cap;
     double ev_t[SD_EVENT_RING], ev_a[SD_EVENT_RING];
     double audio[SD_AUDIO_BLOCK_MAX];   /* audio samples of the last tick: audio[0 .. n_audio-1] */
-    double out[SD_NOUT];                /* outputs of the last tick */
+    sd_outputs_t out;                   /* outputs of the last tick */
 } sd_renderer_t;
 
 /* sizeof(sd_renderer_t), for bindings that allocate it from another language. */

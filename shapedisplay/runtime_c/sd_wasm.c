@@ -32,6 +32,9 @@
 #include <string.h>
 #include "sd_runtime.h"
 
+/* per-tick outputs as an array of doubles: sd_outputs_t holds doubles only (sd_layout.h) */
+#define SD_NOUT ((int32_t)(sizeof(sd_outputs_t) / sizeof(double)))
+
 #define EXPORT(name) __attribute__((export_name(#name)))
 
 static sd_image_t img, staged;
@@ -136,7 +139,7 @@ EXPORT(sd_wasm_run) int32_t sd_wasm_run(uint32_t xy_ptr, int32_t n, uint32_t out
     for (i = 0; i < n; i++) {
         if (written + R.audio_cap > cap) return -1;
         sd_renderer_step(&R, xy[2 * i], xy[2 * i + 1]);
-        if (outs) memcpy(outs + (size_t)i * SD_NOUT, R.out, sizeof R.out);
+        if (outs) memcpy(outs + (size_t)i * SD_NOUT, &R.out, sizeof R.out);
         if (audio && R.n_audio > 0) {
             memcpy(audio + written, R.audio, (size_t)R.n_audio * sizeof(double));
             written += (int32_t)R.n_audio;
@@ -145,7 +148,7 @@ EXPORT(sd_wasm_run) int32_t sd_wasm_run(uint32_t xy_ptr, int32_t n, uint32_t out
     return written;
 }
 
-EXPORT(sd_wasm_outputs) uint32_t sd_wasm_outputs(void) { return (uint32_t)(uintptr_t)R.out; }
+EXPORT(sd_wasm_outputs) uint32_t sd_wasm_outputs(void) { return (uint32_t)(uintptr_t)&R.out; }
 EXPORT(sd_wasm_audio) uint32_t sd_wasm_audio(void) { return (uint32_t)(uintptr_t)R.audio; }
 EXPORT(sd_wasm_audio_count) int32_t sd_wasm_audio_count(void) { return ready ? (int32_t)R.n_audio : 0; }
 EXPORT(sd_wasm_audio_cap) int32_t sd_wasm_audio_cap(void) { return ready ? (int32_t)R.audio_cap : 0; }
@@ -158,9 +161,9 @@ EXPORT(sd_wasm_param) double sd_wasm_param(int index)
 EXPORT(sd_wasm_counter) double sd_wasm_counter(int which)
 {
     switch (which) {
-    case 0: return (double)R.clipped;
-    case 1: return (double)R.events_total;
-    case 2: return (double)R.events_dropped;
+    case 0: return (double)R.run.clipped;
+    case 1: return (double)R.run.events_total;
+    case 2: return (double)R.run.events_dropped;
     default: return 0.0;
     }
 }
@@ -168,16 +171,16 @@ EXPORT(sd_wasm_counter) double sd_wasm_counter(int which)
 /* The last tick's new events are the newest entries of the renderer's event ring. */
 EXPORT(sd_wasm_tick_events) int32_t sd_wasm_tick_events(void)
 {
-    long n = ready ? (long)R.out[SD_O_NEV] : 0;
-    return (int32_t)(n < R.n_rec ? n : R.n_rec);
+    long n = ready ? (long)R.out.events : 0;
+    return (int32_t)(n < R.run.n_recent ? n : R.run.n_recent);
 }
 EXPORT(sd_wasm_event_times) uint32_t sd_wasm_event_times(void)
 {
-    return (uint32_t)(uintptr_t)(R.ev_t + (R.n_rec - sd_wasm_tick_events()));
+    return (uint32_t)(uintptr_t)(R.ev_t + (R.run.n_recent - sd_wasm_tick_events()));
 }
 EXPORT(sd_wasm_event_amplitudes) uint32_t sd_wasm_event_amplitudes(void)
 {
-    return (uint32_t)(uintptr_t)(R.ev_a + (R.n_rec - sd_wasm_tick_events()));
+    return (uint32_t)(uintptr_t)(R.ev_a + (R.run.n_recent - sd_wasm_tick_events()));
 }
 
 EXPORT(sd_wasm_sample) uint32_t sd_wasm_sample(double x, double y)

@@ -15,6 +15,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 #include <time.h>
 
 #include "sd_runtime.h"
@@ -56,7 +57,7 @@ static double bench_render(const sd_table_t *T, sd_config_t *C, long n)
     for (i = 0; i < n; i++) acc += sd_renderer_step(&R, stroke_x(i), 0.0);
     t0 = now_s() - t0;
     sink = acc;
-    printf("  (%ld events)", R.events_total);
+    printf("  (%ld events)", (long)R.run.events_total);
     return (double)n / t0;
 }
 
@@ -69,7 +70,9 @@ int main(int argc, char **argv)
     double lo = 0.5, hi = 2.5, scale = (hi - lo) / 65535.0, t0, rate;
     static double ev_t[4096], ev_a[4096];
     sd_pad_state_t S;
+    sd_pad_t P;
     int s, n_ev = 0;
+    memset(&C, 0, sizeof C);
     for (i = 0; i < COLS; i++) {
         double x = (double)i * 0.25e-3, v;
         if (x < 0.015 || x > 0.045) v = lo;
@@ -82,10 +85,10 @@ int main(int argc, char **argv)
     nf.scale = scale;
     nf.offset = lo;
     nf.background = 0.0;
-    T.rows = 1;
-    T.cols = COLS;
-    T.dx = T.dy = 0.25e-3;
-    T.x0 = T.y0 = 0.0;
+    T.grid.rows = 1;
+    T.grid.cols = COLS;
+    T.grid.dx = T.grid.dy = 0.25e-3;
+    T.grid.x0 = T.grid.y0 = 0.0;
     T.n_blocks = 1;
     T.blocks = blocks;
     T.tile_rows = T.tile_cols = T.tiles_y = T.tiles_x = 0;
@@ -109,11 +112,11 @@ int main(int argc, char **argv)
     C.model = SD_MODEL_JUMP;
 
     /* the model kernel alone: 100 mm/s, N = 1.5 N */
-    sd_pad_prepare(&C.pad);
+    sd_pad_prepare(&P, &C.pad);
     sd_pad_reset(&S);
     t0 = now_s();
     for (i = 0; i < n; i++) {
-        n_ev = sd_jump_tick(&S, &C.pad, (double)i * 1e-4, 1e-4, 0.1, 1.5, 0.5, 0.3, 1.0, ev_t, ev_a, 4096, 0);
+        n_ev = sd_jump_tick(&S, &P, (double)i * 1e-4, 1e-4, 0.1, 1.5, 0.5, 0.3, 1.0, ev_t, ev_a, 4096, 0);
     }
     rate = (double)n / (now_s() - t0);
     sink = S.x + n_ev;
@@ -121,7 +124,7 @@ int main(int argc, char **argv)
     sd_pad_reset(&S);
     t0 = now_s();
     for (i = 0; i < n / 10; i++) {
-        n_ev = sd_exact_tick(&S, &C.pad, (double)i * 1e-4, 1e-4, 0.1, 1.5, 0.5, 0.3, 1.0, ev_t, ev_a, 4096, 0);
+        n_ev = sd_exact_tick(&S, &P, (double)i * 1e-4, 1e-4, 0.1, 1.5, 0.5, 0.3, 1.0, ev_t, ev_a, 4096, 0);
     }
     rate = (double)(n / 10) / (now_s() - t0);
     sink = S.x + n_ev;

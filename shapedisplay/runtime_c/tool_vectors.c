@@ -1,6 +1,6 @@
 /* tool_vectors.c -- host program that runs the C runtime on test vectors written by Python.
  *
- *   sd_vectors pad    IN OUT   run a pad model (jump or exact) over per-tick inputs (as pads.run_ticks)
+ *   sd_vectors pad    IN OUT   run a pad model (jump or exact) over per-tick inputs (as dispatch.run_ticks)
  *   sd_vectors render IN OUT   render a cursor stroke through a table (as Renderer.step)
  *   sd_vectors image  IN OUT   the same from a binary table image (sd_image_load), settings overridden
  *
@@ -50,20 +50,18 @@ static int64_t rd_i64(void)
 
 static int run_pad(void)
 {
-    double prm[5];
-    sd_pad_params_t P;
+    sd_pad_params_t prm;
+    sd_pad_t P;
     sd_pad_state_t S;
+    sd_tick_fn tick;
     int64_t n, i, model;
     double *t, *V, *N, *mus, *muk, *gain, *of, *ox, *ophase, *ev_t, *ev_a;
     int cap, n_ev = 0;
-    rd(prm, sizeof(double), 5);
-    P.mass = prm[0];
-    P.stiffness = prm[1];
-    P.damping = prm[2];
-    P.burst_gain = prm[3];
-    P.max_stick_period = prm[4];
-    sd_pad_prepare(&P);
+    rd(&prm, sizeof prm, 1);
+    sd_pad_prepare(&P, &prm);
     model = rd_i64();
+    tick = sd_model_tick((int)model);
+    if (!tick) die("model has no C tick");
     n = rd_i64();
     if (n < 1 || n > 100000000) die("bad tick count");
     t = rd_f64(n); V = rd_f64(n); N = rd_f64(n); mus = rd_f64(n); muk = rd_f64(n); gain = rd_f64(n);
@@ -80,10 +78,7 @@ static int run_pad(void)
         for (i = 0; i < n; i++) {
             double h = i > 0 ? t[i] - t[i - 1] : 0.0;
             double t0 = i > 0 ? t[i - 1] : t[0];
-            if (h > 0.0 && model == SD_MODEL_EXACT)
-                n_ev = sd_exact_tick(&S, &P, t0, h, V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, cap, n_ev);
-            else if (h > 0.0)
-                n_ev = sd_jump_tick(&S, &P, t0, h, V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, cap, n_ev);
+            if (h > 0.0) n_ev = tick(&S, &P, t0, h, V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, cap, n_ev);
             of[i] = S.f;
             ophase[i] = S.phase;
             ox[i] = S.x;
@@ -120,24 +115,12 @@ static int run_render(void)
     sd_config_t C;
     static sd_table_t T;
     static sd_channel_t ch[SD_NSLOT];
-    double c[14];
-    int64_t policy, n_values, i, s;
+    int64_t n_values, i, s;
     int32_t (*blocks)[5];
     int64_t *blk;
     memset(&T, 0, sizeof T);           /* no block index: lookups scan the blocks */
-    rd(c, sizeof(double), 14);
-    policy = rd_i64();
-    C.model = (int)rd_i64();
-    C.pad.mass = c[0]; C.pad.stiffness = c[1]; C.pad.damping = c[2]; C.pad.burst_gain = c[3];
-    C.pad.max_stick_period = c[4]; C.mu_s = c[5]; C.mu_k = c[6]; C.k_mu = c[7]; C.skin_target = c[8];
-    C.tick_rate = c[9]; C.audio_rate = c[10]; C.carrier_hz = c[11]; C.rise_s = c[12]; C.decay_s = c[13];
-    C.policy = (int)policy;
-    T.rows = (int32_t)rd_i64();
-    T.cols = (int32_t)rd_i64();
-    rd(&T.dx, sizeof(double), 1);
-    rd(&T.dy, sizeof(double), 1);
-    rd(&T.x0, sizeof(double), 1);
-    rd(&T.y0, sizeof(double), 1);
+    rd(&C, sizeof C, 1);
+    rd(&T.grid, sizeof T.grid, 1);
     T.n_blocks = (int32_t)rd_i64();
     blk = rd_i64s(5 * (int64_t)T.n_blocks);
     blocks = (int32_t (*)[5])malloc((size_t)(T.n_blocks > 0 ? T.n_blocks : 1) * sizeof *blocks);
@@ -172,7 +155,8 @@ static int play(const sd_table_t *T, const sd_config_t *C)
 {
     static sd_renderer_t R;          /* large (event ring): not on the stack */
     int64_t n, i, n_audio_total = 0;
-    double *x, *y, *outs, *audio;
+    double *x, *y, *audio;
+    sd_outputs_t *outs;
     size_t audio_cap;
     int rc;
     n = rd_i64();
@@ -184,24 +168,24 @@ static int play(const sd_table_t *T, const sd_config_t *C)
         fprintf(stderr, "sd_vectors: sd_renderer_init failed (%d)\n", rc);
         return 3;
     }
-    outs = (double *)malloc((size_t)n * SD_NOUT * sizeof(double));
+    outs = (sd_outputs_t *)malloc((size_t)n * sizeof(sd_outputs_t));
     audio_cap = (size_t)n * (size_t)(R.audio_cap > 0 ? R.audio_cap : 1);
     audio = (double *)malloc(audio_cap * sizeof(double));
     if (!outs || !audio) die("out of memory");
     for (i = 0; i < n; i++) {
         sd_renderer_step(&R, x[i], y[i]);
-        memcpy(outs + i * SD_NOUT, R.out, SD_NOUT * sizeof(double));
+        outs[i] = R.out;
         memcpy(audio + n_audio_total, R.audio, (size_t)R.n_audio * sizeof(double));
         n_audio_total += R.n_audio;
     }
-    wr(outs, sizeof(double), (size_t)n * SD_NOUT);
+    wr(outs, sizeof(sd_outputs_t), (size_t)n);
     wr(&n_audio_total, sizeof n_audio_total, 1);
     wr(audio, sizeof(double), (size_t)n_audio_total);
     {
         int64_t counters[3];
-        counters[0] = R.clipped;
-        counters[1] = R.events_total;
-        counters[2] = R.events_dropped;
+        counters[0] = R.run.clipped;
+        counters[1] = R.run.events_total;
+        counters[2] = R.run.events_dropped;
         wr(counters, sizeof(int64_t), 3);
     }
     return 0;

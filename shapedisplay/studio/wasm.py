@@ -51,11 +51,11 @@ def table_payload(table, model: str = "exact") -> tuple[dict, bytes]:
     image : bytes
         The flat binary table image (:func:`shapedisplay.runtime.image.to_image`).
     """
-    from ..link.c_engine import _MODELS
+    from ..link.c_engine import C_MODELS
     from ..runtime import Renderer
     from ..runtime.image import SLOTS, to_image
-    if model not in _MODELS:
-        raise InputError(f"the page's C runtime plays models {sorted(_MODELS)} (got {model!r})")
+    if model not in C_MODELS:
+        raise InputError(f"the page's C runtime plays models {sorted(C_MODELS)} (got {model!r})")
     py = Renderer(table, model=model)
     image = to_image(table, py.device)
     g = table.grid

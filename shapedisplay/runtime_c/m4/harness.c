@@ -94,7 +94,7 @@ int main(void)
             counts[i] = m4_count_read();
         } else {
             sd_renderer_step(&R, x[i], y[i]);
-            m4_write(fd, R.out, sizeof R.out);
+            m4_write(fd, &R.out, sizeof R.out);
             if (n_audio + R.n_audio > (int64_t)(sizeof audio / sizeof audio[0])) return 2;
             memcpy(audio + n_audio, R.audio, (size_t)R.n_audio * sizeof(double));
             n_audio += R.n_audio;
@@ -108,9 +108,9 @@ int main(void)
         int64_t counters[3];
         m4_write(fd, &n_audio, 8);
         m4_write(fd, audio, (uint32_t)(8 * n_audio));
-        counters[0] = R.clipped;
-        counters[1] = R.events_total;
-        counters[2] = R.events_dropped;
+        counters[0] = R.run.clipped;
+        counters[1] = R.run.events_total;
+        counters[2] = R.run.events_dropped;
         m4_write(fd, counters, sizeof counters);
     }
     m4_close(fd);

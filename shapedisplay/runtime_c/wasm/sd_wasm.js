@@ -16,7 +16,8 @@
 // A table can be swapped while playing (loadTable again): the model, policy and rates stay.
 // Real-time rule: loadTable/configure may grow memory; step/run never allocate.
 
-export const MODELS = {jump: 0, exact: 1};
+// model ids and burst policies as in sd_layout.h (SD_MODEL_*, SD_RETRIGGER..): tests/test_layouts.py checks
+export const MODELS = {exact: 0, jump: 1};
 export const POLICIES = {retrigger: 0, add: 1, max: 2};
 export const OUT_NAMES = ["t", "x", "y", "vx", "vy", "normal_force", "friction_force", "state", "lateral_x",
                           "lateral_y", "skin_stretch", "events", "drive", "audio_samples", "pad_speed"];
