@@ -22,7 +22,7 @@ REGISTRY = (
     ('tanh', 'tanh_tick', None),
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py.
-KERNEL_SOURCES_SHA256 = "ae9011b7d96a3e455ed76f976333c848e72e97f5d0d221fcb07f0a9ec004e967"
+KERNEL_SOURCES_SHA256 = "12cd735628b2d2669fd49ed43919cd78f6a2c038e9ba749032c0be22966ee021"
 
 
 @njit(cache=True)

@@ -94,7 +94,7 @@ class PadModel:
 
 
 class ExactModel(PadModel):
-    """Event-driven exact solution of the Konyo pad (DESIGN 3.1, 4).
+    """Event-driven exact solution of the Konyo pad (closed-form phases, events located inside the tick).
 
     Stick phases are linear in time (breakaway solved exactly), slip phases
     are closed-form damped oscillations under constant kinetic friction;
@@ -149,7 +149,7 @@ class JumpModel(PadModel):
 
 
 class KarnoppModel(PadModel):
-    """Modified Karnopp virtual spring with skin stretch (DESIGN 3.5).
+    """Modified Karnopp virtual spring with skin stretch (Provancher and Sylvester).
 
     A spring ``k_K`` (``[karnopp] spring``, default 1.5 N/mm) anchored at
     first contact; stuck while ``k_K z <= mu_s N``; beyond, the force drops
@@ -181,7 +181,7 @@ MIN_SUBSTEP_S = 1e-9
 
 
 class StribeckModel(PadModel):
-    """Imaizumi fingerpad with Stribeck friction on a vibrating contactor (DESIGN 3.4).
+    """Imaizumi fingerpad with Stribeck friction on a vibrating contactor (Imaizumi et al.).
 
     Parameters come from the profile: ``[pad]`` (m, k, c), ``[friction]``
     (mu_s, mu_k), ``[stribeck] a, b`` (defaults 55, 1.9; the pre-maximum
@@ -258,7 +258,7 @@ class StribeckModel(PadModel):
 
 
 class TanhModel(PadModel):
-    """Konyo pad with tanh-regularised Coulomb friction (DESIGN 4, an option to compare against ``exact``).
+    """Konyo pad with tanh-regularised Coulomb friction (an option to compare against ``exact``).
 
     No stick state: the sign function is replaced by a smooth friction law
     (:func:`pads.tanh_friction`) peaking at ``mu_s N`` at slip speed ``eps``

@@ -37,8 +37,8 @@ finger (spring stretch, m); ``v = dx/dt``. The friction force on the pad is
 ``f = k x + c V``; in slip ``f = s * mu_k * N`` where ``s`` is the sign of
 the friction (opposite to the relative velocity ``v - V``).
 
-The exact model (DESIGN 3.1, 4)
--------------------------------
+The exact model (Konyo pad, phases in closed form)
+--------------------------------------------------
 Stick is linear in time, so breakaway (``|f|`` reaches ``mu_s N``) is solved
 in closed form. Slip is the damped oscillator ``m x'' + c x' + k x = s mu_k N``
 solved in closed form (under-, critically and over-damped, and ``c = 0``).
@@ -63,7 +63,6 @@ from .layouts import PAD_STATE, record
 MAX_EVENTS_PER_TICK = 200_000
 _ADMIT = 1.0 - 1e-9      # re-stick admissible if |f| <= _ADMIT * mu_s N
 _ADMIT_TOUCH = 1.0 - 1e-6  # stricter for tangent touches (grazing at the limit is not a re-stick)
-_TWO_PI = 2.0 * math.pi
 
 
 def new_state() -> np.ndarray:
@@ -141,7 +140,8 @@ def osc_damping_work(m, c, k, y0, v0, t):
         i22 = math.expm1(2 * r2 * t) / (2 * r2)
         i12 = math.expm1((r1 + r2) * t) / (r1 + r2)
         return c * (P * P * i11 + 2 * P * Q * i12 + Q * Q * i22)
-    # critical: 32-point composite Gauss-Legendre on a smooth, non-oscillating integrand
+    # critical: composite 2-point Gauss-Legendre on 64 sub-intervals (128 evaluations) of a smooth,
+    # non-oscillating integrand
     n = 64
     acc = 0.0
     dt = t / n
@@ -605,7 +605,7 @@ def jump_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
 # ================================================================ karnopp
 @njit(cache=True)
 def karnopp_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
-    """Modified Karnopp virtual spring (DESIGN 3.5); ``st.x`` is the spring stretch."""
+    """Modified Karnopp virtual spring (Provancher and Sylvester); ``st.x`` is the spring stretch."""
     kk = prm.karnopp_spring
     vt = prm.karnopp_v_threshold
     B = prm.burst_gain * gain
@@ -933,7 +933,7 @@ def tanh_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
 def _explicit_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev, rk4):
     """One fixed explicit step per tick (forward Euler or RK4) with stick/slip switching.
 
-    Kept only to show where naive integration fails (DESIGN 4): on the
+    Kept only to show where naive integration fails on this stiff pad: on the
     Konyo pad forward Euler needs h < 2 zeta / omega_n ~ 5 us and RK4
     h < 2.8 / omega_n ~ 63 us. Blow-up (|x| beyond a physical bound, or a
     non-finite state) sets ``st.diverged`` and freezes the state at zero.

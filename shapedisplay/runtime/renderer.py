@@ -75,7 +75,7 @@ _RING = 4096
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "fa16699b6731d3ad486eddcd82f16cf118461d8a26b4ea30a1cf8262b88e23d9"
+KERNEL_SOURCES_SHA256 = "da23f74e95af06d4deb8bc8d093219ee0dfc917ad2cffb87a5047a53900e3ddf"
 
 
 @njit(cache=True)
