@@ -19,6 +19,7 @@ COMMAND_MODULES = (
     "shapedisplay_cli.cmd_heightmap",
     "shapedisplay_cli.cmd_preview",
     "shapedisplay_cli.cmd_scene",
+    "shapedisplay_cli.cmd_import_svg",
     "shapedisplay_cli.cmd_device",
     "shapedisplay_cli.cmd_play",
     "shapedisplay_cli.cmd_study",

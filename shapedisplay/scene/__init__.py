@@ -23,11 +23,11 @@ force mapping, table), :mod:`.template` (the commented template written by
 from __future__ import annotations
 
 from .fields import Canvas, SceneError, Widget
-from .spec import Scene, load_scene, parse_scene
+from .spec import Scene, import_svg, load_scene, parse_scene
 from .widgets import WIDGET_TYPES
 from .compiler import check_scene, compile_scene, format_widget_report, scene_heightfield, select_state
 from .template import TEMPLATE
 
-__all__ = ["Canvas", "Scene", "SceneError", "Widget", "load_scene", "parse_scene", "WIDGET_TYPES",
+__all__ = ["Canvas", "Scene", "SceneError", "Widget", "import_svg", "load_scene", "parse_scene", "WIDGET_TYPES",
            "check_scene", "compile_scene", "format_widget_report", "scene_heightfield", "select_state",
            "TEMPLATE"]

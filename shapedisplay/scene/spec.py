@@ -111,7 +111,8 @@ def load_scene(path, device=None) -> Scene:
     Parameters
     ----------
     path : str or Path
-        The scene TOML.
+        The scene TOML, or an SVG mockup (``.svg``, read by
+        :func:`shapedisplay.scene.svg.svg_scene_data`).
     device : DeviceProfile, str, Path or None
         Overrides the scene's ``[device] profile`` (a profile, a bundled name
         or a path).
@@ -123,6 +124,9 @@ def load_scene(path, device=None) -> Scene:
         warnings gathered while validating (clipping, snapping, detents).
     """
     p = Path(path)
+    if p.suffix.lower() == ".svg":           # a UI mockup: the scene it shows (scene/svg.py)
+        from .svg import svg_scene_data
+        return parse_scene(svg_scene_data(p), str(p), p.resolve().parent, device=device)
     try:
         text = p.read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -134,6 +138,28 @@ def load_scene(path, device=None) -> Scene:
     except tomllib.TOMLDecodeError as exc:
         raise FileFormatError(f"scene '{p}': invalid TOML ({exc})") from None
     return parse_scene(data, str(p), p.resolve().parent, device=device)
+
+
+def import_svg(path, output, *, overwrite: bool = False) -> dict:
+    """Write the scene of an SVG mockup as a scene TOML to edit, atomically; validate it first.
+
+    Returns ``{"widgets": n, "notes": [...], "warnings": [...], "path": output}``.
+    Refuses to overwrite the SVG itself, or an existing file unless ``overwrite``.
+    """
+    from ..atomic import atomic_path
+    from .svg import scene_toml, svg_scene_data
+
+    path, output = Path(path), Path(output)
+    if output.suffix.lower() != ".toml":
+        raise InputError(f"`-o`: the scene file must end in .toml (got '{output}')")
+    if output.exists() and (output.resolve() == path.resolve() or not overwrite):
+        raise InputError(f"`-o`: '{output}' exists; remove it or pass --force to replace it")
+    notes: list = []
+    data = svg_scene_data(path, notes)
+    scene = parse_scene(data, str(path), path.resolve().parent)   # the checks compiling the SVG makes
+    with atomic_path(output) as tmp:
+        tmp.write_text(scene_toml(data, path.name), encoding="utf-8")
+    return {"widgets": len(scene.widgets), "notes": notes, "warnings": list(scene.warnings), "path": str(output)}
 
 
 def parse_scene(data: dict, path: str = "<scene>", base_dir: Path | None = None, device=None) -> Scene:

@@ -444,7 +444,7 @@ def load_model(path: str | os.PathLike, scene: str | os.PathLike | None = None, 
     from ..sources import load_source, source_kind
     kind = source_kind(path)
     opts = {k: v for k, v in source_opts.items() if v is not None}
-    if kind in ("table", "scene") and opts:
+    if kind in ("table", "scene", "svg") and opts:
         raise InputError(f"{kind} '{path}': source options {sorted(opts)} apply to images and meshes only")
     if kind == "table":
         from ..table import FrictionTable
@@ -461,7 +461,7 @@ def load_model(path: str | os.PathLike, scene: str | os.PathLike | None = None, 
             _check_scene_fits(sc, table, path)
             widgets = widgets_of_scene(sc)
         return model_from_table(table, title=path.name, widgets=widgets)
-    if kind == "scene":
+    if kind in ("scene", "svg"):      # a scene file or an SVG mockup of one
         sc = _load_scene(path)
         from ..scene import scene_heightfield
         hf = scene_heightfield(sc)

@@ -1,0 +1,163 @@
+"""SVG mockups as scenes: the same table as the equivalent TOML, import-svg, the attribute scheme."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from shapedisplay.errors import FileFormatError, InputError
+from shapedisplay.scene import compile_scene, import_svg, load_scene
+from shapedisplay_cli.main import main
+
+pytest.importorskip("svgelements")
+ROOT = Path(__file__).resolve().parent.parent
+MOCKUP = ROOT / "assets" / "scenes" / "settings-mockup.svg"
+
+#: The scene the mockup shows, written by hand (y measured up from the bottom edge: 50 mm - SVG y).
+EQUIVALENT = """
+[scene]
+name = "settings"
+[canvas]
+size = "90x50 mm"
+resolution = "0.5 mm"
+[device]
+profile = "handheld-stick"
+[mapping]
+n_base = "1 N"
+n_gain = "1 N/mm"
+
+[[widget]]
+id = "ok"
+type = "button"
+position = "4,4 mm"
+size = "24x12 mm"
+corner_radius = "3 mm"
+height = "1.5 mm"
+ramp = "3 mm"
+
+[[widget]]
+id = "button-cancel"
+type = "button"
+position = "32,4 mm"
+size = "24x12 mm"
+corner_radius = "3 mm"
+level = 2
+ramp = "3 mm"
+
+[[widget]]
+id = "volume"
+type = "slider"
+position = "4,28 mm"
+size = "60x10 mm"
+detents = 5
+value = 0.25
+thumb_size = "8 mm"
+
+[[widget]]
+id = "wifi"
+type = "toggle"
+position = "70,14 mm"
+size = "12x28 mm"
+state = "on"
+
+[[widget]]
+id = "divider"
+type = "ridge"
+from = "4,41 mm"
+to = "64,41 mm"
+width = "2 mm"
+height = "0.4 mm"
+"""
+
+
+def _same_table(a, b):
+    assert a.channels == b.channels and a.quant == b.quant
+    assert a.patch_shapes == b.patch_shapes and a.blocks == b.blocks and a.background == b.background
+    for name in a.channels:
+        assert np.array_equal(a.codes[name], b.codes[name]), name
+
+
+def test_mockup_with_two_buttons_a_five_detent_slider_and_a_toggle_compiles_to_the_toml_table(tmp_path):
+    toml = tmp_path / "settings.toml"
+    toml.write_text(EQUIVALENT.replace('id = "divider"', 'id = "ridge-divider"'))
+    a, b = compile_scene(MOCKUP), compile_scene(toml)
+    _same_table(a.table, b.table)
+    scene = load_scene(MOCKUP)
+    types = {w.id: w.type for w in scene.widgets}
+    assert types == {"ok": "button", "button-cancel": "button", "volume": "slider", "wifi": "toggle",
+                     "ridge-divider": "ridge"}
+    assert scene.widget("volume").params["detents"] == 5
+    assert scene.widget("wifi").params["state"] == "on"
+    assert scene.warnings == ()
+
+
+def test_import_svg_writes_the_equivalent_scene(tmp_path, capsys):
+    out = tmp_path / "settings.toml"
+    assert main(["import-svg", str(MOCKUP), "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "wrote" in text and "(5 widgets)" in text and "2 element(s) without a widget type left out" in text
+    _same_table(compile_scene(out).table, compile_scene(MOCKUP).table)
+    assert 'detents = 5' in out.read_text()
+    before = out.read_bytes()
+    assert main(["import-svg", str(MOCKUP), "-o", str(out)]) == 2              # never overwritten silently
+    assert "exists" in capsys.readouterr().err and out.read_bytes() == before
+    assert main(["import-svg", str(MOCKUP), "-o", str(out), "--force"]) == 0
+    assert main(["compile", str(MOCKUP), "-o", str(tmp_path / "t.npz"), "-q"]) == 0
+
+
+def _svg(tmp_path, body, root='width="80mm" height="40mm" viewBox="0 0 80 40"'):
+    p = tmp_path / "m.svg"
+    p.write_text(f'<svg xmlns="http://www.w3.org/2000/svg" {root}>{body}</svg>')
+    return p
+
+
+def test_shapes_groups_and_transforms(tmp_path):
+    p = _svg(tmp_path, """
+      <g transform="rotate(90 40 20)"><rect id="dent-a" x="30" y="15" width="20" height="10"/></g>
+      <circle id="round" cx="10" cy="10" r="5" class="big sd-button"/>
+      <ellipse id="oval" cx="30" cy="8" rx="6" ry="4" data-widget="dent" data-depth="0.5 mm"/>
+      <path id="groove-l" d="M 5 35 L 25 35 L 25 25" stroke-width="2"/>
+      <polyline id="edge-z" points="60,35 75,35" data-width="3 mm"/>""")
+    s = load_scene(p)
+    w = {x.id: x for x in s.widgets}
+    # a 20 x 10 rect turned 90 degrees about (40, 20): 10 x 20 mm, centred on (40, 40 - 20)
+    assert w["dent-a"].type == "dent" and w["dent-a"].size == pytest.approx((0.010, 0.020))
+    assert w["dent-a"].bbox == pytest.approx((0.035, 0.010, 0.045, 0.030))
+    assert w["round"].type == "button" and w["round"].params["corner_radius"] == pytest.approx(0.005)
+    # y flipped: the circle's centre at SVG y = 10 is 30 mm up the 40 mm canvas
+    assert w["round"].bbox == pytest.approx((0.005, 0.025, 0.015, 0.035))
+    assert w["oval"].params["corner_radius"] == pytest.approx(0.004) and w["oval"].params["height"] < 0
+    # a path: one groove per straight segment, the width from the stroke
+    assert [x for x in w if x.startswith("groove-l")] == ["groove-l-1", "groove-l-2"]
+    assert w["groove-l-1"].params["width"] == pytest.approx(0.002)
+    assert w["edge-z"].type == "edge" and w["edge-z"].params["width"] == pytest.approx(0.003)
+
+
+def test_pixel_sized_svg_uses_css_pixels(tmp_path):
+    p = _svg(tmp_path, '<rect id="button-a" x="0" y="0" width="96" height="48"/>',
+             root='width="192" height="96" data-resolution="0.1 mm"')
+    s = load_scene(p)
+    assert s.canvas.width == pytest.approx(0.0508) and s.widgets[0].size == pytest.approx((0.0254, 0.0127))
+
+
+@pytest.mark.parametrize("body, root, exc, pattern", [
+    ('<rect x="0" y="0" width="5" height="5"/>', None, InputError, "no element names a widget type"),
+    ('<rect id="button-a" x="0" y="0" width="5" height="5" data-hieght="1 mm"/>', None, InputError,
+     r"unknown key `widget\[0\].hieght` \(did you mean 'height'\?\)"),
+    ('<rect id="b" x="0" y="0" width="5" height="5" data-widget="buton"/>', None, InputError,
+     r"unknown widget type 'buton' \(did you mean 'button'\?\)"),
+    ('<rect id="button-a" x="0" y="0" width="5" height="5"/>', 'width="80em" height="40em"', FileFormatError,
+     "needs an absolute unit"),
+    ('<rect id="button-a" x="0" y="0" width="5" height="5"/>', 'data-n-gane="1 N/mm" width="80mm" height="40mm"',
+     InputError, r"unknown key `mapping.n_gane`"),
+])
+def test_bad_mockups_are_one_line_errors(tmp_path, body, root, exc, pattern):
+    import re
+    p = _svg(tmp_path, body) if root is None else _svg(tmp_path, body, root)
+    with pytest.raises(exc) as info:
+        load_scene(p)
+    assert re.search(pattern, str(info.value)) and "\n" not in str(info.value)
+    with pytest.raises(FileFormatError, match="no such file"):
+        load_scene(tmp_path / "missing.svg")
+    (tmp_path / "broken.svg").write_text("<svg width='10mm' height='10mm'><rect")
+    with pytest.raises((FileFormatError, InputError)):
+        load_scene(tmp_path / "broken.svg")
