@@ -270,3 +270,19 @@ def test_pointing_stick_mode_moves_the_cursor_at_alpha_f(page):
         assert np.allclose(s["y"], s["y"][0])          # no sideways drag, no sideways motion
     finally:
         page.select_option("#mode", "direct")
+
+
+def test_saving_in_the_page_editor_writes_the_scene_and_recompiles(page):
+    scene = page.studio.folder / "phone.toml"
+    good = scene.read_text()
+    gen = page.evaluate("studio.tableGeneration")
+    try:
+        page.fill("#text", good.replace('force = "3.5 N"', 'force = "2.5 N"'))
+        page.keyboard.press("Control+s")
+        page.wait_for_function(f"studio.tableGeneration > {gen} && studio.swaps[studio.swaps.length - 1].t_view",
+                               timeout=20000)
+        assert 'force = "2.5 N"' in scene.read_text()
+        assert page.evaluate("studio.readout(0.023, 0.036).normal_force") == pytest.approx(2.5, abs=0.03)
+    finally:
+        scene.write_text(good)
+        page.wait_for_function(f"studio.tableGeneration > {gen + 1}", timeout=20000)
