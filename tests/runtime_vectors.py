@@ -6,7 +6,7 @@ stroke; the outputs are compared with the Python renderer. Input of
 image, zero padding to 8 bytes, i64 policy, i64 model, f64 tick rate, f64
 audio rate, i64 n, f64 x[n], f64 y[n]. Output: sd_outputs_t out[n]
 (layouts.OUTPUTS records), i64 n_audio, f64 audio[n_audio], i64 clipped, events,
-events dropped.
+events dropped, cursor samples held as faults.
 """
 import struct
 
@@ -38,7 +38,7 @@ def parse_outputs(raw: bytes, n: int):
     outs = np.frombuffer(raw[:pos], OUTPUTS)
     (na,) = struct.unpack_from("<q", raw, pos)
     audio = np.frombuffer(raw[pos + 8:pos + 8 + 8 * na], "<f8")
-    counters = struct.unpack_from("<qqq", raw, pos + 8 + 8 * na)
+    counters = struct.unpack_from("<qqqq", raw, pos + 8 + 8 * na)
     return outs, audio, counters
 
 
@@ -101,7 +101,7 @@ class WasmRunner:
         assert na >= 0
         outs = np.frombuffer(self.read(out_p, sizes[1]), OUTPUTS)
         audio = np.frombuffer(self.read(audio_p, 8 * na), "<f8")
-        return outs, audio, tuple(int(self.call("sd_wasm_counter", i)) for i in range(3))
+        return outs, audio, tuple(int(self.call("sd_wasm_counter", i)) for i in range(4))
 
 
 def derived_bounds(r, outs, unit_roundoff: float, libm_ulps: float = 1.0):

@@ -30,7 +30,7 @@ def test_m4_plays_the_shared_vectors(m4, tmp_path, dtype, kind, policy, tick, au
     elf, _ = m4
     table, r, x, y, img = case_setup(dtype, kind, policy, tick, audio, model, seconds=0.12)
     po, pa, (pclip, pev) = py_render(r, x, y)
-    co, ca, (cclip, cev, cdrop) = parse_outputs(run_m4(elf, "vectors", image_payload(img, r, x, y), tmp_path),
+    co, ca, (cclip, cev, cdrop, cfault) = parse_outputs(run_m4(elf, "vectors", image_payload(img, r, x, y), tmp_path),
                                                 len(x))
     assert pev > 10 and cev == pev and cdrop == 0 and ca.size == pa.size
     for name in ("t", "x", "y", "vx", "vy", "normal_force", "events", "state", "audio_samples", "pad_speed"):

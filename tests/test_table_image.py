@@ -122,8 +122,8 @@ def test_c_runtime_plays_the_image_bit_exact(sd_vectors_image, tmp_path, dtype, 
     po, pa, (pclip, pev) = py_render(r, x, y)
     res, fout = _run_image(sd_vectors_image, image_payload(img, r, x, y), tmp_path)
     assert res.returncode == 0, res.stderr
-    co, ca, (cclip, cev, cdrop) = parse_outputs(fout.read_bytes(), len(x))
-    assert pev > 20 and cev == pev and cclip == pclip and cdrop == 0
+    co, ca, (cclip, cev, cdrop, cfault) = parse_outputs(fout.read_bytes(), len(x))
+    assert pev > 20 and cev == pev and cclip == pclip and cdrop == 0 and cfault == 0
     assert_outputs_equal(co, po)
     np.testing.assert_array_equal(ca, pa)
 

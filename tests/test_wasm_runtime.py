@@ -47,7 +47,7 @@ def module_path(tmp_path_factory):
 def test_wasm_plays_the_shared_vectors(module_path, dtype, kind, policy, tick, audio, model):
     table, r, x, y, img = case_setup(dtype, kind, policy, tick, audio, model)
     po, pa, (pclip, pev) = py_render(r, x, y)
-    co, ca, (cclip, cev, cdrop) = WasmRunner(module_path).play(img, r, x, y)
+    co, ca, (cclip, cev, cdrop, cfault) = WasmRunner(module_path).play(img, r, x, y)
     assert pev > 20 and cev == pev and cdrop == 0 and ca.size == pa.size
     for name in ("t", "x", "y", "vx", "vy", "normal_force", "events", "state", "audio_samples", "pad_speed"):
         np.testing.assert_array_equal(co[name], po[name], err_msg=name)

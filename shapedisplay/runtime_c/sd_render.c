@@ -58,7 +58,7 @@ long sd_cell_index(const sd_table_t *T, long r, long c)
 static void axis_cell(double pos, double origin, double step, long n, long *i0, long *i1, double *t)
 {
     double f = (pos - origin) / step;
-    if (f < 0.0) f = 0.0;
+    if (!(f >= 0.0)) f = 0.0;          /* also NaN: never converted to an integer */
     if (f > (double)(n - 1)) f = (double)n - 1.0;
     *i0 = (long)floor(f);
     if (*i0 > imax(n - 2, 0)) *i0 = imax(n - 2, 0);
@@ -140,12 +140,13 @@ static double burst_value(double t, const double *ev_t, const double *ev_a, long
 }
 
 /* Audio samples j0..j1-1 (time t_origin + j / rate) into out[0 .. j1-j0-1]; returns samples clipped. */
-static long synth(const double *ev_t, const double *ev_a, long n_ev, double t_origin, double rate, long j0,
-                  long j1, double carrier, double rise, double decay, int policy, double *out)
+static long synth(const double *ev_t, const double *ev_a, long n_ev, double t_origin, double rate, int64_t j0,
+                  int64_t j1, double carrier, double rise, double decay, int policy, double *out)
 {
     double dur = rise + decay, w = 2.0 * SD_PI * carrier;
     double cd = cos(w / rate), sd = sin(w / rate), cr = 0.0, sr = 0.0;
-    long lo = 0, hi = n_ev, clipped = 0, cur = -1, j;
+    long lo = 0, hi = n_ev, clipped = 0, cur = -1;
+    int64_t j;
     /* Events are sorted, so counting those before the first sample from the end gives the same
      * index as the forward scan of bursts.synth, in O(1) for a ring of finished bursts. */
     if (j1 > j0) {
@@ -285,10 +286,21 @@ int sd_renderer_init(sd_renderer_t *R, const sd_table_t *table, const sd_config_
     return SD_OK;
 }
 
+/* Index of the last audio sample at or before elapsed time e (s), plus one, as renderer.online_step
+ * computes it; saturated below 2^63 so that it never overflows (audio stops after 2^63 - 2048
+ * samples: 6 million years at 48 kHz). */
+static int64_t sample_end(double e, double rate)
+{
+    double v = floor(e * rate + 1e-9);
+    if (!(v < 9223372036854773760.0)) v = v > 0.0 ? 9223372036854773760.0 : 0.0;   /* 2^63 - 2048; NaN: 0 */
+    return (int64_t)v + 1;
+}
+
 void sd_renderer_reset(sd_renderer_t *R, double t0)
 {
     sd_pad_reset(&R->pad);
     memset(&R->run, 0, sizeof R->run);
+    R->position_faults = 0;
     R->run.ax = 1.0;
     R->run.t0 = t0;
     R->n_audio = 0;
@@ -298,13 +310,37 @@ void sd_renderer_reset(sd_renderer_t *R, double t0)
     memset(&R->out, 0, sizeof R->out);
 }
 
+void sd_renderer_seek(sd_renderer_t *R, int64_t tick, double x, double y)
+{
+    double t0 = R->run.t0;
+    sd_renderer_reset(R, t0);
+    if (tick <= 0) return;
+    R->run.tick = (double)tick;
+    R->run.xp = x;
+    R->run.yp = y;
+    if (R->audio_cap > 0)
+        R->run.next_sample = sample_end((t0 + ((double)tick - 1.0) / R->cfg.tick_rate) - t0, R->cfg.audio_rate);
+}
+
 double sd_renderer_step(sd_renderer_t *R, double x, double y)
 {
     double vals[SD_NSLOT];
     double k = R->run.tick, rate = R->cfg.tick_rate, t = R->run.t0 + k / rate;
     double h, vx, vy, xm, ym, V, N, mus, muk, gain, dur, drive, f, target;
-    long nrec = R->run.n_recent, drop = 0, nev = 0, j0, j1, hi, lo, i;
+    long nrec = R->run.n_recent, drop = 0, nev = 0, hi, lo, i;
+    int64_t j0, j1;
     const long cap = SD_EVENT_RING;
+    /* a non-finite or absurd position is a fault: hold the last valid one */
+    if (!(fabs(x) <= SD_POSITION_LIMIT_M) || !(fabs(y) <= SD_POSITION_LIMIT_M)) {
+        R->position_faults += 1;
+        if (k != 0.0) {
+            x = R->run.xp;
+            y = R->run.yp;
+        } else {
+            x = R->table->grid.x0;
+            y = R->table->grid.y0;
+        }
+    }
     if (k == 0.0) {
         h = 0.0;
         vx = 0.0;
@@ -313,6 +349,7 @@ double sd_renderer_step(sd_renderer_t *R, double x, double y)
         ym = y;
     } else {
         h = t - (R->run.t0 + (k - 1.0) / rate);
+        if (!(h > 0.0)) h = 1.0 / rate;     /* beyond 2^53 ticks the double times stop resolving a tick */
         vx = (x - R->run.xp) / h;
         vy = (y - R->run.yp) / h;
         xm = 0.5 * (x + R->run.xp);
@@ -351,7 +388,7 @@ double sd_renderer_step(sd_renderer_t *R, double x, double y)
     R->n_audio = 0;
     if (R->audio_cap > 0) {
         j0 = R->run.next_sample;
-        j1 = (long)floor((t - R->run.t0) * R->cfg.audio_rate + 1e-9) + 1;
+        j1 = sample_end(t - R->run.t0, R->cfg.audio_rate);
         if (j1 - j0 > R->audio_cap) j0 = j1 - R->audio_cap;
         if (j1 > j0)
             R->run.clipped += synth(R->ev_t, R->ev_a, nrec, R->run.t0, R->cfg.audio_rate, j0, j1, R->cfg.carrier_hz,

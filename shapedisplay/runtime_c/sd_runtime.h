@@ -106,6 +106,12 @@ double sd_envelope(double tau, double rise, double decay);
 
 enum { SD_OK = 0, SD_ERR_ARG = -1, SD_ERR_TABLE = -2, SD_ERR_PARAM = -3 };
 
+/* Cursor positions farther than this from the origin (m), and non-finite ones, are faults: the
+ * renderer holds the last valid position and counts them (position_faults). */
+#ifndef SD_POSITION_LIMIT_M
+#define SD_POSITION_LIMIT_M 1000.0
+#endif
+
 /* The renderer settings (sd_config_t), its counters (sd_run_state_t) and per-tick outputs
  * (sd_outputs_t) are laid out in sd_layout.h, as the Python renderer's records. cfg.model is an
  * SD_MODEL_* id of a model with a C tick (sd_model_tick); cfg.audio_rate 0 = no audio. */
@@ -115,7 +121,8 @@ typedef struct {
     sd_pad_t pad_model;                 /* cfg.pad with its derived constants */
     sd_tick_fn tick_fn;                 /* sd_model_tick(cfg.model) */
     sd_pad_state_t pad;
-    sd_run_state_t run;
+    sd_run_state_t run;                 /* 64-bit counters on every target (int64_t) */
+    int64_t position_faults;            /* cursor samples held (non-finite or beyond the limit) */
     long n_audio, audio_cap;
     double ev_t[SD_EVENT_RING], ev_a[SD_EVENT_RING];
     double audio[SD_AUDIO_BLOCK_MAX];   /* audio samples of the last tick: audio[0 .. n_audio-1] */
@@ -128,6 +135,9 @@ size_t sd_renderer_size(void);
 int sd_renderer_init(sd_renderer_t *R, const sd_table_t *table, const sd_config_t *cfg);
 /* Start a new run at cursor time t0 (s). */
 void sd_renderer_reset(sd_renderer_t *R, double t0);
+/* Continue as if `tick` ticks had been played with the cursor resting at (x, y) m: counters and
+ * time move on, the pad is at rest, no burst sounds (long sessions, tests of the counters). */
+void sd_renderer_seek(sd_renderer_t *R, int64_t tick, double x, double y);
 /* One tick with the cursor at (x, y) metres; returns the burst drive in [-1, 1]. */
 double sd_renderer_step(sd_renderer_t *R, double x, double y);
 

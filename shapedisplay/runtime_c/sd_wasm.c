@@ -164,6 +164,8 @@ EXPORT(sd_wasm_counter) double sd_wasm_counter(int which)
     case 0: return (double)R.run.clipped;
     case 1: return (double)R.run.events_total;
     case 2: return (double)R.run.events_dropped;
+    case 3: return (double)R.position_faults;
+    case 4: return R.run.tick;
     default: return 0.0;
     }
 }

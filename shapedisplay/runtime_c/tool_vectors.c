@@ -3,6 +3,8 @@
  *   sd_vectors pad    IN OUT   run a pad model (jump or exact) over per-tick inputs (as dispatch.run_ticks)
  *   sd_vectors render IN OUT   render a cursor stroke through a table (as Renderer.step)
  *   sd_vectors image  IN OUT   the same from a binary table image (sd_image_load), settings overridden
+ *   sd_vectors seek   IN OUT   as image, the renderer first moved on by i64 ticks (sd_renderer_seek) with
+ *                              the cursor at rest at f64 x, y (read after the rates)
  *
  * File layouts (little-endian; f64 = double, i64 = int64) are documented next to the writers
  * in tests/test_c_runtime.py. This program is a test tool: it allocates freely; the runtime
@@ -109,6 +111,8 @@ static int64_t *rd_i64s(int64_t n)
 }
 
 static int play(const sd_table_t *T, const sd_config_t *C);
+static int64_t seek_tick = -1;
+static double seek_xy[2];
 
 static int run_render(void)
 {
@@ -168,6 +172,7 @@ static int play(const sd_table_t *T, const sd_config_t *C)
         fprintf(stderr, "sd_vectors: sd_renderer_init failed (%d)\n", rc);
         return 3;
     }
+    if (seek_tick >= 0) sd_renderer_seek(&R, seek_tick, seek_xy[0], seek_xy[1]);
     outs = (sd_outputs_t *)malloc((size_t)n * sizeof(sd_outputs_t));
     audio_cap = (size_t)n * (size_t)(R.audio_cap > 0 ? R.audio_cap : 1);
     audio = (double *)malloc(audio_cap * sizeof(double));
@@ -182,18 +187,19 @@ static int play(const sd_table_t *T, const sd_config_t *C)
     wr(&n_audio_total, sizeof n_audio_total, 1);
     wr(audio, sizeof(double), (size_t)n_audio_total);
     {
-        int64_t counters[3];
+        int64_t counters[4];
         counters[0] = R.run.clipped;
         counters[1] = R.run.events_total;
         counters[2] = R.run.events_dropped;
-        wr(counters, sizeof(int64_t), 3);
+        counters[3] = R.position_faults;
+        wr(counters, sizeof(int64_t), 4);
     }
     return 0;
 }
 
 /* Input: i64 image_size, the image, zero padding to a multiple of 8 bytes; i64 policy, i64 model,
  * f64 tick_rate, f64 audio_rate (override the image's settings); then the stroke as for render. */
-static int run_image(void)
+static int run_image(int seek)
 {
     static sd_image_t img;
     sd_config_t C;
@@ -210,6 +216,10 @@ static int run_image(void)
     policy = rd_i64();
     model = rd_i64();
     rd(rates, sizeof(double), 2);
+    if (seek) {
+        seek_tick = rd_i64();
+        rd(seek_xy, sizeof(double), 2);
+    }
     sd_image_config(&img, &C);
     C.policy = (int)policy;
     C.model = (int)model;
@@ -221,15 +231,16 @@ static int run_image(void)
 int main(int argc, char **argv)
 {
     int rc = 2;   /* die() exits; the value only keeps clang's flow analysis satisfied */
-    if (argc != 4) die("usage: sd_vectors pad|render|image IN OUT");
+    if (argc != 4) die("usage: sd_vectors pad|render|image|seek IN OUT");
     in_f = fopen(argv[2], "rb");
     if (!in_f) die("cannot open input");
     out_f = fopen(argv[3], "wb");
     if (!out_f) die("cannot open output");
     if (strcmp(argv[1], "pad") == 0) rc = run_pad();
     else if (strcmp(argv[1], "render") == 0) rc = run_render();
-    else if (strcmp(argv[1], "image") == 0) rc = run_image();
-    else die("mode must be pad, render or image");
+    else if (strcmp(argv[1], "image") == 0) rc = run_image(0);
+    else if (strcmp(argv[1], "seek") == 0) rc = run_image(1);
+    else die("mode must be pad, render, image or seek");
     fclose(in_f);
     if (fclose(out_f) != 0) die("cannot write output");
     return rc;

@@ -105,12 +105,13 @@ int main(void)
         counts[n] = m4_count_read();        /* the measurement's own cost */
         m4_write(fd, counts, (uint32_t)(4 * (n + 1)));
     } else {
-        int64_t counters[3];
+        int64_t counters[4];
         m4_write(fd, &n_audio, 8);
         m4_write(fd, audio, (uint32_t)(8 * n_audio));
         counters[0] = R.run.clipped;
         counters[1] = R.run.events_total;
         counters[2] = R.run.events_dropped;
+        counters[3] = R.position_faults;
         m4_write(fd, counters, sizeof counters);
     }
     m4_close(fd);

@@ -1,0 +1,138 @@
+"""The C runtime under abuse: non-finite and absurd cursor positions, and counters near 2^32 and 2^63.
+
+Built with the undefined-behaviour and address sanitizers (gcc), so an integer overflow, a
+NaN converted to an integer or an out-of-bounds access fails the test, not just a wrong value.
+"""
+import os
+import struct
+import subprocess
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from runtime_vectors import case_setup, image_payload, parse_outputs
+from test_c_runtime import CDIR, CFLAGS, LIB, assert_outputs_equal, py_render
+
+BAD = [float("nan"), float("inf"), -float("inf"), 1e300, -1e300, 1000.5, -2e3]
+LIMIT = 1000.0               # SD_POSITION_LIMIT_M
+
+
+@pytest.fixture(scope="module")
+def sd_vectors_san(tmp_path_factory):
+    out = tmp_path_factory.mktemp("c-san") / "sd_vectors"
+    srcs = [str(CDIR / n) for n in (*LIB, "tool_vectors.c")]
+    cmd = ["gcc", *CFLAGS, "-g", "-fsanitize=undefined,address", "-fno-sanitize-recover=all",
+           "-I", str(CDIR), *srcs, "-lm", "-o", str(out)]
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=180)
+    assert res.returncode == 0, res.stderr
+    return out
+
+
+def _run(exe, mode, payload, tmp_path):
+    fin, fout = tmp_path / f"{mode}.in", tmp_path / f"{mode}.out"
+    fin.write_bytes(payload)
+    env = {**os.environ, "ASAN_OPTIONS": "detect_leaks=0"}     # the host tool frees nothing at exit, by design
+    res = subprocess.run([str(exe), mode, str(fin), str(fout)], capture_output=True, text=True, timeout=300, env=env)
+    assert res.returncode == 0 and "runtime error" not in res.stderr, res.stderr[-3000:]
+    return fout.read_bytes()
+
+
+def _held(table, x, y):
+    """The stroke the renderer must play: every bad sample replaced by the last valid one
+    (the table origin before any valid one)."""
+    hx, hy = np.array(x, float), np.array(y, float)
+    px, py = table.grid.x0, table.grid.y0
+    faults = 0
+    for i in range(len(hx)):
+        if not (abs(hx[i]) <= LIMIT and abs(hy[i]) <= LIMIT):
+            hx[i], hy[i] = px, py
+            faults += 1
+        px, py = hx[i], hy[i]
+    return hx, hy, faults
+
+
+def _check_holds(exe, tmp_path, x_bad, y_bad, case=("uint16", "diagonal", "retrigger", 10_000.0, 48_000.0, "jump")):
+    table, r, x, y, img = case_setup(*case, seconds=0.08)
+    hx, hy, faults = _held(table, x_bad, y_bad)
+    po, pa, (pclip, pev) = py_render(r, hx, hy)
+    co, ca, (cclip, cev, cdrop, cfault) = parse_outputs(_run(exe, "image", image_payload(img, r, x_bad, y_bad),
+                                                             tmp_path), len(x_bad))
+    assert cfault == faults and cev == pev and cclip == pclip
+    assert all(np.isfinite(co[n]).all() for n in co.dtype.names) and np.isfinite(ca).all()
+    assert np.abs(ca).max() <= 1.0
+    assert_outputs_equal(co, po)                  # exactly the held stroke, bit for bit
+    np.testing.assert_array_equal(ca, pa)
+    return pev
+
+
+def test_nan_inf_and_huge_positions_hold_the_last_valid_one(sd_vectors_san, tmp_path):
+    table, r, x, y, img = case_setup("uint16", "diagonal", "retrigger", 10_000.0, 48_000.0, "jump", seconds=0.08)
+    rng = np.random.default_rng(7)
+    xb, yb = np.array(x), np.array(y)
+    xb[0] = float("nan")                                     # before any valid sample
+    idx = rng.choice(np.arange(1, len(x)), size=len(x) // 8, replace=False)
+    for n, i in enumerate(idx):
+        v = BAD[n % len(BAD)]
+        if n % 3 == 0:
+            xb[i] = v
+        elif n % 3 == 1:
+            yb[i] = v
+        else:
+            xb[i] = yb[i] = v
+    xb[300:340] = float("nan")                               # a run of bad samples (a dropped sensor)
+    assert _check_holds(sd_vectors_san, tmp_path, xb, yb) > 20
+
+
+@given(st.lists(st.tuples(st.integers(0, 799), st.sampled_from(BAD), st.booleans()), min_size=1, max_size=30))
+@settings(max_examples=12, deadline=None)
+def test_fuzz_bad_positions_exact_model_and_max_policy(sd_vectors_san, tmp_path_factory, bad):
+    table, r, x, y, img = case_setup("float32", "teleports", "max", 10_000.0, 48_000.0, "exact", seconds=0.08)
+    xb, yb = np.array(x), np.array(y)
+    for i, v, on_x in bad:
+        (xb if on_x else yb)[i] = v
+    _check_holds(sd_vectors_san, tmp_path_factory.mktemp("fz"), xb, yb,
+                 case=("float32", "teleports", "max", 10_000.0, 48_000.0, "exact"))
+
+
+def _seek_payload(img, r, k0, x, y):
+    """image_payload with the seek fields (start tick, resting cursor) after the rates."""
+    base = image_payload(img, r, x, y)
+    head = len(base) - 8 - 16 * len(x)                     # up to the stroke's i64 n
+    return base[:head] + struct.pack("<qdd", k0, float(x[0]), float(y[0])) + base[head:]
+
+
+@pytest.mark.parametrize("samples", [2 ** 31, 2 ** 32, 2 ** 40])
+def test_sample_counter_passes_2_to_the_31_and_32(sd_vectors_san, tmp_path, samples):
+    """Audio keeps coming, one sample per 1/48 kHz, past 2^31 and 2^32 samples (12.4 h, 24.9 h)."""
+    table, r, x, y, img = case_setup("uint16", "diagonal", "retrigger", 10_000.0, 48_000.0, "jump", seconds=0.25)
+    x, y = x[1000:1600], y[1000:1600]                      # across the first widget
+    k0 = int((samples - 2000) * r.tick_rate / r.audio_rate)
+    co, ca, (_, cev, _, cfault) = parse_outputs(_run(sd_vectors_san, "seek", _seek_payload(img, r, k0, x, y),
+                                                     tmp_path), len(x))
+    n_audio = co["audio_samples"]
+
+    def j_end(k):          # renderer.online_step's sample index, in the same double arithmetic
+        return np.floor(((0.0 + k / r.tick_rate) - 0.0) * r.audio_rate + 1e-9) + 1
+
+    ks = k0 + np.arange(len(x))
+    expected = j_end(ks) - j_end(ks - 1)
+    np.testing.assert_array_equal(n_audio, expected)
+    assert j_end(ks[-1]) > samples and ca.size == expected.sum()      # crossed the boundary
+    assert set(np.unique(n_audio)) <= {4.0, 5.0}
+    assert cev > 5 and np.count_nonzero(ca) > 0.2 * ca.size and cfault == 0
+    np.testing.assert_array_equal(co["t"], ks / r.tick_rate)
+
+
+def test_counters_near_2_to_the_63_stay_defined(sd_vectors_san, tmp_path):
+    """At 2^63 - 5000 samples (beyond 2^53 the double times no longer resolve a tick) the renderer
+    still runs without overflow or NaN: bounded audio per tick, finite outputs, counters monotonic."""
+    table, r, x, y, img = case_setup("uint16", "diagonal", "retrigger", 10_000.0, 48_000.0, "jump", seconds=0.02)
+    k0 = int((2 ** 63 - 5000) / (r.audio_rate / r.tick_rate))
+    co, ca, (clip, cev, drop, cfault) = parse_outputs(
+        _run(sd_vectors_san, "seek", _seek_payload(img, r, k0, x, y), tmp_path), len(x))
+    n_audio = co["audio_samples"]
+    assert all(np.isfinite(co[n]).all() for n in co.dtype.names) and np.isfinite(ca).all()
+    assert np.abs(co["drive"]).max() <= 1.0
+    assert (n_audio >= 0).all() and (n_audio <= np.ceil(r.audio_rate / r.tick_rate) + 2).all()
+    assert min(clip, cev, drop, cfault) >= 0
