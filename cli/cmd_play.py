@@ -30,6 +30,11 @@ def register(sub) -> None:
     p.add_argument("-o", "--output", required=True, help="WAV file to write")
     p.add_argument("--trace-out", help="write the per-tick trace (.npz)")
     p.add_argument("--plot", help="write a plot (.png/.pdf/.svg; needs matplotlib)")
+    p.add_argument("--ahap", help="write the stroke as an Apple Core Haptics pattern (.ahap): a transient per "
+                                  "burst and intensity curves following the drive envelope")
+    p.add_argument("--ahap-envelope", default="on", choices=("on", "off"),
+                   help="off: transients only, no envelope curves (Core Haptics scales every event by them)")
+    p.add_argument("--drive-csv", help="write the drive at the audio rate as CSV t_s,drive")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=run)
 
@@ -74,8 +79,11 @@ def run(args) -> int:
         except ValueError:
             raise InputError(f"`--start` must be 'x,y' in mm (got {args.start!r})") from None
         cursor = load_force_csv(args.force, r.device.cursor_gain, r.tick_rate, (sx, sy))
+    source = (f"stroke {args.stroke}" if args.stroke is not None else
+              f"trace {args.trace}" if args.trace is not None else f"force {args.force}")
     res = play_to_files(r, cursor, args.output, args.format, trace=args.trace_out, plot=args.plot,
-                        table_checksum=table.checksum())
+                        table_checksum=table.checksum(), ahap=args.ahap, drive_csv=args.drive_csv,
+                        ahap_envelope=args.ahap_envelope == "on", description=f"{args.table}: {source}")
     s = res.summary()
     if args.json:
         print(json.dumps(s, indent=2))
@@ -90,4 +98,8 @@ def run(args) -> int:
             print(f"trace -> {args.trace_out}")
         if args.plot:
             print(f"plot -> {args.plot}")
+        if args.ahap:
+            print(f"AHAP -> {args.ahap} ({s['events']} transients)")
+        if args.drive_csv:
+            print(f"drive CSV -> {args.drive_csv}")
     return 0

@@ -225,12 +225,17 @@ def check_trace_arrays(d: dict, label: str, error=FileFormatError) -> None:
 
 
 def play_to_files(renderer, cursor, wav, sample_format: str = "float32", trace=None, plot=None,
-                  table_checksum: str = ""):
-    """Render ``cursor`` with ``renderer`` and write the WAV, and the trace and plot when asked: all or none.
+                  table_checksum: str = "", ahap=None, drive_csv=None, ahap_envelope: bool = True,
+                  description: str = ""):
+    """Render ``cursor`` with ``renderer`` and write the WAV, and the trace, plot, AHAP and drive CSV when asked:
+    all or none.
 
     Every output goes to a temporary file beside its final name (opened before
     the render, so an unwritable place fails first) and is renamed only once
-    all of them are written; an error leaves no output behind.
+    all of them are written; an error leaves no output behind. The AHAP and
+    drive CSV are described in :mod:`shapedisplay.exchange.ahap`
+    (``ahap_envelope=False``: transients only; ``description`` goes to its
+    metadata).
 
     Returns the :class:`~shapedisplay.runtime.renderer.RenderResult`.
     """
@@ -240,12 +245,20 @@ def play_to_files(renderer, cursor, wav, sample_format: str = "float32", trace=N
         wav_tmp = outputs.enter_context(atomic_path(wav))
         trace_tmp = outputs.enter_context(atomic_path(trace, suffix=".npz")) if trace else None
         plot_tmp = outputs.enter_context(atomic_path(plot)) if plot else None
+        ahap_tmp = outputs.enter_context(atomic_path(ahap)) if ahap else None
+        csv_tmp = outputs.enter_context(atomic_path(drive_csv)) if drive_csv else None
         res = renderer.render(cursor)
         write_wav(wav_tmp, res.audio, res.audio_rate, sample_format)
         if trace_tmp is not None:
             write_trace(trace_tmp, res, table_checksum)
         if plot_tmp is not None:
             plot_trace(plot_tmp, res)
+        if ahap_tmp is not None:
+            from .exchange.ahap import ahap_of_result, write_ahap
+            write_ahap(ahap_tmp, ahap_of_result(res, renderer.device.burst.carrier_hz, ahap_envelope, description))
+        if csv_tmp is not None:
+            from .exchange.ahap import write_drive_csv
+            write_drive_csv(csv_tmp, res.audio, res.audio_rate)
     return res
 
 
