@@ -15,9 +15,11 @@ def register(sub) -> None:
                                    "writes the binary table image the C runtime loads at run time "
                                    "(docs/table-image.md).")
     p.add_argument("table", help="table file (.npz)")
-    p.add_argument("--format", required=True, help="json | c | bin")
+    p.add_argument("--format", required=True, help="json | c | bin | friction-png | glb")
     p.add_argument("-o", "--output", required=True, help="file to write")
     p.add_argument("--name", help="C symbol prefix (default: output file stem)")
+    p.add_argument("--quantity", help="friction-png: mu | normal_force | breakaway_force (default mu)")
+    p.add_argument("--bits", type=int, help="friction-png: 8 or 16 bits per pixel (default 16)")
     p.set_defaults(func=run_export)
 
 
@@ -91,6 +93,6 @@ def run_export(args) -> int:
     if args.format not in FORMATS:
         raise unknown_key("export format", args.format, FORMATS)
     table = FrictionTable.load(args.table)
-    out = export_table(table, args.output, args.format, args.name)
+    out = export_table(table, args.output, args.format, args.name, quantity=args.quantity, bits=args.bits)
     print(f"wrote {out} ({args.format})")
     return 0
