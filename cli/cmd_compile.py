@@ -149,14 +149,26 @@ def run(args) -> int:
 
     from shapedisplay.compile import compile_heightfield, format_report
     from shapedisplay.devices import load_device
+    from shapedisplay.exchange.glb import has_haptic_textures
     from shapedisplay.sources import check_applicable, load_source, source_options
 
     mapping, options = build_options(args)
     given = {o: getattr(args, o) for o in _MAPPING_OPTS}
     given["mapping"] = None if args.mapping == "height" else args.mapping
     kind = check_applicable(args.source, given, kinds={o: ("image", "mesh") for o in given})
-    opts = source_options(args.source, **source_given(args))
-    if kind in ("scene", "svg"):
+    if has_haptic_textures(args.source):
+        # a glb written by `export --format glb`: its textures carry N, mu and B on their own grid
+        from shapedisplay.exchange.glb import compile_haptic_glb, refuse_geometry_options
+        refuse_geometry_options(args.source, **source_given(args))
+        custom = any(v is not None for v in given.values())
+        result = compile_haptic_glb(args.source, device=args.device, mapping=mapping if custom else None,
+                                    options=options)
+        opts = None
+    else:
+        opts = source_options(args.source, **source_given(args))
+    if opts is None:
+        pass
+    elif kind in ("scene", "svg"):
         from shapedisplay.scene import compile_scene
         # Without --device the scene's own [device] applies.
         device = load_device(args.device) if args.device else None

@@ -8,6 +8,9 @@ Table exports (:func:`export_table`, ``shapedisplay export TABLE --format F``):
                         widget map, every runtime constant, ``NAME_bind``)
 ``bin``                 binary table image: flat, little-endian, CRC-32; the C
                         runtime loads it in place (docs/table-image.md)
+``glb``                 glTF 2.0 binary: the surface as a mesh, stiffness (N),
+                        friction (mu) and vibration (B) as 16-bit textures
+                        under ``MPEG_haptic_material`` (:mod:`.glb`)
 ``friction-png``        8/16-bit grey PNG of mu, N or mu_s*N (top view) and a
                         sidecar JSON of the scale (:mod:`.friction_png`)
 ======================  ==========================================================
@@ -27,6 +30,7 @@ EXPORTERS = {
     "c": ("shapedisplay.export:export_c", ("name",)),
     "bin": ("shapedisplay.runtime.image:export_image", ()),
     "friction-png": ("shapedisplay.exchange.friction_png:export_friction_png", ("quantity", "bits")),
+    "glb": ("shapedisplay.exchange.glb:export_glb", ()),
 }
 FORMATS = tuple(EXPORTERS)
 
