@@ -18,8 +18,10 @@ def register(sub) -> None:
         epilog="example:\n  shapedisplay compile map.png -o t.npz --size 60x4mm --height 0:2mm "
                "--mapping height --n-base 0.5N --n-gain 2N/mm",
     )
-    p.add_argument("source", help="picture or .npy height map, mesh, scene (.toml) or SVG mockup (.svg)")
-    p.add_argument("-o", "--output", required=True, help="table file to write (.npz)")
+    p.add_argument("source", nargs="+", help="picture or .npy height map, mesh, scene (.toml) or SVG mockup (.svg); "
+                                             "several sources compile into the folder given with -o")
+    p.add_argument("-o", "--output", required=True, help="table file to write (.npz), or a folder (DIR/) for "
+                                                         "several sources: DIR/<stem>.npz each")
     p.add_argument("--device", help="device profile: TOML file or bundled name (default: built-in Konyo pad)")
     add_source_arguments(p)
     g = p.add_argument_group("mapping (images and meshes; a scene has its [mapping])")
@@ -144,10 +146,9 @@ def build_options(args):
     return mapping, options
 
 
-def run(args) -> int:
-    import json
-
-    from shapedisplay.compile import compile_heightfield, format_report
+def compile_source(args, source):
+    """Compile one source with the options in ``args``; returns the CompileResult."""
+    from shapedisplay.compile import compile_heightfield
     from shapedisplay.devices import load_device
     from shapedisplay.exchange.glb import has_haptic_textures
     from shapedisplay.sources import check_applicable, load_source, source_options
@@ -155,35 +156,43 @@ def run(args) -> int:
     mapping, options = build_options(args)
     given = {o: getattr(args, o) for o in _MAPPING_OPTS}
     given["mapping"] = None if args.mapping == "height" else args.mapping
-    kind = check_applicable(args.source, given, kinds={o: ("image", "mesh") for o in given})
-    if has_haptic_textures(args.source):
+    kind = check_applicable(source, given, kinds={o: ("image", "mesh") for o in given})
+    if has_haptic_textures(source):
         # a glb written by `export --format glb`: its textures carry N, mu and B on their own grid
         from shapedisplay.exchange.glb import compile_haptic_glb, refuse_geometry_options
-        refuse_geometry_options(args.source, **source_given(args))
+        refuse_geometry_options(source, **source_given(args))
         custom = any(v is not None for v in given.values())
-        result = compile_haptic_glb(args.source, device=args.device, mapping=mapping if custom else None,
-                                    options=options)
-        opts = None
-    else:
-        opts = source_options(args.source, **source_given(args))
-    if opts is None:
-        pass
-    elif kind in ("scene", "svg"):
+        return compile_haptic_glb(source, device=args.device, mapping=mapping if custom else None,
+                                  options=options)
+    opts = source_options(source, **source_given(args))
+    if kind in ("scene", "svg"):
         from shapedisplay.scene import compile_scene
         # Without --device the scene's own [device] applies.
         device = load_device(args.device) if args.device else None
         with warnings_as_lines("compile"):
-            result = compile_scene(args.source, device=device, options=options)
+            result = compile_scene(source, device=device, options=options)
     else:
         device = load_device(args.device)
         with warnings_as_lines("compile"):
-            hf = load_source(args.source, **opts)
+            hf = load_source(source, **opts)
         from shapedisplay.forces import fit_to_force_range
         from shapedisplay.sources import fits_force_range_by_default
         if fits_force_range_by_default(hf, n_gain_given=args.n_gain is not None,
                                        height_given=args.height is not None):
             hf = fit_to_force_range(hf, device, mapping)
         result = compile_heightfield(hf, device, mapping, options)
+    return result
+
+
+def run(args) -> int:
+    import json
+
+    from shapedisplay.batch import is_batch
+    from shapedisplay.compile import format_report
+
+    if is_batch(args.source, args.output):
+        return run_batch(args)
+    result = compile_source(args, args.source[0])
     out = result.table.save(args.output)
     if args.json:
         print(json.dumps(result.report, indent=2, allow_nan=False))
@@ -194,3 +203,47 @@ def run(args) -> int:
             print(format_widget_report(result.report))
         print(f"wrote {out}")
     return 0
+
+
+def run_batch(args) -> int:
+    """Several sources into one folder: one progress bar, then a summary table."""
+    import json
+    import sys
+
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+    from rich.table import Table
+
+    from shapedisplay.batch import plan_outputs, summary_row
+    from shapedisplay.errors import ShapeDisplayError
+
+    plan = plan_outputs(args.source, args.output)
+    rows, reports = [], []
+    with Progress(TextColumn("compile"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.description}"),
+                  TimeElapsedColumn(), console=Console(stderr=True), disable=args.quiet) as bar:
+        task = bar.add_task("", total=len(plan))
+        for src, out in plan:
+            bar.update(task, description=str(src))
+            try:
+                result = compile_source(args, src)
+                result.table.save(out)
+                rows.append(summary_row(src, out, result))
+                reports.append({"source": str(src), "output": str(out), "report": result.report})
+            except ShapeDisplayError as exc:
+                rows.append(summary_row(src, None, error=str(exc)))
+                reports.append({"source": str(src), "error": str(exc)})
+            bar.advance(task)
+    failed = [r for r in rows if r["status"] != "ok"]
+    if args.json:
+        print(json.dumps(reports, indent=2, allow_nan=False))
+    elif not args.quiet:
+        cols = ("source", "output", "samples", "size_mm", "channels", "stored_bytes", "saved", "status")
+        table = Table(title=f"compiled {len(rows) - len(failed)} of {len(rows)} sources into {args.output}")
+        for col in cols:
+            table.add_column(col.replace("_", " "), overflow="fold")
+        for r in rows:
+            table.add_row(*(str(r.get(c, "")) for c in cols))
+        Console().print(table)
+    for r in failed:
+        print(f"shapedisplay compile: error: {r['status'][len('error: '):]}", file=sys.stderr)
+    return 2 if failed else 0

@@ -22,6 +22,13 @@ def register(sub) -> None:
     p.add_argument("--bits", type=int, help="friction-png: 8 or 16 bits per pixel (default 16)")
     p.set_defaults(func=run_export)
 
+    p = sub.add_parser("diff", help="compare two tables: grid, channels (largest difference and where), metadata",
+                       description="Compare two verified tables. Exit status 0 when identical, 1 when they differ.")
+    p.add_argument("a", metavar="A", help="first table (.npz)")
+    p.add_argument("b", metavar="B", help="second table (.npz)")
+    p.add_argument("--json", action="store_true", help="print the comparison as JSON")
+    p.set_defaults(func=run_diff)
+
 
 def _g(value) -> str:
     """A header number as ``%g``; anything else (absent, malformed) as written."""
@@ -96,3 +103,14 @@ def run_export(args) -> int:
     out = export_table(table, args.output, args.format, args.name, quantity=args.quantity, bits=args.bits)
     print(f"wrote {out} ({args.format})")
     return 0
+
+
+def run_diff(args) -> int:
+    import json
+
+    from shapedisplay.diff import diff_tables, format_diff
+    from shapedisplay.table import FrictionTable
+
+    d = diff_tables(FrictionTable.load(args.a), FrictionTable.load(args.b))
+    print(json.dumps(d, indent=2, default=str) if args.json else format_diff(d, args.a, args.b))
+    return 0 if d["identical"] else 1
