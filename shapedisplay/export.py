@@ -432,8 +432,14 @@ def export_c(table: FrictionTable, path: str | os.PathLike, name: str | None = N
         ``_N_VALUES`` macros, ``name_dx_m``/``_dy_m``/``_x0_m``/``_y0_m``,
         ``name_blocks[n][5]``, per channel ``name_CH_codes``, ``_scale``,
         ``_offset``, ``_background``, ``_max_error``, ``_crc32`` and
-        ``NAME_HAS_CH``; model parameters ``name_pad_mass_kg``, ``name_mu_s`` ...;
-        ``name_checksum``; ``NAME_DECODE(CH, i)`` decodes code ``i``.
+        ``NAME_HAS_CH``, ``NAME_CH_DTYPE``; every runtime constant
+        (:func:`run_config`: ``name_pad_mass_kg``, ``name_mu_s``,
+        ``name_slope_friction_gain``, ``name_audio_rate_hz`` ...);
+        ``name_checksum``; ``NAME_DECODE(CH, i)`` decodes code ``i``;
+        toggles ``NAME_TOGGLE_<ID>[_<STATE>]``, ``name_toggles``,
+        ``name_toggle_offsets``, ``name_set_state()``; the widget map
+        ``NAME_WIDGET_<ID>``, ``name_widgets``, ``name_widget_at()``; after
+        ``sd_runtime.h``, ``name_bind()``.
     """
     path = Path(path)
     if name is None:
