@@ -140,7 +140,7 @@ def join_negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> li
 
 
 #: Option destinations that name files a command writes.
-OUTPUT_DESTS = ("output", "trace_out", "plot", "link", "port_file")
+OUTPUT_DESTS = ("output", "trace_out", "plot", "link", "port_file", "ahap", "drive_csv")
 
 
 def _check_outputs(args, line: CommandLine) -> None:
@@ -150,13 +150,19 @@ def _check_outputs(args, line: CommandLine) -> None:
     from shapedisplay.atomic import check_outputs
     outputs, inputs = {}, {}
     for dest, value in vars(args).items():
-        if not isinstance(value, str) or not value or dest in ("command", "func"):
+        if dest in ("command", "func"):
             continue
-        name = line.typed.get(dest, dest.upper())
-        if dest in OUTPUT_DESTS:
-            outputs[name] = value
-        elif os.path.isfile(value):
-            inputs[name] = value
+        values = [v for v in value if isinstance(v, str)] if isinstance(value, list) else [value]
+        for k, v in enumerate(values):
+            if not isinstance(v, str) or not v:
+                continue
+            name = line.typed.get(dest, dest.upper())
+            if len(values) > 1:               # several sources: name each one
+                name = f"{name} {k + 1}"
+            if dest in OUTPUT_DESTS:
+                outputs[name] = v
+            elif os.path.isfile(v):
+                inputs[name] = v
     check_outputs(inputs, outputs)
 
 

@@ -157,3 +157,10 @@ def test_play_cli_writes_ahap_and_csv_or_nothing(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and "nope" in err and len(err.strip().splitlines()) == 1
     assert not out.exists() and not (tmp_path / "o.csv").exists()
+    # an AHAP or CSV named like the table or the WAV is refused before anything is played
+    before = t.read_bytes()
+    for argv in (["--ahap", str(t)], ["--drive-csv", str(out)]):
+        code = main(["play", str(t), "--stroke", "0:60mm @ 30mm/s", "-o", str(out), *argv])
+        err = capsys.readouterr().err
+        assert code == 2 and ("is the input" in err or "also the output" in err), err
+    assert t.read_bytes() == before and not out.exists()
