@@ -14,6 +14,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 PHONE = ROOT / "assets" / "scenes" / "phone.toml"
+#: Longest wait for a studio's first compile (s): generous for a cold numba cache on a busy machine.
+READY_TIMEOUT = 300.0
 
 
 class StudioProcess:
@@ -37,6 +39,9 @@ class StudioProcess:
         m = re.match(r"http://([^/]+)/\?token=(\S+)", self.url)
         self.host, self.token = m.group(1), m.group(2)
         self.base = f"http://{self.host}"
+        # the socket listens at once; requests are answered after the first compile (on a cold numba
+        # cache that includes compiling the renderer's kernels): wait for it here, not in each test
+        self.wait_state(lambda st: st["generation"] >= 1, timeout=READY_TIMEOUT)
 
     def _read(self):
         for line in self.proc.stdout:
@@ -63,7 +68,12 @@ class StudioProcess:
         import json
         end = time.monotonic() + timeout
         while True:
-            status, body = self.get("/api/state")
+            try:
+                status, body = self.get("/api/state")
+            except OSError:                     # not answering yet (a timeout while it compiles)
+                status, body = 0, b""
+            if self.proc.poll() is not None:
+                raise AssertionError(f"the studio exited ({self.proc.returncode}): {self.proc.stderr.read()}")
             if status == 200:
                 st = json.loads(body)
                 if predicate(st):
