@@ -1,0 +1,118 @@
+"""Speed of the WebAssembly build in wasmtime against the native build of the same C sources.
+
+The same table image, settings and stroke (2-D widget table, six channels, jump model,
+retrigger, 10 kHz ticks, 48 kHz audio, 200 000 ticks) played by `sd_vectors image` compiled
+natively (cc -O2, a loop over sd_renderer_step timed inside the process) and by sd_runtime.wasm
+in wasmtime through `sd_wasm_run` (one call for all ticks, audio copied out); both are CPU time
+of the tick loop alone, best of 5, measured in the same run. Prints ticks per second of both and
+the ratio (goal: wasm at least half the native speed).
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+
+from runtime_vectors import WasmRunner, case_setup, image_payload  # noqa: E402
+from shapedisplay.runtime import wasm  # noqa: E402
+
+CDIR = Path(__file__).resolve().parent.parent / "shapedisplay" / "runtime_c"
+N = 200_000
+REPEATS = 5          # best of 5 for both (a shared machine)
+
+
+# The native loop: the same payload as `sd_vectors image`, the ticks timed inside the process
+# (CPU time of the sd_renderer_step loop only; the audio block is summed so it is not optimised away).
+LOOP_C = r"""
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include "sd_runtime.h"
+static sd_image_t img;
+static sd_renderer_t R;
+int main(int argc, char **argv)
+{
+    FILE *f = fopen(argv[1], "rb");
+    long size, n, i;
+    double *buf, *xy, acc = 0.0, rates[2];
+    int64_t v[3];
+    sd_config_t C;
+    clock_t c0;
+    if (argc != 2 || !f) return 2;
+    fseek(f, 0, SEEK_END);
+    size = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    buf = malloc((size_t)size + 8);
+    if (!buf || fread(buf, 1, (size_t)size, f) != (size_t)size) return 2;
+    memcpy(v, buf, 8);
+    if (sd_image_load(&img, buf + 1, (size_t)v[0]) != SD_OK) return 3;
+    xy = buf + 1 + (v[0] + 7) / 8;
+    memcpy(v, xy, 16);
+    memcpy(rates, xy + 2, 16);
+    sd_image_config(&img, &C);
+    C.policy = (int)v[0];
+    C.model = (int)v[1];
+    C.tick_rate = rates[0];
+    C.audio_rate = rates[1];
+    memcpy(v, xy + 4, 8);
+    n = (long)v[0];
+    if (sd_renderer_init(&R, &img.table, &C) != SD_OK) return 4;
+    c0 = clock();
+    for (i = 0; i < n; i++) {
+        long j;
+        sd_renderer_step(&R, xy[5 + i], xy[5 + n + i]);
+        for (j = 0; j < R.n_audio; j++) acc += R.audio[j];
+    }
+    printf("%.6f %g\n", (double)(clock() - c0) / CLOCKS_PER_SEC, acc);
+    return 0;
+}
+"""
+
+
+def main() -> int:
+    table, r, x, y, img = case_setup("uint16", "diagonal", "retrigger", 10_000.0, 48_000.0, "jump", seconds=0.25)
+    reps = N // len(x) + 1
+    x = np.tile(np.concatenate([x, x[::-1]]), reps)[:N]
+    y = np.tile(np.concatenate([y, y[::-1]]), reps)[:N]
+    with tempfile.TemporaryDirectory() as d:
+        d = Path(d)
+        exe = d / "sd_loop"
+        (d / "loop.c").write_text(LOOP_C)
+        srcs = [str(CDIR / n) for n in ("sd_pad.c", "sd_exact.c", "sd_render.c", "sd_image.c")]
+        cc = os.environ.get("CC", "cc")
+        subprocess.run([cc, "-std=c99", "-O2", "-ffp-contract=off", "-I", str(CDIR), *srcs, str(d / "loop.c"),
+                        "-lm", "-o", str(exe)], check=True)
+        (d / "in").write_bytes(image_payload(img, r, x, y))
+        native = min(float(subprocess.run([str(exe), str(d / "in")], capture_output=True, text=True,
+                                          check=True).stdout.split()[0]) for _ in range(REPEATS))
+    w = WasmRunner(wasm.MODULE)
+    per_tick = int(np.ceil(r.audio_rate / r.tick_rate)) + 2
+    assert w.load(img) == 0
+    assert w.call("sd_wasm_configure", int(r.config["model"]), int(r.config["policy"]), r.tick_rate, r.audio_rate) == 0
+    xy = np.empty(2 * N, "<f8")
+    xy[0::2], xy[1::2] = x, y
+    p = w.call("sd_wasm_scratch", 16 * N + 8 * per_tick * N)
+    w.write(p, xy.tobytes())
+    wasm_s = float("inf")
+    for _ in range(REPEATS):
+        w.call("sd_wasm_reset", 0.0)
+        t0 = time.process_time()
+        na = w.call("sd_wasm_run", p, N, 0, p + 16 * N, per_tick * N)
+        wasm_s = min(wasm_s, time.process_time() - t0)
+        assert na > 0
+    print(f"native C   {N / native / 1e6:.2f} Mticks/s ({native:.3f} s CPU for {N} ticks)")
+    print(f"wasmtime   {N / wasm_s / 1e6:.2f} Mticks/s ({wasm_s:.3f} s CPU)")
+    print(f"wasm / native speed: {native / wasm_s:.2f} (goal >= 0.5)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
