@@ -508,3 +508,18 @@ def test_every_cli_error_of_this_file_is_one_line(tmp_path, capsys, good):
         code, out, err = run(argv, capsys)
         assert code == 2 and len(err.strip().splitlines()) == 1 and "compression method 99" in err
     assert sorted(x.name for x in tmp_path.iterdir()) == ["t.npz"]
+
+
+@pytest.mark.parametrize("model", ["exact", "jump", "stribeck", "tanh", "karnopp"])
+def test_online_step_holds_absurd_positions_and_counts_them(table, model):
+    """A stream (device host, studio) cannot be refused sample by sample: the last valid position is held."""
+    import math
+
+    from shapedisplay.runtime.renderer import Renderer
+    r = Renderer(table, model=model)
+    for x in (0.0, 0.001, 1e300, 0.002, -1e300, float("nan"), 0.003, 1e3, 0.004, float("inf"), 0.005):
+        drive = r.step(x, 0.002)
+        assert math.isfinite(drive) and all(math.isfinite(v) for v in r.outputs().values()), (model, x)
+    assert r.held_positions == 4
+    r.reset()
+    assert r.held_positions == 0

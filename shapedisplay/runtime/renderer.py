@@ -62,7 +62,7 @@ from ..errors import InputError, ModelError, TableError
 from ..table import FrictionTable
 from ..units import parse_quantity
 from .bursts import audio_length, burst_value, policy_id, render_bursts, synth
-from .cursor import CursorPath
+from .cursor import MAX_POSITION_M, CursorPath
 from .dispatch import model_tick
 from .layouts import NSLOT, ONLINE, OUTPUTS, RENDER_CONFIG, SLOTS, Policy, Slot, record
 from .lookup import sample_all
@@ -530,6 +530,11 @@ class Renderer:
 
     def reset(self, t0: float = 0.0) -> None:
         """Start a new online run at cursor time ``t0`` (s): state stuck and relaxed, no bursts."""
+        #: Cursor samples not played since the last reset (non-finite or beyond MAX_POSITION_M; the last
+        #: valid position was held instead).
+        self.held_positions = 0
+        g = self.table.grid
+        self._last_xy = (g.x0, g.y0)
         R = self._R
         R[:] = self._R0
         R["pad"] = self.model.new_state()
@@ -547,7 +552,17 @@ class Renderer:
         also :meth:`outputs`) and the tick's audio samples in
         ``audio_block[:audio_samples]``. Allocation-free; see the
         real-time rules in the module docstring.
+
+        A position that is not finite or lies beyond ``MAX_POSITION_M`` (1 km)
+        is not played: the last valid position is held and
+        :attr:`held_positions` counts it (a stream from a device host cannot
+        be refused sample by sample).
         """
+        if abs(x) <= MAX_POSITION_M and abs(y) <= MAX_POSITION_M:      # False for NaN too
+            self._last_xy = (x, y)
+        else:
+            self.held_positions += 1
+            x, y = self._last_xy
         drive = online_step(self.online_record, self._blocks, self._data, self._bg, self._ev, self._audio, x, y)
         pad = self.online_record["pad"]
         if pad["diverged"] != 0:
