@@ -408,6 +408,7 @@ def _check_cursor(cp, label):
 def test_two_thousand_malformed_strokes_traces_scenes_and_command_lines(tmp_path, capsys):
     from shapedisplay.runtime.cursor import load_force_csv, load_trace_csv, parse_stroke
     from shapedisplay.scene import check_scene, load_scene
+    from shapedisplay.sinks import read_trace
     from shapedisplay_cli.main import main
     rng = random.Random(SEED + 3)
     tally = Tally()
@@ -419,7 +420,13 @@ def test_two_thousand_malformed_strokes_traces_scenes_and_command_lines(tmp_path
             _run_case(tally, "stroke", f"stroke {s[:80]!r}", lambda: parse_stroke(s, 10_000), _check_cursor,
                       _ticks_allowance)
         csv = tmp_path / "rec.csv"
-        for i in range(N_TRACES):
+        trace_npz = _trace_npz_bytes(tmp_path)
+        npz = tmp_path / "trace_in.npz"
+        for i in range(N_TRACES // 2):                       # .npz traces, as play --trace-out writes them
+            npz.write_bytes(_trace_mutant(rng, trace_npz))
+            _run_case(tally, "trace-npz", f"trace npz #{i}", lambda: read_trace(npz), _check_trace_dict,
+                      lambda d: 16 * BYTES_PER_TICK * d["t"].size)
+        for i in range(N_TRACES // 2, N_TRACES):
             csv.write_text(_trace_csv(rng), encoding="utf-8", errors="surrogateescape")
             if i % 2:
                 _run_case(tally, "trace", f"trace #{i}", lambda: load_trace_csv(csv, 10_000), _check_cursor,
@@ -468,6 +475,45 @@ def test_two_thousand_malformed_strokes_traces_scenes_and_command_lines(tmp_path
     seconds = time.perf_counter() - t0
     assert tally.tried == N_STROKES + N_TRACES + N_SCENES + N_COMMANDS == 2000
     print("\n" + tally.line("malformed strokes, traces, scenes, command lines") + f"; {seconds:.1f} s")
+
+
+def _trace_npz_bytes(tmp_path) -> bytes:
+    from shapedisplay.runtime.cursor import parse_stroke
+    from shapedisplay.runtime.renderer import Renderer
+    from shapedisplay.sinks import write_trace
+    table = small_table()
+    r = Renderer(table, model="jump")
+    res = r.render(parse_stroke("0,3 -> 9,3 @ 50mm/s", r.tick_rate))
+    p = write_trace(tmp_path / "good_trace.npz", res, table.checksum())
+    data = p.read_bytes()
+    p.unlink()
+    return data
+
+
+def _trace_mutant(rng, data: bytes) -> bytes:
+    kind = rng.randrange(3)
+    if kind == 0:
+        return _flip(rng, data)
+    if kind == 1:
+        return _truncate(rng, data)
+    with np.load(io.BytesIO(data)) as z:
+        arrays = {n: z[n] for n in z.files}
+    name = rng.choice(list(arrays))
+    a = arrays[name]
+    arrays[name] = rng.choice([a[:-1] if a.ndim else a, np.full(a.shape, np.nan) if a.dtype.kind == "f" else a,
+                               a.astype(np.float64) if a.dtype.kind in "fiu" else a, np.zeros((2, 2)),
+                               np.array(["x" * 300]), np.zeros(10 ** 5), -a if a.dtype.kind == "f" else a])
+    if rng.random() < 0.2:
+        arrays["extra"] = np.zeros(3)
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    return buf.getvalue()
+
+
+def _check_trace_dict(d, label):
+    for k, v in d.items():
+        if isinstance(v, np.ndarray) and v.dtype.kind == "f":
+            assert np.isfinite(v).all(), (label, k)
 
 
 def _mutate_toml(rng, text: str) -> str:
