@@ -591,7 +591,8 @@ def _warn_size(where: str, width: float, height: float, units: str) -> None:
         return
     raw = side / UNITS[units]
     fits = [u for u, s in UNITS.items() if lo <= raw * s <= hi and u != units]
-    hint = f"; if the file is in {', '.join(fits)}, pass e.g. units='{fits[0]}'" if fits else ""
+    hint = (f"; if the file is in {', '.join(fits)}, give its unit: --units {fits[0]} (units='{fits[0]}' in Python)"
+            if fits else "")
     warnings.warn(
         f"{where}: footprint {width * 1e3:.4g} x {height * 1e3:.4g} mm looks implausible for a screen "
         f"(expected {lo * 1e3:g} mm to {hi:g} m) with units='{units}'{hint}",
