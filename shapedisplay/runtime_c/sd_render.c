@@ -141,10 +141,11 @@ static double burst_value(double t, const double *ev_t, const double *ev_a, long
 
 /* Audio samples j0..j1-1 (time t_origin + j / rate) into out[0 .. j1-j0-1]; returns samples clipped. */
 static long synth(const double *ev_t, const double *ev_a, long n_ev, double t_origin, double rate, int64_t j0,
-                  int64_t j1, double carrier, double rise, double decay, int policy, double *out)
+                  int64_t j1, double carrier, double rise, double decay, int policy, double cd, double sd,
+                  double *out)
 {
     double dur = rise + decay, w = 2.0 * SD_PI * carrier;
-    double cd = cos(w / rate), sd = sin(w / rate), cr = 0.0, sr = 0.0;
+    double cr = 0.0, sr = 0.0;      /* cd, sd: the carrier's rotation per sample, from sd_renderer_init */
     long lo = 0, hi = n_ev, clipped = 0, cur = -1;
     int64_t j;
     /* Events are sorted, so counting those before the first sample from the end gives the same
@@ -282,6 +283,11 @@ int sd_renderer_init(sd_renderer_t *R, const sd_table_t *table, const sd_config_
     R->tick_fn = sd_model_tick(cfg->model);
     R->audio_cap = cfg->audio_rate > 0.0 ? (long)ceil(cfg->audio_rate / cfg->tick_rate) + 2 : 0;
     if (R->audio_cap > SD_AUDIO_BLOCK_MAX) return SD_ERR_PARAM;
+    if (cfg->audio_rate > 0.0) {     /* constants of the carrier rotation: once here, not per tick */
+        double w = 2.0 * SD_PI * cfg->carrier_hz;
+        R->rot_cos = cos(w / cfg->audio_rate);
+        R->rot_sin = sin(w / cfg->audio_rate);
+    }
     sd_renderer_reset(R, 0.0);
     return SD_OK;
 }
@@ -392,7 +398,7 @@ double sd_renderer_step(sd_renderer_t *R, double x, double y)
         if (j1 - j0 > R->audio_cap) j0 = j1 - R->audio_cap;
         if (j1 > j0)
             R->run.clipped += synth(R->ev_t, R->ev_a, nrec, R->run.t0, R->cfg.audio_rate, j0, j1, R->cfg.carrier_hz,
-                                R->cfg.rise_s, R->cfg.decay_s, R->cfg.policy, R->audio);
+                                R->cfg.rise_s, R->cfg.decay_s, R->cfg.policy, R->rot_cos, R->rot_sin, R->audio);
         R->run.next_sample = j1;
         R->n_audio = j1 - j0 > 0 ? j1 - j0 : 0;
     }

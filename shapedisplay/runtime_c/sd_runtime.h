@@ -123,6 +123,7 @@ typedef struct {
     sd_pad_state_t pad;
     sd_run_state_t run;                 /* 64-bit counters on every target (int64_t) */
     int64_t position_faults;            /* cursor samples held (non-finite or beyond the limit) */
+    double rot_cos, rot_sin;            /* carrier rotation per audio sample (set by sd_renderer_init) */
     long n_audio, audio_cap;
     double ev_t[SD_EVENT_RING], ev_a[SD_EVENT_RING];
     double audio[SD_AUDIO_BLOCK_MAX];   /* audio samples of the last tick: audio[0 .. n_audio-1] */
