@@ -665,3 +665,30 @@ ramp = "4 mm"
     assert note["above"] > 0 and note["max_excess"] >= 1.0 - 1e-9
     mag = np.hypot(t.dense("lateral_x"), t.dense("lateral_y"))
     assert mag.max() <= 1.5 + 2 * t.quant["lateral_x"].max_error
+
+
+def test_image_widget_reads_a_colour_channel(tmp_path):
+    from PIL import Image
+    rgb = np.zeros((2, 4, 3), np.uint8)
+    rgb[..., 1] = [[0, 85, 170, 255], [255, 170, 85, 0]]          # the green channel carries the heights
+    rgb[..., 0] = 200                                               # red would flatten them
+    Image.fromarray(rgb).save(tmp_path / "c.png")
+    body = """
+[[widget]]
+id = "img"
+type = "image"
+file = "c.png"
+position = "10,10 mm"
+size = "8x4 mm"
+height = "0:2 mm"
+channel = "g"
+"""
+    t = compile_scene(write(tmp_path, body)).table
+    # picture row 0 (top) is at y = 13 mm, row 1 at y = 11 mm; column c at x = 11 + 2c mm
+    for r, y in ((0, 13), (1, 11)):
+        for c in range(4):
+            val = t.dense("normal_force")[int(round(y / 0.5)), int(round((11 + 2 * c) / 0.5))]
+            assert abs(val - (0.5 + 2.0 * rgb[r, c, 1] / 255)) <= tol(t)
+    from shapedisplay.errors import InputError
+    with pytest.raises(InputError, match=r"`widget\[0\].channel` must be one of luminance"):
+        compile_scene(write(tmp_path, body.replace('channel = "g"', 'channel = "green"')))

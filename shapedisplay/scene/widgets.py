@@ -578,15 +578,18 @@ def _file(raw, key, w: PlaceCtx, what: str) -> Path:
 
 
 class Image(WidgetType):
-    """A height map (8/16-bit PNG or .npy) stretched over the widget box.
+    """A height map (any picture, or .npy) stretched over the widget box, seen from above.
 
-    ``height = "0:2 mm"``: gray 0 to full scale maps to this range; or
+    ``channel`` picks the channel of a colour picture (luminance, r, g, b, a,
+    or normal to integrate a normal map; see :mod:`shapedisplay.imageio`).
+    ``height = "0:2 mm"``: gray 0 to full scale maps to this range (float data:
+    their range is fitted onto it); or
     ``force = "0.5:2.5 N"``, the normal-force range (low end = mapping n_base
     unless the height range is meant to start below flat ground).
     """
 
     name = "image"
-    own_keys = {"file": "file", "height": "lenrange", "force": "forcerange"}
+    own_keys = {"file": "file", "height": "lenrange", "force": "forcerange", "channel": "choice"}
 
     def finish(self, raw, W, H, w):
         path = _file(raw, "file", w, "image")
@@ -605,7 +608,11 @@ class Image(WidgetType):
             raise w.error("height", f"range must run low:high (got {raw.get('height', raw.get('force'))!r})")
         from ..sources import load_image
         try:
-            hf = load_image(path, (W, H if H > 0 else W), (lo, hi))
+            channel = None
+            if "channel" in raw:
+                from ..imageio import CHANNELS
+                channel = choice(raw["channel"], CHANNELS, w.fp + "channel", w.ctx, w.where)
+            hf = load_image(path, (W, H if H > 0 else W), (lo, hi), channel=channel)
         except SceneError:
             raise
         except Exception as exc:  # ShapeDisplayError subclasses from the loader
