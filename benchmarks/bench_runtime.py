@@ -75,7 +75,7 @@ def main() -> int:
     evs = [np.empty(n // 4 + 1024) for _ in range(2)]
     for name in ("jump", "exact"):
         m = get_model(name, dev)
-        dt = best_of(lambda: run_ticks(m.model_id, m.new_state()[0], m.params, tt, *ins, *outs, *evs), 15)
+        dt = best_of(lambda: run_ticks(m.model_id, m.new_state(), m.param_block, tt, *ins, *outs, *evs), 15)
         print(f"{name:8s} tick loop only (preallocated buffers): {n / dt / 1e6:7.1f} M ticks/s, "
               f"{seconds / dt:9.0f}x real time, {dt / base:6.1f}x baseline time")
     # full offline render over a table (lookups + kernel + burst audio)

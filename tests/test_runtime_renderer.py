@@ -324,7 +324,7 @@ def test_online_step_allocates_nothing_per_tick_in_compiled_code():
     from numba.core.runtime import _nrt_python      # counts of numba's allocator (NUMBA_NRT_STATS at run time)
     _nrt_python.memsys_enable_stats()
     xs = parse_stroke("0,0 <-> 60,0 @ 40 mm/s", 10_000).x
-    args = (r.online_record, r._blocks, r._data, r._bg, r._ev, r._audio, xs)
+    args = (r.online_state, r._blocks, r._data, r._bg, r._ev, r._audio, xs)
     r.reset()
     host_loop(*args, 0, 10)                        # compile
     used = []

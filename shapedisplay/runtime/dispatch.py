@@ -56,8 +56,12 @@ def _store(st, i, out_f, out_state, out_x, out_v, out_wf, out_wd):
 
 
 @njit(cache=True)
-def run_ticks(model, st, prm, t, V, N, mus, muk, gain, out_f, out_state, out_x, out_v, out_wf, out_wd, ev_t, ev_a):
+def run_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_state, out_x, out_v, out_wf, out_wd,
+              ev_t, ev_a):
     """Offline fast path: advance model number ``model`` over ``n`` ticks.
+
+    ``state`` and ``params`` are one-element PAD_STATE and PAD_PARAMS arrays
+    (the state is updated in place).
 
     Tick ``i`` runs from ``t[i-1]`` to ``t[i]`` with inputs ``V[i], N[i], ...``
     (tick 0 has zero length and only reports the initial state). Writes
@@ -66,6 +70,8 @@ def run_ticks(model, st, prm, t, V, N, mus, muk, gain, out_f, out_state, out_x, 
     then only the first ``ev_t.size`` are stored). The model branch is taken
     once, outside the tick loop.
     """
+    st = state[0]
+    prm = params[0]
     n = t.shape[0]
     n_ev = 0
     if n == 0:

@@ -72,7 +72,10 @@ class PadModel:
             self.device.pad.validate()
         if options:
             raise InputError(f"model '{self.name}' takes no options (got {sorted(options)})")
-        self.params = self.pack()
+        #: The parameters in a one-element PAD_PARAMS array (what the compiled kernels take from Python:
+        #: numba unboxes an array far faster than a bare record) and its record view.
+        self.param_block = np.array([self.pack()], dtype=PAD_PARAMS)
+        self.params = self.param_block[0]
 
     @property
     def model_id(self) -> int:
@@ -410,7 +413,7 @@ def run_kernel(model: PadModel, t, V, N, mus, muk, gain, state=None):
         S = S0.copy()
         ev_t = np.empty(cap)
         ev_a = np.empty(cap)
-        n_ev = dispatch.run_ticks(model.model_id, S[0], model.params, t, V, N, mus, muk, gain,
+        n_ev = dispatch.run_ticks(model.model_id, S, model.param_block, t, V, N, mus, muk, gain,
                                   out_f, out_s, out_x, out_v, out_wf, out_wd, ev_t, ev_a)
         if n_ev <= cap:
             break

@@ -38,7 +38,7 @@ Real-time rules for :meth:`Renderer.step`
   Python allocates (and frees before returning) small objects: the float
   returned, and numba's wrappers of the record and the workspace arrays. A
   hard real-time host calls :func:`online_step` from its own compiled loop
-  (with ``Renderer.online_record, _blocks, _data, _bg, _ev, _audio``; tested
+  (with ``Renderer.online_state, _blocks, _data, _bg, _ev, _audio``; tested
   to allocate nothing per tick) or uses the C runtime.
 * Work per call is one table lookup (a scan over the table's blocks), one
   model tick, and the audio samples of the tick; the exact model adds one
@@ -75,7 +75,7 @@ _RING = 4096
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "da23f74e95af06d4deb8bc8d093219ee0dfc917ad2cffb87a5047a53900e3ddf"
+KERNEL_SOURCES_SHA256 = "af05cc652938b1a16add3ad6be81b85972ce362b00649c7d63b08022f4a9a0ef"
 
 
 @njit(cache=True)
@@ -124,8 +124,10 @@ def _axis_speed(vx, vy, ax, ay):
 
 
 @njit(cache=True)
-def prepare_inputs(t, x, y, vals, cfg, slot_channel, V, vx, vy, N, mus, muk, gain):
-    """Offline: per-tick velocities and model inputs (arrays of shape (n,); ``vals`` (NSLOT, n))."""
+def prepare_inputs(t, x, y, vals, config, slot_channel, V, vx, vy, N, mus, muk, gain):
+    """Offline: per-tick velocities and model inputs (arrays of shape (n,); ``vals`` (NSLOT, n);
+    ``config`` a one-element RENDER_CONFIG array)."""
+    cfg = config[0]
     n = t.shape[0]
     ax = 1.0
     ay = 0.0
@@ -143,11 +145,11 @@ def prepare_inputs(t, x, y, vals, cfg, slot_channel, V, vx, vy, N, mus, muk, gai
 
 
 def _derive_config(mu_s: float, mu_k: float, kmu: float = 0.0, sst: float = 0.0, n_const: float | None = None,
-                   **settings) -> np.void:
-    """The RENDER_CONFIG record :func:`_derive` reads: device friction, K_mu, skin target and the
-    constant N of a table without ``normal_force`` (plus any other ``settings`` fields)."""
+                   **settings) -> np.ndarray:
+    """The RENDER_CONFIG :func:`_derive` reads (a one-element array): device friction, K_mu, skin
+    target and the constant N of a table without ``normal_force`` (plus any other ``settings`` fields)."""
     return record(RENDER_CONFIG, mu_s=mu_s, mu_k=mu_k, k_mu=kmu, skin_target=sst,
-                  normal_force_constant=n_const or 0.0, **settings)[0]
+                  normal_force_constant=n_const or 0.0, **settings)
 
 
 def _slot_channels(present) -> np.ndarray:
@@ -194,13 +196,15 @@ def friction_limits(channels: dict, mu_s: float, mu_k: float) -> tuple[np.ndarra
 
 
 @njit(cache=True)
-def online_step(R, blocks, data, bg, ev, audio, x, y):
+def online_step(state, blocks, data, bg, ev, audio, x, y):
     """Online: one tick at cursor position (x, y) m. Returns the burst drive value.
 
-    ``R`` is an :data:`~.layouts.ONLINE` record (state, settings, counters and
-    outputs); ``blocks, data, bg`` the packed table (:func:`.lookup.pack_channels`);
+    ``state`` is the float64 buffer of one :data:`~.layouts.ONLINE` record (pad
+    state, settings, counters and outputs; a plain array crosses from Python to
+    the compiled code faster than a structured one); ``blocks, data, bg`` the packed table (:func:`.lookup.pack_channels`);
     ``ev`` the (2, ring) event times and amplitudes; ``audio`` the tick's audio block.
     """
+    R = state.view(ONLINE)[0]
     st = R.pad
     cfg = R.cfg
     run = R.run
@@ -454,17 +458,18 @@ class Renderer:
         kmu, sst = mapping_settings(table, dev)
         b = dev.burst
         #: The renderer's settings, a RENDER_CONFIG record (the C runtime's sd_config_t, byte for byte).
-        self.config = _derive_config(dev.friction.mu_s, dev.friction.mu_k, kmu, sst, self.normal_force_constant,
+        self._config = _derive_config(dev.friction.mu_s, dev.friction.mu_k, kmu, sst, self.normal_force_constant,
                                      tick_rate=self.tick_rate, audio_rate=self.audio_rate, carrier_hz=b.carrier_hz,
                                      rise_s=b.rise_s, decay_s=b.decay_s, policy=self._policy,
                                      model=self.model.model_id)
+        self.config = self._config[0]
         self.config["pad"] = self.model.params
         self._slot_channel = _slot_channels(self.present)
         self._build_online()
         self.reset()
         # warm the compiled step on a scratch copy (compilation never happens in the real-time loop)
-        R = self._R.copy()
-        online_step(R[0], self._blocks, self._data, self._bg, self._ev.copy(), self._audio.copy(), 0.0, 0.0)
+        R = self.online_state.copy()
+        online_step(R, self._blocks, self._data, self._bg, self._ev.copy(), self._audio.copy(), 0.0, 0.0)
 
     # ------------------------------------------------------------------ offline
     def _inputs(self, cp: CursorPath):
@@ -480,7 +485,7 @@ class Renderer:
             if name in self.present:
                 vals[i] = self.table.sample(name, xm, ym)
         V, vx, vy, N, mus, muk, gain = arrs = np.empty((7, n))       # one block: fewer page faults
-        prepare_inputs(t, x, y, vals, self.config, self._slot_channel, *arrs)
+        prepare_inputs(t, x, y, vals, self._config, self._slot_channel, *arrs)
         return vals, V, vx, vy, N, mus, muk, gain
 
     def render(self, cursor: CursorPath) -> RenderResult:
@@ -516,7 +521,7 @@ class Renderer:
         from .lookup import pack_channels
         blocks, data, bg, grid = pack_channels(self.table, self.present)
         self._blocks, self._data, self._bg = blocks, data, bg
-        R0 = np.zeros(1, ONLINE)
+        R0 = np.zeros(ONLINE.itemsize // 8).view(ONLINE)       # one record on a float64 buffer
         R0["cfg"] = self.config
         R0["grid"] = grid
         R0["slot_channel"] = self._slot_channel
@@ -525,8 +530,10 @@ class Renderer:
         self._ev = np.zeros((2, _RING))
         self._audio = np.zeros(int(math.ceil(self.audio_rate / self.tick_rate)) + 2)
         self.audio_block = self._audio
-        #: The online state as one record (argument of :func:`online_step`).
-        self.online_record = self._R[0]
+        #: The online state: the float64 buffer of one ONLINE record (argument of :func:`online_step`);
+        #: ``_R`` is the same memory as a one-element ONLINE array.
+        self.online_state = self._R.view(np.float64)
+        self._diverged = self._R["pad"]["diverged"]      # a view: checked after every step
 
     def reset(self, t0: float = 0.0) -> None:
         """Start a new online run at cursor time ``t0`` (s): state stuck and relaxed, no bursts."""
@@ -563,9 +570,9 @@ class Renderer:
         else:
             self.held_positions += 1
             x, y = self._last_xy
-        drive = online_step(self.online_record, self._blocks, self._data, self._bg, self._ev, self._audio, x, y)
-        pad = self.online_record["pad"]
-        if pad["diverged"] != 0:
+        drive = online_step(self.online_state, self._blocks, self._data, self._bg, self._ev, self._audio, x, y)
+        if self._diverged[0] != 0:
+            pad = self._R[0]["pad"]
             raise ModelError(divergence_message(self.model, self.tick_rate, float(pad["diverged_at"])))
         return drive
 
