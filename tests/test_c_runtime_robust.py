@@ -136,3 +136,19 @@ def test_counters_near_2_to_the_63_stay_defined(sd_vectors_san, tmp_path):
     assert np.abs(co["drive"]).max() <= 1.0
     assert (n_audio >= 0).all() and (n_audio <= np.ceil(r.audio_rate / r.tick_rate) + 2).all()
     assert min(clip, cev, drop, cfault) >= 0
+
+
+@pytest.mark.parametrize("cc", ["gcc", "clang"])
+def test_host_tools_build_werror_with_gcc_and_clang(tmp_path, cc):
+    """`make -C runtime-c CC=...`: the library and host tools compile -Wall -Wextra -pedantic -Werror
+    with both compilers (clang's -Wsometimes-uninitialized included)."""
+    import shutil
+    if shutil.which(cc) is None:
+        assert shutil.which("apt-get") is None, f"{cc} missing: scripts/install-system-deps.sh --with-toolchains"
+        pytest.skip(f"no {cc} and no apt-get to install it")
+    src = tmp_path / "src"
+    shutil.copytree(CDIR, src, ignore=shutil.ignore_patterns("build", "wasm", "m4"))
+    res = subprocess.run(["make", "-s", "-C", str(src), f"CC={cc}", "sd_vectors", "sd_bench"],
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert (src / "sd_vectors").is_file() and (src / "sd_bench").is_file()
