@@ -130,6 +130,22 @@ def derived_bounds(r, outs, unit_roundoff: float, libm_ulps: float = 1.0):
     return dt, d_drive, d_force
 
 
+
+#: Outputs that a build with another libm must reproduce exactly (times, positions, states, counts).
+EXACT_FIELDS = ("t", "x", "y", "vx", "vy", "normal_force", "events", "state", "audio_samples", "pad_speed")
+
+
+def assert_within_derived_bounds(r, po, pa, co, ca) -> float:
+    """A double build with another libm against the Python reference: :data:`EXACT_FIELDS` equal,
+    drive, audio and friction force within :func:`derived_bounds`. Returns the drive bound."""
+    for name in EXACT_FIELDS:
+        np.testing.assert_array_equal(co[name], po[name], err_msg=name)
+    _, d_drive, d_force = derived_bounds(r, po, 2.0 ** -53)
+    assert np.abs(co["drive"] - po["drive"]).max() <= d_drive
+    assert np.abs(ca - pa).max() <= d_drive
+    assert np.abs(co["friction_force"] - po["friction_force"]).max() <= d_force
+    return d_drive
+
 # ------------------------------------------------------------------ Cortex-M4F under QEMU
 QEMU_M4 = ["qemu-system-arm", "-M", "mps2-an386", "-nographic", "-monitor", "none", "-serial", "none"]
 #: -icount shift: every instruction advances virtual time by 2^ICOUNT_SHIFT ns, and SysTick (25 MHz

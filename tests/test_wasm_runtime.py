@@ -13,7 +13,7 @@ import pytest
 from shapedisplay.runtime import wasm
 from shapedisplay.runtime.models import MODEL_IDS
 
-from runtime_vectors import CASES, WasmRunner, case_setup, derived_bounds
+from runtime_vectors import CASES, WasmRunner, assert_within_derived_bounds, case_setup, derived_bounds
 from test_c_runtime import CDIR, py_render
 
 pytest.importorskip("wasmtime", reason="wasmtime (pip install 'shapedisplay[test]') runs the WebAssembly tests")
@@ -49,12 +49,7 @@ def test_wasm_plays_the_shared_vectors(module_path, dtype, kind, policy, tick, a
     po, pa, (pclip, pev) = py_render(r, x, y)
     co, ca, (cclip, cev, cdrop, cfault) = WasmRunner(module_path).play(img, r, x, y)
     assert pev > 20 and cev == pev and cdrop == 0 and ca.size == pa.size
-    for name in ("t", "x", "y", "vx", "vy", "normal_force", "events", "state", "audio_samples", "pad_speed"):
-        np.testing.assert_array_equal(co[name], po[name], err_msg=name)
-    dt, d_drive, d_force = derived_bounds(r, po, 2.0 ** -53)
-    assert np.abs(co["drive"] - po["drive"]).max() <= d_drive
-    assert np.abs(ca - pa).max() <= d_drive
-    assert np.abs(co["friction_force"] - po["friction_force"]).max() <= d_force
+    d_drive = assert_within_derived_bounds(r, po, pa, co, ca)
     assert abs(cclip - pclip) <= np.count_nonzero(np.abs(np.abs(pa) - 1.0) <= d_drive)
 
 
