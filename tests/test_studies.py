@@ -81,21 +81,61 @@ def test_friction_study_matches_closed_form_stick_period_and_amplitude(mus, dmu)
 
 
 def test_slope_height_study_plateau_matches_the_ramp_closed_form():
-    res = run_study("slope-height", only="ramp-L20mm-k0.1[05]-limit-*")
-    assert len(res.rows) == 4
+    res = run_study("slope-height", only="ramp-L20mm-k0.[01][05]-limit-*")
+    assert len(res.rows) == 6
     for r in res.rows:
         n2 = 0.5 + r["rate_n_per_mm"] * 20
         assert r["n2_n"] == pytest.approx(n2)
         assert r["top_normal_force_n"] == pytest.approx(n2, abs=1e-3)
         assert r["base_burst_amplitude"] == pytest.approx(B * (0.5 * 0.5 - PAD.damping * V), rel=1e-9)
         period, _ = qs_period(0.5, 0.3, n2)
+        # the burst amplitude keeps the true N with and without the stick-period limit
+        assert r["top_burst_amplitude"] == pytest.approx(B * (0.5 * n2 - PAD.damping * V), rel=2e-4)
         if r["max_stick_period_s"] == 0:
-            assert r["top_burst_amplitude"] == pytest.approx(B * (0.5 * n2 - PAD.damping * V), rel=2e-4)
             assert r["top_stick_period_s"] == pytest.approx(period, rel=2e-3)
         else:
             # no stick outlasts the limit (an interval between events is one stick plus its ~71 us slip)
             assert r["top_longest_stick_s"] <= STUDY_STICK_LIMIT + 80e-6
             assert r["top_stick_period_s"] <= min(period, STUDY_STICK_LIMIT + 80e-6) * (1 + 1e-9)
+    # the limit shortens the sticks of the 2.5 N plateau (21.3 ms) and leaves those at 1.5 N (12.8 ms) alone
+    by = {(r["rate_n_per_mm"], r["max_stick_period_s"]): r for r in res.rows}
+    assert by[(0.10, STUDY_STICK_LIMIT)]["top_events"] > by[(0.10, 0.0)]["top_events"]
+    assert by[(0.05, STUDY_STICK_LIMIT)]["top_events"] == by[(0.05, 0.0)]["top_events"]
+
+
+def test_slope_height_limit_keeps_the_height_contrast():
+    """With the limit at 20 ms the plateaus keep burst amplitudes in proportion to mu_s N2 - c V."""
+    res = run_study("slope-height", only="ramp-L*-k0.10-limit-20ms")
+    amp = {r["n2_n"]: r["top_burst_amplitude"] for r in res.rows}
+    assert sorted(amp) == [1.0, 1.5, 2.0, 2.5, 3.0, 3.5]
+    for n2, a in amp.items():
+        assert a == pytest.approx(B * (0.5 * n2 - PAD.damping * V), rel=2e-4)
+    fr = [r["top_mean_friction_n"] for r in sorted(res.rows, key=lambda r: r["n2_n"])]
+    assert np.all(np.diff(fr) > 0)          # the friction still grows with the height
+
+
+@pytest.mark.parametrize("model", ["exact", "jump"])
+def test_stick_period_limit_keeps_amplitudes_3_4_6(model):
+    """Constant N = 3, 4, 6 N at 20 mm/s with the limit at 20 ms (natural sticks 25.6-51.1 ms)."""
+    from shapedisplay.runtime import Renderer
+    from shapedisplay.studies import constant_table
+    from shapedisplay.studies.presets import line_stroke
+
+    dev = load_device("handheld-stick")
+    wd = math.sqrt(PAD.stiffness / PAD.mass) * math.sqrt(1 - PAD.zeta ** 2)
+    amps = []
+    for n in (3.0, 4.0, 6.0):
+        r = Renderer(constant_table(n, dev), device=dev, model=model, max_stick_period=0.020)
+        res = r.render(line_stroke(0.0, 0.02, V, r.tick_rate))
+        assert res.event_time.size >= 45
+        # every stick ends at the limit; a period is the stick plus its slip (~pi / omega_d)
+        assert np.max(np.diff(res.event_time)) <= 0.020 + 1.01 * math.pi / wd
+        assert np.allclose(res.event_amplitude, B * (0.5 * n - PAD.damping * V), rtol=1e-9)
+        amps.append(res.event_amplitude.mean())
+        free = Renderer(constant_table(n, dev), device=dev, model=model).render(line_stroke(0.0, 0.02, V, r.tick_rate))
+        assert np.median(np.diff(free.event_time)) > 0.025
+    assert amps[1] / amps[0] == pytest.approx(4 / 3, rel=0.01)
+    assert amps[2] / amps[0] == pytest.approx(6 / 3, rel=0.01)
 
 
 def test_bump_study_bursts_follow_the_tent_profile(tmp_path):

@@ -27,7 +27,7 @@ from ..errors import InputError, unknown_key
 from .layouts import BURST_POLICIES, Policy
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to layouts.py (Policy).
-KERNEL_SOURCES_SHA256 = "d2d95fa93cc7c70a62ddb679f69f765fd66b4815edf8e82915c0b27c82800449"
+KERNEL_SOURCES_SHA256 = "207efa262d2aeea50e3df0e69cde3c9e8d64ae483ac3910b4acc98e3e2790f5b"
 #: Most audio samples one offline render writes (1000 s at 48 kHz; 384 MB as float64).
 MAX_AUDIO_SAMPLES = 48_000_001
 

@@ -22,7 +22,7 @@ REGISTRY = (
     ('tanh', 'tanh_tick', None),
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py.
-KERNEL_SOURCES_SHA256 = "12cd735628b2d2669fd49ed43919cd78f6a2c038e9ba749032c0be22966ee021"
+KERNEL_SOURCES_SHA256 = "7ad5d6c6e364b0bb55365fc0358c0ba828278c144ef147e836f8290283824939"
 
 
 @njit(cache=True)

@@ -67,7 +67,7 @@ _ADMIT_TOUCH = 1.0 - 1e-6  # stricter for tangent touches (grazing at the limit 
 
 def new_state() -> np.ndarray:
     """A fresh state (one-element :data:`~.layouts.PAD_STATE` array): stuck, spring relaxed, no normal-force cap."""
-    return record(PAD_STATE, s=1.0, ncap=np.inf)
+    return record(PAD_STATE, s=1.0)
 
 
 # ================================================================ oscillator
@@ -340,6 +340,8 @@ def _stick_span(f, V, thr, k, tmax, age, rem):
     Returns ``(dt, breaks, forced)``: ``breaks`` False means stuck for all of
     ``rem`` (``dt = rem``); ``forced`` means the maximum stick period, not
     the static limit, ended the stick. ``dt = 0`` for a breakaway at once.
+    The stick period counts only while the surface moves (``V != 0``): a
+    resting finger is never forced to slip.
     """
     if abs(f) > thr * (1.0 + 1e-12) or (abs(f) >= thr and f * V > 0.0 and thr > 0.0) \
             or (thr == 0.0 and f != 0.0):
@@ -350,7 +352,7 @@ def _stick_span(f, V, thr, k, tmax, age, rem):
         if tb < 0.0:
             tb = 0.0
     tf = np.inf
-    if tmax > 0.0:
+    if tmax > 0.0 and V != 0.0:
         tf = max(tmax - age, 0.0)
     tn = min(tb, tf)
     if tn >= rem:
@@ -359,30 +361,40 @@ def _stick_span(f, V, thr, k, tmax, age, rem):
 
 
 @njit(cache=True)
-def _breakaway(f, V, forced, mus, ncap):
-    """Slip direction ``s`` and normal-force cap after a breakaway with stick force ``f``."""
+def _breakaway(x, f, V, forced, mus, N, k, c):
+    """Slip direction ``s`` and spring stretch ``x`` (m) at a breakaway with stick force ``f``.
+
+    Forced slip (the maximum stick period ended the stick): the stick ends as
+    if the static limit had been reached. The spring takes the breakaway
+    stretch ``x_b = (s mu_s N - c V) / k`` of the true N at once (the rest
+    of its linear loading, ``(mu_s N - |f|) / (k |V|)`` seconds, is
+    skipped), so the burst has the amplitude ``A = B (mu_s N - c V)`` of a
+    natural breakaway, the slip runs under the true kinetic friction
+    ``mu_k N`` and re-sticks where a natural slip does. The limit shortens
+    the stick-slip period to ``t_max`` plus the slip (~pi / omega_d) and
+    keeps every force of the true N, so the height contrast survives. The
+    skipped loading is work done on the pad (counted in the friction work).
+    """
     s = _sgn(f)
     if s == 0.0:
         s = _sgn(V) if V != 0.0 else 1.0
-    if forced and mus > 0.0:
-        ncap = abs(f) / mus          # a forced slip keeps to the force it broke away at
-    return s, ncap
+    if forced:
+        x = (s * mus * N - c * V) / k
+    return s, x
 
 
 @njit(cache=True)
-def _finish_tick(st, x, phase, s, age, ncap, k, c, V, N, muk, nev):
+def _finish_tick(st, x, phase, s, age, k, c, V, N, muk, nev):
     """Write the end-of-tick state shared by the exact and jump ticks (friction force included)."""
     st.x = x
     st.phase = phase
     st.s = s
     st.age = age
-    st.ncap = ncap
     st.n_events = nev
     if phase == 0.0:
         st.f = k * x + c * V
     else:
-        Neff = N if N < ncap else ncap
-        st.f = s * muk * Neff
+        st.f = s * muk * N
 
 
 @njit(cache=True)
@@ -399,7 +411,6 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
     phase = st.phase
     s = st.s
     age = st.age
-    ncap = st.ncap
     wf = 0.0
     wdmp = 0.0
     t = 0.0
@@ -420,20 +431,22 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
                 wf += (f * V * dt + 0.5 * k * V * V * dt * dt)
                 wdmp += c * V * V * dt
                 x += V * dt
-                age += dt
+                if V != 0.0:
+                    age += dt
             if not brk:
                 t = h
                 break
             t += dt
             f = k * x + c * V
-            s, ncap = _breakaway(f, V, forced, mus, ncap)
+            x0 = x
+            s, x = _breakaway(x, f, V, forced, mus, N, k, c)
+            wf += 0.5 * k * (x * x - x0 * x0)
             n_ev = _record(ev_t, ev_a, n_ev, t0 + t, B * abs(k * x))
             phase = 1.0
             age = 0.0
             continue
         # ---- slip
-        Neff = N if N < ncap else ncap
-        F = s * muk * Neff
+        F = s * muk * N
         xeq = F / k
         y0 = x - xeq
         if mus * N > 0.0:
@@ -456,7 +469,6 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
             phase = 0.0
             # re-stick: the pad takes the surface velocity (|v - V| ~ 1e-15 m/s)
             v = V
-            ncap = np.inf
             age = 0.0
         elif kind == 1:
             s = -s
@@ -467,7 +479,7 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
     st.v = v
     st.work_friction = wf
     st.work_damping = wdmp
-    _finish_tick(st, x, phase, s, age, ncap, k, c, V, N, muk, n_ev - nev0)
+    _finish_tick(st, x, phase, s, age, k, c, V, N, muk, n_ev - nev0)
     return n_ev
 
 
@@ -527,7 +539,6 @@ def jump_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
     phase = st.phase
     s = st.s
     age = st.age
-    ncap = st.ncap
     tsl = st.slip_left
     t = 0.0
     nev0 = n_ev
@@ -544,29 +555,29 @@ def jump_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
             dt, brk, forced = _stick_span(f, V, thr, k, tmax, age, rem)
             if dt > 0.0:
                 x += V * dt
-                age += dt
+                if V != 0.0:
+                    age += dt
             if not brk:
                 t = h
                 break
             t += dt
             f = k * x + c * V
-            s, ncap = _breakaway(f, V, forced, mus, ncap)
+            s, x = _breakaway(x, f, V, forced, mus, N, k, c)
             n_ev = _record(ev_t, ev_a, n_ev, t0 + t, B * abs(k * x))
-            Neff = N if N < ncap else ncap
             # jump_restick is a pure function: steady strokes repeat its inputs exactly, so the
             # last result is reused when they do (same bits in, same bits out)
             if st.memo_valid != 0 and st.memo_s == s and st.memo_x == x and st.memo_v == V \
-                    and st.memo_muk == muk and st.memo_n == Neff:
+                    and st.memo_muk == muk and st.memo_n == N:
                 tsl = st.memo_slip_time
                 xr = st.memo_x_restick
             else:
-                tsl, xr = jump_restick(m, c, k, s, x, V, muk, Neff)
+                tsl, xr = jump_restick(m, c, k, s, x, V, muk, N)
                 st.memo_valid = 1
                 st.memo_s = s
                 st.memo_x = x
                 st.memo_v = V
                 st.memo_muk = muk
-                st.memo_n = Neff
+                st.memo_n = N
                 st.memo_slip_time = tsl
                 st.memo_x_restick = xr
             if thr <= 0.0 or abs(k * xr + c * V) > thr:
@@ -576,12 +587,10 @@ def jump_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
             age = 0.0
             continue
         # ---- slip: count down the closed-form slip time, or slide steadily
-        Neff = N if N < ncap else ncap
         if tsl == np.inf:
-            x = s * muk * Neff / k
+            x = s * muk * N / k
             if s * V <= 0.0:
                 phase = 0.0
-                ncap = np.inf
                 age = 0.0
                 continue
             t = h
@@ -594,18 +603,36 @@ def jump_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
         tsl = 0.0
         x = st.x_restick
         phase = 0.0
-        ncap = np.inf
         age = 0.0
     st.v = V
     st.slip_left = tsl
-    _finish_tick(st, x, phase, s, age, ncap, k, c, V, N, muk, n_ev - nev0)
+    _finish_tick(st, x, phase, s, age, k, c, V, N, muk, n_ev - nev0)
     return n_ev
 
 
 # ================================================================ karnopp
 @njit(cache=True)
 def karnopp_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
-    """Modified Karnopp virtual spring (Provancher and Sylvester); ``st.x`` is the spring stretch."""
+    """Modified Karnopp virtual spring (Provancher and Sylvester), every event located inside the tick.
+
+    ``st.x`` is the spring stretch ``z`` (finger minus anchor), the friction
+    force ``f = k_K z``. Continuous-time rules, with the finger speed ``V``
+    and the normal force ``N`` constant within a tick:
+
+    * stuck: ``z' = V``; breakaway (the burst event, amplitude ``B mu_s N``)
+      when ``|k_K z|`` reaches ``mu_s N``, at the exact time
+      ``t_b = (s mu_s N / k_K - z) / V`` inside the tick;
+    * sliding: the force drops to ``mu_k N`` (``z = s mu_k N / k_K``) and
+      the anchor is dragged behind the finger while ``|V| >= v_T`` and the
+      finger keeps moving in the slip direction ``s``;
+    * re-stick, force preserved: when ``|V| < v_T`` (at once after a
+      breakaway, so a slow finger plays a sawtooth with period
+      ``(mu_s - mu_k) N / (k_K |V|)``, every tooth inside the tick) or when
+      the finger reverses (the spring unstretches first). Speed changes
+      happen only at tick boundaries, so re-sticks there are exact too.
+
+    Event times therefore do not depend on the tick rate.
+    """
     kk = prm.karnopp_spring
     vt = prm.karnopp_v_threshold
     B = prm.burst_gain * gain
@@ -614,27 +641,39 @@ def karnopp_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
     s = st.s
     nev0 = n_ev
     thr = mus * N
-    kin = muk * N
-    if phase == 1.0:
-        if abs(V) < vt:
-            phase = 0.0          # stuck again, force preserved
-        elif V * s < 0.0:
-            phase = 0.0          # reversal: the spring unstretches first
+    zk = muk * N / kk            # stretch while sliding (anchor dragged)
+    drops = kk * zk < thr        # a breakaway lowers the force (mu_k < mu_s): a slow finger sticks again
+    if phase == 1.0 and ((abs(V) < vt and drops) or V * s <= 0.0):
+        phase = 0.0              # stuck again, force preserved (slow finger, or a reversal)
+    t = 0.0
+    it = 0
+    while t < h and phase == 0.0:
+        it += 1
+        if it > MAX_EVENTS_PER_TICK:
+            st.truncated += 1
+            break
+        rem = h - t
+        if abs(kk * z) > thr * (1.0 + 1e-12) or (thr == 0.0 and z != 0.0):
+            tb = 0.0             # over the limit already (N dropped): breakaway at once
+            sb = _sgn(z)
+        elif V == 0.0:
+            break
         else:
-            z = s * kin / kk     # anchor dragged behind the finger
-    if phase == 0.0:
-        zn = z + V * h
-        if abs(kk * zn) > thr:
-            s = _sgn(zn)
-            if abs(kk * z) >= thr or V == 0.0:
+            sb = _sgn(V)
+            tb = (sb * thr / kk - z) / V
+            if tb < 0.0:
                 tb = 0.0
-            else:
-                tb = (s * thr / kk - z) / V
-            n_ev = _record(ev_t, ev_a, n_ev, t0 + min(max(tb, 0.0), h), B * thr)
-            phase = 1.0
-            z = s * kin / kk
-        else:
-            z = zn
+            if tb >= rem:
+                z += V * rem
+                break
+        t += tb
+        s = sb
+        n_ev = _record(ev_t, ev_a, n_ev, t0 + t, B * thr)
+        z = s * zk
+        if V * s > 0.0 and (abs(V) >= vt or not drops):
+            phase = 1.0          # sliding: the anchor is dragged behind the finger
+    if phase == 1.0:
+        z = s * zk
     st.x = z
     st.v = V
     st.phase = phase

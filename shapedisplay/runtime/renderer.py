@@ -75,7 +75,7 @@ _RING = 4096
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "af05cc652938b1a16add3ad6be81b85972ce362b00649c7d63b08022f4a9a0ef"
+KERNEL_SOURCES_SHA256 = "849ccfa9985500da08f00627db0a35a3d340ddb1c3b1c366e69dda076139985c"
 
 
 @njit(cache=True)

@@ -157,7 +157,7 @@ static int slip_search(double m, double c, double k, double y0, double v0, doubl
 int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, double V, double N,
                   double mus, double muk, double gain, double *ev_t, double *ev_a, int cap, int n_ev)
 {
-    double m, k, c, B, tmax, x, v, phase, s, age, ncap, t, Neff, tmin;
+    double m, k, c, B, tmax, x, v, phase, s, age, t, tmin;
     int nev0;
     long it;
     if (stuck_whole_tick(S, P, h, V, N, mus)) return n_ev;
@@ -171,7 +171,6 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, dou
     phase = S->phase;
     s = S->s;
     age = S->age;
-    ncap = S->ncap;
     t = 0.0;
     nev0 = n_ev;
     it = 0;
@@ -198,25 +197,23 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, dou
                     tb = (sd_sgn(V) * thr - f) / (k * V);
                     if (tb < 0.0) tb = 0.0;
                 }
-                if (tmax > 0.0) tf = py_max(tmax - age, 0.0);
+                if (tmax > 0.0 && V != 0.0) tf = py_max(tmax - age, 0.0);
                 tn = py_min(tb, tf);
                 if (tn >= rem) {
                     x += V * rem;
-                    age += rem;
+                    if (V != 0.0) age += rem;
                     t = h;
                     break;
                 }
                 x += V * tn;
-                age += tn;
+                if (V != 0.0) age += tn;
                 t += tn;
                 f = k * x + c * V;
                 brk = 1;
                 forced = tf < tb;
             }
             if (brk) {
-                s = sd_sgn(f);
-                if (s == 0.0) s = V != 0.0 ? sd_sgn(V) : 1.0;
-                if (forced && mus > 0.0) ncap = fabs(f) / mus;
+                s = breakaway(&x, f, V, forced, mus, N, k, c);
                 n_ev = record(ev_t, ev_a, cap, n_ev, t0 + t, B * fabs(k * x));
                 phase = 1.0;
                 age = 0.0;
@@ -224,8 +221,7 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, dou
             }
         }
         /* slip */
-        Neff = N < ncap ? N : ncap;
-        F = s * muk * Neff;
+        F = s * muk * N;
         xeq = F / k;
         y0 = x - xeq;
         if (mus * N > 0.0) {
@@ -248,7 +244,6 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, dou
         if (mus * N > 0.0 && fabs(fst) <= (kind == 1 ? ADMIT : ADMIT_TOUCH) * mus * N) {
             phase = 0.0;
             v = V;
-            ncap = INFINITY;
             age = 0.0;
         } else if (kind == 1) {
             s = -s;
@@ -259,6 +254,6 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, dou
         }
     }
     S->v = v;
-    finish_tick(S, x, phase, s, age, ncap, k, c, V, N, muk, n_ev - nev0);
+    finish_tick(S, x, phase, s, age, k, c, V, N, muk, n_ev - nev0);
     return n_ev;
 }

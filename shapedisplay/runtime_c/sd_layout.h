@@ -45,8 +45,7 @@ typedef struct {
     double v;                       /* pad velocity, m/s */
     double s;                       /* sign of the friction force in slip */
     double f;                       /* friction force on the pad at the end of the last tick, N */
-    double age;                     /* time in the current stick phase, s */
-    double ncap;                    /* normal-force cap set by a forced breakaway, N (inf = none) */
+    double age;                     /* time in the current stick phase while the surface moves, s */
     double work_friction;           /* work of friction on the pad during the last tick, J (exact model) */
     double work_damping;            /* energy dissipated by the damper during the last tick, J (exact model) */
     double slip_left;               /* remaining slip time, s (jump model; inf = steady sliding) */

@@ -72,13 +72,12 @@ void sd_pad_reset(sd_pad_state_t *S)
 {
     memset(S, 0, sizeof *S);
     S->s = 1.0;
-    S->ncap = INFINITY;
 }
 
 int sd_jump_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, double V, double N,
                  double mus, double muk, double gain, double *ev_t, double *ev_a, int cap, int n_ev)
 {
-    double x, phase, s, age, ncap, tsl, t, Neff, k, c, B, tmax;
+    double x, phase, s, age, tsl, t, k, c, B, tmax;
     int nev0;
     long it;
     if (stuck_whole_tick(S, P, h, V, N, mus)) return n_ev;
@@ -90,7 +89,6 @@ int sd_jump_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, doub
     phase = S->phase;
     s = S->s;
     age = S->age;
-    ncap = S->ncap;
     tsl = S->slip_left;
     t = 0.0;
     nev0 = n_ev;
@@ -114,39 +112,36 @@ int sd_jump_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, doub
             } else {
                 double tb = INFINITY, tf, tn;
                 if (V != 0.0) tb = py_max((sd_sgn(V) * thr - f) / (k * V), 0.0);
-                tf = tmax > 0.0 ? py_max(tmax - age, 0.0) : INFINITY;
+                tf = tmax > 0.0 && V != 0.0 ? py_max(tmax - age, 0.0) : INFINITY;
                 tn = py_min(tb, tf);
                 if (tn >= rem) {
                     x += V * rem;
-                    age += rem;
+                    if (V != 0.0) age += rem;
                     t = h;
                     break;
                 }
                 x += V * tn;
-                age += tn;
+                if (V != 0.0) age += tn;
                 t += tn;
                 f = k * x + c * V;
                 forced = tf < tb;
             }
-            s = sd_sgn(f);
-            if (s == 0.0) s = V != 0.0 ? sd_sgn(V) : 1.0;
-            if (forced && mus > 0.0) ncap = fabs(f) / mus;
+            s = breakaway(&x, f, V, forced, mus, N, k, c);
             n_ev = record(ev_t, ev_a, cap, n_ev, t0 + t, B * fabs(k * x));
-            Neff = N < ncap ? N : ncap;
             /* restick is a pure function: steady strokes repeat its inputs exactly, so the last
              * result is reused when they do (same bits in, same bits out). */
             if (S->memo_valid && S->memo_s == s && S->memo_x == x && S->memo_v == V && S->memo_muk == muk
-                && S->memo_n == Neff) {
+                && S->memo_n == N) {
                 tsl = S->memo_slip_time;
                 xr = S->memo_x_restick;
             } else {
-                restick(P, s, x, V, muk, Neff, &tsl, &xr);
+                restick(P, s, x, V, muk, N, &tsl, &xr);
                 S->memo_valid = 1;
                 S->memo_s = s;
                 S->memo_x = x;
                 S->memo_v = V;
                 S->memo_muk = muk;
-                S->memo_n = Neff;
+                S->memo_n = N;
                 S->memo_slip_time = tsl;
                 S->memo_x_restick = xr;
             }
@@ -158,12 +153,10 @@ int sd_jump_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, doub
             continue;
         }
         /* slip: count down the closed-form slip time, or slide steadily */
-        Neff = N < ncap ? N : ncap;
         if (tsl == INFINITY) {
-            x = s * muk * Neff / k;
+            x = s * muk * N / k;
             if (s * V <= 0.0) {
                 phase = 0.0;
-                ncap = INFINITY;
                 age = 0.0;
                 continue;
             }
@@ -179,11 +172,10 @@ int sd_jump_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, doub
         tsl = 0.0;
         x = S->x_restick;
         phase = 0.0;
-        ncap = INFINITY;
         age = 0.0;
     }
     S->v = V;
     S->slip_left = tsl;
-    finish_tick(S, x, phase, s, age, ncap, k, c, V, N, muk, n_ev - nev0);
+    finish_tick(S, x, phase, s, age, k, c, V, N, muk, n_ev - nev0);
     return n_ev;
 }

@@ -74,22 +74,30 @@ static inline int record(double *ev_t, double *ev_a, int cap, int n_ev, double t
 
 /* End-of-tick state shared by the exact and jump ticks, friction force included
  * (pads._finish_tick). The caller stores v (and tsl) itself. */
-static inline void finish_tick(sd_pad_state_t *S, double x, double phase, double s, double age, double ncap,
-                               double k, double c, double V, double N, double muk, long n_events)
+static inline void finish_tick(sd_pad_state_t *S, double x, double phase, double s, double age, double k,
+                               double c, double V, double N, double muk, long n_events)
 {
-    double Neff;
     S->x = x;
     S->phase = phase;
     S->s = s;
     S->age = age;
-    S->ncap = ncap;
     S->n_events = n_events;
-    if (phase == 0.0) {
+    if (phase == 0.0)
         S->f = k * x + c * V;
-    } else {
-        Neff = N < ncap ? N : ncap;
-        S->f = s * muk * Neff;
-    }
+    else
+        S->f = s * muk * N;
+}
+
+/* Slip direction and spring stretch at a breakaway with stick force f (pads._breakaway): a slip
+ * forced by the maximum stick period starts from the breakaway stretch of the true N, so the burst,
+ * the slip and the re-stick are those of a natural breakaway. */
+static inline double breakaway(double *x, double f, double V, int forced, double mus, double N, double k,
+                               double c)
+{
+    double s = sd_sgn(f);
+    if (s == 0.0) s = V != 0.0 ? sd_sgn(V) : 1.0;
+    if (forced) *x = (s * mus * N - c * V) / k;
+    return s;
 }
 
 /* Fast path of both models: stuck for the whole tick (the stick force is linear in time, so
