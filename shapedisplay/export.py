@@ -149,7 +149,7 @@ def run_config(meta: dict) -> list[tuple[str, float, str]]:
         ("slope_friction_gain", mp.get("slope_friction_gain", 0.0) or 0.0,
          "K_mu: mu_eff = mu + K_mu*max(0, grad.v_hat) (0 = no slope friction)"),
     ]
-    if "n_base" in mp:   # informative only: the runtime reads N from the table
+    if "n_base" in mp:   # the runtime's N where the table stores no normal_force (NAME_bind sets it)
         out.append(("n_base_n", mp["n_base"], "normal force on flat ground (used when normal_force is not stored)"))
     params = []
     for name, v, doc in out:
@@ -278,6 +278,8 @@ def _firmware_sections(table: FrictionTable, P: str, p: str) -> tuple[list[str],
         lines.append(f"static const sd_channel_t {p}_channel_{name} = {{{p}_{name}_codes, {P}_{name.upper()}_DTYPE, "
                      f"{p}_{name}_scale, {p}_{name}_offset, {p}_{name}_background}};")
     cfg = dict((n, v) for n, v, _ in run_config(table.meta))
+    from .runtime.renderer import constant_normal_force
+    n_const = float(constant_normal_force(table) or 0.0)
     lines += [
         f"static inline void {p}_bind(sd_table_t *T, sd_config_t *C, int32_t blocks[][5])",
         "{",
@@ -313,6 +315,7 @@ def _firmware_sections(table: FrictionTable, P: str, p: str) -> tuple[list[str],
         f"    C->mu_k = {p}_mu_k;",
         f"    C->k_mu = {p}_slope_friction_gain;",
         f"    C->skin_target = {p}_skin_target_m;",
+        f"    C->normal_force_constant = {n_const!r};   /* N where the table stores no normal_force */",
         f"    C->tick_rate = {p}_tick_rate_hz;",
         f"    C->audio_rate = {p}_audio_rate_hz;",
         f"    C->carrier_hz = {p}_burst_carrier_hz;",

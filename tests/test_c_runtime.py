@@ -367,3 +367,22 @@ def test_runtime_under_valgrind_no_heap_and_no_memory_errors(tmp_path):
     assert res.returncode == 0 and "ERROR SUMMARY: 0 errors" in res.stderr, res.stderr[-2000:]
     allocs = int(res.stderr.split("total heap usage:")[1].split("allocs")[0].replace(",", ""))
     assert allocs <= 1, res.stderr[-1000:]      # stdout's buffer, allocated by printf
+
+
+@pytest.mark.parametrize("model, policy", [("exact", "retrigger"), ("jump", "add"), ("exact", "max")])
+def test_renderer_bit_exact_constant_n_and_stick_period_limit(sd_vectors, tmp_path, model, policy):
+    """A table without normal_force (N from its header) at a high N, the maximum stick period on,
+    overlapping bursts on the one carrier."""
+    from shapedisplay.studies import constant_table
+    dev = load_device("handheld-stick")
+    table = constant_table(4.0, dev)
+    assert "normal_force" not in table.channels
+    r = Renderer(table, model=model, tick_rate=10_000.0, audio_rate=48_000.0, burst_policy=policy,
+                 max_stick_period=0.012)
+    x = np.linspace(0.0, 0.006, 3001)          # 20 mm/s for 0.3 s
+    po, pa, (pclip, pev) = py_render(r, x, np.zeros_like(x))
+    co, ca, (cclip, cev, cdrop) = c_render(sd_vectors, tmp_path, r, x, np.zeros_like(x))
+    assert pev >= 20 and cev == pev and cclip == pclip and cdrop == 0
+    assert np.all(po["normal_force"] == 4.0)
+    assert_outputs_equal(co, po)
+    np.testing.assert_array_equal(ca, pa)

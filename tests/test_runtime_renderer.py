@@ -9,7 +9,6 @@ from hypothesis import given, settings, strategies as st
 
 from shapedisplay.devices import BurstParams, load_device
 from shapedisplay.errors import InputError, ModelError, TableError
-from shapedisplay.runtime.bursts import envelope, render_bursts
 from shapedisplay.runtime.cursor import CursorPath, parse_stroke
 from shapedisplay.runtime.models import simulate_pad
 from shapedisplay.runtime.renderer import Renderer
@@ -116,7 +115,10 @@ def test_lateral_and_skin_stretch_channels():
     mus_n = r.device.friction.mu_s * 1.2
     assert np.allclose(res.skin_stretch, 0.55e-3 * res.friction_force / mus_n)
     assert np.max(np.abs(res.skin_stretch)) <= 0.55e-3 * (1 + 1e-12)
-    assert np.isclose(np.max(np.abs(res.skin_stretch)), 0.55e-3)
+    # the stretch climbs towards the target while stuck (the breakaway falls on the 8th tick's end) and
+    # holds target * mu_k / mu_s while sliding
+    assert np.max(np.abs(res.skin_stretch)) >= 0.55e-3 * (1 - 0.05 * 1e-3 * 1500.0 / mus_n) * (1 - 1e-12)
+    assert np.isclose(res.skin_stretch[-1], 0.55e-3 * r.device.friction.mu_k / r.device.friction.mu_s)
     # without lateral channels the lateral outputs are zero
     res2 = Renderer(make_table({"normal_force": 1.0}), device=quiet_device()).render(
         parse_stroke("0,0 -> 10,0 @ 20mm/s", 10_000))
@@ -167,40 +169,6 @@ def test_euler_renderer_reports_divergence():
     with pytest.raises(ModelError, match="diverged"):
         for i in range(1000):
             r.step(i * 5e-5, 0.0)
-
-
-def test_burst_envelope_and_amplitude():
-    rise, decay = 0.005, 0.030
-    assert envelope(-1e-9, rise, decay) == 0.0
-    assert math.isclose(envelope(0.0025, rise, decay), 0.5)
-    assert math.isclose(envelope(rise, rise, decay), 1.0)
-    assert math.isclose(envelope(rise + decay / 2, rise, decay), 0.25)
-    assert envelope(rise + decay, rise, decay) <= 1e-30
-    assert envelope(rise + decay + 1e-9, rise, decay) == 0.0
-    # a single burst: sample-exact sub-sample start, carrier at 300 Hz, peak A at t_e + rise
-    te, A, rate = 0.0123456, 0.7, 48_000.0
-    audio, clipped = render_bursts(np.array([te]), np.array([A]), 0.0, 0.1, rate)
-    tt = np.arange(audio.size) / rate
-    tau = tt - te
-    env = np.where(tau < 0, 0, np.where(tau < rise, tau / rise,
-                                        np.where(tau < rise + decay, (1 - (tau - rise) / decay) ** 2, 0)))
-    assert np.allclose(audio, A * env * np.sin(2 * np.pi * 300 * np.clip(tau, 0, None)), atol=1e-12)
-    assert clipped == 0 and audio.size == int(0.1 * rate) + 1
-
-
-def test_burst_policies_and_clipping_is_counted():
-    et = np.array([0.010, 0.020])  # three carrier periods apart: in phase
-    ea = np.array([0.8, 0.8])
-    re, _ = render_bursts(et, ea, 0.0, 0.06, 48_000, policy="retrigger")
-    ad, clipped_add = render_bursts(et, ea, 0.0, 0.06, 48_000, policy="add")
-    mx, _ = render_bursts(et, ea, 0.0, 0.06, 48_000, policy="max")
-    single, _ = render_bursts(et[1:], ea[1:], 0.0, 0.06, 48_000)
-    j = int(0.020 * 48_000) + 1
-    assert np.allclose(re[j:], single[j:])            # retrigger: the second burst replaces the first
-    assert np.abs(ad).max() <= 1.0 and clipped_add > 0 # add: sum limited, clipping counted
-    assert np.abs(mx).max() <= 0.8 + 1e-12
-    big, clipped = render_bursts(np.array([0.01]), np.array([3.0]), 0.0, 0.05, 48_000)
-    assert clipped > 0 and np.abs(big).max() == 1.0
 
 
 def test_max_stick_period_forces_bursts():
@@ -283,7 +251,10 @@ def test_step_allocates_nothing_per_tick():
     finally:
         tracemalloc.stop()
     assert r.event_count > 10
-    assert cur - base <= 256 and peak - base < 2048   # bytes, over 19800 ticks
+    # bytes, over 19800 ticks: nothing kept; the transient is numba's copy of the ONLINE record
+    # argument at the call boundary (it grows with the record: about its size plus 1 kB)
+    from shapedisplay.runtime.layouts import ONLINE
+    assert cur - base <= 256 and peak - base < 1024 + 2 * ONLINE.itemsize
 
 
 @settings(max_examples=10, deadline=None)

@@ -1,20 +1,59 @@
-"""Vibrotactile bursts at stick-to-slip events (Konyo et al.'s Vib-Touch bursts).
+"""Vibrotactile bursts at stick-to-slip events (Konyo et al.'s Vib-Touch bursts) on one phase-continuous carrier.
 
-Each event at time ``t_e`` with amplitude ``A`` plays
-``A * env(t - t_e) * sin(2 pi f_c (t - t_e))`` for ``t >= t_e``: the carrier
-(300 Hz by default) starts at the sub-sample event time with zero phase; the
-envelope rises linearly over ``rise`` (5 ms) and decays quadratically,
-``(1 - (tau - rise) / decay)^2``, over ``decay`` (30 ms).
+The drive of an output is ``E(t) * sin(2 pi f_c (t - t_0))``: **one** carrier
+(300 Hz by default) running from the stream's first sample ``t_0`` and never
+restarted, times an envelope ``E(t) >= 0`` that the bursts shape. A burst at
+event time ``t_e`` (sub-sample) with peak ``A`` has the published envelope
+``A env(t - t_e)``: a linear rise over ``rise`` (5 ms), then the quadratic
+decay ``(1 - (tau - rise) / decay)^2`` over ``decay`` (30 ms).
 
-Overlap policies (:data:`BURST_POLICIES`):
+What "amplitude A" means at the actuator
+----------------------------------------
+``A`` is the peak of the envelope ``E(t)`` that multiplies the unit
+carrier (the drive's amplitude, reached ``rise`` after the event). The
+carrier keeps its own phase, so where its crest falls relative to the
+envelope peak varies from burst to burst: the largest sample of an isolated
+burst lies between ``0.92 A`` and ``A`` (the worst case is a crest about a
+quarter period off the peak, where the envelope is lower). Breakaway forces
+therefore map linearly to drive amplitude whatever the event's phase;
+``A = B (mu_s N - c xdot)`` full scale.
 
-* ``retrigger`` (default) — a new burst replaces the one playing;
-* ``add`` — bursts add up; the sum is limited to [-1, 1];
-* ``max`` — each sample plays the burst whose current envelope
-  (``A * env``) is largest.
+Overlap policies (:data:`BURST_POLICIES`), none of which ever steps the drive
+(the envelope is continuous and the carrier never restarts), each O(1) per
+audio sample however many bursts are live:
 
-Output samples are limited to [-1, 1] (full scale); every limited sample is
-counted and reported as ``clipped``, never silent.
+* ``retrigger`` (default) — a new burst restarts the envelope **from its
+  current value**, rising linearly over ``rise`` to the new peak ``A`` (down
+  to it if ``A`` is lower), then decaying as published;
+* ``add`` — envelopes add up (``sum_i A_i env(t - t_i)``, kept as two running
+  polynomials: the linear rises and the quadratic decays; each event enters,
+  turns and leaves them once);
+* ``max`` — a burst whose peak exceeds the envelope as it stands at its event
+  retriggers it (rising from its current value to the new peak); a weaker
+  one is absorbed by the louder burst playing.
+
+An isolated burst (envelope at 0 at its event) plays the published envelope
+under every policy. Output samples are limited to [-1, 1] (full scale);
+every limited sample is counted and reported as ``clipped``, never silent.
+
+Carrier arithmetic
+------------------
+Sample ``j`` (time ``t_0 + j / rate``) takes its carrier from a rotation by
+``2 pi f_c / rate`` per sample, re-anchored with ``sin``/``cos`` of the
+exact phase at every multiple of :data:`CARRIER_BLOCK` samples; the
+rotation carries over from call to call (a call that does not continue the
+previous one starts from the anchor of its block). The anchors depend only
+on ``j``, so a stream synthesised in one call (offline) or tick by tick
+(online) is the same, bit for bit, the phase error stays below
+``CARRIER_BLOCK`` rotations' round-off (~1e-14 rad), and a tick costs one
+``sin``/``cos`` pair per ``CARRIER_BLOCK`` samples.
+
+Burst state
+-----------
+A :data:`~.layouts.BURST_STATE` record (C: ``sd_burst_state_t``): the
+events entered, turned and finished (indices into the event arrays), the
+playing segment of ``retrigger``/``max`` (``te``, ``e0``, ``a``), the
+running sums of ``add`` about ``tref``, and the carrier's rotation.
 """
 from __future__ import annotations
 
@@ -24,12 +63,15 @@ import numpy as np
 from numba import njit
 
 from ..errors import InputError, unknown_key
-from .layouts import BURST_POLICIES, Policy
+from .layouts import BURST_POLICIES, BURST_STATE, Policy, record
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to layouts.py (Policy).
-KERNEL_SOURCES_SHA256 = "207efa262d2aeea50e3df0e69cde3c9e8d64ae483ac3910b4acc98e3e2790f5b"
+KERNEL_SOURCES_SHA256 = "09111a5fb3f0834ebca8d46d586a34c86d755cf3e9ae204a775cda85de1bc5ee"
 #: Most audio samples one offline render writes (1000 s at 48 kHz; 384 MB as float64).
 MAX_AUDIO_SAMPLES = 48_000_001
+#: Carrier re-anchored with sin/cos every this many samples (rotation in between).
+CARRIER_BLOCK = 64
+
 
 
 def audio_length(duration: float, rate: float) -> int:
@@ -42,15 +84,21 @@ def audio_length(duration: float, rate: float) -> int:
 
 
 def policy_id(name: str) -> int:
-    """Number of burst policy ``name`` (:data:`~.layouts.BURST_POLICIES`, shared with C)."""
     if name not in BURST_POLICIES:
         raise unknown_key("burst policy", name, BURST_POLICIES)
     return BURST_POLICIES[name]
 
 
+def new_burst_state(carrier: float, rate: float) -> np.ndarray:
+    """A fresh burst state (a one-element :data:`~.layouts.BURST_STATE` array) for a ``carrier`` Hz
+    carrier sampled at ``rate`` Hz: no event entered, envelope 0, no carrier sample yet."""
+    w = 2.0 * math.pi * carrier
+    return record(BURST_STATE, cj=-1, rc=math.cos(w / rate), rs=math.sin(w / rate))
+
+
 @njit(cache=True)
 def envelope(tau, rise, decay):
-    """Burst envelope at time ``tau`` (s) after the event, in [0, 1]."""
+    """Published burst envelope at time ``tau`` (s) after the event, in [0, 1]."""
     if tau < 0.0:
         return 0.0
     if tau < rise:
@@ -63,75 +111,182 @@ def envelope(tau, rise, decay):
 
 
 @njit(cache=True)
-def burst_value(t, ev_t, ev_a, lo, hi, carrier, rise, decay, policy):
-    """Unlimited drive value at time ``t`` from events ``lo..hi-1`` (sorted, all <= t)."""
-    dur = rise + decay
-    if hi <= lo:
-        return 0.0
-    w = 2.0 * math.pi * carrier
-    if policy == Policy.RETRIGGER:
-        tau = t - ev_t[hi - 1]
-        if tau >= dur:
-            return 0.0
-        return ev_a[hi - 1] * envelope(tau, rise, decay) * math.sin(w * tau)
-    acc = 0.0
-    best = -1.0
-    for i in range(lo, hi):
-        tau = t - ev_t[i]
-        if tau >= dur or tau < 0.0:
-            continue
-        e = ev_a[i] * envelope(tau, rise, decay)
-        if policy == Policy.ADD:
-            acc += e * math.sin(w * tau)
-        elif e > best:
-            best = e
-            acc = e * math.sin(w * tau)
-    return acc
+def _segment(BS, t, rise, decay):
+    """Envelope of the retrigger/max segment at time t (>= its start)."""
+    tau = t - BS.te
+    if tau < rise:
+        return BS.e0 + (BS.a - BS.e0) * (tau / rise)
+    u = tau - rise
+    if u < decay:
+        r = 1.0 - u / decay
+        return BS.a * r * r
+    return 0.0
 
 
 @njit(cache=True)
-def synth(ev_t, ev_a, n_ev, t_origin, rate, j0, j1, carrier, rise, decay, policy, out):
+def _sums(BS, t, rise, decay):
+    """Envelope of ``add`` at time t from its running sums."""
+    dt = t - BS.tref
+    e = (BS.ra * dt - BS.rat) / rise
+    x = dt / decay
+    e += BS.q0 - 2.0 * BS.q1 * x + BS.q2 * x * x
+    return e if e > 0.0 else 0.0
+
+
+@njit(cache=True)
+def _shift_ref(BS, tnew, decay):
+    """Move ``add``'s reference time to ``tnew`` (exact re-expansion of the two polynomials)."""
+    dlt = tnew - BS.tref
+    if dlt == 0.0:
+        return
+    d = dlt / decay
+    BS.rat -= dlt * BS.ra
+    BS.q0 += d * (d * BS.q2 - 2.0 * BS.q1)
+    BS.q1 -= d * BS.q2
+    BS.tref = tnew
+
+
+@njit(cache=True)
+def envelope_at(BS, ev_t, ev_a, n_ev, t, rise, decay, policy):
+    """Advance the burst state over every event transition before ``t`` and return ``E(t)``.
+
+    Transitions (an event entering, a burst turning from rise to decay,
+    a burst ending) are applied in time order, so the state and the values
+    do not depend on where the envelope is evaluated in between. ``t`` must
+    not decrease from call to call.
+    """
+    i_in = BS.i_in
+    if policy != Policy.ADD:
+        while i_in < n_ev and ev_t[i_in] < t:
+            te = ev_t[i_in]
+            a = ev_a[i_in]
+            e_now = _segment(BS, te, rise, decay)
+            if policy == Policy.RETRIGGER or a > e_now:
+                BS.te = te
+                BS.e0 = e_now
+                BS.a = a
+            i_in += 1
+        BS.i_in = i_in
+        return _segment(BS, t, rise, decay)
+    i_mid = BS.i_mid
+    i_out = BS.i_out
+    dur = rise + decay
+    while True:
+        # the earliest pending transition before t
+        t_in = ev_t[i_in] if i_in < n_ev else np.inf
+        t_mid = ev_t[i_mid] + rise if i_mid < i_in else np.inf
+        t_out = ev_t[i_out] + dur if i_out < i_mid else np.inf
+        if t_out <= t_mid and t_out <= t_in:
+            if not t_out < t:
+                break
+            a = ev_a[i_out]
+            u = 1.0 + (ev_t[i_out] + rise - BS.tref) / decay
+            BS.q0 -= a * u * u
+            BS.q1 -= a * u
+            BS.q2 -= a
+            i_out += 1
+            if i_out == i_mid:           # no decaying burst left: clear the round-off
+                BS.q0 = 0.0
+                BS.q1 = 0.0
+                BS.q2 = 0.0
+        elif t_mid <= t_in:
+            if not t_mid < t:
+                break
+            a = ev_a[i_mid]
+            BS.ra -= a
+            BS.rat -= a * (ev_t[i_mid] - BS.tref)
+            u = 1.0 + (ev_t[i_mid] + rise - BS.tref) / decay
+            BS.q0 += a * u * u
+            BS.q1 += a * u
+            BS.q2 += a
+            i_mid += 1
+            if i_mid == i_in:            # no rising burst left
+                BS.ra = 0.0
+                BS.rat = 0.0
+        else:
+            if not t_in < t:
+                break
+            _shift_ref(BS, ev_t[i_in], decay)
+            BS.ra += ev_a[i_in]
+            i_in += 1
+    BS.i_in = i_in
+    BS.i_mid = i_mid
+    BS.i_out = i_out
+    if i_out == i_in:
+        return 0.0
+    return _sums(BS, t, rise, decay)
+
+
+@njit(cache=True)
+def forget_events(BS, ev_t, ev_a, k, rise, decay, policy):
+    """The first ``k`` events leave the event arrays: shift the state's indices.
+
+    Bursts still sounding among them (only when a caller must drop events
+    early, at absurd event rates) are removed from ``add``'s sums.
+    """
+    if policy == Policy.ADD:
+        i_mid = int(BS.i_mid)
+        i_in = BS.i_in
+        for i in range(int(BS.i_out), min(k, i_in)):
+            a = ev_a[i]
+            if i < i_mid:
+                u = 1.0 + (ev_t[i] + rise - BS.tref) / decay
+                BS.q0 -= a * u * u
+                BS.q1 -= a * u
+                BS.q2 -= a
+            else:
+                BS.ra -= a
+                BS.rat -= a * (ev_t[i] - BS.tref)
+    BS.i_in = max(BS.i_in - k, 0)
+    BS.i_mid = max(BS.i_mid - k, 0)
+    BS.i_out = max(BS.i_out - k, 0)
+
+
+@njit(cache=True)
+def finished_events(BS, policy):
+    """How many leading events the burst state no longer needs."""
+    return BS.i_out if policy == Policy.ADD else BS.i_in
+
+
+@njit(cache=True)
+def carrier_at(t, t_origin, carrier):
+    """The carrier ``sin(2 pi f_c (t - t_origin))`` at any time (one ``sin``; used once per tick)."""
+    return math.sin(2.0 * math.pi * carrier * (t - t_origin))
+
+
+@njit(cache=True)
+def synth(BS, ev_t, ev_a, n_ev, t_origin, rate, j0, j1, carrier, rise, decay, policy, out):
     """Audio samples ``j0 .. j1-1`` (time ``t_origin + j / rate``) into ``out[0 : j1-j0]``.
 
     Events ``ev_t[:n_ev]`` must be sorted; an event sounds from the first
-    sample strictly after it (its value at its own time is 0 anyway), so
-    an event landing exactly on a sample gives the same stream offline
-    and tick by tick. Returns the number of samples
-    limited to [-1, 1].
+    sample strictly after it. ``BS`` (from :func:`new_burst_state` for this
+    carrier and rate, a record) carries the envelope and the carrier from call to call.
+    Returns the number of samples limited to [-1, 1].
     """
-    dur = rise + decay
-    lo = 0
-    hi = 0
     clipped = 0
     w = 2.0 * math.pi * carrier
-    cd = math.cos(w / rate)
-    sd = math.sin(w / rate)
-    cur = -1
-    cr = 0.0
-    sr = 0.0
+    cd = BS.rc
+    sd = BS.rs
+    blk = CARRIER_BLOCK
+    cr = BS.cc
+    sr = BS.cs
     for j in range(j0, j1):
-        t = t_origin + j / rate
-        while hi < n_ev and ev_t[hi] < t:
-            hi += 1
-        if policy == Policy.RETRIGGER:
-            # one burst at a time: the carrier advances by a rotation per sample
-            # (re-anchored with sin/cos at each new burst and at each call)
-            val = 0.0
-            if hi > 0:
-                i = hi - 1
-                tau = t - ev_t[i]
-                if tau < dur:
-                    if i != cur:
-                        cur = i
-                        cr = math.cos(w * tau)
-                        sr = math.sin(w * tau)
-                    else:
-                        cr, sr = cr * cd - sr * sd, sr * cd + cr * sd
-                    val = ev_a[i] * envelope(tau, rise, decay) * sr
+        if j % blk == 0:
+            th = w * (j / rate)
+            cr = math.cos(th)
+            sr = math.sin(th)
+        elif j == j0 and BS.cj != j:
+            # not the continuation of the last call: rotate from the anchor of this block
+            ja = j - j % blk
+            th = w * (ja / rate)
+            cr = math.cos(th)
+            sr = math.sin(th)
+            for _ in range(j - ja):
+                cr, sr = cr * cd - sr * sd, sr * cd + cr * sd
         else:
-            while lo < hi and ev_t[lo] + dur <= t:
-                lo += 1
-            val = burst_value(t, ev_t, ev_a, lo, hi, carrier, rise, decay, policy)
+            cr, sr = cr * cd - sr * sd, sr * cd + cr * sd
+        t = t_origin + j / rate
+        val = envelope_at(BS, ev_t, ev_a, n_ev, t, rise, decay, policy) * sr
         if val > 1.0:
             val = 1.0
             clipped += 1
@@ -139,6 +294,10 @@ def synth(ev_t, ev_a, n_ev, t_origin, rate, j0, j1, carrier, rise, decay, policy
             val = -1.0
             clipped += 1
         out[j - j0] = val
+    if j1 > j0:
+        BS.cc = cr
+        BS.cs = sr
+        BS.cj = j1
     return clipped
 
 
@@ -166,6 +325,25 @@ def render_bursts(event_time, event_amplitude, t_start, duration, rate, carrier_
     out = np.zeros(n)
     et = np.ascontiguousarray(event_time, dtype=np.float64)
     ea = np.ascontiguousarray(event_amplitude, dtype=np.float64)
-    clipped = synth(et, ea, et.shape[0], float(t_start), float(rate), 0, n, float(carrier_hz),
+    clipped = synth(new_burst_state(carrier_hz, rate)[0], et, ea, et.shape[0], float(t_start), float(rate), 0, n, float(carrier_hz),
                     float(rise_s), float(decay_s), pid, out)
     return out, int(clipped)
+
+
+def burst_envelope(event_time, event_amplitude, t_start, duration, rate, rise_s=0.005, decay_s=0.030,
+                   policy="retrigger"):
+    """The envelope ``E(t)`` that :func:`render_bursts` puts on the carrier (same samples), ndarray (n,)."""
+    pid = policy_id(policy)
+    n = audio_length(duration, rate)
+    et = np.ascontiguousarray(event_time, dtype=np.float64)
+    ea = np.ascontiguousarray(event_amplitude, dtype=np.float64)
+    return _envelope_samples(new_burst_state(300.0, rate)[0], et, ea, et.shape[0], float(t_start), float(rate), n,
+                             float(rise_s), float(decay_s), pid)
+
+
+@njit(cache=True)
+def _envelope_samples(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy):
+    out = np.empty(n)
+    for j in range(n):
+        out[j] = envelope_at(BS, ev_t, ev_a, n_ev, t_origin + j / rate, rise, decay, policy)
+    return out

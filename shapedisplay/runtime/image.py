@@ -43,8 +43,8 @@ MAX_TILES = 4096
 #: Renderer settings stored in the image, in order (SI units); the C enum SD_IP_* follows it.
 PARAMS = ("pad_mass_kg", "pad_stiffness_n_per_m", "pad_damping_ns_per_m", "burst_gain", "max_stick_period_s",
           "mu_s", "mu_k", "slope_friction_gain", "skin_stretch_target_m", "tick_rate_hz", "audio_rate_hz",
-          "burst_carrier_hz", "burst_rise_s", "burst_decay_s")
-N_PARAMS = 16                      # 14 used, 2 reserved (0.0)
+          "burst_carrier_hz", "burst_rise_s", "burst_decay_s", "normal_force_n")
+N_PARAMS = 16                      # 15 used, 1 reserved (0.0)
 _DTYPE_CODES = {"uint8": 0, "uint16": 1, "float32": 2, "float64": 3}
 _DTYPE_NAMES = {v: k for k, v in _DTYPE_CODES.items()}
 _ABSENT = 0xFFFFFFFF
@@ -73,12 +73,13 @@ def _align(n: int, a: int = 8) -> int:
 
 def settings(table: FrictionTable, device=None) -> dict:
     """The renderer settings of ``table`` (names of :data:`PARAMS`), as a Renderer resolves them."""
-    from .renderer import device_for_table, mapping_settings
+    from .renderer import constant_normal_force, device_for_table, mapping_settings
     dev = device_for_table(table, device)
     kmu, sst = mapping_settings(table, dev)
     p, f, b = dev.pad, dev.friction, dev.burst
     values = (p.mass, p.stiffness, p.damping, b.gain, b.max_stick_period_s, f.mu_s, f.mu_k, kmu, sst,
-              dev.tick_rate_hz, dev.audio_rate_hz, b.carrier_hz, b.rise_s, b.decay_s)
+              dev.tick_rate_hz, dev.audio_rate_hz, b.carrier_hz, b.rise_s, b.decay_s,
+              constant_normal_force(table) or 0.0)
     return {n: float(v) for n, v in zip(PARAMS, values)}
 
 

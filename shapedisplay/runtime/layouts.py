@@ -22,6 +22,7 @@ dtype               C struct              what it holds
 ``RENDER_CONFIG``   ``sd_config_t``       renderer settings (pad parameters, friction, rates, burst)
 ``RUN_STATE``       ``sd_run_state_t``    online renderer registers and counters
 ``OUTPUTS``         ``sd_outputs_t``      per-tick outputs of the online renderer
+``BURST_STATE``     ``sd_burst_state_t``  burst envelope and carrier kept between ticks
 ==================  ====================  =======================================================
 
 Numberings shared with C (enums in ``sd_layout.h``): :class:`Slot` (table
@@ -170,6 +171,26 @@ OUTPUTS = _layout("OUTPUTS", [
     ("pad_speed", f8, "surface speed along the pad axis, m/s"),
 ])
 
+BURST_STATE = _layout("BURST_STATE", [
+    ("i_in", i8, "events entered (their time has passed)"),
+    ("i_mid", i8, "events whose burst turned from rise to decay (add)"),
+    ("i_out", i8, "events whose burst ended (add)"),
+    ("te", f8, "start of the playing envelope segment, s (retrigger, max)"),
+    ("e0", f8, "envelope at the segment's start (retrigger, max)"),
+    ("a", f8, "peak of the segment (retrigger, max)"),
+    ("tref", f8, "reference time of add's running sums, s"),
+    ("ra", f8, "add: sum of the rising bursts' peaks"),
+    ("rat", f8, "add: sum of peak * (event time - tref) of the rising bursts, s"),
+    ("q0", f8, "add: decays q0 - 2 q1 x + q2 x^2, x = (t - tref) / decay"),
+    ("q1", f8, "add: see q0"),
+    ("q2", f8, "add: see q0"),
+    ("cc", f8, "carrier cos at the last sample written"),
+    ("cs", f8, "carrier sin at the last sample written"),
+    ("cj", i8, "index + 1 of the last sample written (-1 before the first)"),
+    ("rc", f8, "rotation per sample: cos(2 pi carrier / audio rate)"),
+    ("rs", f8, "rotation per sample: sin(2 pi carrier / audio rate)"),
+])
+
 #: Everything the online renderer keeps between ticks, in one record (Python only: the C
 #: renderer, ``sd_renderer_t``, holds the same members next to its event ring and audio block).
 ONLINE = np.dtype([
@@ -177,6 +198,7 @@ ONLINE = np.dtype([
     ("cfg", RENDER_CONFIG),
     ("run", RUN_STATE),
     ("out", OUTPUTS),
+    ("bursts", BURST_STATE),
     ("grid", GRID),
     ("slot_channel", i8, (NSLOT,)),   # packed channel of each slot, -1 if the table lacks it
     ("vals", f8, (NSLOT,)),           # slot values of the current tick
@@ -191,6 +213,7 @@ LAYOUTS = {
     "RENDER_CONFIG": (RENDER_CONFIG, "sd_config_t"),
     "RUN_STATE": (RUN_STATE, "sd_run_state_t"),
     "OUTPUTS": (OUTPUTS, "sd_outputs_t"),
+    "BURST_STATE": (BURST_STATE, "sd_burst_state_t"),
 }
 
 

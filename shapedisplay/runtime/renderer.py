@@ -61,10 +61,11 @@ from ..devices import DeviceProfile, check_tick_rate, load_device
 from ..errors import InputError, ModelError, TableError
 from ..table import FrictionTable
 from ..units import parse_quantity
-from .bursts import audio_length, burst_value, policy_id, render_bursts, synth
+from .bursts import (audio_length, carrier_at, envelope_at, finished_events, forget_events, new_burst_state,
+                     policy_id, render_bursts, synth)
 from .cursor import MAX_POSITION_M, CursorPath
 from .dispatch import model_tick
-from .layouts import NSLOT, ONLINE, OUTPUTS, RENDER_CONFIG, SLOTS, Policy, Slot, record
+from .layouts import NSLOT, ONLINE, OUTPUTS, RENDER_CONFIG, SLOTS, Slot, record
 from .lookup import sample_all
 from .models import PadModel, divergence_message, get_model, run_kernel
 
@@ -75,7 +76,7 @@ _RING = 4096
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "849ccfa9985500da08f00627db0a35a3d340ddb1c3b1c366e69dda076139985c"
+KERNEL_SOURCES_SHA256 = "35ccb4cba96ca15b8f472a60a6479dc274176d14bc781622eda74b7f118d2f8e"
 
 
 @njit(cache=True)
@@ -236,16 +237,19 @@ def online_step(state, blocks, data, bg, ev, audio, x, y):
     N, mus, muk, gain = _derive(vals, cfg, R.slot_channel, vx, vy, abs(V))
     ev_t = ev[0]
     ev_a = ev[1]
-    # forget bursts that have finished
+    bs = R.bursts
+    # forget bursts that have finished (and that the burst state no longer needs)
     dur = cfg.rise_s + cfg.decay_s
     nrec = run.n_recent
+    done = finished_events(bs, cfg.policy)
     drop = 0
-    while drop < nrec and ev_t[drop] + dur <= t - h:
+    while drop < nrec and drop < done and ev_t[drop] + dur <= t - h:
         drop += 1
     if nrec > ev_t.shape[0] // 2 and drop == 0:
         drop = nrec - ev_t.shape[0] // 4
         run.events_dropped += drop
     if drop > 0:
+        forget_events(bs, ev_t, ev_a, drop, cfg.rise_s, cfg.decay_s, cfg.policy)
         for i in range(drop, nrec):
             ev_t[i - drop] = ev_t[i]
             ev_a[i - drop] = ev_a[i]
@@ -266,16 +270,11 @@ def online_step(state, blocks, data, bg, ev, audio, x, y):
     if j1 - j0 > audio.shape[0]:
         j0 = j1 - audio.shape[0]
     if j1 > j0:
-        run.clipped += synth(ev_t, ev_a, nrec, run.t0, cfg.audio_rate, j0, j1, cfg.carrier_hz, cfg.rise_s,
+        run.clipped += synth(bs, ev_t, ev_a, nrec, run.t0, cfg.audio_rate, j0, j1, cfg.carrier_hz, cfg.rise_s,
                              cfg.decay_s, cfg.policy, audio)
     run.next_sample = j1
-    hi = 0
-    while hi < nrec and ev_t[hi] < t:
-        hi += 1
-    lo = hi - 1 if cfg.policy == Policy.RETRIGGER else 0
-    if lo < 0:
-        lo = 0
-    drive = burst_value(t, ev_t, ev_a, lo, hi, cfg.carrier_hz, cfg.rise_s, cfg.decay_s, cfg.policy)
+    drive = envelope_at(bs, ev_t, ev_a, nrec, t, cfg.rise_s, cfg.decay_s, cfg.policy) \
+        * carrier_at(t, run.t0, cfg.carrier_hz)
     drive = min(max(drive, -1.0), 1.0)
     f = st.f
     out.t = t
@@ -547,6 +546,7 @@ class Renderer:
         R["pad"] = self.model.new_state()
         R["run"]["ax"] = 1.0
         R["run"]["t0"] = float(t0)
+        R["bursts"] = new_burst_state(self.device.burst.carrier_hz, self.audio_rate)
         self._ev[:] = 0.0
         self._audio[:] = 0.0
         #: Per-tick outputs of the last :meth:`step`: an OUTPUTS record (a view; ``last["drive"]``).

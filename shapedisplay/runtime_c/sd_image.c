@@ -198,6 +198,7 @@ void sd_image_config(const sd_image_t *img, sd_config_t *cfg)
     cfg->carrier_hz = q[SD_IP_CARRIER];
     cfg->rise_s = q[SD_IP_RISE];
     cfg->decay_s = q[SD_IP_DECAY];
+    cfg->normal_force_constant = q[SD_IP_NORMAL_FORCE];
     cfg->policy = SD_RETRIGGER;
     cfg->model = SD_MODEL_JUMP;
 }

@@ -145,4 +145,25 @@ typedef struct {
     double pad_speed;               /* surface speed along the pad axis, m/s */
 } sd_outputs_t;
 
+/* BURST_STATE */
+typedef struct {
+    int64_t i_in;                   /* events entered (their time has passed) */
+    int64_t i_mid;                  /* events whose burst turned from rise to decay (add) */
+    int64_t i_out;                  /* events whose burst ended (add) */
+    double te;                      /* start of the playing envelope segment, s (retrigger, max) */
+    double e0;                      /* envelope at the segment's start (retrigger, max) */
+    double a;                       /* peak of the segment (retrigger, max) */
+    double tref;                    /* reference time of add's running sums, s */
+    double ra;                      /* add: sum of the rising bursts' peaks */
+    double rat;                     /* add: sum of peak * (event time - tref) of the rising bursts, s */
+    double q0;                      /* add: decays q0 - 2 q1 x + q2 x^2, x = (t - tref) / decay */
+    double q1;                      /* add: see q0 */
+    double q2;                      /* add: see q0 */
+    double cc;                      /* carrier cos at the last sample written */
+    double cs;                      /* carrier sin at the last sample written */
+    int64_t cj;                     /* index + 1 of the last sample written (-1 before the first) */
+    double rc;                      /* rotation per sample: cos(2 pi carrier / audio rate) */
+    double rs;                      /* rotation per sample: sin(2 pi carrier / audio rate) */
+} sd_burst_state_t;
+
 #endif

@@ -113,75 +113,161 @@ double sd_envelope(double tau, double rise, double decay)
     return 0.0;
 }
 
-static double burst_value(double t, const double *ev_t, const double *ev_a, long lo, long hi, double carrier,
-                          double rise, double decay, int policy)
+/* The burst envelope on one phase-continuous carrier (bursts.py): the state carries the playing
+ * segment (retrigger, max) or the running sums of the rises and decays (add), and indices into the
+ * event ring. Every transition is applied in time order, whatever the evaluation times. */
+static double segment(const sd_burst_state_t *B, double t, double rise, double decay)
 {
-    double dur = rise + decay, w, acc = 0.0, best = -1.0;
-    long i;
-    if (hi <= lo) return 0.0;
-    w = 2.0 * SD_PI * carrier;
-    if (policy == SD_RETRIGGER) {
-        double tau = t - ev_t[hi - 1];
-        if (tau >= dur) return 0.0;
-        return ev_a[hi - 1] * sd_envelope(tau, rise, decay) * sin(w * tau);
+    double tau = t - B->te, u, r;
+    if (tau < rise) return B->e0 + (B->a - B->e0) * (tau / rise);
+    u = tau - rise;
+    if (u < decay) {
+        r = 1.0 - u / decay;
+        return B->a * r * r;
     }
-    for (i = lo; i < hi; i++) {
-        double tau = t - ev_t[i], e;
-        if (tau >= dur || tau < 0.0) continue;
-        e = ev_a[i] * sd_envelope(tau, rise, decay);
-        if (policy == SD_ADD) {
-            acc += e * sin(w * tau);
-        } else if (e > best) {
-            best = e;
-            acc = e * sin(w * tau);
-        }
-    }
-    return acc;
+    return 0.0;
 }
 
-/* Audio samples j0..j1-1 (time t_origin + j / rate) into out[0 .. j1-j0-1]; returns samples clipped. */
-static long synth(const double *ev_t, const double *ev_a, long n_ev, double t_origin, double rate, int64_t j0,
-                  int64_t j1, double carrier, double rise, double decay, int policy, double cd, double sd,
+static double sums(const sd_burst_state_t *B, double t, double rise, double decay)
+{
+    double dt = t - B->tref, e = (B->ra * dt - B->rat) / rise, x = dt / decay;
+    e += B->q0 - 2.0 * B->q1 * x + B->q2 * x * x;
+    return e > 0.0 ? e : 0.0;
+}
+
+static void shift_ref(sd_burst_state_t *B, double tnew, double decay)
+{
+    double dlt = tnew - B->tref, d;
+    if (dlt == 0.0) return;
+    d = dlt / decay;
+    B->rat -= dlt * B->ra;
+    B->q0 += d * (d * B->q2 - 2.0 * B->q1);
+    B->q1 -= d * B->q2;
+    B->tref = tnew;
+}
+
+static void add_decay(sd_burst_state_t *B, double te, double a, double rise, double decay, double sign)
+{
+    double u = 1.0 + (te + rise - B->tref) / decay;
+    if (sign > 0.0) {
+        B->q0 += a * u * u;
+        B->q1 += a * u;
+        B->q2 += a;
+    } else {
+        B->q0 -= a * u * u;
+        B->q1 -= a * u;
+        B->q2 -= a;
+    }
+}
+
+/* Advance the burst state over every transition before t and return the envelope at t. */
+static double envelope_at(sd_burst_state_t *B, const double *ev_t, const double *ev_a, long n_ev, double t,
+                          double rise, double decay, int policy)
+{
+    long i_in = B->i_in, i_mid, i_out;
+    double dur = rise + decay;
+    if (policy != SD_ADD) {
+        while (i_in < n_ev && ev_t[i_in] < t) {
+            double te = ev_t[i_in], a = ev_a[i_in], e_now = segment(B, te, rise, decay);
+            if (policy == SD_RETRIGGER || a > e_now) {
+                B->te = te;
+                B->e0 = e_now;
+                B->a = a;
+            }
+            i_in += 1;
+        }
+        B->i_in = i_in;
+        return segment(B, t, rise, decay);
+    }
+    i_mid = B->i_mid;
+    i_out = B->i_out;
+    for (;;) {
+        double t_in = i_in < n_ev ? ev_t[i_in] : INFINITY;
+        double t_mid = i_mid < i_in ? ev_t[i_mid] + rise : INFINITY;
+        double t_out = i_out < i_mid ? ev_t[i_out] + dur : INFINITY;
+        if (t_out <= t_mid && t_out <= t_in) {
+            if (!(t_out < t)) break;
+            add_decay(B, ev_t[i_out], ev_a[i_out], rise, decay, -1.0);
+            i_out += 1;
+            if (i_out == i_mid) B->q0 = B->q1 = B->q2 = 0.0;     /* no decaying burst left */
+        } else if (t_mid <= t_in) {
+            double a;
+            if (!(t_mid < t)) break;
+            a = ev_a[i_mid];
+            B->ra -= a;
+            B->rat -= a * (ev_t[i_mid] - B->tref);
+            add_decay(B, ev_t[i_mid], a, rise, decay, 1.0);
+            i_mid += 1;
+            if (i_mid == i_in) B->ra = B->rat = 0.0;             /* no rising burst left */
+        } else {
+            if (!(t_in < t)) break;
+            shift_ref(B, ev_t[i_in], decay);
+            B->ra += ev_a[i_in];
+            i_in += 1;
+        }
+    }
+    B->i_in = i_in;
+    B->i_mid = i_mid;
+    B->i_out = i_out;
+    if (i_out == i_in) return 0.0;
+    return sums(B, t, rise, decay);
+}
+
+/* The first k events leave the ring (bursts.forget_events). */
+static void forget_events(sd_burst_state_t *B, const double *ev_t, const double *ev_a, long k, double rise,
+                          double decay, int policy)
+{
+    long i;
+    if (policy == SD_ADD) {
+        for (i = B->i_out; i < (k < B->i_in ? k : B->i_in); i++) {
+            if (i < B->i_mid) {
+                add_decay(B, ev_t[i], ev_a[i], rise, decay, -1.0);
+            } else {
+                B->ra -= ev_a[i];
+                B->rat -= ev_a[i] * (ev_t[i] - B->tref);
+            }
+        }
+    }
+    B->i_in = B->i_in > k ? B->i_in - k : 0;
+    B->i_mid = B->i_mid > k ? B->i_mid - k : 0;
+    B->i_out = B->i_out > k ? B->i_out - k : 0;
+}
+
+/* Audio samples j0..j1-1 (time t_origin + j / rate) into out[0 .. j1-j0-1]; returns samples clipped.
+ * The carrier is a rotation per sample carried from call to call, re-anchored with sin/cos every
+ * SD_CARRIER_BLOCK samples of the stream (anchors depend only on j: the stream does not depend on how
+ * it is cut into calls). */
+static long synth(sd_burst_state_t *B, const double *ev_t, const double *ev_a, long n_ev, double t_origin,
+                  double rate, int64_t j0, int64_t j1, double carrier, double rise, double decay, int policy,
                   double *out)
 {
-    double dur = rise + decay, w = 2.0 * SD_PI * carrier;
-    double cr = 0.0, sr = 0.0;      /* cd, sd: the carrier's rotation per sample, from sd_renderer_init */
-    long lo = 0, hi = n_ev, clipped = 0, cur = -1;
-    int64_t j;
-    /* Events are sorted, so counting those before the first sample from the end gives the same
-     * index as the forward scan of bursts.synth, in O(1) for a ring of finished bursts. */
-    if (j1 > j0) {
-        double t_first = t_origin + (double)j0 / rate;
-        while (hi > 0 && !(ev_t[hi - 1] < t_first)) hi -= 1;
-    }
+    double w = 2.0 * SD_PI * carrier, cd = B->rc, sd = B->rs, cr = B->cc, sr = B->cs;
+    long clipped = 0;
+    int64_t j, q;
     for (j = j0; j < j1; j++) {
-        double t = t_origin + (double)j / rate, val;
-        while (hi < n_ev && ev_t[hi] < t) hi += 1;
-        if (policy == SD_RETRIGGER) {
-            /* one burst at a time: the carrier advances by a rotation per sample
-             * (re-anchored with sin/cos at each new burst and at each call) */
-            val = 0.0;
-            if (hi > 0) {
-                long i = hi - 1;
-                double tau = t - ev_t[i];
-                if (tau < dur) {
-                    if (i != cur) {
-                        cur = i;
-                        cr = cos(w * tau);
-                        sr = sin(w * tau);
-                    } else {
-                        double cn = cr * cd - sr * sd;
-                        double sn = sr * cd + cr * sd;
-                        cr = cn;
-                        sr = sn;
-                    }
-                    val = ev_a[i] * sd_envelope(tau, rise, decay) * sr;
-                }
+        double t, val;
+        if (j % SD_CARRIER_BLOCK == 0) {
+            double th = w * ((double)j / rate);
+            cr = cos(th);
+            sr = sin(th);
+        } else if (j == j0 && B->cj != j) {
+            /* not the continuation of the last call: rotate from the anchor of this block */
+            int64_t ja = j - j % SD_CARRIER_BLOCK;
+            double th = w * ((double)ja / rate);
+            cr = cos(th);
+            sr = sin(th);
+            for (q = 0; q < j - ja; q++) {
+                double cn = cr * cd - sr * sd, sn = sr * cd + cr * sd;
+                cr = cn;
+                sr = sn;
             }
         } else {
-            while (lo < hi && ev_t[lo] + dur <= t) lo += 1;
-            val = burst_value(t, ev_t, ev_a, lo, hi, carrier, rise, decay, policy);
+            double cn = cr * cd - sr * sd, sn = sr * cd + cr * sd;
+            cr = cn;
+            sr = sn;
         }
+        t = t_origin + (double)j / rate;
+        val = envelope_at(B, ev_t, ev_a, n_ev, t, rise, decay, policy) * sr;
         if (val > 1.0) {
             val = 1.0;
             clipped += 1;
@@ -190,6 +276,11 @@ static long synth(const double *ev_t, const double *ev_a, long n_ev, double t_or
             clipped += 1;
         }
         out[j - j0] = val;
+    }
+    if (j1 > j0) {
+        B->cc = cr;
+        B->cs = sr;
+        B->cj = j1;
     }
     return clipped;
 }
@@ -220,7 +311,7 @@ static void derive(const sd_renderer_t *R, const double *vals, double vx, double
 {
     const sd_table_t *T = R->table;
     const sd_config_t *C = &R->cfg;
-    double N = vals[SD_SLOT_NORMAL_FORCE], fs, mus, muk, gain;
+    double N = T->slot[SD_SLOT_NORMAL_FORCE] ? vals[SD_SLOT_NORMAL_FORCE] : C->normal_force_constant, fs, mus, muk, gain;
     if (N < 0.0) N = 0.0;
     fs = T->slot[SD_SLOT_FRICTION_SCALE] ? vals[SD_SLOT_FRICTION_SCALE] : 1.0;
     if (fs < 0.0) fs = 0.0;
@@ -265,7 +356,10 @@ int sd_renderer_init(sd_renderer_t *R, const sd_table_t *table, const sd_config_
     if (!R || !table || !cfg) return SD_ERR_ARG;
     if (table->grid.rows < 1 || table->grid.cols < 1 || !(table->grid.dx > 0.0) || !(table->grid.dy > 0.0) || table->n_blocks < 0)
         return SD_ERR_TABLE;
-    if (!table->slot[SD_SLOT_NORMAL_FORCE]) return SD_ERR_TABLE;     /* the pad models need N */
+    /* the pad models need N: the table's channel, or the constant N of a table without it */
+    if (!table->slot[SD_SLOT_NORMAL_FORCE]
+        && !(cfg->normal_force_constant >= 0.0 && cfg->normal_force_constant < INFINITY))
+        return SD_ERR_PARAM;
     if (cfg->k_mu > 0.0 && !table->slot[SD_SLOT_GRAD_X]) return SD_ERR_TABLE;  /* slope friction needs grad */
     if (!(p->mass > 0.0) || !(p->stiffness > 0.0) || !(p->damping >= 0.0) || !(p->burst_gain >= 0.0)
         || !(p->max_stick_period >= 0.0) || !(cfg->mu_s > 0.0) || !(cfg->mu_k >= 0.0) || cfg->mu_k > cfg->mu_s
@@ -314,6 +408,10 @@ void sd_renderer_reset(sd_renderer_t *R, double t0)
     memset(R->ev_a, 0, sizeof R->ev_a);
     memset(R->audio, 0, sizeof R->audio);
     memset(&R->out, 0, sizeof R->out);
+    memset(&R->bursts, 0, sizeof R->bursts);
+    R->bursts.cj = -1;
+    R->bursts.rc = R->rot_cos;      /* the carrier rotation per sample, from sd_renderer_init */
+    R->bursts.rs = R->rot_sin;
 }
 
 void sd_renderer_seek(sd_renderer_t *R, int64_t tick, double x, double y)
@@ -333,7 +431,7 @@ double sd_renderer_step(sd_renderer_t *R, double x, double y)
     double vals[SD_NSLOT];
     double k = R->run.tick, rate = R->cfg.tick_rate, t = R->run.t0 + k / rate;
     double h, vx, vy, xm, ym, V, N, mus, muk, gain, dur, drive, f, target;
-    long nrec = R->run.n_recent, drop = 0, nev = 0, hi, lo, i;
+    long nrec = R->run.n_recent, drop = 0, nev = 0, i, done;
     int64_t j0, j1;
     const long cap = SD_EVENT_RING;
     /* a non-finite or absurd position is a fault: hold the last valid one */
@@ -364,14 +462,16 @@ double sd_renderer_step(sd_renderer_t *R, double x, double y)
     axis_speed(vx, vy, &R->run.ax, &R->run.ay, &V);
     sd_sample_slots(R->table, xm, ym, vals);
     derive(R, vals, vx, vy, fabs(V), &N, &mus, &muk, &gain);
-    /* forget bursts that have finished */
+    /* forget bursts that have finished (and that the burst state no longer needs) */
     dur = R->cfg.rise_s + R->cfg.decay_s;
-    while (drop < nrec && R->ev_t[drop] + dur <= t - h) drop += 1;
+    done = R->cfg.policy == SD_ADD ? (long)R->bursts.i_out : (long)R->bursts.i_in;
+    while (drop < nrec && drop < done && R->ev_t[drop] + dur <= t - h) drop += 1;
     if (nrec > cap / 2 && drop == 0) {
         drop = nrec - cap / 4;
         R->run.events_dropped += drop;
     }
     if (drop > 0) {
+        forget_events(&R->bursts, R->ev_t, R->ev_a, drop, R->cfg.rise_s, R->cfg.decay_s, R->cfg.policy);
         for (i = drop; i < nrec; i++) {
             R->ev_t[i - drop] = R->ev_t[i];
             R->ev_a[i - drop] = R->ev_a[i];
@@ -397,17 +497,13 @@ double sd_renderer_step(sd_renderer_t *R, double x, double y)
         j1 = sample_end(t - R->run.t0, R->cfg.audio_rate);
         if (j1 - j0 > R->audio_cap) j0 = j1 - R->audio_cap;
         if (j1 > j0)
-            R->run.clipped += synth(R->ev_t, R->ev_a, nrec, R->run.t0, R->cfg.audio_rate, j0, j1, R->cfg.carrier_hz,
-                                R->cfg.rise_s, R->cfg.decay_s, R->cfg.policy, R->rot_cos, R->rot_sin, R->audio);
+            R->run.clipped += synth(&R->bursts, R->ev_t, R->ev_a, nrec, R->run.t0, R->cfg.audio_rate, j0, j1,
+                                    R->cfg.carrier_hz, R->cfg.rise_s, R->cfg.decay_s, R->cfg.policy, R->audio);
         R->run.next_sample = j1;
         R->n_audio = j1 - j0 > 0 ? j1 - j0 : 0;
     }
-    hi = nrec;      /* sorted events: the backward count equals the forward scan of online_step */
-    while (hi > 0 && !(R->ev_t[hi - 1] < t)) hi -= 1;
-    lo = R->cfg.policy == SD_RETRIGGER ? hi - 1 : 0;
-    if (lo < 0) lo = 0;
-    drive = burst_value(t, R->ev_t, R->ev_a, lo, hi, R->cfg.carrier_hz, R->cfg.rise_s, R->cfg.decay_s,
-                        R->cfg.policy);
+    drive = envelope_at(&R->bursts, R->ev_t, R->ev_a, nrec, t, R->cfg.rise_s, R->cfg.decay_s, R->cfg.policy)
+            * sin(2.0 * SD_PI * R->cfg.carrier_hz * (t - R->run.t0));
     drive = py_min(py_max(drive, -1.0), 1.0);
     f = R->pad.f;
     R->out.t = t;

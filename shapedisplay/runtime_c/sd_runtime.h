@@ -128,7 +128,11 @@ typedef struct {
     double ev_t[SD_EVENT_RING], ev_a[SD_EVENT_RING];
     double audio[SD_AUDIO_BLOCK_MAX];   /* audio samples of the last tick: audio[0 .. n_audio-1] */
     sd_outputs_t out;                   /* outputs of the last tick */
+    sd_burst_state_t bursts;            /* burst envelope and carrier (sd_layout.h; bursts.py) */
 } sd_renderer_t;
+
+/* The carrier is re-anchored with sin/cos every this many audio samples (bursts.CARRIER_BLOCK). */
+#define SD_CARRIER_BLOCK 64
 
 /* sizeof(sd_renderer_t), for bindings that allocate it from another language. */
 size_t sd_renderer_size(void);
@@ -154,7 +158,8 @@ double sd_renderer_step(sd_renderer_t *R, double x, double y);
 /* Renderer settings stored in the image (runtime/image.py PARAMS). */
 enum {
     SD_IP_MASS, SD_IP_STIFFNESS, SD_IP_DAMPING, SD_IP_BURST_GAIN, SD_IP_MAX_STICK, SD_IP_MU_S, SD_IP_MU_K,
-    SD_IP_K_MU, SD_IP_SKIN_TARGET, SD_IP_TICK_RATE, SD_IP_AUDIO_RATE, SD_IP_CARRIER, SD_IP_RISE, SD_IP_DECAY
+    SD_IP_K_MU, SD_IP_SKIN_TARGET, SD_IP_TICK_RATE, SD_IP_AUDIO_RATE, SD_IP_CARRIER, SD_IP_RISE, SD_IP_DECAY,
+    SD_IP_NORMAL_FORCE
 };
 enum {
     SD_ERR_IMAGE_SIZE = -10,     /* shorter than a header, or the size field disagrees */

@@ -104,6 +104,7 @@ int main(int argc, char **argv)
     C.mu_k = 0.3;
     C.k_mu = 0.0;
     C.skin_target = 0.0;
+    C.normal_force_constant = 0.0;
     C.tick_rate = 10000.0;
     C.carrier_hz = 300.0;
     C.rise_s = 0.005;

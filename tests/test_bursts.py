@@ -1,0 +1,156 @@
+"""Bursts on one phase-continuous carrier: published envelope, amplitude convention, no steps, 300 Hz."""
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from shapedisplay.devices import load_device
+from shapedisplay.runtime.bursts import (BURST_POLICIES, burst_envelope, envelope, new_burst_state,
+                                         render_bursts, synth)
+from shapedisplay.runtime.models import simulate_pad
+
+RISE, DECAY, FC, RATE = 0.005, 0.030, 300.0, 48_000.0
+CARRIER_STEP = 2.0 * math.sin(math.pi * FC / RATE)      # largest sample step of a unit carrier
+
+
+def published(tau):
+    tau = np.asarray(tau, dtype=np.float64)
+    return np.where(tau < 0, 0.0, np.where(tau < RISE, tau / RISE,
+                                           np.where(tau < RISE + DECAY, (1 - (tau - RISE) / DECAY) ** 2, 0.0)))
+
+
+def test_envelope_function():
+    assert envelope(-1e-9, RISE, DECAY) == 0.0
+    assert math.isclose(envelope(0.0025, RISE, DECAY), 0.5)
+    assert math.isclose(envelope(RISE, RISE, DECAY), 1.0)
+    assert math.isclose(envelope(RISE + DECAY / 2, RISE, DECAY), 0.25)
+    assert envelope(RISE + DECAY + 1e-9, RISE, DECAY) == 0.0
+
+
+@pytest.mark.parametrize("policy", list(BURST_POLICIES))
+def test_isolated_burst_plays_the_published_envelope_on_the_running_carrier(policy):
+    te, A, t0 = 0.0123456, 0.7, 0.25
+    audio, clipped = render_bursts(np.array([te + t0]), np.array([A]), t0, 0.1, RATE, policy=policy)
+    env = burst_envelope(np.array([te + t0]), np.array([A]), t0, 0.1, RATE, policy=policy)
+    tt = np.arange(audio.size) / RATE
+    assert np.max(np.abs(env - A * published(tt - te))) <= 1e-9 * A
+    # the carrier runs from the first sample and is not restarted by the burst
+    assert np.max(np.abs(audio - A * published(tt - te) * np.sin(2 * np.pi * FC * tt))) <= 1e-9 * A
+    assert clipped == 0 and audio.size == int(0.1 * RATE) + 1
+
+
+@settings(max_examples=40, deadline=None)
+@given(te=st.floats(0.001, 0.02), A=st.floats(0.01, 1.0))
+def test_amplitude_convention_envelope_peak_is_A(te, A):
+    """A is the peak of the envelope on the unit carrier; the largest sample is within [0.92 A, A] whatever the phase.
+
+    0.9199 A is the continuous-time minimum over the carrier phase at the envelope peak of
+    max_t E(t) |sin(phase(t))|; sampling at 48 kHz lowers it by at most cos(pi f_c / rate).
+    """
+    audio, _ = render_bursts(np.array([te]), np.array([A]), 0.0, 0.06, RATE)
+    env = burst_envelope(np.array([te]), np.array([A]), 0.0, 0.06, RATE)
+    peak_sample_env = A * (1 - 1 / (RISE * RATE))              # the envelope one sample away from its peak
+    assert peak_sample_env <= env.max() <= A * (1 + 1e-12)
+    assert 0.9199 * math.cos(math.pi * FC / RATE) * A <= np.abs(audio).max() <= A * (1 + 1e-12)
+    tt = np.arange(audio.size) / RATE
+    assert np.max(np.abs(audio - env * np.sin(2 * np.pi * FC * tt))) <= 1e-9 * A
+
+
+def _stroke_events(V, N=1.0, duration=1.5):
+    dev = load_device("handheld-stick")            # the published Konyo pad, B = 0.25 / N
+    r = simulate_pad("exact", V=V, N=N, pad=dev.pad, friction=dev.friction, tick_rate=10_000, duration=duration)
+    return r.event_time, dev.burst.gain * r.event_amplitude
+
+
+def step_ratio(audio, env):
+    """Largest drive step over the carrier's largest step at the envelope of the current carrier cycle."""
+    w = int(round(RATE / FC))
+    pad = np.pad(env, w, mode="edge")
+    cyc = np.lib.stride_tricks.sliding_window_view(pad, 2 * w + 1).max(axis=1)
+    cur = np.maximum(cyc[:-1], cyc[1:])
+    steps = np.abs(np.diff(audio))
+    ok = cur > 0.02 * env.max()
+    assert steps[~ok].max(initial=0.0) <= CARRIER_STEP * 0.02 * env.max() * 1.05
+    return float(np.max(steps[ok] / (CARRIER_STEP * cur[ok])))
+
+
+def spectral_peak(audio):
+    spec = np.abs(np.fft.rfft(audio * np.hanning(audio.size)))
+    f = np.fft.rfftfreq(audio.size, 1 / RATE)
+    return float(f[np.argmax(spec)])
+
+
+@pytest.mark.parametrize("V", [0.020, 0.030])
+@pytest.mark.parametrize("policy", list(BURST_POLICIES))
+def test_overlapping_bursts_never_step_and_stay_at_300_hz(V, policy):
+    """N = 1 N on the published pad: events every 5.7-8.5 ms, far closer than one 35 ms burst."""
+    et, ea = _stroke_events(V)
+    assert np.median(np.diff(et)) < 0.010 and et.size > 100
+    dur = 1.5
+    audio, clipped = render_bursts(et, ea, 0.0, dur, RATE, policy=policy)
+    env = burst_envelope(et, ea, 0.0, dur, RATE, policy=policy)
+    assert clipped == 0
+    assert step_ratio(audio, env) <= 1.05
+    assert abs(spectral_peak(audio) - FC) <= 3.0
+    # relative to the burst amplitude itself: the envelope never exceeds the sum of the live bursts
+    assert np.abs(np.diff(audio)).max() <= 1.05 * CARRIER_STEP * env.max()
+
+
+def test_add_is_the_sum_and_max_absorbs_weaker_bursts():
+    et = np.array([0.010, 0.016, 0.020, 0.060])
+    ea = np.array([0.3, 0.2, 0.25, 0.1])
+    dur = 0.12
+    tt = np.arange(int(dur * RATE) + 1) / RATE
+    total = sum(a * published(tt - t) for t, a in zip(et, ea))
+    add = burst_envelope(et, ea, 0.0, dur, RATE, policy="add")
+    assert np.max(np.abs(add - total)) <= 1e-12
+    mx = burst_envelope(et, ea, 0.0, dur, RATE, policy="max")
+    re = burst_envelope(et, ea, 0.0, dur, RATE, policy="retrigger")
+    j = int(0.016 * RATE) + 1
+    # max: the 0.2 burst at 16 ms is weaker than the envelope playing (0.28): absorbed, the first goes on;
+    # the 0.25 burst at 20 ms beats the envelope then (0.21) and takes over from its value
+    k = int(0.020 * RATE) + 1
+    assert np.allclose(mx[:k], 0.3 * published(tt[:k] - 0.010), atol=1e-12)
+    e20 = 0.3 * published(0.020 - 0.010)
+    assert mx[k] == pytest.approx(e20 + (0.25 - e20) * (tt[k] - 0.020) / RISE, abs=1e-12)
+    # retrigger: the envelope turns at 16 ms from its value towards 0.2 (no step)
+    e16 = 0.3 * published(0.016 - 0.010)
+    assert re[j] == pytest.approx(e16 + (0.2 - e16) * (tt[j] - 0.016) / RISE, abs=1e-12)
+    for e in (add, mx, re):
+        assert np.max(np.abs(np.diff(e))) <= 1.001 * ea.sum() / (RISE * RATE)      # continuous envelopes
+    # the 60 ms burst starts from silence under every policy
+    i = int(0.06 * RATE) + 1
+    for e in (mx, re):
+        assert np.allclose(e[i:], 0.1 * published(tt[i:] - 0.06), atol=1e-12)
+
+
+@pytest.mark.parametrize("policy", list(BURST_POLICIES))
+def test_tick_by_tick_synthesis_equals_one_call(policy):
+    """The state carries the envelope between calls, the carrier anchors depend only on the sample index."""
+    et, ea = _stroke_events(0.03, duration=0.3)
+    n = int(0.3 * RATE) + 1
+    whole, c1 = render_bursts(et, ea, 0.0, 0.3, RATE, policy=policy)
+    BS = new_burst_state(FC, RATE)[0]
+    out = np.zeros(n)
+    buf = np.zeros(64)
+    rng = np.random.default_rng(3)
+    j = 0
+    clipped = 0
+    pid = BURST_POLICIES[policy]
+    while j < n:
+        j1 = min(n, j + int(rng.integers(1, 60)))
+        clipped += synth(BS, et, ea, et.size, 0.0, RATE, j, j1, FC, RISE, DECAY, pid, buf)
+        out[j:j1] = buf[:j1 - j]
+        j = j1
+    np.testing.assert_array_equal(out, whole)
+    assert clipped == c1
+
+
+def test_clipping_is_counted():
+    big, clipped = render_bursts(np.array([0.01]), np.array([3.0]), 0.0, 0.05, RATE)
+    assert clipped > 0 and np.abs(big).max() == 1.0
+    ad, clipped_add = render_bursts(np.array([0.010, 0.0101, 0.0102]), np.array([0.5, 0.5, 0.5]), 0.0, 0.06, RATE,
+                                    policy="add")
+    assert clipped_add > 0 and np.abs(ad).max() <= 1.0
