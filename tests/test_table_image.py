@@ -170,3 +170,24 @@ def test_float_channel_nan_codes_are_refused(sd_vectors_image, tmp_path):
     r = Renderer(table, model="jump")
     res, _ = _run_image(sd_vectors_image, image_payload(_reseal(img), r, [0.0, 1e-4], [0.0, 0.0]), tmp_path)
     assert res.returncode == 4 and "(-16)" in res.stderr
+
+
+def test_constant_n_table_image_plays_bit_exact(sd_vectors_image, tmp_path):
+    """A table without normal_force carries its constant N in the image (param 14); C plays it as Python does."""
+    from shapedisplay.devices import load_device
+    from shapedisplay.runtime import Renderer
+    from shapedisplay.studies import constant_table
+    dev = load_device("handheld-stick")
+    table = constant_table(2.5, dev)
+    r = Renderer(table, model="exact", tick_rate=10_000.0, audio_rate=48_000.0, burst_policy="add")
+    img = I.to_image(table)
+    assert I.settings(table)["normal_force_n"] == 2.5
+    x = np.linspace(0.0, 0.008, 4001)          # 20 mm/s for 0.4 s: a stick-slip every 21 ms
+    y = np.zeros_like(x)
+    po, pa, (pclip, pev) = py_render(r, x, y)
+    res, fout = _run_image(sd_vectors_image, image_payload(img, r, x, y), tmp_path)
+    assert res.returncode == 0, res.stderr
+    co, ca, (cclip, cev, _) = parse_outputs(fout.read_bytes(), len(x))
+    assert pev > 10 and cev == pev
+    np.testing.assert_array_equal(co, po)
+    np.testing.assert_array_equal(ca, pa)
