@@ -154,3 +154,21 @@ def test_clipping_is_counted():
     ad, clipped_add = render_bursts(np.array([0.010, 0.0101, 0.0102]), np.array([0.5, 0.5, 0.5]), 0.0, 0.06, RATE,
                                     policy="add")
     assert clipped_add > 0 and np.abs(ad).max() <= 1.0
+
+
+@pytest.mark.parametrize("V", [0.020, 0.030])
+def test_renderer_drive_on_the_published_pad_every_policy(V):
+    """End to end: a constant N = 1 N table played by the renderer, every policy: no step, 300 Hz."""
+    from shapedisplay.runtime import Renderer
+    from shapedisplay.studies import constant_table
+    from shapedisplay.studies.presets import line_stroke
+
+    dev = load_device("handheld-stick")
+    table = constant_table(1.0, dev)
+    for policy in BURST_POLICIES:
+        r = Renderer(table, device=dev, burst_policy=policy, audio_rate=RATE)
+        res = r.render(line_stroke(0.0, V * 1.2, V, r.tick_rate))
+        env = burst_envelope(res.event_time, res.event_amplitude, res.t[0], res.duration, RATE, policy=policy)
+        assert res.event_time.size > 100 and res.clipped == 0
+        assert step_ratio(res.audio, env) <= 1.05
+        assert abs(spectral_peak(res.audio) - FC) <= 3.0
