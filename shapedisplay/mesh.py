@@ -13,8 +13,9 @@ Conventions
   holds a scene of several meshes is merged: every mesh is moved into world
   coordinates by its scene-graph transform and the triangles are
   concatenated. Points, lines and other non-triangle geometry are ignored.
-* **Units.** Coordinates are read in ``units`` ("mm" by default, also "cm",
-  "m", "in") and converted to metres. A footprint under 1 mm or over 2 m
+* **Units.** Coordinates are read in ``units`` ("mm" by default; "m" for
+  glTF files, whose format defines metres; also "cm", "in") and converted
+  to metres. A footprint under 1 mm or over 2 m
   looks implausible for a screen and raises :class:`ImplausibleSizeWarning`
   with the unit that would make it plausible.
 * **View.** The mesh is rotated so that ``up`` points along +z and viewed
@@ -336,7 +337,18 @@ def _background(value) -> float:
 # ---------------------------------------------------------------------------
 # mesh -> height field
 
-def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units="mm", background=0.0,
+#: File suffixes whose format defines its length unit (glTF 2.0: metres).
+FORMAT_UNITS = {".glb": "m", ".gltf": "m"}
+
+
+def default_units(path) -> str:
+    """The coordinate unit assumed when none is given: the one the format defines, else millimetres."""
+    if isinstance(path, (str, os.PathLike)):
+        return FORMAT_UNITS.get(Path(os.fspath(path)).suffix.lower(), "mm")
+    return "mm"
+
+
+def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units=None, background=0.0,
                         supersample=1, *, supersample_mode="mean", margin=0.0, method="numba", size=None,
                         height_range=None) -> HeightField:
     """Project the top surface of a mesh onto a regular height field.
@@ -353,8 +365,9 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units="mm", ba
         given, the longer side gets 512 samples.
     up : str, (3,) or (3, 3)
         View direction, see :func:`up_rotation`.
-    units : {"mm", "cm", "m", "in"}
-        Unit of the mesh coordinates.
+    units : {"mm", "cm", "m", "in"}, optional
+        Unit of the mesh coordinates; by default :func:`default_units` (metres
+        for ``.glb``/``.gltf``, whose format defines them, millimetres otherwise).
     background : float (metres) or str
         Height of samples the mesh does not cover.
     supersample : int >= 1
@@ -395,6 +408,7 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units="mm", ba
     from . import raster
 
     # --- check parameters before touching the file
+    units = default_units(path) if units is None else units
     units = units.strip().lower() if isinstance(units, str) else units
     if units not in UNITS:
         raise unknown_key("mesh units", units, UNITS)

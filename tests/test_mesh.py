@@ -246,7 +246,7 @@ def test_every_format_gives_the_same_height_field(tmp_path, fmt):
     path = tmp_path / f"shape.{suffix}"
     data = cone.export(file_type=fmt)
     path.write_bytes(data.encode() if isinstance(data, str) else data)
-    hf = mesh.mesh_to_heightfield(path, resolution=0.25 * MM)
+    hf = mesh.mesh_to_heightfield(path, resolution=0.25 * MM, units=("mm" if path.suffix in (".glb", ".gltf") else None))
     # STL stores float32 coordinates: allow their rounding times the slope
     np.testing.assert_allclose(hf.heights, ref.heights, atol=1e-8)
     assert hf.shape == ref.shape
@@ -266,7 +266,7 @@ def test_scene_meshes_are_merged_in_world_coordinates(tmp_path, fmt):
         for name, data in scene.export(file_type="gltf").items():
             (tmp_path / name).write_bytes(data)
         path = tmp_path / "model.gltf"
-    hf = mesh.mesh_to_heightfield(path, resolution=0.5 * MM)
+    hf = mesh.mesh_to_heightfield(path, resolution=0.5 * MM, units="mm")
     assert hf.meta["meshes"] == 2
     assert hf.meta["footprint_m"] == pytest.approx([14 * MM, 4 * MM])
     X, _ = sample_xy(hf)
@@ -422,3 +422,18 @@ def test_polygon_faces_are_triangulated(tmp_path, name, text):
     assert hf.meta["triangles"] == 2
     _, Y = sample_xy(hf)
     np.testing.assert_allclose(hf.heights, 0.2 * Y, atol=1e-15)      # the ramp z = 0.2 y
+
+
+@pytest.mark.parametrize("suffix, expected", [(".glb", "m"), (".gltf", "m"), (".stl", "mm"), (".PLY", "mm")])
+def test_gltf_files_default_to_metres_as_their_format_defines(suffix, expected, tmp_path):
+    assert mesh.default_units(tmp_path / f"part{suffix}") == expected
+    assert mesh.default_units((np.zeros((3, 3)), np.array([[0, 1, 2]]))) == "mm"
+
+
+def test_a_gltf_part_in_metres_keeps_its_size(tmp_path):
+    trimesh = pytest.importorskip("trimesh")
+    box = trimesh.creation.box(extents=(0.020, 0.010, 0.002))       # metres, as glTF defines
+    box.export(tmp_path / "part.glb")
+    hf = mesh.mesh_to_heightfield(tmp_path / "part.glb", resolution="0.5mm")
+    assert hf.meta["units"] == "m"
+    assert hf.meta["footprint_m"] == pytest.approx([0.020, 0.010])

@@ -136,7 +136,7 @@ def test_gltf_scene_graph_transforms_and_several_bodies(tmp_path):
     # the same bodies placed by hand in world coordinates
     world = trimesh.util.concatenate([box.copy().apply_transform(t_parent),
                                       cyl.copy().apply_transform(t_parent @ t_child)])
-    a = mesh.mesh_to_heightfield(tmp_path / "s.glb", resolution="0.25mm")
+    a = mesh.mesh_to_heightfield(tmp_path / "s.glb", resolution="0.25mm", units="mm")
     b = mesh.mesh_to_heightfield((world.vertices, world.faces), resolution="0.25mm")
     assert a.meta["meshes"] == 2
     assert a.shape == b.shape

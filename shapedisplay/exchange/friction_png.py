@@ -33,6 +33,7 @@ import numpy as np
 
 from ..atomic import atomic_path
 from ..errors import InputError, unknown_key
+from ..heightfield import grid_from_picture, picture_from_grid
 
 QUANTITIES = {"mu": "1", "normal_force": "N", "breakaway_force": "N"}
 BITS = (8, 16)
@@ -84,7 +85,7 @@ def friction_image(table, quantity: str = "mu", bits: int = 16) -> tuple[np.ndar
     top = (1 << bits) - 1
     scale = (hi - lo) / top if hi > lo else 0.0
     grey = np.zeros(v.shape) if scale == 0 else np.rint((v - lo) / scale)
-    grey = np.clip(grey, 0, top).astype(np.uint8 if bits == 8 else np.uint16)[::-1]
+    grey = picture_from_grid(np.clip(grey, 0, top).astype(np.uint8 if bits == 8 else np.uint16))
     g = table.grid
     lost = ["stick-slip dynamics and bursts (a bitmap is static)"]
     mp = table.meta.get("mapping", {}) if isinstance(table.meta, dict) else {}
@@ -126,4 +127,4 @@ def read_friction_png(path: str | os.PathLike) -> tuple[np.ndarray, dict]:
     info = json.loads(path.with_name(path.name + ".json").read_text())
     with Image.open(path) as im:
         grey = np.array(im)
-    return info["offset"] + info["scale"] * grey[::-1].astype(np.float64), info
+    return info["offset"] + info["scale"] * grid_from_picture(grey).astype(np.float64), info

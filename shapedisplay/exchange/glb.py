@@ -43,6 +43,7 @@ import numpy as np
 
 from ..atomic import write_bytes
 from ..errors import FileFormatError, InputError
+from ..heightfield import grid_from_picture, picture_from_grid
 
 EXTENSION = "MPEG_haptic_material"
 #: Haptic texture -> (quantity, unit): the textures written, in this order.
@@ -84,7 +85,7 @@ def _png16(values: np.ndarray) -> tuple[bytes, dict]:
     lo, hi = float(values.min()), float(values.max())
     scale = (hi - lo) / 65535 if hi > lo else 0.0
     grey = np.zeros(values.shape) if scale == 0 else np.rint((values - lo) / scale)
-    img = np.clip(grey, 0, 65535).astype(np.uint16)[::-1]
+    img = picture_from_grid(np.clip(grey, 0, 65535).astype(np.uint16))
     buf = io.BytesIO()
     Image.fromarray(img).save(buf, format="PNG")
     return buf.getvalue(), {"scale": scale, "offset": lo, "min": lo, "max": hi, "max_error": scale / 2,
@@ -306,7 +307,7 @@ def read_haptic_glb(path) -> dict:
             raise
         except Exception as exc:   # Pillow raises several types for damaged images
             raise FileFormatError(f"{where}: {name} texture is not a readable PNG ({exc})") from None
-        channels[name] = offset + scale * texel[::-1].astype(np.float64)
+        channels[name] = offset + scale * grid_from_picture(texel).astype(np.float64)
         scales[name] = sc
     if "stiffness" not in channels:
         raise FileFormatError(f"{where}: no stiffness texture (the normal force) to compile from")
