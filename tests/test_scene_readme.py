@@ -1,4 +1,4 @@
-"""The README sections on scenes and the 3D preview: every command shown runs as written.
+"""The documented sections on scenes (README) and the 3D preview (docs/preview.md): every command shown runs as written.
 
 Each ``shapedisplay`` line of their ``sh`` blocks must parse with the real
 command-line parser, and every file it reads must be in the repository or
@@ -13,22 +13,23 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-SECTIONS = ("## Designing a tactile screen", "## 3D preview")
+#: (file, heading) of each section, in reading order.
+SECTIONS = (("README.md", "## Designing a tactile screen"), ("docs/preview.md", "# 3D preview"))
 FILE_SUFFIXES = (".toml", ".npz", ".png", ".npy", ".stl", ".obj", ".ply", ".wav", ".json")
 OUTPUT_FLAGS = ("-o", "--output", "--trace-out")
 
 
 def section(text: str, heading: str) -> str:
     start = text.index(heading + "\n")
-    end = text.find("\n## ", start + len(heading))
+    end = text.find("\n## ", start + len(heading)) if heading.startswith("## ") else -1
     return text[start:end if end >= 0 else len(text)]
 
 
 def commands(program: str = "shapedisplay") -> list[list[str]]:
     """argv of every line of the sh blocks of the sections (in reading order) that runs ``program``."""
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
     out = []
-    for heading in SECTIONS:
+    for name, heading in SECTIONS:
+        text = (ROOT / name).read_text(encoding="utf-8")
         for block in re.findall(r"```sh\n(.*?)```", section(text, heading), flags=re.S):
             for line in block.splitlines():
                 argv = shlex.split(line, comments=True)
@@ -94,11 +95,12 @@ def test_every_command_parses_and_reads_only_files_that_exist_or_were_written_be
 
 
 def test_the_pictures_are_written_by_a_command_shown():
-    """Each picture of the two sections is the output of a `preview` command shown in the README."""
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
-    for heading in SECTIONS:
-        body = section(text, heading)
-        for picture in re.findall(r"!\[[^\]]*\]\(([^)]+\.png)\)", body):
-            assert (ROOT / picture).is_file() and (ROOT / picture).stat().st_size < 300_000, picture
+    """Each picture of the two sections is the output of a `preview` command shown beside it."""
+    for name, heading in SECTIONS:
+        body = section((ROOT / name).read_text(encoding="utf-8"), heading)
+        for link in re.findall(r"!\[[^\]]*\]\(([^)]+\.png)\)", body):
+            path = ((ROOT / name).parent / link).resolve()
+            picture = path.relative_to(ROOT).as_posix()       # as the command, run from the checkout, writes it
+            assert path.is_file() and path.stat().st_size < 300_000, picture
             shown = re.findall(r"shapedisplay preview [^`\n]*-o " + re.escape(picture), body)
             assert shown, f"no `shapedisplay preview ... -o {picture}` in section {heading!r}"
