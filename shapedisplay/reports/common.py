@@ -141,6 +141,81 @@ def cpu_time(fn, repeats=3, warmup=True):
     return best, res
 
 
+def cpu_per_call(fn, runs=3, min_batch_s=0.02, warmup=True):
+    """CPU seconds (``time.process_time``) of one call of ``fn()``, measured ``runs`` times.
+
+    Each run calls ``fn`` repeatedly until at least ``min_batch_s`` of CPU
+    time has passed and divides by the number of calls, so calls of a few
+    microseconds are timed as reliably as calls of a second. The same
+    function times the renderer and the scipy peers. Returns
+    ``(list of per-call seconds, one per run, last_result)``.
+    """
+    res = fn() if warmup else None
+    out = []
+    for _ in range(max(1, runs)):
+        calls = 0
+        t0 = time.process_time()
+        while True:
+            res = fn()
+            calls += 1
+            el = time.process_time() - t0
+            if el >= min_batch_s:
+                break
+        out.append(el / calls)
+    return out, res
+
+
+_FLOORS = None
+
+
+def floor_costs(n=1 << 20, runs=3):
+    """Least work any tick-based renderer does, timed now: ``(s per tick, s per audio sample)``.
+
+    Per tick: read the tick's input and write one output computed from it
+    (one multiply; the loop vectorises). Per audio sample: write one sample,
+    a stored carrier period times an envelope value. Compiled loops over
+    ``n`` elements, min of ``runs`` runs after a warm-up. A renderer that
+    writes its outputs for every tick and every audio sample cannot cost less
+    than ``ticks * per_tick + samples * per_sample``; against a solver whose
+    cost grows with the number of events and not with the duration this
+    bounds the speed-up from above.
+    """
+    global _FLOORS
+    if _FLOORS is None:
+        from numba import njit
+
+        @njit(cache=True)
+        def tick_floor(V, out, h):
+            for i in range(V.shape[0]):
+                out[i] = V[i] * h
+
+        @njit(cache=True)
+        def audio_floor(out, period, e):
+            p = period.shape[0]
+            j = 0
+            while j + p <= out.shape[0]:
+                for q in range(p):
+                    out[j + q] = e * period[q]
+                j += p
+
+        _FLOORS = (tick_floor, audio_floor)
+    tick_floor, audio_floor = _FLOORS
+    V = np.full(n, 0.02)
+    out = np.empty(n)
+    period = np.sin(2.0 * math.pi * np.arange(160) / 160.0)      # one 300 Hz period at 48 kHz
+    tick_floor(V[:8], out[:8], 1e-3)
+    audio_floor(out[:320], period, 0.5)
+    bt = ba = math.inf
+    for _ in range(max(1, runs)):
+        t0 = time.process_time()
+        tick_floor(V, out, 1e-3)
+        t1 = time.process_time()
+        audio_floor(out, period, 0.5)
+        t2 = time.process_time()
+        bt, ba = min(bt, t1 - t0), min(ba, t2 - t1)
+    return bt / n, ba / (n - n % period.size)
+
+
 def tick_percentiles(samples_ns):
     """p50 and p99 of per-tick times (ns array) in seconds."""
     a = np.asarray(samples_ns, dtype=np.float64) * 1e-9

@@ -76,6 +76,8 @@ class PadModel:
         #: numba unboxes an array far faster than a bare record) and its record view.
         self.param_block = np.array([self.pack()], dtype=PAD_PARAMS)
         self.params = self.param_block[0]
+        #: A fresh state (:meth:`new_state`), copied by :func:`run_kernel` at every run.
+        self._fresh_state = self.new_state()
 
     @property
     def model_id(self) -> int:
@@ -403,26 +405,35 @@ def run_kernel(model: PadModel, t, V, N, mus, muk, gain, state=None):
     allocation faults its pages in far faster than six separate ones; with
     the tick loop at ~100 M ticks/s, fresh memory is most of the cost).
     """
-    from . import dispatch
+    # Short paths (a few hundred ticks) cost about as much in this Python wrapper as in the compiled
+    # loop: one allocation for the six outputs, one for both event rows, a cached initial state.
     n = t.shape[0]
     cap = n // 8 + 1024          # grown and re-run if a path has more events
-    S0 = model.new_state() if state is None else np.array(state, dtype=PAD_STATE).reshape(1)
+    S0 = model._fresh_state if state is None else np.array(state, dtype=PAD_STATE).reshape(1)
+    S0 = S0.view(np.uint8)       # copied as bytes: numpy copies a structured array field by field
     block = np.empty((6, n))
     out_f, out_s, out_x, out_v, out_wf, out_wd = block
+    run_ticks = _dispatch().run_ticks
     while True:
-        S = S0.copy()
-        ev_t = np.empty(cap)
-        ev_a = np.empty(cap)
-        n_ev = dispatch.run_ticks(model.model_id, S, model.param_block, t, V, N, mus, muk, gain,
-                                  out_f, out_s, out_x, out_v, out_wf, out_wd, ev_t, ev_a)
+        S = S0.copy().view(PAD_STATE)
+        ev = np.empty((2, cap))
+        n_ev = run_ticks(model.model_id, S, model.param_block, t, V, N, mus, muk, gain,
+                         out_f, out_s, out_x, out_v, out_wf, out_wd, ev[0], ev[1])
         if n_ev <= cap:
             break
         cap = n_ev + 64
     st = S[0]
-    if st["truncated"] > 0:
+    if S["truncated"][0] > 0:
         raise ModelError(f"model '{model.name}' exceeded {pads.MAX_EVENTS_PER_TICK} phase changes in one tick "
                          f"({int(st['truncated'])} ticks); inputs are outside the model's range")
-    return st, out_f, out_s, out_x, out_v, out_wf, out_wd, ev_t[:n_ev].copy(), ev_a[:n_ev].copy()
+    ev = ev[:, :n_ev].copy()
+    return st, out_f, out_s, out_x, out_v, out_wf, out_wd, ev[0], ev[1]
+
+
+def _dispatch():
+    """The generated dispatch module (imported on first use: it compiles or loads every kernel)."""
+    from . import dispatch
+    return dispatch
 
 
 def _as_ticks(value, n, field):

@@ -487,6 +487,17 @@ class Renderer:
         prepare_inputs(t, x, y, vals, self._config, self._slot_channel, *arrs)
         return vals, V, vx, vy, N, mus, muk, gain
 
+    def model_inputs(self, cursor: CursorPath):
+        """The per-tick inputs :meth:`render` gives the model for ``cursor`` (after the table lookup).
+
+        Returns ``(t, V, N, mu_s, mu_k, gain)``, each ndarray (n,), float64
+        (s, m/s, N, 1, 1, 1): the arguments of :func:`~.models.run_kernel`
+        after the model. A path not on this renderer's tick grid is resampled.
+        """
+        cp = cursor if cursor.tick_rate == self.tick_rate else cursor.resample(self.tick_rate)
+        _, V, _, _, N, mus, muk, gain = self._inputs(cp)
+        return cp.t, V, N, mus, muk, gain
+
     def render(self, cursor: CursorPath) -> RenderResult:
         """Render a whole cursor path offline (the fast path).
 
