@@ -12,8 +12,9 @@ written atomically (:func:`shapedisplay.atomic.atomic_path`).
   ``skin_stretch`` (m), ``event_time`` (s), ``event_amplitude``, plus
   ``table_checksum``, ``model``, ``tick_rate``, ``audio_rate``, ``clipped``
   and ``burst_policy``.
-* :func:`plot_trace` — N(x), friction, stick/slip state and bursts along
-  the stroke (needs matplotlib: the ``plot`` extra).
+* :func:`plot_trace` — N(x), friction, slip fraction and event rate over
+  stated windows, and bursts along the stroke, with the widgets crossed
+  shaded (needs matplotlib: the ``plot`` extra).
 """
 from __future__ import annotations
 
@@ -247,12 +248,15 @@ def play_to_files(renderer, cursor, wav, sample_format: str = "float32", trace=N
         plot_tmp = outputs.enter_context(atomic_path(plot)) if plot else None
         ahap_tmp = outputs.enter_context(atomic_path(ahap)) if ahap else None
         csv_tmp = outputs.enter_context(atomic_path(drive_csv)) if drive_csv else None
+        if plot_tmp is not None:      # read before the render: a bad widget map fails first
+            from .exchange.widgetmap import widget_map
+            widgets = widget_map(renderer.table)
         res = renderer.render(cursor)
         write_wav(wav_tmp, res.audio, res.audio_rate, sample_format)
         if trace_tmp is not None:
             write_trace(trace_tmp, res, table_checksum)
         if plot_tmp is not None:
-            plot_trace(plot_tmp, res)
+            plot_trace(plot_tmp, res, widgets=widgets)
         if ahap_tmp is not None:
             from .exchange.ahap import ahap_of_result, write_ahap
             write_ahap(ahap_tmp, ahap_of_result(res, renderer.device.burst.carrier_hz, ahap_envelope, description))
@@ -276,41 +280,82 @@ def check_plot_path(path) -> str:
     return fmt
 
 
-def plot_trace(path, result, title: str | None = None) -> Path:
-    """Plot N(x), friction force, stick/slip state and bursts along the stroke (PNG/PDF/SVG by suffix).
+def plot_trace(path, result, title: str | None = None, widgets=None) -> Path:
+    """Plot N(x), friction force, slip density and bursts along the stroke (PNG/PDF/SVG by suffix).
 
-    ``result`` is a RenderResult or a dict from :func:`read_trace`.
+    ``result`` is a RenderResult or a dict from :func:`read_trace`. The slip
+    panel shows, over consecutive time windows stated on its axis, the
+    fraction of ticks ending in slip and the stick-slip event rate
+    (:func:`shapedisplay.strokes.slip_density`). ``widgets`` (a table's
+    :func:`~shapedisplay.exchange.widgetmap.widget_map`) shades the stretches
+    of the stroke inside each widget, labelled with its id
+    (:func:`shapedisplay.strokes.widget_spans`). The PNG carries no
+    timestamp or version: the same stroke gives the same bytes.
     Needs matplotlib (``pip install 'shapedisplay[plot]'``).
     """
     fmt = check_plot_path(path)
     import matplotlib
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
+    from matplotlib.transforms import blended_transform_factory
+
+    from .strokes import arc_length, slip_density, widget_spans
 
     get = (lambda n: result[n]) if isinstance(result, dict) else (lambda n: getattr(result, n))
     t = np.asarray(get("t"))
-    x = np.asarray(get("x")) * 1e3
-    y = np.asarray(get("y")) * 1e3
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y)))])
+    x = np.asarray(get("x"))
+    y = np.asarray(get("y"))
+    s = arc_length(x, y) * 1e3
     et = np.asarray(get("event_time"))
     ea = np.asarray(get("event_amplitude"))
     es = np.interp(et, t, s) if et.size else et
-    fig, ax = plt.subplots(4, 1, figsize=(9, 8), sharex=True)
+    rate = float(get("tick_rate")) if not isinstance(result, dict) or "tick_rate" in result else 0.0
+    rate = rate if math.isfinite(rate) else 0.0
+    period = 1.0 / rate if rate > 0 else (float(np.median(np.diff(t))) if t.size > 1 else 1.0)
+    dens = slip_density(t, get("state"), et, period)
+    ds = np.interp(dens.edges, t, s)          # window edges as distances along the stroke
+    spans = widget_spans(x, y, widgets or [])
+
+    fig, ax = plt.subplots(5, 1, figsize=(9, 9.5), sharex=True, layout="constrained",
+                           gridspec_kw={"height_ratios": [1.0, 1.0, 0.8, 0.8, 1.0]})
     ax[0].plot(s, get("normal_force"), color="k")
     ax[0].set_ylabel("N (N)")
     ax[1].plot(s, get("friction_force"), color="tab:blue", lw=0.8)
     ax[1].set_ylabel("friction (N)")
-    ax[2].step(s, get("state"), where="post", color="tab:orange", lw=0.8)
-    ax[2].set_ylabel("slip")
-    ax[2].set_yticks([0, 1])
-    ax[2].set_yticklabels(["stick", "slip"])
-    ax[3].vlines(es, 0, ea, color="tab:red", lw=0.8)
-    ax[3].set_ylabel("burst amplitude")
-    ax[3].set_xlabel("distance along the stroke (mm)")
+    win = dens.window_label()
+    ax[2].stairs(100.0 * dens.slip_fraction, ds, fill=True, color="tab:orange", alpha=0.85)
+    ax[2].set_ylabel(f"slip, % of ticks\n({win})")
+    ax[2].set_ylim(0, max(1.0, 1.15 * 100.0 * float(dens.slip_fraction.max(initial=0.0))))
+    ax[3].stairs(dens.event_rate, ds, fill=True, color="tab:purple", alpha=0.85)
+    ax[3].set_ylabel(f"stick-slip events/s\n({win})")
+    ax[3].set_ylim(0, max(1.0, 1.15 * float(dens.event_rate.max(initial=0.0))))
+    ax[4].vlines(es, 0, ea, color="tab:red", lw=0.6)
+    ax[4].set_ylabel("burst amplitude")
+    ax[4].set_xlabel("distance along the stroke (mm)")
+    for a in ax:
+        a.margins(x=0.01)
+    if spans:
+        shades = ("#d9e6f2", "#f2e6d9")
+        label_at = blended_transform_factory(ax[0].transData, ax[0].transAxes)
+        for i, sp in enumerate(spans):
+            s0, s1 = sp["s0"] * 1e3, sp["s1"] * 1e3
+            for a in ax:
+                a.axvspan(s0, s1, color=shades[i % 2], zorder=0, lw=0)
+            ax[0].text(0.5 * (s0 + s1), 1.02 + 0.09 * (i % 2), sp["id"], transform=label_at, ha="center",
+                       va="bottom", fontsize=8, clip_on=False)
     model = get("model") if not isinstance(result, dict) else result.get("model", "")
-    fig.suptitle(title or f"{model}: {et.size} bursts over {s[-1]:.3g} mm, {t[-1] - t[0]:.3g} s")
-    fig.tight_layout()
+    slip_pct = 100.0 * float(np.mean(np.asarray(get("state")) != 0)) if t.size else 0.0
+    head = title or (f"{model}: {et.size} bursts over {s[-1]:.3g} mm, {t[-1] - t[0]:.3g} s; "
+                     f"slip {slip_pct:.1f} % of ticks")
+    if spans:
+        head += "\nshaded: widgets crossed (ids above)"
+    fig.suptitle(head, fontsize=11)
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=100, format=fmt)
+        fig.savefig(tmp, dpi=100, format=fmt, metadata=_PLOT_METADATA.get(fmt))
     plt.close(fig)
     return Path(path)
+
+
+#: Metadata written into plots: no software version, no creation date (the same data gives the same bytes).
+_PLOT_METADATA = {"png": {"Software": None}, "svg": {"Date": None, "Creator": None},
+                  "pdf": {"CreationDate": None, "ModDate": None, "Producer": None, "Creator": None}}
