@@ -15,7 +15,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import InputError, require, unknown_key
-from .model import (PreviewModel, Trace, auto_exaggeration, check_trace, envelope_indices, nice_number,
+from .model import (WALL_SLOPE, PreviewModel, Trace, auto_exaggeration, check_trace, envelope_indices, nice_number,
                     parse_exaggeration, parse_window_size, stroke_segments)
 from .offscreen import load_pyvista
 
@@ -37,6 +37,17 @@ SLIP_COLOR = "#e8590c"
 BURST_COLOR = "#c2185b"
 LEFT_OUT_COLOR = "#b8b8b8"
 WIDGET_COLOR = "#202020"
+WALL_COLOR = "#d62728"
+LEGEND_GROUND_COLOR = "#8a8a8a"
+#: Alternating colours of the widget bands on the stroke chart.
+SPAN_COLORS = ("#5b8fd1", "#d1955b")
+#: Opacity of the wall overlay (the surface colour stays readable through it).
+WALL_OPACITY = 0.55
+#: Colours of the orientation triad's x, y and z arrows.
+TRIAD_COLORS = ("#c62828", "#2e7d32", "#1565c0")
+#: Part of the frame (normalized device coordinates) the content is fitted into: left, right, bottom, top;
+#: the right and top parts are kept for the colour bar, the legend and the text.
+FREE_FRAME = {"left": -0.94, "right": 0.96, "bottom": -0.92, "top": 0.95}
 
 VIEWS = ("iso", "top", "side")
 
@@ -62,6 +73,12 @@ class Preview:
         self.stroke_times: np.ndarray | None = None
         self.last_readout: dict | None = None
         self.info = ""                                  # text shown in the upper left corner
+        self.legend: list = []                          # [label, colour] entries of the legend
+        self.wall_actor = None                          # the wall overlay, when the surface has walls
+        self.wall_cells = 0                             # cells drawn in the wall overlay
+        self.triad: dict = {}                           # axis -> (origin, tip) display mm, and "labels"
+        self.frame: dict = {}                           # content box and free region of the 3D view (NDC)
+        self.chart_spans: list = []                     # widget spans marked on the stroke chart
         self._picker = None
 
     # -- coordinates ------------------------------------------------------------------------
@@ -174,7 +191,8 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
         Render without a window (PNG output); else interactive.
     view : "iso" | "top" | "side"
     lighting, scalar_bar, chart, annotations : bool
-        Shading, colour bar, N/friction chart along the stroke, texts and scale bar.
+        Shading, colour bar, N/friction chart along the stroke (widgets crossed marked), texts, legend
+        and the orientation triad (x, y, z arrows labelled with their length in mm).
     cmap : str
         Colour map of the surface.
     """
@@ -216,7 +234,7 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
     grid.point_data[channel] = values[np.ix_(rs, cs)].ravel(order="F")   # (rows, cols) points: rows fastest
     title = f"{model.labels.get(channel, channel)}" + (f" [{unit}]" if unit else "")
     bar_title = f"{model.labels.get(channel, channel)}" + (f"\n[{unit}]" if unit else "")
-    bar_args = dict(title=bar_title, vertical=True, position_x=0.85, position_y=0.25, width=0.05, height=0.55,
+    bar_args = dict(title=bar_title, vertical=True, position_x=0.85, position_y=0.42, width=0.05, height=0.45,
                     color="black", title_font_size=14, label_font_size=12, fmt="%.3g")
     if channel == "walls":
         bar_args["n_labels"] = 2
@@ -278,8 +296,38 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
         if with_chart:
             pl.subplot(1, 0)
             pl.set_background("white")
-            _draw_chart(pv, pl, trace)
+            _draw_chart(pv, pl, preview, trace, model.widgets)
             pl.subplot(0, 0)
+
+    # ---- walls ----------------------------------------------------------------------------
+    walls = model.fields.get("walls")
+    if walls is not None and channel != "walls" and walls.any():
+        wall_cells = np.flatnonzero(_cell_mask(walls[np.ix_(rs, cs)] > 0, any_corner=True))
+        if wall_cells.size:
+            overlay = grid.extract_cells(wall_cells)
+            preview.wall_actor = pl.add_mesh(overlay, color=WALL_COLOR, opacity=WALL_OPACITY, lighting=lighting,
+                                             pickable=False)
+            mapper = preview.wall_actor.GetMapper()       # drawn over the surface it lies on
+            mapper.SetResolveCoincidentTopologyToPolygonOffset()
+            mapper.SetRelativeCoincidentTopologyPolygonOffsetParameters(-2.0, -4.0)
+            preview.wall_cells = int(wall_cells.size)
+
+    # ---- legend -----------------------------------------------------------------------------
+    legend = []
+    if trace is not None:
+        legend += [["stroke, stuck", STICK_COLOR], ["stroke, slipping", SLIP_COLOR],
+                   ["burst (spike ~ amplitude)", BURST_COLOR]]
+    if model.widgets:
+        legend.append(["widget outline", WIDGET_COLOR])
+    if model.stored is not None:
+        legend.append(["flat ground (one value)", LEFT_OUT_COLOR])
+    if preview.wall_actor is not None:
+        legend.append([f"wall (slope >= {WALL_SLOPE:g})", WALL_COLOR])
+    preview.legend = legend
+    if legend and annotations:     # entry text takes the entry's colour: the light grey is darkened for reading
+        shown = [[label, LEGEND_GROUND_COLOR if colour == LEFT_OUT_COLOR else colour] for label, colour in legend]
+        pl.add_legend(shown, bcolor="white", border=True, size=(0.26, 0.04 * len(legend)),
+                      loc="lower right", face="rectangle", font_family="arial")
 
     # ---- annotations ----------------------------------------------------------------------
     if annotations:
@@ -295,12 +343,16 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
             lines.append(f"drawn with 1 in {stride} samples per axis of the {model.relief.shape[0]}x"
                          f"{model.relief.shape[1]} grid; read-out uses all")
         if model.stored is not None:
-            lines.append("grey: left out by the compiler")
+            lines.append("grey: " + (model.ground or "flat ground, stored as one value"))
+        if preview.wall_actor is not None:
+            lines.append(f"red: walls, slope >= {WALL_SLOPE:g} (45 deg), {100 * float(walls.mean()):.0f} % of samples")
         if trace is not None:
             lines.append(f"stroke: {trace.t.size} ticks, {trace.event_time.size} bursts (spike height ~ amplitude)")
         preview.info = "\n".join(lines)
         pl.add_text(preview.info, position="upper_left", font_size=10, color="black", name="info")
-        _draw_scale_bar(pv, pl, xs, ys)
+
+    # ---- orientation triad (x, y, z with lengths in mm): at the near left corner --------------
+    triad_pts = _draw_triad(pv, pl, preview, xs, ys, extent) if annotations else np.zeros((0, 3))
 
     # ---- camera ---------------------------------------------------------------------------
     centre = (float(xs.mean()), float(ys.mean()), 0.5 * top)
@@ -310,23 +362,23 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
     if view == "top":
         pl.enable_parallel_projection()
     pl.reset_camera()
-    pl.camera.zoom({"top": 1.35, "side": 1.6, "iso": 1.15}[view])
-    if scalar_bar:   # move the surface a little left, clear of the colour bar
-        cam = pl.camera
-        fwd = np.subtract(cam.focal_point, cam.position)
-        right = np.cross(fwd, cam.up)
-        right *= 0.06 * np.linalg.norm(fwd) / max(np.linalg.norm(right), 1e-12)
-        cam.focal_point = tuple(np.add(cam.focal_point, right))
-        cam.position = tuple(np.add(cam.position, right))
-    # never crop: zoom out until the surface and the scale bar fit the free part of the frame
+    # fill the free part of the frame with the surface and the triad (zoom in or out, centred)
     edge_pts = [np.column_stack([xs[i], ys[i], zs[i]]) for i in (0, -1)]
     edge_pts += [np.column_stack([xs[:, j], ys[:, j], zs[:, j]]) for j in (0, -1)]
     k = max(1, zs.size // 20000)
     edge_pts.append(np.column_stack([xs.ravel()[::k], ys.ravel()[::k], zs.ravel()[::k]]))
-    y_bar = float(ys.min()) - 0.08 * extent          # the scale bar and its label
-    edge_pts.append(np.array([[float(xs.min()), y_bar, 0.0], [float(xs.min()) + extent / 5, y_bar, 0.0]]))
-    fit_in_frame(pl, np.concatenate(edge_pts), right=0.68 if scalar_bar else 0.97,
-                 top=0.76 if annotations else 0.97)
+    edge_pts.append(triad_pts)
+    if preview.stroke_points is not None:
+        edge_pts.append(preview.stroke_points)
+    region = dict(FREE_FRAME)
+    if scalar_bar:
+        region["right"] = 0.66
+    if annotations:     # below the text block (about 18 px a line, whatever the window size)
+        view_px = height * ((1.0 - CHART_HEIGHT) if with_chart else 1.0)
+        region["top"] = max(0.97 - 2.0 * (18 * len(preview.info.splitlines()) + 12) / max(view_px, 1.0), 0.2)
+    if legend and annotations and not scalar_bar:
+        region["right"] = 0.45
+    preview.frame = fit_in_frame(pl, np.concatenate(edge_pts), **region)
 
     if not off_screen:
         pl.enable_surface_point_picking(callback=preview._show_readout, show_message=False,
@@ -349,22 +401,58 @@ def frame_coordinates(pl, points: np.ndarray) -> np.ndarray:
     return h[:, :2] / h[:, 3:4]
 
 
-def fit_in_frame(pl, points: np.ndarray, left=-0.97, right=0.97, bottom=-0.95, top=0.97) -> float:
-    """Zoom the camera out (never in) until ``points`` lie inside the given part of the frame.
+def fit_in_frame(pl, points: np.ndarray, left=-0.97, right=0.97, bottom=-0.95, top=0.97) -> dict:
+    """Move and zoom the camera so ``points`` fill the given part of the frame, centred in it.
 
-    Returns the total zoom factor applied (1 when everything already fits).
+    The box of the points in normalized device coordinates (-1..1) is
+    brought to the centre of ``left..right`` x ``bottom..top`` and scaled
+    until it touches that region's sides in one direction (zoom in or out).
+
+    Returns
+    -------
+    dict
+        ``{"content": (x0, y0, x1, y1), "region": (left, bottom, right, top)}`` after the fit, NDC.
     """
-    total = 1.0
-    for _ in range(4):      # a perspective zoom scales the view angle, not its tangent: a few passes
+    cam = pl.camera
+    for _ in range(8):      # perspective: a zoom scales the view angle, a pan shifts the depth; a few passes
+        ndc = frame_coordinates(pl, points)
+        (x0, y0), (x1, y1) = ndc.min(axis=0), ndc.max(axis=0)
+        w, h = max(x1 - x0, 1e-9), max(y1 - y0, 1e-9)
+        f = min((right - left) / w, (top - bottom) / h)
+        dx = 0.5 * (left + right) - 0.5 * (x0 + x1)
+        dy = 0.5 * (bottom + top) - 0.5 * (y0 + y1)
+        if abs(f - 1.0) < 0.005 and abs(dx) < 0.003 and abs(dy) < 0.003:
+            break
+        # pan: shift position and focal point along the view's right and up vectors
+        pos, foc = np.array(cam.position), np.array(cam.focal_point)
+        fwd = foc - pos
+        dist = float(np.linalg.norm(fwd))
+        upv = np.array(cam.up, float)
+        right_v = np.cross(fwd, upv)
+        right_v /= max(np.linalg.norm(right_v), 1e-12)
+        up_v = np.cross(right_v, fwd)
+        up_v /= max(np.linalg.norm(up_v), 1e-12)
+        aspect = pl.renderer.GetTiledAspectRatio()
+        if cam.parallel_projection:
+            half_h = cam.parallel_scale
+        else:
+            half_h = dist * math.tan(math.radians(cam.view_angle) / 2.0)
+        shift = -(dx * half_h * aspect) * right_v - (dy * half_h) * up_v
+        cam.position = tuple(pos + shift)
+        cam.focal_point = tuple(foc + shift)
+        cam.zoom(float(np.clip(f * 0.995, 0.2, 5.0)))
+    for _ in range(4):      # never crop: zoom out while anything is outside the region
         ndc = frame_coordinates(pl, points)
         (x0, y0), (x1, y1) = ndc.min(axis=0), ndc.max(axis=0)
         f = min(1.0, left / x0 if x0 < left else 1.0, right / x1 if x1 > right else 1.0,
                 bottom / y0 if y0 < bottom else 1.0, top / y1 if y1 > top else 1.0)
         if f >= 0.999:
             break
-        pl.camera.zoom(f * 0.99)
-        total *= f * 0.99
-    return total
+        cam.zoom(f * 0.99)
+    ndc = frame_coordinates(pl, points)
+    (x0, y0), (x1, y1) = ndc.min(axis=0), ndc.max(axis=0)
+    return {"content": (float(x0), float(y0), float(x1), float(y1)),
+            "region": (float(left), float(bottom), float(right), float(top))}
 
 
 def draw_stride(rows: int, cols: int) -> int:
@@ -393,10 +481,14 @@ def _hover(preview: Preview) -> None:
         pl.render()
 
 
-def _cell_mask(point_mask: np.ndarray) -> np.ndarray:
-    """Cells (quads between 4 samples) whose samples are all True, StructuredGrid cell order."""
+def _cell_mask(point_mask: np.ndarray, any_corner: bool = False) -> np.ndarray:
+    """Cells (quads between 4 samples) whose samples are all True (or any, with ``any_corner``),
+    StructuredGrid cell order."""
     m = point_mask
-    cells = m[:-1, :-1] & m[1:, :-1] & m[:-1, 1:] & m[1:, 1:]
+    if any_corner:
+        cells = m[:-1, :-1] | m[1:, :-1] | m[:-1, 1:] | m[1:, 1:]
+    else:
+        cells = m[:-1, :-1] & m[1:, :-1] & m[:-1, 1:] & m[1:, 1:]
     return cells.ravel(order="F")   # StructuredGrid(xs, ys, zs) of (rows, cols) arrays: rows fastest
 
 
@@ -445,11 +537,10 @@ def _draw_stroke(pv, pl, preview: Preview, trace: Trace, lift: float, extent: fl
     cursor = pv.Sphere(radius=0.015 * extent, center=(0.0, 0.0, 0.0))
     preview.cursor_actor = pl.add_mesh(cursor, color="black", pickable=False)
     preview.cursor_actor.position = tuple(pts[0])
-    legend = [["stick", STICK_COLOR], ["slip", SLIP_COLOR], ["burst", BURST_COLOR]]
-    pl.add_legend(legend, bcolor="white", size=(0.12, 0.1), loc="lower right", face="circle")
 
 
-def _draw_chart(pv, pl, trace: Trace) -> None:
+def _draw_chart(pv, pl, preview: Preview, trace: Trace, widgets: list) -> None:
+    """N and friction force along the stroke; the stretches inside widgets shaded (ids in the legend)."""
     s = trace.arc_length * 1e3
     if trace.t.size < 2 or float(np.ptp(s)) <= 0:
         s = trace.t - trace.t[0]
@@ -457,6 +548,16 @@ def _draw_chart(pv, pl, trace: Trace) -> None:
     else:
         xlabel = "distance along stroke [mm]"
     chart = pv.Chart2D(size=(0.9, 0.92), loc=(0.02, 0.04), x_label=xlabel, y_label="force [N]")
+    if xlabel.startswith("distance") and widgets:   # the widgets crossed: a band below the curves
+        from ..strokes import widget_spans
+        spans = widget_spans(trace.x, trace.y, widgets)
+        top = float(max(np.max(trace.normal_force), np.max(trace.friction_force), 0.0)) or 1.0
+        level = min(float(np.min(trace.friction_force)), 0.0) - 0.1 * top
+        ids = ", ".join(dict.fromkeys(d["id"] for d in spans))
+        for i, sp in enumerate(spans):
+            chart.line(np.array([sp["s0"], sp["s1"]]) * 1e3, np.array([level, level]), width=10.0,
+                       color=SPAN_COLORS[i % 2], label=f"widgets crossed: {ids}" if i == 0 else "")
+        preview.chart_spans = spans
     for values, colour, label in ((trace.normal_force, "black", "normal force N"),
                                   (trace.friction_force, SLIP_COLOR, "friction force")):
         idx = envelope_indices(values, CHART_BINS)
@@ -467,15 +568,33 @@ def _draw_chart(pv, pl, trace: Trace) -> None:
 
 
 
-def _draw_scale_bar(pv, pl, xs: np.ndarray, ys: np.ndarray) -> None:
-    width = float(np.ptp(xs))
-    depth = float(np.ptp(ys))
-    length = nice_number(width / 5.0) if width > 0 else 1.0
-    x0 = float(xs.min())
-    extent = max(width, depth)
-    y = float(ys.min()) - 0.04 * extent
-    bar = pv.Line((x0, y, 0.0), (x0 + length, y, 0.0))
-    pl.add_mesh(bar, color="black", line_width=6, pickable=False)
-    y_label = y - 0.04 * extent
-    pl.add_point_labels(np.array([[x0 + 0.5 * length, y_label, 0.0]]), [f"{length:g} mm"], font_size=12,
-                        text_color="black", shape=None, show_points=False, always_visible=True)
+def _draw_triad(pv, pl, preview: Preview, xs: np.ndarray, ys: np.ndarray, extent: float) -> np.ndarray:
+    """Arrows along x, y and z at the near left corner, each one ``length`` long, labelled with what that
+    length is (mm of the surface; z: mm of height, or N of force, at the drawn exaggeration).
+
+    Returns the display points (n, 3) the triad and its labels take, for framing.
+    """
+    model = preview.model
+    length = nice_number(max(float(np.ptp(xs)), float(np.ptp(ys))) / 6.0) if extent > 0 else 1.0
+    gap = 0.05 * extent
+    origin = np.array([float(xs.min()) - gap, float(ys.min()) - gap, 0.0])
+    z_len = length / preview.exaggeration
+    z_unit = "mm" if model.relief_unit == "m" else "N"
+    texts = {"x": f"x {length:g} mm", "y": f"y {length:g} mm",
+             "z": f"z {z_len:.3g} {z_unit}" + (" of N" if z_unit == "N" else "")}
+    tips = {}
+    for axis, direction, colour in zip("xyz", np.eye(3), TRIAD_COLORS):
+        tip = origin + length * direction
+        arrow = pv.Arrow(start=origin, direction=direction, scale=length, tip_length=0.22, tip_radius=0.07,
+                         shaft_radius=0.025)
+        pl.add_mesh(arrow, color=colour, pickable=False, lighting=False)
+        tips[axis] = tip
+    # x label past its tip, y label to the right of its tip, z label to the left: never on each other
+    offsets = {"x": (0.35, 0.0, 0.0), "y": (0.45, 0.1, 0.0), "z": (-0.35, 0.0, 0.12)}
+    pts = np.array([tips[a] + length * np.array(offsets[a]) for a in "xyz"])
+    pl.add_point_labels(pts, [texts[a] for a in "xyz"], font_size=12, text_color="black", shape=None,
+                        show_points=False, always_visible=True, bold=True)
+    preview.triad = {"origin": origin, "tips": tips, "length": length, "labels": texts}
+    pad = 0.25 * length
+    return np.array([origin, origin + [length + 3 * pad, 0, 0], origin + [0, length + pad, 0],
+                     origin + [0, 0, length + pad]])

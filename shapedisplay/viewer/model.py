@@ -141,13 +141,17 @@ class PreviewModel:
     labels : dict name -> str
         Human-readable name of each field.
     stored : ndarray of shape (rows, cols), bool, or None
-        False where the compiler left the samples out (drawn faintly).
+        False on flat ground outside every stored block: the table keeps one
+        value per channel there (its background), drawn faintly.
     widgets : list of dict
         ``{"id": str, "x0", "y0", "x1", "y1"}`` outlines in metres.
     checksum : str or None
         Checksum of the table shown (trace check).
     strip : bool
         True when a 1-D profile was widened into a strip for drawing.
+    ground : str
+        What the unstored flat ground plays, e.g. "flat ground, stored as one
+        value: N = 1 N" (empty when everything is stored).
     """
 
     x: np.ndarray
@@ -163,6 +167,7 @@ class PreviewModel:
     strip: bool = False
     title: str = ""
     notes: list = field(default_factory=list)
+    ground: str = ""
 
     @property
     def channels(self) -> list[str]:
@@ -326,6 +331,10 @@ def model_from_table(table, title: str | None = None, widgets: list | None = Non
         stored[r0:r0 + nr, c0:c0 + nc] = True
     if stored.all():
         stored = None
+    ground = ""
+    if stored is not None:
+        values = [f"N = {table.background['normal_force']:.3g} N"] if "normal_force" in table.channels else []
+        ground = "flat ground, stored as one value" + (": " + ", ".join(values) if values else "")
 
     strip = False
     if g.rows == 1:
@@ -338,7 +347,7 @@ def model_from_table(table, title: str | None = None, widgets: list | None = Non
     default_title = src.get("description", "") if isinstance(src, dict) else ""
     model = PreviewModel(x=x, y=y, relief=relief, relief_unit=relief_unit, fields=fields, units=units,
                         labels=labels, stored=stored, widgets=[],
-                        checksum=table.checksum(), strip=strip,
+                        checksum=table.checksum(), strip=strip, ground=ground,
                         title=title if title is not None else (default_title or "friction table"), notes=notes)
     model.widgets = _strip_widgets(_clean_widgets(widgets), model)
     return model
