@@ -278,7 +278,7 @@ def _firmware_sections(table: FrictionTable, P: str, p: str) -> tuple[list[str],
         lines.append(f"static const sd_channel_t {p}_channel_{name} = {{{p}_{name}_codes, {P}_{name.upper()}_DTYPE, "
                      f"{p}_{name}_scale, {p}_{name}_offset, {p}_{name}_background}};")
     cfg = dict((n, v) for n, v, _ in run_config(table.meta))
-    from .runtime.renderer import constant_normal_force
+    from .runtime.settings import constant_normal_force
     n_const = float(constant_normal_force(table) or 0.0)
     lines += [
         f"static inline void {p}_bind(sd_table_t *T, sd_config_t *C, int32_t blocks[][5])",

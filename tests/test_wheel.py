@@ -95,13 +95,21 @@ def test_installed_wheel_compiles_plays_exports_and_runs_c(wheel, tmp_path):
     assert json.loads(out)["device"] == "handheld-stick"
     out = _run([sd, "play", "t.npz", "--stroke", "5:55mm @ 50mm/s", "--model", "jump", "--tick-rate", "2kHz",
                 "-o", "o.wav", "--json"], tmp_path, env)
-    assert json.loads(out)["events"] > 0 and (tmp_path / "o.wav").stat().st_size > 44
+    auto = json.loads(out)
+    assert auto["events"] > 0 and (tmp_path / "o.wav").stat().st_size > 44
     _run([sd, "export", "t.npz", "--format", "c", "-o", "table.h", "--name", "sd_table"], tmp_path, env)
     assert "sd_table" in (tmp_path / "table.h").read_text()
 
     cc = shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
     if cc is None:
         pytest.skip("no C compiler: the C runtime part of the smoke test needs one")
+    # with a C compiler, play went through the C runtime built from the installed sources (its offline loop
+    # ships in the wheel too); the numba kernels write the same file
+    assert auto["engine"] == "c"
+    out = _run([sd, "play", "t.npz", "--stroke", "5:55mm @ 50mm/s", "--model", "jump", "--tick-rate", "2kHz",
+                "-o", "o-py.wav", "--json", "--engine", "python"], tmp_path, env)
+    assert json.loads(out)["engine"] == "python"
+    assert (tmp_path / "o-py.wav").read_bytes() == (tmp_path / "o.wav").read_bytes()
     runtime_c = Path(_run([py, "-c", "from shapedisplay.link.c_engine import RUNTIME_C; print(RUNTIME_C)"],
                           tmp_path, env).strip())
     assert runtime_c.is_relative_to(venv)

@@ -16,69 +16,15 @@ it works from an installed wheel too.
 from __future__ import annotations
 
 import ctypes
-import hashlib
-import os
-import shutil
-import subprocess
-import tempfile
-from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
 from ..runtime.layouts import RENDER_CONFIG, ctypes_struct
+from ..runtime.native import C_MODELS, RUNTIME_C, library  # noqa: F401 (their home is runtime.native)
 from .engine import RenderEngine
 
-#: The C runtime sources, shipped inside the package (``runtime-c/`` in a checkout links here).
-RUNTIME_C = Path(__file__).resolve().parent.parent / "runtime_c"
-SOURCES = ("sd_pad.c", "sd_exact.c", "sd_render.c", "sd_image.c")
-CFLAGS = ("-std=c99", "-O2", "-ffp-contract=off", "-fPIC", "-shared")
-#: Models with a C tick (``sd_model_tick``); ids are shared with the Python registry.
-C_MODELS = ("exact", "jump")
 _Config = ctypes_struct(RENDER_CONFIG)
-
-
-_LIB = None
-
-
-def library() -> ctypes.CDLL:
-    """Build (once per source version) and load the C runtime as a shared library."""
-    global _LIB
-    if _LIB is not None:
-        return _LIB
-    srcs = [RUNTIME_C / n for n in SOURCES]
-    if not all(p.is_file() for p in srcs):
-        raise InputError(f"the C engine needs the runtime-c sources (not found in {RUNTIME_C}); "
-                         "use the default Python engine")
-    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
-    if not cc:
-        raise InputError("the C engine needs a C compiler (cc, gcc or clang); use the default Python engine")
-    digest = hashlib.sha256(b"".join(p.read_bytes() for p in [*srcs, *sorted(RUNTIME_C.glob("*.h"))])
-                            + " ".join(CFLAGS).encode()).hexdigest()[:16]
-    cache = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "shapedisplay"
-    lib_path = cache / f"sd_runtime-{digest}.so"
-    if not lib_path.is_file():
-        cache.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(dir=cache) as d:
-            tmp = Path(d) / lib_path.name
-            res = subprocess.run([cc, *CFLAGS, "-I", str(RUNTIME_C), *map(str, srcs), "-lm", "-o", str(tmp)],
-                                 capture_output=True, text=True, timeout=300)
-            if res.returncode != 0:
-                raise InputError(f"building the C engine failed: {res.stderr.strip().splitlines()[-1:]}")
-            os.replace(tmp, lib_path)
-    lib = ctypes.CDLL(str(lib_path))
-    lib.sd_renderer_size.restype = ctypes.c_size_t
-    lib.sd_image_size.restype = ctypes.c_size_t
-    lib.sd_image_load.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t]
-    lib.sd_image_load.restype = ctypes.c_int
-    lib.sd_image_config.argtypes = [ctypes.c_void_p, ctypes.POINTER(_Config)]
-    lib.sd_renderer_init.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.POINTER(_Config)]
-    lib.sd_renderer_init.restype = ctypes.c_int
-    lib.sd_renderer_reset.argtypes = [ctypes.c_void_p, ctypes.c_double]
-    lib.sd_renderer_step.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double]
-    lib.sd_renderer_step.restype = ctypes.c_double
-    _LIB = lib
-    return lib
 
 
 class CRenderer:

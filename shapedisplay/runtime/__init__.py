@@ -12,6 +12,9 @@ Runtime side only: imports ``table``, ``devices``, ``units``, ``errors`` and
 * :mod:`.bursts` — burst envelope, carrier and overlap policies;
 * :mod:`.lookup` — numba bilinear lookup in packed tables;
 * :mod:`.renderer` — :class:`Renderer` (offline ``render`` and online ``step``);
+* :mod:`.settings` — a renderer's validated settings (numba-free; both engines use them);
+* :mod:`.native` — the C runtime as a shared library (ctypes) and offline play through it;
+* :mod:`.play` — :class:`PathRenderer`: offline play with the C runtime or the numba kernels;
 * :mod:`.codegen` — the build step (``make generate``) that writes
   ``dispatch.py``, ``runtime_c/sd_layout.h`` and the kernel-source hashes.
 
@@ -23,7 +26,7 @@ Adding a pad model
    :data:`~.layouts.PAD_PARAMS` record ``prm`` (a parameter the model needs is
    a named field there, with its unit in the comment).
 2. **Class and registry line**: a :class:`~.models.PadModel` subclass with
-   ``name``, ``kernel = pads.NAME_tick`` and a ``pack()`` that fills its
+   ``name``, ``kernel = Kernel("NAME_tick")`` (named, imported on first use) and a ``pack()`` that fills its
    parameters, appended to :data:`~.models.MODELS` (its position is its model
    id, in Python and C alike).
 3. ``make generate``: writes the model's branches in :mod:`.dispatch`, its
@@ -52,7 +55,8 @@ _LAZY = {
     "simulate_pad": "models",
     "get_model": "models",
     "Renderer": "renderer",
-    "RenderResult": "renderer",
+    "RenderResult": "result",
+    "PathRenderer": "play",
     "CursorPath": "cursor",
     "parse_stroke": "cursor",
     "load_trace_csv": "cursor",

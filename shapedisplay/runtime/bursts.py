@@ -62,31 +62,14 @@ import math
 import numpy as np
 from numba import njit
 
-from ..errors import InputError, unknown_key
 from .layouts import BURST_POLICIES, BURST_STATE, Policy, record
+from .settings import MAX_AUDIO_SAMPLES, audio_length, policy_id  # noqa: F401 (their home is .settings)
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to layouts.py (Policy).
 KERNEL_SOURCES_SHA256 = "09111a5fb3f0834ebca8d46d586a34c86d755cf3e9ae204a775cda85de1bc5ee"
-#: Most audio samples one offline render writes (1000 s at 48 kHz; 384 MB as float64).
-MAX_AUDIO_SAMPLES = 48_000_001
 #: Carrier re-anchored with sin/cos every this many samples (rotation in between).
 CARRIER_BLOCK = 64
 
-
-
-def audio_length(duration: float, rate: float) -> int:
-    """Samples ``floor(duration * rate + 1e-9) + 1`` of an offline stream; refused beyond :data:`MAX_AUDIO_SAMPLES`."""
-    n = duration * rate
-    if not (math.isfinite(n) and math.floor(n + 1e-9) + 1 <= MAX_AUDIO_SAMPLES):
-        raise InputError(f"audio of {duration:.4g} s at {rate:g} Hz needs {n:.4g} samples, more than the "
-                         f"{MAX_AUDIO_SAMPLES:,} of one offline render (shorten the path or lower the audio rate)")
-    return int(math.floor(n + 1e-9)) + 1
-
-
-def policy_id(name: str) -> int:
-    if name not in BURST_POLICIES:
-        raise unknown_key("burst policy", name, BURST_POLICIES)
-    return BURST_POLICIES[name]
 
 
 def new_burst_state(carrier: float, rate: float) -> np.ndarray:

@@ -73,7 +73,7 @@ def _align(n: int, a: int = 8) -> int:
 
 def settings(table: FrictionTable, device=None) -> dict:
     """The renderer settings of ``table`` (names of :data:`PARAMS`), as a Renderer resolves them."""
-    from .renderer import constant_normal_force, device_for_table, mapping_settings
+    from .settings import constant_normal_force, device_for_table, mapping_settings
     dev = device_for_table(table, device)
     kmu, sst = mapping_settings(table, dev)
     p, f, b = dev.pad, dev.friction, dev.burst

@@ -26,6 +26,7 @@ tanh        Konyo pad with tanh-regularised Coulomb friction (no stick state;
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -34,8 +35,23 @@ import numpy as np
 from ..devices import BurstParams, DeviceProfile, FrictionParams, PadParams, check_tick_rate, load_device
 from ..errors import InputError, ModelError, unknown_key
 from ..units import parse_quantity
-from . import pads
 from .layouts import PAD_PARAMS, PAD_STATE, record
+
+
+class Kernel:
+    """A model's numba tick function in :mod:`.pads`, named here and imported on first use.
+
+    Naming the kernel rather than importing it keeps numba out of everything
+    that only reads a model's parameters: a play through the C runtime loads
+    no numba. ``SomeModel.kernel`` is the compiled function itself.
+    """
+
+    def __init__(self, name: str):
+        self.__name__ = name
+
+    def __get__(self, obj, cls=None):
+        from . import pads
+        return getattr(pads, self.__name__)
 
 
 def _extra_q(device: DeviceProfile, section: str, key: str, unit: str, default: float, bare_ok=False) -> float:
@@ -76,8 +92,12 @@ class PadModel:
         #: numba unboxes an array far faster than a bare record) and its record view.
         self.param_block = np.array([self.pack()], dtype=PAD_PARAMS)
         self.params = self.param_block[0]
-        #: A fresh state (:meth:`new_state`), copied by :func:`run_kernel` at every run.
-        self._fresh_state = self.new_state()
+
+    @functools.cached_property
+    def _fresh_state(self) -> np.ndarray:
+        """A fresh state (:meth:`new_state`), copied by :func:`run_kernel` at every run (made on first use:
+        it imports the kernels, which a model used only for its parameters never needs)."""
+        return self.new_state()
 
     @property
     def model_id(self) -> int:
@@ -92,6 +112,7 @@ class PadModel:
 
     def new_state(self) -> np.ndarray:
         """A fresh state: a one-element :data:`~.layouts.PAD_STATE` array."""
+        from . import pads
         return pads.new_state()
 
     def __repr__(self) -> str:
@@ -109,7 +130,7 @@ class ExactModel(PadModel):
     """
 
     name = "exact"
-    kernel = pads.exact_tick
+    kernel = Kernel("exact_tick")
     stick_fast_path = "with_work"
 
 
@@ -145,7 +166,7 @@ class JumpModel(PadModel):
     """
 
     name = "jump"
-    kernel = pads.jump_tick
+    kernel = Kernel("jump_tick")
     stick_fast_path = "without_work"
     #: Stated bound: relative period error <= BOUND_PER_R * r for r <= BOUND_R_MAX, zeta <= BOUND_ZETA_MAX.
     BOUND_PER_R = 0.02
@@ -165,7 +186,7 @@ class KarnoppModel(PadModel):
     """
 
     name = "karnopp"
-    kernel = pads.karnopp_tick
+    kernel = Kernel("karnopp_tick")
     uses_pad = False
 
     def pack(self) -> np.ndarray:
@@ -207,7 +228,7 @@ class StribeckModel(PadModel):
     """
 
     name = "stribeck"
-    kernel = pads.stribeck_tick
+    kernel = Kernel("stribeck_tick")
 
     def __init__(self, device=None, variant="stribeck", contactor_hz=None, contactor_amplitude_m=None,
                  substep_s=2e-6):
@@ -287,7 +308,7 @@ class TanhModel(PadModel):
     """
 
     name = "tanh"
-    kernel = pads.tanh_tick
+    kernel = Kernel("tanh_tick")
 
     def __init__(self, device=None, eps_m_s=1e-4, substep_s=1e-6):
         for name, val in (("eps_m_s", eps_m_s), ("substep_s", substep_s)):
@@ -308,14 +329,14 @@ class EulerModel(PadModel):
     """Forward Euler, one step per tick. Diverges on the Konyo pad unless h < 2 zeta/omega_n (~5 us)."""
 
     name = "euler"
-    kernel = pads.euler_tick
+    kernel = Kernel("euler_tick")
 
 
 class Rk4Model(PadModel):
     """Classical RK4, one step per tick. Diverges on the Konyo pad unless h < 2.8/omega_n (~63 us)."""
 
     name = "rk4"
-    kernel = pads.rk4_tick
+    kernel = Kernel("rk4_tick")
 
 
 #: Registry: model name -> class. A new model is one class plus one line here (append: the
@@ -335,16 +356,31 @@ MODEL_IDS = {name: i for i, name in enumerate(MODELS)}
 
 def registry_entries() -> tuple:
     """``(name, kernel function name, stick fast path)`` per model in id order: what :mod:`.dispatch` is generated from."""
-    return tuple((name, cls.kernel.__name__, cls.stick_fast_path) for name, cls in MODELS.items())
+    return tuple((name, _kernel_name(cls), cls.stick_fast_path) for name, cls in MODELS.items())
+
+
+def _kernel_name(cls) -> str:
+    """The name of ``cls``'s kernel in :mod:`.pads`, without importing it."""
+    for c in cls.__mro__:
+        if "kernel" in vars(c):
+            k = vars(c)["kernel"]
+            return k.__name__
+    raise ModelError(f"model class {cls.__name__} names no kernel")
+
+
+@functools.cache
+def check_dispatch() -> None:
+    """Refuse to run kernels when :mod:`.dispatch` was generated from another registry than :data:`MODELS`
+    (checked once per process)."""
+    from . import dispatch      # generated from MODELS (imported here so `make generate` never needs it)
+    if dispatch.REGISTRY != registry_entries():
+        raise ModelError("shapedisplay/runtime/dispatch.py was generated from another model registry than "
+                         "runtime.models.MODELS; regenerate it with `make generate`")
 
 
 
 def get_model(model, device: DeviceProfile | None = None, **options) -> PadModel:
     """Instantiate ``model`` (a name, a :class:`PadModel` subclass or instance)."""
-    from . import dispatch      # generated from MODELS (imported here so `make generate` never needs it)
-    if dispatch.REGISTRY != registry_entries():
-        raise ModelError("shapedisplay/runtime/dispatch.py was generated from another model registry than "
-                         "runtime.models.MODELS; regenerate it with `make generate`")
     if isinstance(model, PadModel):
         return model
     if isinstance(model, type) and issubclass(model, PadModel):
@@ -407,6 +443,8 @@ def run_kernel(model: PadModel, t, V, N, mus, muk, gain, state=None):
     """
     # Short paths (a few hundred ticks) cost about as much in this Python wrapper as in the compiled
     # loop: one allocation for the six outputs, one for both event rows, a cached initial state.
+    from . import pads
+    check_dispatch()
     n = t.shape[0]
     cap = n // 8 + 1024          # grown and re-run if a path has more events
     S0 = model._fresh_state if state is None else np.array(state, dtype=PAD_STATE).reshape(1)

@@ -52,22 +52,22 @@ Real-time rules for :meth:`Renderer.step`
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numba import njit
 
-from ..devices import DeviceProfile, check_tick_rate, load_device
-from ..errors import InputError, ModelError, TableError
+from ..errors import InputError, ModelError
 from ..table import FrictionTable
-from ..units import parse_quantity
-from .bursts import (audio_length, carrier_at, envelope_at, finished_events, forget_events, new_burst_state,
-                     policy_id, render_bursts, synth)
+from .bursts import carrier_at, envelope_at, finished_events, forget_events, new_burst_state, render_bursts, synth
 from .cursor import MAX_POSITION_M, CursorPath
 from .dispatch import model_tick
-from .layouts import NSLOT, ONLINE, OUTPUTS, RENDER_CONFIG, SLOTS, Slot, record
+from .layouts import NSLOT, ONLINE, OUTPUTS, SLOTS, Slot
 from .lookup import sample_all
-from .models import PadModel, divergence_message, get_model, run_kernel
+from .models import PadModel, check_dispatch, divergence_message, run_kernel
+from .result import RenderResult
+# the settings' home is .settings (numba-free, shared with the C engine); these names stay importable from here
+from .settings import (audio_length, constant_normal_force, derive_config, device_for_table,  # noqa: F401
+                       mapping_settings, render_settings, slot_channels)
 
 #: Names of the per-tick outputs of :meth:`Renderer.step` (fields of :data:`~.layouts.OUTPUTS`).
 OUT_NAMES = OUTPUTS.names
@@ -76,7 +76,7 @@ _RING = 4096
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "35ccb4cba96ca15b8f472a60a6479dc274176d14bc781622eda74b7f118d2f8e"
+KERNEL_SOURCES_SHA256 = "9b71858315b06938c277e46686b25271144424108a33e6067d4603e22c239027"
 
 
 @njit(cache=True)
@@ -145,19 +145,6 @@ def prepare_inputs(t, x, y, vals, config, slot_channel, V, vx, vy, N, mus, muk, 
         N[i], mus[i], muk[i], gain[i] = _derive(vals[:, i], cfg, slot_channel, vx[i], vy[i], sp)
 
 
-def _derive_config(mu_s: float, mu_k: float, kmu: float = 0.0, sst: float = 0.0, n_const: float | None = None,
-                   **settings) -> np.ndarray:
-    """The RENDER_CONFIG :func:`_derive` reads (a one-element array): device friction, K_mu, skin
-    target and the constant N of a table without ``normal_force`` (plus any other ``settings`` fields)."""
-    return record(RENDER_CONFIG, mu_s=mu_s, mu_k=mu_k, k_mu=kmu, skin_target=sst,
-                  normal_force_constant=n_const or 0.0, **settings)
-
-
-def _slot_channels(present) -> np.ndarray:
-    """Packed channel of each slot (position in ``present``), -1 where the table lacks it."""
-    return np.array([present.index(n) if n in present else -1 for n in SLOTS], dtype=np.int64)
-
-
 def friction_limits(channels: dict, mu_s: float, mu_k: float) -> tuple[np.ndarray, np.ndarray]:
     """Breakaway and kinetic force of each sample with the cursor at rest, as every tick derives them.
 
@@ -192,7 +179,7 @@ def friction_limits(channels: dict, mu_s: float, mu_k: float) -> tuple[np.ndarra
     t = np.arange(n, dtype=np.float64)          # any increasing times: the cursor stands still
     still = np.zeros(n)
     V, vx, vy, N, mus, muk, gain = arrs = np.empty((7, n))
-    prepare_inputs(t, still, still, vals, _derive_config(mu_s, mu_k), _slot_channels(present), *arrs)
+    prepare_inputs(t, still, still, vals, derive_config(mu_s, mu_k), slot_channels(present), *arrs)
     return (mus * N).reshape(shape), (muk * N).reshape(shape)
 
 
@@ -299,112 +286,6 @@ def online_step(state, blocks, data, bg, ev, audio, x, y):
     return drive
 
 
-@dataclass
-class RenderResult:
-    """Everything one offline run produced (arrays are float64 of shape (n,) unless stated).
-
-    Attributes
-    ----------
-    t : s, tick times; ``x, y`` : m, cursor; ``vx, vy`` : m/s, cursor velocity
-    normal_force : N; ``friction_force`` : N, on the pad, signed along the pad axis
-    state : int8, 0 stick / 1 slip at the end of each tick (a slip shorter than a tick shows only as an event)
-    lateral_x, lateral_y : N, lateral-force cue; ``skin_stretch`` : m
-    event_time, event_amplitude : (n_events,), s and full-scale amplitude
-    audio : (n_audio,), float64 in [-1, 1] at ``audio_rate`` Hz, first sample at ``t[0]``
-    clipped : int, audio samples limited to full scale
-    model : str; ``tick_rate`` : Hz; ``burst_policy`` : str
-    """
-
-    t: np.ndarray
-    x: np.ndarray
-    y: np.ndarray
-    vx: np.ndarray
-    vy: np.ndarray
-    normal_force: np.ndarray
-    friction_force: np.ndarray
-    state: np.ndarray
-    lateral_x: np.ndarray
-    lateral_y: np.ndarray
-    skin_stretch: np.ndarray
-    event_time: np.ndarray
-    event_amplitude: np.ndarray
-    audio: np.ndarray
-    audio_rate: float
-    clipped: int
-    model: str
-    tick_rate: float
-    burst_policy: str = "retrigger"
-    mu_s: np.ndarray = field(default=None, repr=False)
-
-    @property
-    def duration(self) -> float:
-        return float(self.t[-1] - self.t[0])
-
-    def summary(self) -> dict:
-        """Short numbers for a CLI line or a report."""
-        return {
-            "model": self.model,
-            "tick_rate_hz": self.tick_rate,
-            "ticks": int(self.t.size),
-            "duration_s": self.duration,
-            "events": int(self.event_time.size),
-            "max_friction_n": float(np.max(np.abs(self.friction_force), initial=0.0)),
-            "slip_fraction": float(np.mean(self.state)) if self.state.size else 0.0,
-            "audio_samples": int(self.audio.size),
-            "audio_rate_hz": self.audio_rate,
-            "clipped": int(self.clipped),
-            "peak": float(np.max(np.abs(self.audio), initial=0.0)),
-        }
-
-
-def constant_normal_force(table: FrictionTable) -> float | None:
-    """The normal force (N) of a table that stores no ``normal_force`` channel, else None.
-
-    A mapping without a height term leaves ``normal_force`` out of the table:
-    N is then the constant ``n_base`` of the header's mapping. A table with
-    neither is refused (the pad models need N).
-    """
-    if "normal_force" in table.channels:
-        return None
-    mapping = table.meta.get("mapping")
-    n0 = mapping.get("n_base") if isinstance(mapping, dict) else None
-    if n0 is None:
-        raise TableError(f"table stores no 'normal_force' and its header gives no constant `mapping.n_base`; "
-                         f"the pad models need N (it holds {table.channels})")
-    if isinstance(n0, bool) or not isinstance(n0, (int, float)) or not (math.isfinite(n0) and n0 >= 0):
-        raise TableError(f"table header `mapping.n_base` must be a finite force >= 0 N (got {n0!r})")
-    return float(n0)
-
-
-def device_for_table(table: FrictionTable, device=None) -> DeviceProfile:
-    """The profile a renderer uses: ``device`` (profile, path or bundled name) if given,
-    else ``table.meta["device"]``, else the built-in Konyo profile."""
-    if isinstance(device, DeviceProfile):
-        return device.validate()
-    if device is not None:
-        return load_device(device)
-    if isinstance(table.meta.get("device"), dict):
-        return DeviceProfile.from_json(table.meta["device"])
-    return load_device(None)
-
-
-def mapping_settings(table: FrictionTable, dev: DeviceProfile) -> tuple[float, float]:
-    """The renderer settings a table's mapping and device add to the pad and burst parameters:
-    ``(slope_friction_gain, skin_stretch_target_m)``, validated (one home for both rules)."""
-    mapping = table.meta.get("mapping", {}) or {}
-    kmu = float(mapping.get("slope_friction_gain", 0.0) or 0.0)
-    if not (math.isfinite(kmu) and kmu >= 0):
-        raise InputError(f"table mapping `slope_friction_gain` must be >= 0 (got {kmu!r})")
-    if kmu > 0 and "grad_x" not in table.channels:
-        raise TableError(f"table mapping sets slope_friction_gain={kmu:g} but the table lacks channel "
-                         f"'grad_x' (and 'grad_y') needed for direction-dependent friction; "
-                         f"it holds {table.channels}")
-    sst = 0.0
-    if "skin_stretch" in dev.extra and "target" in dev.extra["skin_stretch"]:
-        sst = parse_quantity(dev.extra["skin_stretch"]["target"], "m", "skin_stretch.target")
-    return kmu, sst
-
-
 class Renderer:
     """Stick-slip renderer of a friction-envelope table.
 
@@ -432,38 +313,23 @@ class Renderer:
 
     def __init__(self, table: FrictionTable, device=None, model="exact", tick_rate=None, audio_rate=None,
                  burst_policy="retrigger", max_stick_period=None, **model_options):
-        if not isinstance(table, FrictionTable):
-            raise InputError(f"`table` must be a FrictionTable (got {type(table).__name__})")
-        dev = device_for_table(table, device)
-        if max_stick_period is not None:
-            msp = float(max_stick_period)
-            if not (math.isfinite(msp) and msp >= 0):
-                raise InputError(f"`max_stick_period` must be >= 0 s (got {max_stick_period!r})")
-            dev = dev.with_(burst=replace(dev.burst, max_stick_period_s=msp))
+        check_dispatch()
+        cfg = render_settings(table, device, model, tick_rate, audio_rate, burst_policy, max_stick_period,
+                              **model_options)
         self.table = table
-        self.device = dev
-        self.model: PadModel = get_model(model, dev, **model_options)
-        table.require(*self.model.needs)
+        self.device = cfg.device
+        self.model: PadModel = cfg.model
         #: N (newtons) of a table without a ``normal_force`` channel, else None.
-        self.normal_force_constant = constant_normal_force(table)
-        self.tick_rate = check_tick_rate(dev.tick_rate_hz if tick_rate is None else tick_rate)
-        ar = float(dev.audio_rate_hz if audio_rate is None else audio_rate)
-        if not (math.isfinite(ar) and 1000.0 <= ar <= 384_000.0):
-            raise InputError(f"`audio_rate` must be within 1 kHz..384 kHz (got {audio_rate!r} Hz)")
-        self.audio_rate = ar
-        self.burst_policy = burst_policy
-        self._policy = policy_id(burst_policy)
-        self.present = [name for name in SLOTS if name in table.channels]
-        kmu, sst = mapping_settings(table, dev)
-        b = dev.burst
+        self.normal_force_constant = cfg.normal_force_constant
+        self.tick_rate = cfg.tick_rate
+        self.audio_rate = cfg.audio_rate
+        self.burst_policy = cfg.burst_policy
+        self._policy = int(cfg.config[0]["policy"])
+        self.present = cfg.present
         #: The renderer's settings, a RENDER_CONFIG record (the C runtime's sd_config_t, byte for byte).
-        self._config = _derive_config(dev.friction.mu_s, dev.friction.mu_k, kmu, sst, self.normal_force_constant,
-                                     tick_rate=self.tick_rate, audio_rate=self.audio_rate, carrier_hz=b.carrier_hz,
-                                     rise_s=b.rise_s, decay_s=b.decay_s, policy=self._policy,
-                                     model=self.model.model_id)
+        self._config = cfg.config
         self.config = self._config[0]
-        self.config["pad"] = self.model.params
-        self._slot_channel = _slot_channels(self.present)
+        self._slot_channel = slot_channels(self.present)
         self._build_online()
         self.reset()
         # warm the compiled step on a scratch copy (compilation never happens in the real-time loop)
