@@ -11,7 +11,8 @@ def register(sub) -> None:
                     "and swaps the table without a reload. Prints the URL (with its access token).")
     p.add_argument("source", help="scene (.toml or .svg mockup), image (.png/.npy), mesh or table (.npz)")
     p.add_argument("--device", help="device profile: bundled name or TOML under the source's folder")
-    p.add_argument("--port", type=int, default=8765, help="TCP port (default 8765; 0 = any free port)")
+    p.add_argument("--port", type=int, default=None,
+                   help="TCP port (default 8765, or the next free one up to 8784 when it is taken; 0 = any free port)")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1, this computer only)")
     p.add_argument("--allow-remote", action="store_true",
                    help="allow --host to be a non-loopback address (prints a warning)")

@@ -14,7 +14,8 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 #: (file, heading) of each section, in reading order.
-SECTIONS = (("README.md", "## Designing a tactile screen"), ("docs/preview.md", "# 3D preview"))
+SECTIONS = (("README.md", "## Five-minute walkthrough"), ("README.md", "## Designing a tactile screen"),
+            ("docs/preview.md", "# 3D preview"))
 FILE_SUFFIXES = (".toml", ".npz", ".png", ".npy", ".stl", ".obj", ".ply", ".wav", ".json")
 OUTPUT_FLAGS = ("-o", "--output", "--trace-out")
 
@@ -31,7 +32,7 @@ def commands(program: str = "shapedisplay") -> list[list[str]]:
     for name, heading in SECTIONS:
         text = (ROOT / name).read_text(encoding="utf-8")
         for block in re.findall(r"```sh\n(.*?)```", section(text, heading), flags=re.S):
-            for line in block.splitlines():
+            for line in block.replace("\\\n", " ").splitlines():
                 argv = shlex.split(line, comments=True)
                 if argv and argv[0] in ("shapedisplay", "mkdir") and (program in (None, argv[0])):
                     out.append(argv if program is None else argv[1:])
@@ -95,12 +96,14 @@ def test_every_command_parses_and_reads_only_files_that_exist_or_were_written_be
 
 
 def test_the_pictures_are_written_by_a_command_shown():
-    """Each picture of the two sections is the output of a `preview` command shown beside it."""
+    """Each picture of the sections is the output of a `preview` command shown beside it."""
     for name, heading in SECTIONS:
         body = section((ROOT / name).read_text(encoding="utf-8"), heading)
         for link in re.findall(r"!\[[^\]]*\]\(([^)]+\.png)\)", body):
             path = ((ROOT / name).parent / link).resolve()
             picture = path.relative_to(ROOT).as_posix()       # as the command, run from the checkout, writes it
             assert path.is_file() and path.stat().st_size < 300_000, picture
-            shown = re.findall(r"shapedisplay preview [^`\n]*-o " + re.escape(picture), body)
+            # as written into the repository, or (in a runnable example) under out/
+            shown = re.findall(r"shapedisplay preview [^`\n]*-o (?:" + re.escape(picture) + "|out/"
+                               + re.escape(path.name) + ")", body)
             assert shown, f"no `shapedisplay preview ... -o {picture}` in section {heading!r}"

@@ -258,3 +258,27 @@ def test_snapshot_is_the_3d_preview_with_the_stroke(studio):
     assert img.shape[0] > 100 and img.std() > 10        # a picture, not a blank frame
     status, body = studio.get("/api/snapshot", method="POST", data=b"[1, 2]")
     assert status == 400 and b"JSON object" in body
+
+
+def test_default_port_taken_moves_to_the_next_free_one():
+    """Without --port the studio takes 8765, or the next free port when another program holds it."""
+    import socket
+
+    from shapedisplay.studio.server import DEFAULT_PORT, PORT_TRIES, bind_port
+    held = socket.socket()
+    try:
+        held.bind(("127.0.0.1", DEFAULT_PORT))
+        held.listen(1)
+    except OSError:
+        pass                                  # already held by someone else: the same situation
+    try:
+        sock = bind_port("127.0.0.1", None)
+        try:
+            port = sock.getsockname()[1]
+            assert DEFAULT_PORT < port < DEFAULT_PORT + PORT_TRIES
+        finally:
+            sock.close()
+        with pytest.raises(ShapeDisplayError, match="`--port` 8765: cannot listen"):
+            bind_port("127.0.0.1", DEFAULT_PORT)
+    finally:
+        held.close()

@@ -10,6 +10,10 @@ from pathlib import Path
 from ..errors import InputError, require
 
 LOOPBACK = "127.0.0.1"
+#: The port the studio listens on unless told otherwise; when it is taken, the next free one of
+#: PORT_TRIES ports is used (the printed URL says which).
+DEFAULT_PORT = 8765
+PORT_TRIES = 20
 
 
 def check_host(host: str, allow_remote: bool) -> str:
@@ -25,13 +29,14 @@ def check_host(host: str, allow_remote: bool) -> str:
     return str(addr)
 
 
-def serve(source, device=None, port: int = 8765, host: str = LOOPBACK, allow_remote: bool = False,
+def serve(source, device=None, port: int | None = None, host: str = LOOPBACK, allow_remote: bool = False,
           open_browser: bool = True, out_dir=None, source_options=None, model: str = "exact",
           out=sys.stdout, err=sys.stderr) -> None:
     """Serve the studio on ``host:port`` until interrupted (Ctrl-C).
 
     Prints one line with the URL (``http://HOST:PORT/?token=TOKEN``) once the
-    socket listens; ``port=0`` picks a free port.
+    socket listens; ``port=None`` takes DEFAULT_PORT or the next free port after it,
+    ``port=0`` any free port.
     """
     require("starlette", "studio", "the studio")
     uvicorn = require("uvicorn", "studio", "the studio")
@@ -41,17 +46,8 @@ def serve(source, device=None, port: int = 8765, host: str = LOOPBACK, allow_rem
 
     host = check_host(host, allow_remote)
     session = Session(Path(source), device=device, out_dir=out_dir, source_options=source_options or {})
-    if not (isinstance(port, int) and 0 <= port <= 65535):
-        raise InputError(f"`--port` must be 0..65535 (got {port!r})")
     family = socket.AF_INET6 if ":" in host else socket.AF_INET
-    sock = socket.socket(family, socket.SOCK_STREAM)
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    try:
-        sock.bind((host, port))
-    except OSError as exc:
-        sock.close()
-        raise InputError(f"`--port` {port}: cannot listen on {host}:{port} ({exc.strerror or exc}); "
-                         "choose another port or --port 0 for a free one") from None
+    sock = bind_port(host, port)
     sock.listen(128)
     sock.set_inheritable(True)
     port = sock.getsockname()[1]
@@ -81,6 +77,31 @@ def serve(source, device=None, port: int = 8765, host: str = LOOPBACK, allow_rem
     finally:
         sock.close()
     print("shapedisplay studio: stopped", file=out, flush=True)
+
+
+def bind_port(host: str, port: int | None) -> socket.socket:
+    """A socket bound to ``host:port``; ``port=None``: DEFAULT_PORT or the next free one of PORT_TRIES."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    if port is not None and not (isinstance(port, int) and 0 <= port <= 65535):
+        raise InputError(f"`--port` must be 0..65535 (got {port!r})")
+    # No port asked for: the default, or the next free one after it (another studio may hold it).
+    candidates = range(DEFAULT_PORT, DEFAULT_PORT + PORT_TRIES) if port is None else (port,)
+    for candidate in candidates:
+        sock = socket.socket(family, socket.SOCK_STREAM)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            sock.bind((host, candidate))
+            break
+        except OSError as exc:
+            sock.close()
+            error = exc
+    else:
+        if port is None:
+            raise InputError(f"no free port on {host} in {candidates[0]}..{candidates[-1]} ({error.strerror or error}); "
+                             "choose one with --port N, or --port 0 for any free port") from None
+        raise InputError(f"`--port` {port}: cannot listen on {host}:{port} ({error.strerror or error}); "
+                         "choose another port or --port 0 for a free one") from None
+    return sock
 
 
 def addr_is_loopback(host: str) -> bool:
