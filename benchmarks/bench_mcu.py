@@ -1,6 +1,7 @@
 """Instructions per renderer tick on a Cortex-M4F (QEMU mps2-an386, -icount), with RAM and flash.
 
-Builds the bare-metal harness (`make -C runtime-c m4`), plays a 2-D table with six channels
+Builds the bare-metal harness (`make -C runtime-c m4`: the single-precision build, sd_real = float, as the
+M4F's FPU; and M4_PRECISION=double for comparison), plays a 2-D table with six channels
 (normal force, friction scale, burst gain, grad x/y, lateral x; two widgets, 0.5 mm samples)
 along a diagonal stroke, and counts the instructions of every `sd_renderer_step` call with
 SysTick under QEMU's instruction counting (-icount shift=6: 1.6 counts per instruction; the
@@ -36,25 +37,63 @@ CONFIGS = [
 ]
 
 
+def runtime_footprint(src: Path, precision: str, defs=()) -> tuple[int, int]:
+    """Flash (text + rodata) of the runtime's own object files, and sizeof(sd_renderer_t), for one build."""
+    import re
+    import subprocess
+    flags = ["-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-std=c99", "-O2",
+             "-ffp-contract=off", *(["-DSD_SINGLE"] if precision == "single" else []), *defs]
+    text = 0
+    for name in ("sd_pad.c", "sd_exact.c", "sd_render.c", "sd_image.c"):
+        obj = src / (name + f".{precision}.o")
+        subprocess.run(["arm-none-eabi-gcc", *flags, "-c", str(src / name), "-o", str(obj)], check=True)
+        out = subprocess.run(["arm-none-eabi-size", str(obj)], capture_output=True, text=True, check=True).stdout
+        text += int(out.splitlines()[-1].split()[0])
+    probe = src / f"probe_{precision}.c"
+    probe.write_text('#include "sd_runtime.h"\nchar sd_size_probe[sizeof(sd_renderer_t)];\n')
+    obj = src / f"probe_{precision}.o"
+    subprocess.run(["arm-none-eabi-gcc", *flags, "-fno-common", "-c", str(probe), "-o", str(obj)], check=True)
+    out = subprocess.run(["arm-none-eabi-nm", "-S", str(obj)], capture_output=True, text=True, check=True).stdout
+    size = int(re.search(r"^\S+ (\S+) \w sd_size_probe", out, re.M).group(1), 16)
+    return text, size
+
+
 def main() -> int:
     missing = [t for t in ("arm-none-eabi-gcc", "qemu-system-arm") if shutil.which(t) is None]
     if missing:
         print(f"bench_mcu: needs {missing} (scripts/install-system-deps.sh --with-toolchains)")
         return 2
+    small = ("-DSD_EVENT_RING=128", "-DSD_AUDIO_BLOCK_MAX=16")
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
-        for label, defs in (("default", ()), ("small-RAM", ("-DSD_EVENT_RING=128", "-DSD_AUDIO_BLOCK_MAX=16"))):
-            elf, (text, data, bss) = build_m4(tmp / label, defs)
-            print(f"{label} build: flash (text) {text} B, data {data} B (the harness's 1 MB input buffer and "
-                  f"64k-sample audio log are in bss: {bss} B total)")
-        elf, _ = build_m4(tmp / "run")
+        for precision in ("single", "double"):
+            for label, defs in (("default", ()), ("small-RAM", small)):
+                elf, (text, data, bss) = build_m4(tmp / f"{precision}-{label}", defs, precision)
+                code, ram = runtime_footprint(elf.parent.parent, precision, defs)
+                print(f"{precision} precision, {label} build: runtime code {code} B flash, sd_renderer_t {ram} B RAM; "
+                      f"whole harness with libm: flash (text) {text} B, data {data} B")
+        builds = {p: build_m4(tmp / f"run-{p}", (), p)[0] for p in ("single", "double")}
+        tmp_run = tmp / "io"
+        tmp_run.mkdir()
+        # the single-precision build (the M4F's) first: one line per configuration
         for model, policy, tick, audio, seconds in CONFIGS:
             table, r, x, y, img = case_setup("uint16", "diagonal", policy, tick, audio, model, seconds=seconds)
-            ins = m4_instructions(run_m4(elf, "bench", image_payload(img, r, x, y), tmp, icount=True))
+            ins = m4_instructions(run_m4(builds["single"], "bench", image_payload(img, r, x, y), tmp_run, icount=True))
             print(f"instructions per tick: mean {ins.mean():.0f} max {ins.max():.0f} "
                   f"({model}, {policy}, {tick / 1000:g} kHz tick, {audio / 1000:g} kHz audio)"
                   f"  median {np.median(ins):.0f}, {ins.size} ticks, mean = {ins.mean() / 16800:.2f} x the 16.8k "
-                  f"budget")
+                  f"budget, single precision")
+        # the double build, for comparison (the M4F emulates double arithmetic in software)
+        for model, policy, tick, audio, seconds in CONFIGS[:2]:
+            table, r, x, y, img = case_setup("uint16", "diagonal", policy, tick, audio, model, seconds=seconds)
+            d_ins = m4_instructions(run_m4(builds["double"], "bench", image_payload(img, r, x, y), tmp_run,
+                                           icount=True))
+            s_ins = m4_instructions(run_m4(builds["single"], "bench", image_payload(img, r, x, y), tmp_run,
+                                           icount=True))
+            print(f"double build, same stroke: mean {d_ins.mean():.0f} max {d_ins.max():.0f} ({model}, {policy}, "
+                  f"{tick / 1000:g} kHz tick, {audio / 1000:g} kHz audio): single precision is "
+                  f"{d_ins.mean() / s_ins.mean():.1f}x fewer instructions on average, {d_ins.max() / s_ins.max():.1f}x "
+                  f"at the worst tick")
     return 0
 
 

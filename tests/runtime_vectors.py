@@ -42,6 +42,35 @@ def parse_outputs(raw: bytes, n: int):
     return outs, audio, counters
 
 
+def parse_events(raw: bytes, n: int):
+    """The event log that follows the counters (host tool and M4 harness): (times s, amplitudes)."""
+    pos = OUTPUTS.itemsize * n
+    (na,) = struct.unpack_from("<q", raw, pos)
+    pos += 8 + 8 * na + 32
+    (ne,) = struct.unpack_from("<q", raw, pos)
+    return (np.frombuffer(raw, "<f8", ne, pos + 8), np.frombuffer(raw, "<f8", ne, pos + 8 + 8 * ne))
+
+
+def py_render_events(r, x, y):
+    """The Python renderer's outputs and audio (as test_c_runtime.py_render) with every event's time and
+    amplitude, read from the event ring after each tick."""
+    from shapedisplay.runtime.layouts import OUTPUTS as _O
+    r.reset()
+    outs, audio, et, ea = [], [], [], []
+    for xi, yi in zip(x, y):
+        r.step(float(xi), float(yi))
+        o = r.last.copy()
+        outs.append(o)
+        audio.append(r.audio_block[:int(o["audio_samples"])].copy())
+        k = int(o["events"])
+        if k:
+            t, a = r.recent_events()
+            et.append(t[-k:])
+            ea.append(a[-k:])
+    cat = (lambda v: np.concatenate(v) if v else np.zeros(0))
+    return np.array(outs, dtype=_O), np.concatenate(audio), cat(et), cat(ea)
+
+
 def case_setup(dtype, kind, policy, tick, audio, model, seconds=0.25):
     """Table, Python renderer, stroke and image of one case."""
     from test_c_runtime import stroke, widget_table
@@ -131,6 +160,98 @@ def derived_bounds(r, outs, unit_roundoff: float, libm_ulps: float = 1.0):
 
 
 
+# ------------------------------------------------------------------ the single-precision build
+#: unit roundoff of IEEE single precision
+U_FLOAT = 2.0 ** -24
+#: ulps of a float libm result (newlib's and glibc's float functions: within 2)
+FLOAT_LIBM_ULPS = 2.0
+
+
+def float_bounds(r, table, x, y, po, pt):
+    """Bounds on the differences between the single-precision build and the double reference on one
+    vector, derived in runtime_c/README.md ("Tolerance of the single-precision build"):
+    ``(dt_event, d_drive, d_force)``. ``po`` are the reference outputs, ``pt`` its event times."""
+    u = U_FLOAT
+    K = 16.0 * FLOAT_LIBM_ULPS                     # <= 8 libm results along a phase change, 2u per ulp
+    k = r.device.pad.stiffness
+    h = 1.0 / r.tick_rate
+    F = np.abs(po["friction_force"])
+    V = np.abs(po["pad_speed"])
+    ev = po["events"] > 0
+    x_max = F.max() / k                            # largest spring stretch
+    v_min = V[ev].min() if ev.any() else 1.0       # slowest surface speed at an event
+    P = max(np.abs(x).max(), np.abs(y).max())      # largest coordinate: inputs rounded by u P
+    d = np.stack([np.diff(x), np.diff(y)], 1)
+    d = d[np.hypot(d[:, 0], d[:, 1]) > 0]
+    ang = np.arctan2(d[:, 1], d[:, 0])
+    theta = np.abs(np.angle(np.exp(1j * np.diff(ang)))).sum() if len(ang) > 1 else 0.0   # turning, rad
+    G = 0.0                                        # largest relative slope of mu_s N on the table, 1/m
+    for name in ("normal_force", "friction_scale"):
+        if name in table.channels:
+            a = table.dense(name)
+            gy, gx = np.gradient(a, table.grid.dy, table.grid.dx) if a.shape[0] > 1 else \
+                (0.0, np.gradient(a[0], table.grid.dx))
+            G += (np.hypot(gx, gy) / np.maximum(np.abs(a), 1e-12)).max()
+    t_run = len(x) * h
+    n_ev = len(pt)
+    dt = (K * u * t_run                            # relative rounding of every phase duration, summed
+          + n_ev * (K * u + G * u * P) * x_max / v_min   # breakaway stretch of each event (threshold mu_s N)
+          + np.sqrt(2.0) * u * P * (2.0 + theta) / v_min)  # rounded positions: arc length, not accumulated
+    if r.model.name == "exact":
+        dt += n_ev * 2.0 * (1e-12 + 4.0 * 2.0 ** -23 * h)   # Newton stopping rule (float build)
+    b = r.device.burst
+    w = 2.0 * np.pi * b.carrier_hz
+    live = 1
+    if n_ev:
+        dur = b.rise_s + b.decay_s
+        live = int((np.searchsorted(pt, pt + dur) - np.arange(n_ev)).max())   # bursts sounding at once
+    amp = live if r.burst_policy == "add" else 1
+    # envelope slope x time error + carrier (anchor 2 ulp + angle rounding pi u + 64 rotations of 4 roundings)
+    # + amplitude and envelope rounding (K u per live burst)
+    d_drive = (w + 1.0 / b.rise_s) * dt + (2 * FLOAT_LIBM_ULPS * 2 + np.pi + 4.0 * 64) * u + K * u * amp
+    d_force = K * u * F.max() + k * (V * dt + 2.0 * u * P)   # per tick: the stretch moved at this tick's V
+    return dt, d_drive, d_force
+
+
+def assert_within_float_bounds(r, table, x, y, po, pa, pt, pA, co, ca, ct, cA):
+    """The single-precision build against the double reference: the same events (count, times within
+    the derived bound), drive, audio and friction force within the derived bounds; a pad phase may
+    differ only on a tick whose end lies within the event-time bound of a phase change (the change
+    moved across the tick boundary). Returns the bounds."""
+    dt, d_drive, d_force = float_bounds(r, table, x, y, po, pt)
+    h = 1.0 / r.tick_rate
+    # below half a tick, an event can move across at most one tick boundary (the per-tick checks below)
+    assert dt < 0.5 * h, f"event-time bound {dt:.3g} s is not below half a tick"
+    assert ct.size == pt.size
+    assert np.abs(ct - pt).max(initial=0.0) <= dt, (np.abs(ct - pt).max(), dt)
+    # A = B k |x| at breakaway: relative rounding, and the stretch error of a breakaway moved by dt
+    a_max = pA.max(initial=0.0)
+    x_max = max(np.abs(po["friction_force"]).max() / r.device.pad.stiffness, 1e-30)
+    d_amp = 32 * U_FLOAT * a_max + a_max / x_max * (np.abs(po["pad_speed"]).max() * dt + U_FLOAT * np.abs(x).max())
+    assert np.abs(cA - pA).max(initial=0.0) <= d_amp
+    for name in ("t", "x", "y"):
+        np.testing.assert_allclose(co[name], po[name], rtol=2 * U_FLOAT, atol=0, err_msg=name)
+    np.testing.assert_array_equal(co["audio_samples"], po["audio_samples"])
+    same = co["state"] == po["state"]
+    for i in np.flatnonzero(~same):
+        # a phase change of the reference at this tick or the next, moved across the boundary
+        assert (i > 0 and po["state"][i - 1] != po["state"][i]) or (i + 1 < len(po) and po["state"][i + 1] != po["state"][i]), i
+    assert (~same).sum() <= max(2, len(pt) // 20)
+    # per-tick event counts differ only where an event lies within dt of a tick boundary
+    t_tick = po["t"]
+    moved = np.flatnonzero(co["events"] != po["events"])
+    for i in moved:
+        near = np.abs(pt - t_tick[i]).min(initial=np.inf) <= dt or (i > 0 and np.abs(pt - t_tick[i - 1]).min(initial=np.inf) <= dt)
+        assert near, i
+    ok = same.copy()
+    ok[moved] = False
+    ok[np.minimum(moved + 1, len(ok) - 1)] = False
+    assert np.abs(co["drive"] - po["drive"])[ok].max(initial=0.0) <= d_drive
+    assert (np.abs(co["friction_force"] - po["friction_force"]) <= d_force)[same].all()
+    assert np.abs(ca - pa).max(initial=0.0) <= d_drive or moved.size
+    return dt, d_drive, d_force
+
+
 #: Outputs that a build with another libm must reproduce exactly (times, positions, states, counts).
 EXACT_FIELDS = ("t", "x", "y", "vx", "vy", "normal_force", "events", "state", "audio_samples", "pad_speed")
 
@@ -155,16 +276,16 @@ ICOUNT_SHIFT = 6
 COUNTS_PER_INSTRUCTION = 2 ** ICOUNT_SHIFT * 25e6 / 1e9
 
 
-def build_m4(out_dir, defs=()):
+def build_m4(out_dir, defs=(), precision="single"):
     """`make -C runtime-c m4` into ``out_dir`` (a copy of the build directory); returns the ELF and
-    the size line (text, data, bss)."""
+    the size line (text, data, bss). ``precision``: "single" (the M4F build) or "double"."""
     import shutil
     import subprocess
     from pathlib import Path
     cdir = Path(__file__).resolve().parent.parent / "shapedisplay" / "runtime_c"
     src = Path(out_dir) / "src"
     shutil.copytree(cdir, src, ignore=shutil.ignore_patterns("build", "wasm", "sd_vectors", "sd_bench"))
-    res = subprocess.run(["make", "-s", "-C", str(src), "m4", f"M4_DEFS={' '.join(defs)}"],
+    res = subprocess.run(["make", "-s", "-C", str(src), "m4", f"M4_DEFS={' '.join(defs)}", f"M4_PRECISION={precision}"],
                          capture_output=True, text=True, timeout=300)
     if res.returncode != 0:
         raise RuntimeError(f"make m4 failed:\n{res.stderr}")
@@ -191,3 +312,28 @@ def m4_instructions(raw: bytes) -> np.ndarray:
     if (c >= 0xFFFFF0).any():
         raise RuntimeError("a tick ran past the 24-bit SysTick range (10.4 million instructions)")
     return (c[:-1] - c[-1]) / COUNTS_PER_INSTRUCTION
+
+
+def tick_path_functions(elf) -> dict:
+    """Every function reachable from sd_renderer_step and the pad ticks (called through the model
+    table) in the ELF's disassembly, with the functions each calls."""
+    import re
+    import subprocess
+    dis = subprocess.run(["arm-none-eabi-objdump", "-d", str(elf)], capture_output=True, text=True, check=True).stdout
+    calls, cur = {}, None
+    for line in dis.splitlines():
+        m = re.match(r"^[0-9a-f]+ <([^>]+)>:", line)
+        if m:
+            cur = m.group(1)
+            calls[cur] = set()
+            continue
+        m = re.search(r"\b(?:bl|blx|b|b\.w|b\.n)(?:\.\w+)?\s+[0-9a-f]+ <([^>+]+)(?:\+0x[0-9a-f]+)?>", line)
+        if m and cur:
+            calls[cur].add(m.group(1))
+    seen, todo = {}, ["sd_renderer_step", "sd_jump_tick", "sd_exact_tick"]
+    while todo:
+        f = todo.pop()
+        if f not in seen:
+            seen[f] = calls.get(f, set())
+            todo += sorted(seen[f])
+    return seen

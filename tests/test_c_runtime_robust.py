@@ -148,7 +148,7 @@ def test_host_tools_build_werror_with_gcc_and_clang(tmp_path, cc):
         pytest.skip(f"no {cc} and no apt-get to install it")
     src = tmp_path / "src"
     shutil.copytree(CDIR, src, ignore=shutil.ignore_patterns("build", "wasm", "m4"))
-    res = subprocess.run(["make", "-s", "-C", str(src), f"CC={cc}", "sd_vectors", "sd_bench"],
+    res = subprocess.run(["make", "-s", "-C", str(src), f"CC={cc}", "sd_vectors", "sd_vectors_single", "sd_bench"],
                          capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stderr
     assert (src / "sd_vectors").is_file() and (src / "sd_bench").is_file()

@@ -1,16 +1,19 @@
 """The Cortex-M4F build (arm-none-eabi-gcc, newlib-nano libm) under QEMU (mps2-an386).
 
 `make -C runtime-c m4` builds a bare-metal harness that reads the shared vectors through Arm
-semihosting and plays them; the outputs are compared with the Python renderer by the derived
-bounds of runtime_vectors.derived_bounds (newlib's libm is not glibc's).
+semihosting and plays them. The default build is single precision (-DSD_SINGLE, the FPU's
+fpv4-sp-d16): it is compared with the Python renderer within the derived bounds of
+runtime_vectors.float_bounds; the double build (M4_PRECISION=double) within derived_bounds
+(newlib's libm is not glibc's).
 """
 import shutil
 
 import numpy as np
 import pytest
 
-from runtime_vectors import (CASES, assert_within_derived_bounds, build_m4, case_setup, image_payload, m4_instructions,
-                             parse_outputs, run_m4)
+from runtime_vectors import (CASES, assert_within_derived_bounds, assert_within_float_bounds, build_m4, case_setup,
+                             image_payload, m4_instructions, parse_events, parse_outputs, py_render_events, run_m4,
+                             tick_path_functions)
 from test_c_runtime import py_render
 
 _MISSING = [t for t in ("arm-none-eabi-gcc", "qemu-system-arm", "make") if shutil.which(t) is None]
@@ -25,15 +28,51 @@ def m4(tmp_path_factory):
     return build_m4(tmp_path_factory.mktemp("m4"))
 
 
+@pytest.fixture(scope="module")
+def m4_double(tmp_path_factory):
+    assert not _MISSING, f"{_MISSING} missing: run scripts/install-system-deps.sh --with-toolchains"
+    return build_m4(tmp_path_factory.mktemp("m4d"), precision="double")
+
+
 @pytest.mark.parametrize("dtype, kind, policy, tick, audio, model", CASES)
-def test_m4_plays_the_shared_vectors(m4, tmp_path, dtype, kind, policy, tick, audio, model):
+def test_m4_single_precision_plays_the_shared_vectors(m4, tmp_path, dtype, kind, policy, tick, audio, model):
+    """Same events (count; times, amplitudes within the derived bounds), drive, audio and force within
+    the derived bounds of the single-precision build."""
     elf, _ = m4
     table, r, x, y, img = case_setup(dtype, kind, policy, tick, audio, model, seconds=0.12)
+    po, pa, pt, pA = py_render_events(r, x, y)
+    raw = run_m4(elf, "vectors", image_payload(img, r, x, y), tmp_path)
+    co, ca, (cclip, cev, cdrop, cfault) = parse_outputs(raw, len(x))
+    ct, cA = parse_events(raw, len(x))
+    assert len(pt) > 10 and cev == len(pt) and cdrop == 0 and ca.size == pa.size
+    assert_within_float_bounds(r, table, x, y, po, pa, pt, pA, co, ca, ct, cA)
+
+
+@pytest.mark.parametrize("dtype, kind, policy, tick, audio, model", CASES[:2])
+def test_m4_double_build_plays_the_shared_vectors(m4_double, tmp_path, dtype, kind, policy, tick, audio, model):
+    elf, _ = m4_double
+    table, r, x, y, img = case_setup(dtype, kind, policy, tick, audio, model, seconds=0.06)
     po, pa, (pclip, pev) = py_render(r, x, y)
     co, ca, (cclip, cev, cdrop, cfault) = parse_outputs(run_m4(elf, "vectors", image_payload(img, r, x, y), tmp_path),
-                                                len(x))
+                                                        len(x))
     assert pev > 10 and cev == pev and cdrop == 0 and ca.size == pa.size
     assert_within_derived_bounds(r, po, pa, co, ca)
+
+
+def test_m4_single_precision_tick_path_calls_no_double_arithmetic(m4, m4_double):
+    """No software double-precision helper (__aeabi_d*) or double libm function is reachable from
+    sd_renderer_step or the pad ticks in the single-precision build; the double build has them (the
+    check sees calls)."""
+    double_fns = {"sin", "cos", "exp", "log", "atan2", "sqrt", "fmod", "floor", "ceil", "pow"}
+
+    def doubles(elf):
+        fns = tick_path_functions(elf)
+        assert {"sd_renderer_step", "sd_jump_tick", "sd_exact_tick", "sinf", "expf"} <= set(fns) or \
+            {"sd_renderer_step", "sd_jump_tick", "sd_exact_tick", "sin", "exp"} <= set(fns)
+        return sorted(f for f in fns if f.startswith("__aeabi_d") or f in double_fns
+                      or f.startswith("__aeabi_f2d"))
+    assert doubles(m4[0]) == []
+    assert "__aeabi_dmul" in doubles(m4_double[0])
 
 
 def test_m4_instruction_counts_are_measured(m4, tmp_path):

@@ -66,7 +66,7 @@ from .layouts import BURST_POLICIES, BURST_STATE, Policy, record
 from .settings import MAX_AUDIO_SAMPLES, audio_length, policy_id  # noqa: F401 (their home is .settings)
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to layouts.py (Policy).
-KERNEL_SOURCES_SHA256 = "09111a5fb3f0834ebca8d46d586a34c86d755cf3e9ae204a775cda85de1bc5ee"
+KERNEL_SOURCES_SHA256 = "1de118086c95548d5800b081f3c9cd9c1b6f930a02e5cc6b4dce292b82ecfd89"
 #: Carrier re-anchored with sin/cos every this many samples (rotation in between).
 CARRIER_BLOCK = 64
 

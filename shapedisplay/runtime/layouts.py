@@ -227,7 +227,9 @@ def record(dtype: np.dtype, **values) -> np.ndarray:
 
 # ---------------------------------------------------------------- C views
 _CTYPES = {np.dtype(f8): ctypes.c_double, np.dtype(i8): ctypes.c_int64, np.dtype(i4): ctypes.c_int32}
-_CNAMES = {np.dtype(f8): "double", np.dtype(i8): "int64_t", np.dtype(i4): "int32_t"}
+_CNAMES = {np.dtype(f8): "sd_real", np.dtype(i8): "int64_t", np.dtype(i4): "int32_t"}
+#: field kinds of the X-macro field lists in sd_layout.h (f8 = a real, double in this module's records)
+_CKINDS = {np.dtype(f8): "F64", np.dtype(i8): "I64", np.dtype(i4): "I32"}
 _ctypes_cache: dict = {}
 
 
@@ -263,7 +265,11 @@ def c_header(model_names) -> str:
            " * GENERATED from shapedisplay/runtime/layouts.py and the model registry by `make generate`;",
            " * do not edit. tests/test_layouts.py checks that this file is current and that a C compiler",
            " * places every member at the offset numpy gives it. */",
-           "#ifndef SD_LAYOUT_H", "#define SD_LAYOUT_H", "", "#include <stdint.h>", ""]
+           "#ifndef SD_LAYOUT_H", "#define SD_LAYOUT_H", "", "#include <stdint.h>", "",
+           "/* sd_real: the real type of the runtime -- double in the reference build (bit-exact with the",
+           " * Python records, whose reals are float64), float with -DSD_SINGLE (single-precision FPUs). */",
+           "#ifndef SD_REAL_DEFINED", "#define SD_REAL_DEFINED", "#ifdef SD_SINGLE", "typedef float sd_real;",
+           "#else", "typedef double sd_real;", "#endif", "#endif", ""]
     out.append("/* pad models (ids shared with shapedisplay.runtime.models.MODELS) */")
     out.append("enum {")
     out += [f"    SD_MODEL_{n.upper()} = {i}," for i, n in enumerate(model_names)]
@@ -284,6 +290,14 @@ def c_header(model_names) -> str:
             ctype = _c_name(sub) if sub.names else _CNAMES[sub]
             out.append(f"    {ctype} {field};".ljust(36) + f"/* {docs[field]} */")
         out.append(f"}} {cname};")
+        # X-macro list of the members in record order (kind F64/I64/I32, or the layout name of a nested
+        # record): readers and writers that convert field by field (little-endian files, the
+        # single-precision build). The records have no padding: field order is byte order.
+        kinds = [_CKINDS[dt.fields[f][0]] if not dt.fields[f][0].names
+                 else next(n for n, (d, _) in LAYOUTS.items() if d == dt.fields[f][0]) for f in dt.names]
+        out.append(f"#define SD_FIELDS_{name}(X) \\")
+        out += [f"    X({k}, {f}) \\" for k, f in zip(kinds[:-1], dt.names[:-1])]
+        out.append(f"    X({kinds[-1]}, {dt.names[-1]})")
         out.append("")
     out.append("#endif")
     return "\n".join(out) + "\n"

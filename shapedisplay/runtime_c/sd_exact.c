@@ -10,16 +10,16 @@
  */
 #include "sd_pad_common.h"
 
-#define ADMIT (1.0 - 1e-9)        /* re-stick admissible if |f| <= ADMIT * mu_s N */
-#define ADMIT_TOUCH (1.0 - 1e-6)  /* stricter for tangent touches (grazing the limit is no re-stick) */
+#define ADMIT (SD_R(1.0) - SD_R(SD_TOL_ADMIT))        /* re-stick admissible if |f| <= ADMIT * mu_s N */
+#define ADMIT_TOUCH (SD_R(1.0) - SD_R(SD_TOL_TOUCH))  /* stricter for tangent touches (grazing the limit is no re-stick) */
 
 /* Over-damped pad: the two real rates r1, r2 (the small root taken as wn2 / big root, which
  * keeps its precision) and the amplitudes of y = p e^(r1 t) + q e^(r2 t) from (y0, v0). */
-static void over_modes(double sig, double wn2, double disc, double y0, double v0,
-                       double *r1, double *r2, double *p, double *q)
+static void over_modes(sd_real sig, sd_real wn2, sd_real disc, sd_real y0, sd_real v0,
+                       sd_real *r1, sd_real *r2, sd_real *p, sd_real *q)
 {
-    double sq = sqrt(disc);
-    if (sig >= 0.0) {
+    sd_real sq = SD_SQRT(disc);
+    if (sig >= SD_R(0.0)) {
         *r2 = -sig - sq;
         *r1 = wn2 / *r2;
     } else {
@@ -31,99 +31,99 @@ static void over_modes(double sig, double wn2, double disc, double y0, double v0
 }
 
 /* Free damped oscillator m y'' + c y' + k y = 0 from (y0, v0) at time t (all damping cases). */
-static void osc(double m, double c, double k, double y0, double v0, double t, double *y, double *v)
+static void osc(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, sd_real t, sd_real *y, sd_real *v)
 {
-    double sig = 0.5 * c / m, wn2 = k / m, disc = sig * sig - wn2;
-    if (disc < -1e-10 * wn2) {
+    sd_real sig = SD_R(0.5) * c / m, wn2 = k / m, disc = sig * sig - wn2;
+    if (disc < -SD_R(1e-10) * wn2) {
         osc_under(m, c, k, y0, v0, t, y, v);
         return;
     }
-    if (disc > 1e-10 * wn2) {
-        double r1, r2, p, q, e1, e2;
+    if (disc > SD_R(1e-10) * wn2) {
+        sd_real r1, r2, p, q, e1, e2;
         over_modes(sig, wn2, disc, y0, v0, &r1, &r2, &p, &q);
-        e1 = exp(r1 * t);
-        e2 = exp(r2 * t);
+        e1 = SD_EXP(r1 * t);
+        e2 = SD_EXP(r2 * t);
         *y = p * e1 + q * e2;
         *v = r1 * p * e1 + r2 * q * e2;
         return;
     }
     {
-        double w = sig, a = y0, b = v0 + w * y0, e = exp(-w * t);
+        sd_real w = sig, a = y0, b = v0 + w * y0, e = SD_EXP(-w * t);
         *y = (a + b * t) * e;
         *v = (b - w * a - w * b * t) * e;
     }
 }
 
-static double acc(double m, double c, double k, double y, double v) { return -(c * v + k * y) / m; }
+static sd_real acc(sd_real m, sd_real c, sd_real k, sd_real y, sd_real v) { return -(c * v + k * y) / m; }
 
-static double next_acc_zero(double m, double c, double k, double y0, double v0, double after)
+static sd_real next_acc_zero(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, sd_real after)
 {
-    double sig = 0.5 * c / m, wn2 = k / m, disc = sig * sig - wn2;
-    if (disc < -1e-10 * wn2) return next_acc_zero_under(m, c, k, y0, v0, after);
-    if (disc > 1e-10 * wn2) {
-        double r1, r2, p, q, num, den, tz;
+    sd_real sig = SD_R(0.5) * c / m, wn2 = k / m, disc = sig * sig - wn2;
+    if (disc < -SD_R(1e-10) * wn2) return next_acc_zero_under(m, c, k, y0, v0, after);
+    if (disc > SD_R(1e-10) * wn2) {
+        sd_real r1, r2, p, q, num, den, tz;
         over_modes(sig, wn2, disc, y0, v0, &r1, &r2, &p, &q);
         num = -r2 * r2 * q;
         den = r1 * r1 * p;
-        if (den == 0.0 || num / den <= 0.0) return INFINITY;
-        tz = log(num / den) / (r1 - r2);
-        return (tz > after && tz > 1e-15) ? tz : INFINITY;
+        if (den == SD_R(0.0) || num / den <= SD_R(0.0)) return INFINITY;
+        tz = SD_LOG(num / den) / (r1 - r2);
+        return (tz > after && tz > SD_R(1e-15)) ? tz : INFINITY;
     }
     {
-        double w = sig, b = v0 + w * y0, tz;
-        if (b == 0.0) return INFINITY;
-        tz = (2.0 * b - w * y0) / (w * b);
-        return (tz > after && tz > 1e-15) ? tz : INFINITY;
+        sd_real w = sig, b = v0 + w * y0, tz;
+        if (b == SD_R(0.0)) return INFINITY;
+        tz = (SD_R(2.0) * b - w * y0) / (w * b);
+        return (tz > after && tz > SD_R(1e-15)) ? tz : INFINITY;
     }
 }
 
-static double wrel(double m, double c, double k, double y0, double v0, double V, double s, double t)
+static sd_real wrel(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, sd_real V, sd_real s, sd_real t)
 {
-    double y, v;
+    sd_real y, v;
     osc(m, c, k, y0, v0, t, &y, &v);
     return -s * (v - V);
 }
 
-static double polish(double m, double c, double k, double y0, double v0, double V, double s, double lo, double hi)
+static sd_real polish(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, sd_real V, sd_real s, sd_real lo, sd_real hi)
 {
-    double wlo = wrel(m, c, k, y0, v0, V, s, lo), whi = wrel(m, c, k, y0, v0, V, s, hi), t;
+    sd_real wlo = wrel(m, c, k, y0, v0, V, s, lo), whi = wrel(m, c, k, y0, v0, V, s, hi), t;
     int it;
-    if (wlo - whi > 0.0) t = lo + (hi - lo) * wlo / (wlo - whi);
-    else t = 0.5 * (lo + hi);
-    if (!(lo < t && t < hi)) t = 0.5 * (lo + hi);
+    if (wlo - whi > SD_R(0.0)) t = lo + (hi - lo) * wlo / (wlo - whi);
+    else t = SD_R(0.5) * (lo + hi);
+    if (!(lo < t && t < hi)) t = SD_R(0.5) * (lo + hi);
     for (it = 0; it < 200; it++) {
-        double y, v, wt, dw, tn;
+        sd_real y, v, wt, dw, tn;
         osc(m, c, k, y0, v0, t, &y, &v);
         wt = -s * (v - V);
-        if (wt == 0.0) return t;
-        if (wt > 0.0) lo = t;
+        if (wt == SD_R(0.0)) return t;
+        if (wt > SD_R(0.0)) lo = t;
         else hi = t;
         dw = -s * acc(m, c, k, y, v);
-        tn = dw != 0.0 ? t - wt / dw : 0.5 * (lo + hi);
-        if (!(lo < tn && tn < hi)) tn = 0.5 * (lo + hi);
-        if (fabs(tn - t) <= 1e-16 + 1e-15 * t || hi - lo <= 1e-16 + 1e-15 * hi) return tn;
+        tn = dw != SD_R(0.0) ? t - wt / dw : SD_R(0.5) * (lo + hi);
+        if (!(lo < tn && tn < hi)) tn = SD_R(0.5) * (lo + hi);
+        if (SD_FABS(tn - t) <= SD_R(SD_POLISH_ABS) + SD_R(SD_POLISH_REL) * t || hi - lo <= SD_R(SD_POLISH_ABS) + SD_R(SD_POLISH_REL) * hi) return tn;
         t = tn;
     }
-    return 0.5 * (lo + hi);
+    return SD_R(0.5) * (lo + hi);
 }
 
 /* First re-stick candidate of a slip within rem seconds: kind 0 none (t = rem), 1 crossing,
  * 2 near-tangent touch. Touches before tmin are ignored (stepping past a grazing touch that
  * was not a re-stick). */
-static int slip_search(double m, double c, double k, double y0, double v0, double V, double s, double rem,
-                       double tmin, double *t_out)
+static int slip_search(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, sd_real V, sd_real s, sd_real rem,
+                       sd_real tmin, sd_real *t_out)
 {
-    double tol = 1e-12 * (fabs(V) + fabs(v0)) + 1e-300;
-    double sig = 0.5 * c / m, wn2 = k / m, disc = sig * sig - wn2, ta = 0.0;
-    if (sig >= 0.0 && disc < -1e-10 * wn2) {
-        double wd = sqrt(-disc), bv = (wn2 * y0 + sig * v0) / wd, amp = sqrt(v0 * v0 + bv * bv);
-        if (s * V - amp > 2.0 * tol) {
+    sd_real tol = SD_R(SD_TOL_GRAZE) * (SD_FABS(V) + SD_FABS(v0)) + SD_R(SD_TINY);
+    sd_real sig = SD_R(0.5) * c / m, wn2 = k / m, disc = sig * sig - wn2, ta = SD_R(0.0);
+    if (sig >= SD_R(0.0) && disc < -SD_R(1e-10) * wn2) {
+        sd_real wd = SD_SQRT(-disc), bv = (wn2 * y0 + sig * v0) / wd, amp = SD_SQRT(v0 * v0 + bv * bv);
+        if (s * V - amp > SD_R(2.0) * tol) {
             *t_out = rem;
             return 0;
         }
     }
     for (;;) {
-        double tz = next_acc_zero(m, c, k, y0, v0, ta), tb, wb;
+        sd_real tz = next_acc_zero(m, c, k, y0, v0, ta), tb, wb;
         int interior = tz < rem, graze;
         tb = interior ? tz : rem;
         wb = wrel(m, c, k, y0, v0, V, s, tb);
@@ -132,13 +132,13 @@ static int slip_search(double m, double c, double k, double y0, double v0, doubl
             ta = tb;
             continue;
         }
-        if (wb < 0.0) {
-            double tr = polish(m, c, k, y0, v0, V, s, ta, tb);
+        if (wb < SD_R(0.0)) {
+            sd_real tr = polish(m, c, k, y0, v0, V, s, ta, tb);
             *t_out = tr;
             if (interior && wb >= -tol) return 2;
             return 1;
         }
-        if (wb == 0.0) {
+        if (wb == SD_R(0.0)) {
             *t_out = tb;
             return interior ? 2 : 1;
         }
@@ -154,10 +154,10 @@ static int slip_search(double m, double c, double k, double y0, double v0, doubl
     }
 }
 
-int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, double V, double N,
-                  double mus, double muk, double gain, double *ev_t, double *ev_a, int cap, int n_ev)
+int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
+                  sd_real mus, sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev)
 {
-    double m, k, c, B, tmax, x, v, phase, s, age, t, tmin;
+    sd_real m, k, c, B, tmax, x, v, phase, s, age, t, tmin;
     int nev0;
     long it;
     if (stuck_whole_tick(S, P, h, V, N, mus)) return n_ev;
@@ -171,12 +171,12 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, dou
     phase = S->phase;
     s = S->s;
     age = S->age;
-    t = 0.0;
+    t = SD_R(0.0);
     nev0 = n_ev;
     it = 0;
-    tmin = 0.0;
+    tmin = SD_R(0.0);
     while (t < h) {
-        double rem, F, xeq, y0, tr, y1, v1, fst;
+        sd_real rem, F, xeq, y0, tr, y1, v1, fst;
         int kind;
         it += 1;
         if (it > SD_MAX_EVENTS_PER_TICK) {
@@ -184,29 +184,29 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, dou
             break;
         }
         rem = h - t;
-        if (phase == 0.0) {
-            double thr = mus * N, f = k * x + c * V;
+        if (phase == SD_R(0.0)) {
+            sd_real thr = mus * N, f = k * x + c * V;
             int brk = 0, forced = 0;
             v = V;
-            if (fabs(f) > thr * (1.0 + 1e-12) || (fabs(f) >= thr && f * V > 0.0 && thr > 0.0)
-                || (thr == 0.0 && f != 0.0)) {
+            if (SD_FABS(f) > thr * (SD_R(1.0) + SD_R(SD_TOL_BREAK)) || (SD_FABS(f) >= thr && f * V > SD_R(0.0) && thr > SD_R(0.0))
+                || (thr == SD_R(0.0) && f != SD_R(0.0))) {
                 brk = 1;
             } else {
-                double tb = INFINITY, tf = INFINITY, tn;
-                if (V != 0.0) {
+                sd_real tb = INFINITY, tf = INFINITY, tn;
+                if (V != SD_R(0.0)) {
                     tb = (sd_sgn(V) * thr - f) / (k * V);
-                    if (tb < 0.0) tb = 0.0;
+                    if (tb < SD_R(0.0)) tb = SD_R(0.0);
                 }
-                if (tmax > 0.0 && V != 0.0) tf = py_max(tmax - age, 0.0);
+                if (tmax > SD_R(0.0) && V != SD_R(0.0)) tf = py_max(tmax - age, SD_R(0.0));
                 tn = py_min(tb, tf);
                 if (tn >= rem) {
                     x += V * rem;
-                    if (V != 0.0) age += rem;
+                    if (V != SD_R(0.0)) age += rem;
                     t = h;
                     break;
                 }
                 x += V * tn;
-                if (V != 0.0) age += tn;
+                if (V != SD_R(0.0)) age += tn;
                 t += tn;
                 f = k * x + c * V;
                 brk = 1;
@@ -214,9 +214,9 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, dou
             }
             if (brk) {
                 s = breakaway(&x, f, V, forced, mus, N, k, c);
-                n_ev = record(ev_t, ev_a, cap, n_ev, t0 + t, B * fabs(k * x));
-                phase = 1.0;
-                age = 0.0;
+                n_ev = record(ev_t, ev_a, cap, n_ev, t0 + t, B * SD_FABS(k * x));
+                phase = SD_R(1.0);
+                age = SD_R(0.0);
                 continue;
             }
         }
@@ -224,13 +224,13 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, dou
         F = s * muk * N;
         xeq = F / k;
         y0 = x - xeq;
-        if (mus * N > 0.0) {
+        if (mus * N > SD_R(0.0)) {
             kind = slip_search(m, c, k, y0, v, V, s, rem, tmin, &tr);
         } else {
             kind = 0;            /* no static friction: nothing to stick to */
             tr = rem;
         }
-        tmin = 0.0;
+        tmin = SD_R(0.0);
         osc(m, c, k, y0, v, tr, &y1, &v1);
         x = y1 + xeq;
         v = v1;
@@ -241,16 +241,16 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, dou
         }
         fst = k * x + c * V;
         /* no static friction at all (N = 0 or mu_s = 0): the pad never sticks again */
-        if (mus * N > 0.0 && fabs(fst) <= (kind == 1 ? ADMIT : ADMIT_TOUCH) * mus * N) {
-            phase = 0.0;
+        if (mus * N > SD_R(0.0) && SD_FABS(fst) <= (kind == 1 ? ADMIT : ADMIT_TOUCH) * mus * N) {
+            phase = SD_R(0.0);
             v = V;
-            age = 0.0;
+            age = SD_R(0.0);
         } else if (kind == 1) {
             s = -s;
         } else {
             /* grazing touch that is not a re-stick: keep slipping past it; the next touch or
              * crossing is at least one extremum (pi / omega_d) away */
-            tmin = 0.5 * SD_PI * sqrt(m / k);
+            tmin = SD_R(0.5) * SD_PI * SD_SQRT(m / k);
         }
     }
     S->v = v;

@@ -10,6 +10,7 @@
 #include <math.h>
 #include <string.h>
 #include "sd_runtime.h"
+#include "sd_math.h"
 
 #define MAX_CANVAS ((int64_t)16384 * 16384)   /* table.MAX_CANVAS_SAMPLES */
 #define MAX_TILES (1L << 20)
@@ -37,6 +38,16 @@ static int32_t i32le(const uint8_t *p)
 {
     uint32_t u = u32le(p);
     return u <= 0x7FFFFFFFu ? (int32_t)u : (int32_t)(u - 0x80000000u) - 0x7FFFFFFF - 1;
+}
+
+/* A stored real the runtime can hold: finite, and within float range in the single-precision build. */
+static int real_ok(double v)
+{
+#ifdef SD_SINGLE
+    return isfinite(v) && fabs(v) <= (double)FLT_MAX;
+#else
+    return isfinite(v);
+#endif
 }
 
 static double f64le(const uint8_t *p)
@@ -126,17 +137,16 @@ int sd_image_load(sd_image_t *img, const void *data, size_t size)
 
     img->table.grid.rows = (int32_t)rows;
     img->table.grid.cols = (int32_t)cols;
-    img->table.grid.dx = f64le(p + 64);
-    img->table.grid.dy = f64le(p + 72);
-    img->table.grid.x0 = f64le(p + 80);
-    img->table.grid.y0 = f64le(p + 88);
-    if (!(img->table.grid.dx > 0.0 && img->table.grid.dy > 0.0 && isfinite(img->table.grid.dx)
-          && isfinite(img->table.grid.dy)
-          && isfinite(img->table.grid.x0) && isfinite(img->table.grid.y0)))
+    img->table.grid.dx = (sd_real)f64le(p + 64);
+    img->table.grid.dy = (sd_real)f64le(p + 72);
+    img->table.grid.x0 = (sd_real)f64le(p + 80);
+    img->table.grid.y0 = (sd_real)f64le(p + 88);
+    if (!(img->table.grid.dx > SD_R(0.0) && img->table.grid.dy > SD_R(0.0) && real_ok(f64le(p + 64))
+          && real_ok(f64le(p + 72)) && real_ok(f64le(p + 80)) && real_ok(f64le(p + 88))))
         return SD_ERR_IMAGE_VALUE;
     for (s = 0; s < SD_IMAGE_NPARAM; s++) {
         img->params[s] = f64le(p + 96 + 8 * s);
-        if (!isfinite(img->params[s])) return SD_ERR_IMAGE_VALUE;
+        if (!real_ok(img->params[s])) return SD_ERR_IMAGE_VALUE;
     }
     for (s = 0; s < SD_NSLOT; s++) {
         const uint8_t *d = p + 224 + 32 * s;
@@ -150,16 +160,16 @@ int sd_image_load(sd_image_t *img, const void *data, size_t size)
             return SD_ERR_IMAGE_LAYOUT;
         ch->codes = p + off;
         ch->dtype = (int)dtype;
-        ch->scale = f64le(d + 8);
-        ch->offset = f64le(d + 16);
-        ch->background = f64le(d + 24);
-        if (!isfinite(ch->scale) || !isfinite(ch->offset) || !isfinite(ch->background)) return SD_ERR_IMAGE_VALUE;
+        ch->scale = (sd_real)f64le(d + 8);
+        ch->offset = (sd_real)f64le(d + 16);
+        ch->background = (sd_real)f64le(d + 24);
+        if (!real_ok(f64le(d + 8)) || !real_ok(f64le(d + 16)) || !real_ok(f64le(d + 24))) return SD_ERR_IMAGE_VALUE;
         if (dtype == SD_F32) {
             for (i = 0; i < n_values; i++)
                 if (!isfinite(((const float *)ch->codes)[i])) return SD_ERR_IMAGE_VALUE;
         } else if (dtype == SD_F64) {
             for (i = 0; i < n_values; i++)
-                if (!isfinite(((const double *)ch->codes)[i])) return SD_ERR_IMAGE_VALUE;
+                if (!real_ok(((const double *)ch->codes)[i])) return SD_ERR_IMAGE_VALUE;
         }
         img->table.slot[s] = ch;
     }
@@ -184,21 +194,21 @@ void sd_image_config(const sd_image_t *img, sd_config_t *cfg)
 {
     const double *q = img->params;
     memset(cfg, 0, sizeof *cfg);
-    cfg->pad.mass = q[SD_IP_MASS];
-    cfg->pad.stiffness = q[SD_IP_STIFFNESS];
-    cfg->pad.damping = q[SD_IP_DAMPING];
-    cfg->pad.burst_gain = q[SD_IP_BURST_GAIN];
-    cfg->pad.max_stick_period = q[SD_IP_MAX_STICK];
-    cfg->mu_s = q[SD_IP_MU_S];
-    cfg->mu_k = q[SD_IP_MU_K];
-    cfg->k_mu = q[SD_IP_K_MU];
-    cfg->skin_target = q[SD_IP_SKIN_TARGET];
-    cfg->tick_rate = q[SD_IP_TICK_RATE];
-    cfg->audio_rate = q[SD_IP_AUDIO_RATE];
-    cfg->carrier_hz = q[SD_IP_CARRIER];
-    cfg->rise_s = q[SD_IP_RISE];
-    cfg->decay_s = q[SD_IP_DECAY];
-    cfg->normal_force_constant = q[SD_IP_NORMAL_FORCE];
+    cfg->pad.mass = (sd_real)q[SD_IP_MASS];
+    cfg->pad.stiffness = (sd_real)q[SD_IP_STIFFNESS];
+    cfg->pad.damping = (sd_real)q[SD_IP_DAMPING];
+    cfg->pad.burst_gain = (sd_real)q[SD_IP_BURST_GAIN];
+    cfg->pad.max_stick_period = (sd_real)q[SD_IP_MAX_STICK];
+    cfg->mu_s = (sd_real)q[SD_IP_MU_S];
+    cfg->mu_k = (sd_real)q[SD_IP_MU_K];
+    cfg->k_mu = (sd_real)q[SD_IP_K_MU];
+    cfg->skin_target = (sd_real)q[SD_IP_SKIN_TARGET];
+    cfg->tick_rate = (sd_real)q[SD_IP_TICK_RATE];
+    cfg->audio_rate = (sd_real)q[SD_IP_AUDIO_RATE];
+    cfg->carrier_hz = (sd_real)q[SD_IP_CARRIER];
+    cfg->rise_s = (sd_real)q[SD_IP_RISE];
+    cfg->decay_s = (sd_real)q[SD_IP_DECAY];
+    cfg->normal_force_constant = (sd_real)q[SD_IP_NORMAL_FORCE];
     cfg->policy = SD_RETRIGGER;
     cfg->model = SD_MODEL_JUMP;
 }

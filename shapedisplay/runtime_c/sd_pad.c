@@ -15,24 +15,24 @@
 
 void sd_pad_prepare(sd_pad_t *P, const sd_pad_params_t *params)
 {
-    double m = params->mass, c = params->damping, k = params->stiffness;
+    sd_real m = params->mass, c = params->damping, k = params->stiffness;
     P->p = *params;
-    P->sig = 0.5 * c / m;
+    P->sig = SD_R(0.5) * c / m;
     P->wn2 = k / m;
     P->disc = P->sig * P->sig - P->wn2;
-    P->under = P->disc < -1e-10 * P->wn2;
-    P->wd = P->under ? sqrt(-P->disc) : 0.0;
-    P->tp = P->under ? SD_PI / P->wd : 0.0;
-    P->e_tp = P->under ? exp(-P->sig * P->tp) : 0.0;
+    P->under = P->disc < -SD_R(1e-10) * P->wn2;
+    P->wd = P->under ? SD_SQRT(-P->disc) : SD_R(0.0);
+    P->tp = P->under ? SD_PI / P->wd : SD_R(0.0);
+    P->e_tp = P->under ? SD_EXP(-P->sig * P->tp) : SD_R(0.0);
 }
 
 /* The same operations as pads.jump_restick, with the pad constants (sig, wn2, disc, wd, pi/wd,
- * exp(-sig pi/wd)) computed once by sd_pad_prepare from the same expressions. */
-static void restick(const sd_pad_t *P, double s, double xb, double V, double muk, double N,
-                    double *slip_time, double *x_restick)
+ * SD_EXP(-sig pi/wd)) computed once by sd_pad_prepare from the same expressions. */
+static void restick(const sd_pad_t *P, sd_real s, sd_real xb, sd_real V, sd_real muk, sd_real N,
+                    sd_real *slip_time, sd_real *x_restick)
 {
-    double m = P->p.mass, c = P->p.damping, k = P->p.stiffness;
-    double sig = P->sig, wn2 = P->wn2, wd, xeq, y0, tp, e, yp, vp, ap, tz1, ypk, vpk, dt;
+    sd_real m = P->p.mass, c = P->p.damping, k = P->p.stiffness;
+    sd_real sig = P->sig, wn2 = P->wn2, wd, xeq, y0, tp, e, yp, vp, ap, tz1, ypk, vpk, dt;
     *slip_time = INFINITY;
     *x_restick = xb;
     if (!P->under) return;
@@ -43,20 +43,20 @@ static void restick(const sd_pad_t *P, double s, double xb, double V, double muk
     e = P->e_tp;
     yp = -e * y0;
     vp = -e * V;
-    ap = -2.0 * sig * vp - wn2 * yp;
-    if (s * ap <= 0.0) return;
-    tz1 = next_acc_zero_under(m, c, k, y0, V, 0.0);
+    ap = -SD_R(2.0) * sig * vp - wn2 * yp;
+    if (s * ap <= SD_R(0.0)) return;
+    tz1 = next_acc_zero_under(m, c, k, y0, V, SD_R(0.0));
     if (tz1 == INFINITY) return;
     osc_under(m, c, k, y0, V, tz1 + SD_PI / wd, &ypk, &vpk);
-    if (s * (vpk - V) < 0.0) return;
+    if (s * (vpk - V) < SD_R(0.0)) return;
     dt = (V - vp) / ap;
-    if (fabs(dt) * wd > 0.5 * SD_PI) return;
-    *x_restick = xeq + yp + vp * dt + 0.5 * ap * dt * dt;
+    if (SD_FABS(dt) * wd > SD_R(0.5) * SD_PI) return;
+    *x_restick = xeq + yp + vp * dt + SD_R(0.5) * ap * dt * dt;
     *slip_time = tp + dt;
 }
 
-void sd_jump_restick(double m, double c, double k, double s, double xb, double V, double muk, double N,
-                     double *slip_time, double *x_restick)
+void sd_jump_restick(sd_real m, sd_real c, sd_real k, sd_real s, sd_real xb, sd_real V, sd_real muk, sd_real N,
+                     sd_real *slip_time, sd_real *x_restick)
 {
     sd_pad_params_t params;
     sd_pad_t P;
@@ -71,13 +71,13 @@ void sd_jump_restick(double m, double c, double k, double s, double xb, double V
 void sd_pad_reset(sd_pad_state_t *S)
 {
     memset(S, 0, sizeof *S);
-    S->s = 1.0;
+    S->s = SD_R(1.0);
 }
 
-int sd_jump_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, double V, double N,
-                 double mus, double muk, double gain, double *ev_t, double *ev_a, int cap, int n_ev)
+int sd_jump_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
+                 sd_real mus, sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev)
 {
-    double x, phase, s, age, tsl, t, k, c, B, tmax;
+    sd_real x, phase, s, age, tsl, t, k, c, B, tmax;
     int nev0;
     long it;
     if (stuck_whole_tick(S, P, h, V, N, mus)) return n_ev;
@@ -90,44 +90,44 @@ int sd_jump_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, doub
     s = S->s;
     age = S->age;
     tsl = S->slip_left;
-    t = 0.0;
+    t = SD_R(0.0);
     nev0 = n_ev;
     it = 0;
     while (t < h) {
-        double rem;
+        sd_real rem;
         it += 1;
         if (it > SD_MAX_EVENTS_PER_TICK) {
             S->truncated += 1;
             break;
         }
         rem = h - t;
-        if (phase == 0.0) {
-            double thr = mus * N;
-            double f = k * x + c * V;
+        if (phase == SD_R(0.0)) {
+            sd_real thr = mus * N;
+            sd_real f = k * x + c * V;
             int forced;
-            double xr;
-            if (fabs(f) > thr * (1.0 + 1e-12) || (fabs(f) >= thr && f * V > 0.0 && thr > 0.0)
-                || (thr == 0.0 && f != 0.0)) {
+            sd_real xr;
+            if (SD_FABS(f) > thr * (SD_R(1.0) + SD_R(SD_TOL_BREAK)) || (SD_FABS(f) >= thr && f * V > SD_R(0.0) && thr > SD_R(0.0))
+                || (thr == SD_R(0.0) && f != SD_R(0.0))) {
                 forced = 0;
             } else {
-                double tb = INFINITY, tf, tn;
-                if (V != 0.0) tb = py_max((sd_sgn(V) * thr - f) / (k * V), 0.0);
-                tf = tmax > 0.0 && V != 0.0 ? py_max(tmax - age, 0.0) : INFINITY;
+                sd_real tb = INFINITY, tf, tn;
+                if (V != SD_R(0.0)) tb = py_max((sd_sgn(V) * thr - f) / (k * V), SD_R(0.0));
+                tf = tmax > SD_R(0.0) && V != SD_R(0.0) ? py_max(tmax - age, SD_R(0.0)) : INFINITY;
                 tn = py_min(tb, tf);
                 if (tn >= rem) {
                     x += V * rem;
-                    if (V != 0.0) age += rem;
+                    if (V != SD_R(0.0)) age += rem;
                     t = h;
                     break;
                 }
                 x += V * tn;
-                if (V != 0.0) age += tn;
+                if (V != SD_R(0.0)) age += tn;
                 t += tn;
                 f = k * x + c * V;
                 forced = tf < tb;
             }
             s = breakaway(&x, f, V, forced, mus, N, k, c);
-            n_ev = record(ev_t, ev_a, cap, n_ev, t0 + t, B * fabs(k * x));
+            n_ev = record(ev_t, ev_a, cap, n_ev, t0 + t, B * SD_FABS(k * x));
             /* restick is a pure function: steady strokes repeat its inputs exactly, so the last
              * result is reused when they do (same bits in, same bits out). */
             if (S->memo_valid && S->memo_s == s && S->memo_x == x && S->memo_v == V && S->memo_muk == muk
@@ -146,18 +146,18 @@ int sd_jump_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, doub
                 S->memo_x_restick = xr;
             }
             /* a re-stick force beyond the static limit (or no static friction) is no re-stick */
-            if (thr <= 0.0 || fabs(k * xr + c * V) > thr) tsl = INFINITY;
+            if (thr <= SD_R(0.0) || SD_FABS(k * xr + c * V) > thr) tsl = INFINITY;
             S->x_restick = xr;
-            phase = 1.0;
-            age = 0.0;
+            phase = SD_R(1.0);
+            age = SD_R(0.0);
             continue;
         }
         /* slip: count down the closed-form slip time, or slide steadily */
         if (tsl == INFINITY) {
             x = s * muk * N / k;
-            if (s * V <= 0.0) {
-                phase = 0.0;
-                age = 0.0;
+            if (s * V <= SD_R(0.0)) {
+                phase = SD_R(0.0);
+                age = SD_R(0.0);
                 continue;
             }
             t = h;
@@ -169,10 +169,10 @@ int sd_jump_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, doub
             break;
         }
         t += tsl;
-        tsl = 0.0;
+        tsl = SD_R(0.0);
         x = S->x_restick;
-        phase = 0.0;
-        age = 0.0;
+        phase = SD_R(0.0);
+        age = SD_R(0.0);
     }
     S->v = V;
     S->slip_left = tsl;

@@ -31,7 +31,7 @@ extern "C" {
 /* A pad model's parameters with the constants derived from them at load (sd_pad_prepare). */
 typedef struct {
     sd_pad_params_t p;
-    double sig, wn2, disc, wd, tp, e_tp;   /* c/2m, k/m, sig^2 - wn2, damped frequency, pi/wd, exp(-sig tp) */
+    sd_real sig, wn2, disc, wd, tp, e_tp;   /* c/2m, k/m, sig^2 - wn2, damped frequency, pi/wd, exp(-sig tp) */
     int under;                             /* under-damped (disc < 0) */
 } sd_pad_t;
 
@@ -44,24 +44,24 @@ void sd_pad_prepare(sd_pad_t *P, const sd_pad_params_t *params);
  * coefficients mus/muk and burst-gain multiplier gain. Stick-to-slip events (time s, burst
  * amplitude) are written to ev_t/ev_a[n_ev..cap-1]; returns the new event count (it may exceed
  * cap: the extra events are counted, not stored). */
-typedef int (*sd_tick_fn)(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, double V, double N,
-                          double mus, double muk, double gain, double *ev_t, double *ev_a, int cap, int n_ev);
+typedef int (*sd_tick_fn)(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
+                          sd_real mus, sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev);
 
 /* The quasi-static jump model (pads.jump_tick). */
-int sd_jump_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, double V, double N,
-                 double mus, double muk, double gain, double *ev_t, double *ev_a, int cap, int n_ev);
+int sd_jump_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
+                 sd_real mus, sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev);
 
 /* The exact event-driven pad model (pads.exact_tick). */
-int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, double t0, double h, double V, double N,
-                  double mus, double muk, double gain, double *ev_t, double *ev_a, int cap, int n_ev);
+int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
+                  sd_real mus, sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev);
 
 /* The tick function of model id SD_MODEL_*, or NULL if the C runtime does not implement it. */
 sd_tick_fn sd_model_tick(int model);
 
 /* Closed-form slip outcome (see pads.jump_restick): slip time (inf = steady sliding) and the
  * spring stretch at re-stick. */
-void sd_jump_restick(double m, double c, double k, double s, double xb, double V, double muk, double N,
-                     double *slip_time, double *x_restick);
+void sd_jump_restick(sd_real m, sd_real c, sd_real k, sd_real s, sd_real xb, sd_real V, sd_real muk, sd_real N,
+                     sd_real *slip_time, sd_real *x_restick);
 
 /* ------------------------------------------------------------------ tables */
 /* Code types of a stored channel (value = offset + scale * code; float channels store values). */
@@ -70,8 +70,8 @@ enum { SD_U8 = 0, SD_U16 = 1, SD_F32 = 2, SD_F64 = 3 };
 typedef struct {
     const void *codes;     /* n_values codes, all patches back to back */
     int dtype;             /* SD_U8 .. SD_F64 */
-    double scale, offset;  /* value = offset + scale * code (integer codes) */
-    double background;     /* value outside every block */
+    sd_real scale, offset;  /* value = offset + scale * code (integer codes) */
+    sd_real background;     /* value outside every block */
 } sd_channel_t;
 
 /* A friction-envelope table: the arrays of `shapedisplay export --format c` plug in directly:
@@ -91,10 +91,10 @@ typedef struct {
     const uint32_t *tile_start, *tile_list;
 } sd_table_t;
 
-double sd_channel_value(const sd_channel_t *ch, long idx);
+sd_real sd_channel_value(const sd_channel_t *ch, long idx);
 long sd_cell_index(const sd_table_t *T, long r, long c);
-void sd_sample_slots(const sd_table_t *T, double x, double y, double *out);
-double sd_envelope(double tau, double rise, double decay);
+void sd_sample_slots(const sd_table_t *T, sd_real x, sd_real y, sd_real *out);
+sd_real sd_envelope(sd_real tau, sd_real rise, sd_real decay);
 
 /* ------------------------------------------------------------------ renderer */
 #ifndef SD_EVENT_RING
@@ -109,12 +109,38 @@ enum { SD_OK = 0, SD_ERR_ARG = -1, SD_ERR_TABLE = -2, SD_ERR_PARAM = -3 };
 /* Cursor positions farther than this from the origin (m), and non-finite ones, are faults: the
  * renderer holds the last valid position and counts them (position_faults). */
 #ifndef SD_POSITION_LIMIT_M
-#define SD_POSITION_LIMIT_M 1000.0
+#define SD_POSITION_LIMIT_M 1000.0   /* (a double constant: the runtime casts it to sd_real) */
 #endif
 
 /* The renderer settings (sd_config_t), its counters (sd_run_state_t) and per-tick outputs
  * (sd_outputs_t) are laid out in sd_layout.h, as the Python renderer's records. cfg.model is an
  * SD_MODEL_* id of a model with a C tick (sd_model_tick); cfg.audio_rate 0 = no audio. */
+#ifdef SD_SINGLE
+/* The time base of the single-precision build. A float cannot hold absolute times (at 1000 s its
+ * resolution is 61 us, half a 10 kHz tick), so ticks and audio samples are counted in integers and
+ * every real time of the tick path (event times, the burst state) is measured from an epoch, a tick
+ * at most about 62.5 ms back (1 s for rates whose ratio needs it) that moves on by epoch_ticks: the
+ * live event times are then shifted by the epoch's length (at most SD_EVENT_RING / 2 subtractions,
+ * once per epoch). The carrier phase is a 64-bit fixed-point fraction of a cycle, exact modulo 2^64,
+ * so the phase error after n samples is n 2^-54 cycles (1e-8 after a day at 48 kHz). */
+typedef struct {
+    int64_t tick;                 /* ticks since reset (the next tick's number) */
+    int64_t epoch;                /* the tick whose time is 0 for ev_t and the burst state */
+    int64_t epoch_sample;         /* audio sample index at the epoch (an exact sample time) */
+    int64_t epoch_ticks;          /* ticks per epoch: a multiple of tick_rate / gcd(tick_rate, audio_rate) */
+    int64_t epoch_samples;        /* audio samples per epoch: epoch_ticks * audio_rate / tick_rate */
+    int64_t sample_floor;         /* floor(tick * audio_rate / tick_rate) */
+    uint32_t sample_rem;          /* (tick * audio_rate) mod tick_rate */
+    uint32_t tick_hz, audio_hz;   /* the rates, integers in this build */
+    uint64_t dphase_sample;       /* carrier phase per audio sample, 2^-64 cycles */
+    uint64_t dphase_tick;         /* carrier phase per tick, 2^-64 cycles */
+    int64_t drive_k;              /* tick of the carrier (dc, ds) below, -1 none */
+    sd_real h, inv_audio, epoch_s;   /* 1 / tick rate, 1 / audio rate, epoch length (s) */
+    sd_real dc, ds;               /* carrier cos/sin at tick drive_k */
+    sd_real tick_rc, tick_rs;     /* carrier rotation per tick */
+} sd_clock_t;
+#endif
+
 typedef struct {
     const sd_table_t *table;
     sd_config_t cfg;
@@ -123,12 +149,15 @@ typedef struct {
     sd_pad_state_t pad;
     sd_run_state_t run;                 /* 64-bit counters on every target (int64_t) */
     int64_t position_faults;            /* cursor samples held (non-finite or beyond the limit) */
-    double rot_cos, rot_sin;            /* carrier rotation per audio sample (set by sd_renderer_init) */
+    sd_real rot_cos, rot_sin;            /* carrier rotation per audio sample (set by sd_renderer_init) */
     long n_audio, audio_cap;
-    double ev_t[SD_EVENT_RING], ev_a[SD_EVENT_RING];
-    double audio[SD_AUDIO_BLOCK_MAX];   /* audio samples of the last tick: audio[0 .. n_audio-1] */
+    sd_real ev_t[SD_EVENT_RING], ev_a[SD_EVENT_RING];
+    sd_real audio[SD_AUDIO_BLOCK_MAX];   /* audio samples of the last tick: audio[0 .. n_audio-1] */
     sd_outputs_t out;                   /* outputs of the last tick */
     sd_burst_state_t bursts;            /* burst envelope and carrier (sd_layout.h; bursts.py) */
+#ifdef SD_SINGLE
+    sd_clock_t clock;                   /* integer tick and sample counts, epoch of the real times */
+#endif
 } sd_renderer_t;
 
 /* The carrier is re-anchored with sin/cos every this many audio samples (bursts.CARRIER_BLOCK). */
@@ -139,12 +168,16 @@ size_t sd_renderer_size(void);
 /* Validate and bind; returns SD_OK or an SD_ERR_* code. No allocation here or later. */
 int sd_renderer_init(sd_renderer_t *R, const sd_table_t *table, const sd_config_t *cfg);
 /* Start a new run at cursor time t0 (s). */
-void sd_renderer_reset(sd_renderer_t *R, double t0);
+void sd_renderer_reset(sd_renderer_t *R, sd_real t0);
 /* Continue as if `tick` ticks had been played with the cursor resting at (x, y) m: counters and
  * time move on, the pad is at rest, no burst sounds (long sessions, tests of the counters). */
-void sd_renderer_seek(sd_renderer_t *R, int64_t tick, double x, double y);
+void sd_renderer_seek(sd_renderer_t *R, int64_t tick, sd_real x, sd_real y);
+/* Absolute time (s) of the event in ring slot i (0 <= i < run.n_recent): ev_t holds absolute times in
+ * the reference build and times from the epoch in the single-precision build. For hosts and tests:
+ * it computes in double, outside the tick path. */
+double sd_event_time(const sd_renderer_t *R, long i);
 /* One tick with the cursor at (x, y) metres; returns the burst drive in [-1, 1]. */
-double sd_renderer_step(sd_renderer_t *R, double x, double y);
+sd_real sd_renderer_step(sd_renderer_t *R, sd_real x, sd_real y);
 
 /* ------------------------------------------------------------------ table image */
 /* The flat binary table image (`shapedisplay export TABLE --format bin`, docs/table-image.md):
@@ -175,7 +208,7 @@ enum {
 typedef struct {
     sd_table_t table;                 /* bound to the image's arrays */
     sd_channel_t ch[SD_NSLOT];        /* table.slot[s] points here when slot s is stored */
-    double params[SD_IMAGE_NPARAM];   /* SD_IP_* settings */
+    double params[SD_IMAGE_NPARAM];    /* SD_IP_* settings (as stored: float64) */
     int32_t n_values, max_tile_blocks;
     uint32_t image_size;
     const char *meta;                 /* the table file's JSON header (not NUL-terminated) */

@@ -3,7 +3,7 @@
  * Runs under QEMU (machine mps2-an386) with semihosting; arguments from the command line
  * (`-semihosting-config enable=on,arg=sd_m4,arg=MODE,arg=IN,arg=OUT`):
  *   vectors IN OUT   play a binary table image as `sd_vectors image` does on the host (same input
- *                    and output layout: tests/runtime_vectors.py)
+ *                    and output layout, events included: tests/runtime_vectors.py)
  *   bench   IN OUT   the same input; OUT = u32 SysTick counts of every sd_renderer_step call,
  *                    then u32 the count of an empty measurement (the overhead to subtract).
  *                    With `-icount shift=S`, counts / (2^S * 0.025) = instructions.
@@ -21,6 +21,20 @@ static uint64_t in_buf[IN_MAX / 8];
 static sd_image_t img;
 static sd_renderer_t R;
 static double audio[1u << 16];
+static sd_real xs[TICKS_MAX], ys[TICKS_MAX];
+#define EVENTS_MAX (1u << 14)
+static double ev_log[2][EVENTS_MAX];     /* the stick-to-slip events: absolute time (s), amplitude */
+
+/* The outputs of a tick as float64 records (layouts.OUTPUTS), whatever sd_real is. */
+static void write_outputs(int32_t fd, const sd_outputs_t *o)
+{
+    double rec[64];
+    int n = 0;
+#define SD_OUT_FIELD(kind, name) rec[n++] = (double)o->name;
+    SD_FIELDS_OUTPUTS(SD_OUT_FIELD)
+#undef SD_OUT_FIELD
+    m4_write(fd, rec, (uint32_t)(8 * n));
+}
 static uint32_t counts[TICKS_MAX];
 
 static const uint8_t *cur, *end;
@@ -54,7 +68,7 @@ int main(void)
     int argc = 0, bench;
     char *p;
     int32_t fd, got;
-    int64_t size, n, i, n_audio = 0;
+    int64_t size, n, i, n_audio = 0, n_ev = 0;
     const double *x, *y;
     sd_config_t C;
     int rc;
@@ -78,26 +92,40 @@ int main(void)
     sd_image_config(&img, &C);
     C.policy = (int)take_i64();
     C.model = (int)take_i64();
-    C.tick_rate = take_f64();
-    C.audio_rate = take_f64();
+    C.tick_rate = (sd_real)take_f64();
+    C.audio_rate = (sd_real)take_f64();
     n = take_i64();
     if (n < 1 || n > TICKS_MAX) return 2;
     x = (const double *)take((uint32_t)(8 * n));
     y = (const double *)take((uint32_t)(8 * n));
+    for (i = 0; i < n; i++) {        /* the cursor in the runtime's real type, converted outside the count */
+        xs[i] = (sd_real)x[i];
+        ys[i] = (sd_real)y[i];
+    }
     if (sd_renderer_init(&R, &img.table, &C) != SD_OK) return 3;
     fd = m4_open(argv[3], 1);
     if (fd < 0) return 2;
     for (i = 0; i < n; i++) {
         if (bench) {
             m4_count_start();
-            sd_renderer_step(&R, x[i], y[i]);
+            sd_renderer_step(&R, xs[i], ys[i]);
             counts[i] = m4_count_read();
         } else {
-            sd_renderer_step(&R, x[i], y[i]);
-            m4_write(fd, &R.out, sizeof R.out);
+            long a;
+            sd_renderer_step(&R, xs[i], ys[i]);
+            write_outputs(fd, &R.out);
             if (n_audio + R.n_audio > (int64_t)(sizeof audio / sizeof audio[0])) return 2;
-            memcpy(audio + n_audio, R.audio, (size_t)R.n_audio * sizeof(double));
+            for (a = 0; a < R.n_audio; a++) audio[n_audio + a] = (double)R.audio[a];
             n_audio += R.n_audio;
+            {
+                long nrec = (long)R.run.n_recent, nev = (long)R.out.events, e;
+                if (nev > nrec) nev = nrec;              /* the tick's events stored in the ring */
+                for (e = nrec - nev; e < nrec; e++) {
+                    if (n_ev >= (int64_t)EVENTS_MAX) return 2;
+                    ev_log[0][n_ev] = sd_event_time(&R, e);
+                    ev_log[1][n_ev++] = (double)R.ev_a[e];
+                }
+            }
         }
     }
     if (bench) {
@@ -113,6 +141,9 @@ int main(void)
         counters[2] = R.run.events_dropped;
         counters[3] = R.position_faults;
         m4_write(fd, counters, sizeof counters);
+        m4_write(fd, &n_ev, 8);
+        m4_write(fd, ev_log[0], (uint32_t)(8 * n_ev));
+        m4_write(fd, ev_log[1], (uint32_t)(8 * n_ev));
     }
     m4_close(fd);
     return 0;
