@@ -502,7 +502,7 @@ int sd_renderer_init(sd_renderer_t *R, const sd_table_t *table, const sd_config_
         || !(p->max_stick_period >= SD_R(0.0)) || !(cfg->mu_s > SD_R(0.0)) || !(cfg->mu_k >= SD_R(0.0)) || cfg->mu_k > cfg->mu_s
         || !(cfg->k_mu >= SD_R(0.0)))
         return SD_ERR_PARAM;
-    if (!(cfg->tick_rate >= SD_R(100.0) && cfg->tick_rate <= SD_R(192000.0))) return SD_ERR_PARAM;
+    if (!(cfg->tick_rate >= 100.0f && cfg->tick_rate <= 192000.0f)) return SD_ERR_PARAM;   /* devices.TICK_RATE_RANGE */
     if (!(cfg->audio_rate == SD_R(0.0) || (cfg->audio_rate >= SD_R(1000.0) && cfg->audio_rate <= SD_R(384000.0))))
         return SD_ERR_PARAM;
     if (!(cfg->carrier_hz > SD_R(0.0)) || !(cfg->rise_s > SD_R(0.0)) || !(cfg->decay_s > SD_R(0.0))) return SD_ERR_PARAM;
