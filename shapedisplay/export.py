@@ -273,6 +273,24 @@ def _firmware_sections(table: FrictionTable, P: str, p: str) -> tuple[list[str],
     ]
     for name in table.channels:
         lines.append(f"#define {P}_{name.upper()}_DTYPE {_C_DTYPE_ENUM[table.quant[name].dtype]}")
+    # the coarse block index of the binary image: a lookup tests at most MAX_TILE_BLOCKS blocks per corner
+    from .runtime.image import tile_index
+    off = table.patch_offsets()
+    blk = np.array([[r0, c0, *table.patch_shapes[i], off[i]] for r0, c0, i in table.blocks],
+                   dtype=np.int64).reshape(-1, 5)
+    tr, tc, ty, tx, start, entries = tile_index(table.grid.rows, table.grid.cols, blk)
+    longest = int(np.diff(start).max()) if start.size > 1 else 0
+    lines += [
+        f"#define {P}_TILE_ROWS {tr}",
+        f"#define {P}_TILE_COLS {tc}",
+        f"#define {P}_TILES_Y {ty}",
+        f"#define {P}_TILES_X {tx}",
+        f"#define {P}_MAX_TILE_BLOCKS {longest}   /* blocks tested per lookup corner, at most */",
+        f"static const uint32_t {p}_tile_start[{P}_TILES_Y * {P}_TILES_X + 1] = {_c_array(start.astype(np.uint32))};",
+        f"static const uint32_t {p}_tile_list[{max(len(entries), 1)}] = "
+        f"{_c_array(entries.astype(np.uint32)) if len(entries) else '{0}'};",
+    ]
+    objects += [f"{p}_tile_start", f"{p}_tile_list"]
     lines += ["#ifdef SD_RUNTIME_H"]
     for name in table.channels:
         lines.append(f"static const sd_channel_t {p}_channel_{name} = {{{p}_{name}_codes, {P}_{name.upper()}_DTYPE, "
@@ -297,8 +315,12 @@ def _firmware_sections(table: FrictionTable, P: str, p: str) -> tuple[list[str],
         f"    T->grid.y0 = {p}_y0_m;",
         f"    T->n_blocks = {P}_N_BLOCKS;",
         "    T->blocks = (const int32_t (*)[5])blocks;",
-        "    T->tile_rows = T->tile_cols = T->tiles_y = T->tiles_x = 0;",
-        "    T->tile_start = T->tile_list = 0;   /* no block index: lookups scan the blocks */",
+        f"    T->tile_rows = {P}_TILE_ROWS;   /* the block index: O(1) lookup */",
+        f"    T->tile_cols = {P}_TILE_COLS;",
+        f"    T->tiles_y = {P}_TILES_Y;",
+        f"    T->tiles_x = {P}_TILES_X;",
+        f"    T->tile_start = {p}_tile_start;",
+        f"    T->tile_list = {p}_tile_list;",
         "    for (i = 0; i < SD_NSLOT; i++)",
         "        T->slot[i] = 0;",
     ]
@@ -409,7 +431,7 @@ def c_header(table: FrictionTable, prefix: str = "sd_table") -> str:
         f"static inline const void *{p}_object_(int i)",
         "{",
         "    const void *const objects[] = {",
-        *(f"        (const void *){'' if o.endswith(('_codes', '_blocks', '_checksum', '_toggles', '_toggle_offsets', '_widgets')) else '&'}{o},"
+        *(f"        (const void *){'' if o.endswith(('_codes', '_blocks', '_checksum', '_toggles', '_toggle_offsets', '_widgets', '_tile_start', '_tile_list')) else '&'}{o},"
           for o in objects),
         "    };",
         "    return objects[i];",

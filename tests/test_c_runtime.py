@@ -54,8 +54,8 @@ def _run(exe, mode, payload: bytes, tmp_path) -> bytes:
 # ------------------------------------------------------------------ pad kernel vectors
 # Input:  sd_pad_params_t (the bytes of the model's layouts.PAD_PARAMS record), i64 model id
 #         (SD_MODEL_*, = model.model_id), i64 n, f64 t[n], V[n], N[n], mus[n], muk[n], gain[n]
-# Output: f64 f[n], phase[n], x[n], i64 n_ev, f64 ev_t[n_ev], ev_a[n_ev]
-def pad_vectors(exe, tmp_path, model, t, V, N, mus, muk, gain):
+# Output: f64 f[n], phase[n], x[n], i64 n_ev, f64 ev_t[n_ev], ev_a[n_ev], i64 ticks cut at the phase cap
+def pad_vectors(exe, tmp_path, model, t, V, N, mus, muk, gain, truncated=False):
     payload = (model.params.tobytes()
                + struct.pack("<qq", model.model_id, t.size)
                + b"".join(np.asarray(a, "<f8").tobytes() for a in (t, V, N, mus, muk, gain)))
@@ -63,7 +63,9 @@ def pad_vectors(exe, tmp_path, model, t, V, N, mus, muk, gain):
     n = t.size
     arr = np.frombuffer(raw[:24 * n], "<f8").reshape(3, n)
     (n_ev,) = struct.unpack_from("<q", raw, 24 * n)
-    ev = np.frombuffer(raw[24 * n + 8:], "<f8").reshape(2, n_ev)
+    ev = np.frombuffer(raw, "<f8", 2 * n_ev, 24 * n + 8).reshape(2, n_ev)
+    if truncated:
+        return struct.unpack_from("<q", raw, 24 * n + 8 + 16 * n_ev)[0]
     return arr[0], arr[1], arr[2], ev[0], ev[1]
 
 

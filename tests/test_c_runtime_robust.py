@@ -152,3 +152,57 @@ def test_host_tools_build_werror_with_gcc_and_clang(tmp_path, cc):
                          capture_output=True, text=True, timeout=300)
     assert res.returncode == 0, res.stderr
     assert (src / "sd_vectors").is_file() and (src / "sd_bench").is_file()
+
+
+# ------------------------------------------------------------------ every loop bounded
+def _sweep(model_name, pad, h, mu_s=0.6, dmus=(0.0, 1e-6, 0.1, 0.3, 0.55)):
+    """Per-tick inputs covering the extremes: V 1 um/s to 1000 m/s with reversals, N 1 uN to 1 kN,
+    delta mu 0 to 0.55; 20 ticks of each combination (a reversal among them), the pad carried through."""
+    from test_c_runtime import _jump
+    V, N, muk = [], [], []
+    for v in (1e-6, 1e-3, 0.05, 0.5, 2.0, 10.0, 100.0, 1000.0):
+        for n in (1e-6, 0.01, 0.5, 2.0, 10.0, 100.0, 1000.0):
+            for d in dmus:
+                V += [(-v if k % 7 == 3 else v) for k in range(20)]
+                N += [n] * 20
+                muk += [mu_s - d] * 20
+    V, N, muk = np.array(V), np.array(N), np.array(muk)
+    t = np.arange(V.size) * h
+    return _jump(pad, name=model_name), t, V, N, np.full(V.size, mu_s), muk, np.ones(V.size)
+
+
+@pytest.mark.parametrize("h", [1 / 192_000, 1e-4, 1e-3, 1e-2])
+@pytest.mark.parametrize("name", ["jump", "exact"])
+def test_phase_cap_not_reached_by_physical_inputs(tmp_path, h, name):
+    """The cap on phase changes per tick (SD_PHASES_BASE + 4 h omega / pi) holds every tick of the
+    extreme sweep on the published pad, and on an over-damped one: no tick is cut."""
+    from test_c_runtime import pad_vectors
+    from shapedisplay.devices import PadParams
+    exe = _plain_vectors(tmp_path)
+    for pad in (None, PadParams(1e-6, 2000.0, 1.0)):
+        args = _sweep(name, pad, h)
+        assert pad_vectors(exe, tmp_path, *args, truncated=True) == 0
+
+
+def test_phase_cap_bounds_a_degenerate_pad(tmp_path):
+    """The worst case: the exact model with c = 0 and mu_k = mu_s can cycle through zero-length phases
+    under reversals; the cap cuts such a tick (counted) instead of running 200 000 phase changes, and
+    the state stays finite."""
+    from test_c_runtime import pad_vectors
+    from shapedisplay.devices import PadParams
+    exe = _plain_vectors(tmp_path)
+    args = _sweep("exact", PadParams(1e-6, 2000.0, 0.0), 1e-4, dmus=(0.0,))
+    cut = pad_vectors(exe, tmp_path, *args, truncated=True)
+    f, phase, x, ev_t, ev_a = pad_vectors(exe, tmp_path, *args)
+    assert cut > 0
+    assert np.isfinite(f).all() and np.isfinite(x).all() and np.isfinite(ev_t).all()
+
+
+def _plain_vectors(tmp_path):
+    out = tmp_path / "sd_vectors"
+    if not out.exists():
+        srcs = [str(CDIR / n) for n in (*LIB, "tool_vectors.c")]
+        res = subprocess.run(["gcc", *CFLAGS, "-I", str(CDIR), *srcs, "-lm", "-o", str(out)],
+                             capture_output=True, text=True, timeout=180)
+        assert res.returncode == 0, res.stderr
+    return out

@@ -91,7 +91,7 @@ static sd_real polish(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, s
     if (wlo - whi > SD_R(0.0)) t = lo + (hi - lo) * wlo / (wlo - whi);
     else t = SD_R(0.5) * (lo + hi);
     if (!(lo < t && t < hi)) t = SD_R(0.5) * (lo + hi);
-    for (it = 0; it < 200; it++) {
+    for (it = 0; it < SD_POLISH_MAX; it++) {
         sd_real y, v, wt, dw, tn;
         osc(m, c, k, y0, v0, t, &y, &v);
         wt = -s * (v - V);
@@ -111,8 +111,12 @@ static sd_real polish(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, s
  * 2 near-tangent touch. Touches before tmin are ignored (stepping past a grazing touch that
  * was not a re-stick). */
 static int slip_search(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, sd_real V, sd_real s, sd_real rem,
-                       sd_real tmin, sd_real *t_out)
+                       sd_real tmin, sd_real phase_rate, sd_real *t_out)
 {
+    /* acceleration zeros are pi / omega_d apart: at most rem omega_d / pi + 1 = rem phase_rate / 4 + 1 in
+     * rem, plus grazing touches stepped over; twice that is the bound (no re-stick found: kind 0) */
+    sd_real nmax = SD_R(8.0) + rem * phase_rate * SD_R(0.5);
+    long n_it = 0, n_cap = nmax < SD_R(SD_MAX_EVENTS_PER_TICK) ? (long)nmax : SD_MAX_EVENTS_PER_TICK;
     sd_real tol = SD_R(SD_TOL_GRAZE) * (SD_FABS(V) + SD_FABS(v0)) + SD_R(SD_TINY);
     sd_real sig = SD_R(0.5) * c / m, wn2 = k / m, disc = sig * sig - wn2, ta = SD_R(0.0);
     if (sig >= SD_R(0.0) && disc < -SD_R(1e-10) * wn2) {
@@ -123,8 +127,14 @@ static int slip_search(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, 
         }
     }
     for (;;) {
-        sd_real tz = next_acc_zero(m, c, k, y0, v0, ta), tb, wb;
-        int interior = tz < rem, graze;
+        sd_real tz, tb, wb;
+        int interior, graze;
+        if (++n_it > n_cap) {
+            *t_out = rem;
+            return 0;
+        }
+        tz = next_acc_zero(m, c, k, y0, v0, ta);
+        interior = tz < rem;
         tb = interior ? tz : rem;
         wb = wrel(m, c, k, y0, v0, V, s, tb);
         graze = interior && wb >= -tol && wb <= tol;
@@ -159,8 +169,9 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, s
 {
     sd_real m, k, c, B, tmax, x, v, phase, s, age, t, tmin;
     int nev0;
-    long it;
+    long it, it_cap;
     if (stuck_whole_tick(S, P, h, V, N, mus)) return n_ev;
+    it_cap = phase_cap(P, h);
     m = P->p.mass;
     k = P->p.stiffness;
     c = P->p.damping;
@@ -179,7 +190,7 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, s
         sd_real rem, F, xeq, y0, tr, y1, v1, fst;
         int kind;
         it += 1;
-        if (it > SD_MAX_EVENTS_PER_TICK) {
+        if (it > it_cap) {
             S->truncated += 1;
             break;
         }
@@ -225,7 +236,7 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, s
         xeq = F / k;
         y0 = x - xeq;
         if (mus * N > SD_R(0.0)) {
-            kind = slip_search(m, c, k, y0, v, V, s, rem, tmin, &tr);
+            kind = slip_search(m, c, k, y0, v, V, s, rem, tmin, P->phase_rate, &tr);
         } else {
             kind = 0;            /* no static friction: nothing to stick to */
             tr = rem;

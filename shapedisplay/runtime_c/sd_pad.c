@@ -24,6 +24,7 @@ void sd_pad_prepare(sd_pad_t *P, const sd_pad_params_t *params)
     P->wd = P->under ? SD_SQRT(-P->disc) : SD_R(0.0);
     P->tp = P->under ? SD_PI / P->wd : SD_R(0.0);
     P->e_tp = P->under ? SD_EXP(-P->sig * P->tp) : SD_R(0.0);
+    P->phase_rate = SD_R(4.0) * (P->under ? P->wd : SD_SQRT(P->wn2)) / SD_PI;
 }
 
 /* The same operations as pads.jump_restick, with the pad constants (sig, wn2, disc, wd, pi/wd,
@@ -79,8 +80,9 @@ int sd_jump_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd
 {
     sd_real x, phase, s, age, tsl, t, k, c, B, tmax;
     int nev0;
-    long it;
+    long it, it_cap;
     if (stuck_whole_tick(S, P, h, V, N, mus)) return n_ev;
+    it_cap = phase_cap(P, h);
     k = P->p.stiffness;
     c = P->p.damping;
     B = P->p.burst_gain * gain;
@@ -96,7 +98,7 @@ int sd_jump_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd
     while (t < h) {
         sd_real rem;
         it += 1;
-        if (it > SD_MAX_EVENTS_PER_TICK) {
+        if (it > it_cap) {
             S->truncated += 1;
             break;
         }

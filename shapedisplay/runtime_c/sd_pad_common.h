@@ -46,6 +46,7 @@ static inline sd_real next_acc_zero_under(sd_real m, sd_real c, sd_real k, sd_re
     sd_real a0 = -SD_R(2.0) * sig * v0 - wn2 * y0;
     sd_real j0 = -SD_R(2.0) * sig * a0 - wn2 * v0;
     sd_real wd = SD_SQRT(-disc), bb = (j0 + sig * a0) / wd, phi, th1, tz;
+    int q;
     if (a0 == SD_R(0.0) && bb == SD_R(0.0)) return INFINITY;
     phi = SD_ATAN2(bb, a0);
     th1 = py_mod(phi + SD_R(0.5) * SD_PI, SD_PI);
@@ -57,9 +58,16 @@ static inline sd_real next_acc_zero_under(sd_real m, sd_real c, sd_real k, sd_re
     if (tz <= after) {            /* never with after = 0: th1 >= 1e-9 */
         sd_real nper = SD_FLOOR((after - tz) * wd / SD_PI) + SD_R(1.0);
         tz = (th1 + nper * SD_PI) / wd;
-        while (tz <= after) tz += SD_PI / wd;
+        for (q = 0; tz <= after && q < 4; q++) tz += SD_PI / wd;   /* rounding: at most a step or two */
     }
     return tz;
+}
+
+/* Phase changes a tick of length h may take (SD_PHASES_BASE in sd_runtime.h); the ceiling also for NaN. */
+static inline long phase_cap(const sd_pad_t *P, sd_real h)
+{
+    sd_real n = SD_R(SD_PHASES_BASE) + h * P->phase_rate;
+    return n < SD_R(SD_MAX_EVENTS_PER_TICK) ? (long)n : SD_MAX_EVENTS_PER_TICK;
 }
 
 /* Store event (t, a) if there is room; return the event count including it. */

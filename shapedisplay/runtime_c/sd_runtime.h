@@ -21,8 +21,18 @@
 extern "C" {
 #endif
 
-/* Safety cap on phase changes inside one tick (never reached by physical inputs). */
+/* Phase changes (stick or slip phases) one pad tick may take: at most SD_PHASES_BASE + h * phase_rate
+ * (sd_pad_t; phase_rate = 4 omega / pi, omega the damped frequency of the pad, or its natural frequency
+ * when it is not under-damped), never more than SD_MAX_EVENTS_PER_TICK. A stick-slip cycle is two
+ * phases and its slip lasts at least a quarter of the damped period, pi / (2 omega): a tick of length h
+ * holds at most 4 h omega / pi of them, plus the phases cut by the tick's edges. A tick that reaches the
+ * cap stops there and counts it (pad state `truncated`): only degenerate pads do (e.g. the exact model
+ * with c = 0 and mu_k = mu_s, which can cycle through zero-length phases). Measured on a sweep of V up
+ * to 1000 m/s, N up to 1000 N, h up to 10 ms: at most 0.25 of the cap. */
+#define SD_PHASES_BASE 32
 #define SD_MAX_EVENTS_PER_TICK 200000L
+/* Newton/bisection steps of the exact model's re-stick polish (measured at most 46 in double) */
+#define SD_POLISH_MAX 64
 
 /* ------------------------------------------------------------------ pad model */
 /* The parameters (sd_pad_params_t) and the state (sd_pad_state_t) of a pad model are laid out in
@@ -32,6 +42,7 @@ extern "C" {
 typedef struct {
     sd_pad_params_t p;
     sd_real sig, wn2, disc, wd, tp, e_tp;   /* c/2m, k/m, sig^2 - wn2, damped frequency, pi/wd, exp(-sig tp) */
+    sd_real phase_rate;                    /* 4 omega / pi: bound on phase changes per second (SD_PHASES_BASE) */
     int under;                             /* under-damped (disc < 0) */
 } sd_pad_t;
 

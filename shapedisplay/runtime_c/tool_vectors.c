@@ -1,6 +1,7 @@
 /* tool_vectors.c -- host program that runs the C runtime on test vectors written by Python.
  *
- *   sd_vectors pad    IN OUT   run a pad model (jump or exact) over per-tick inputs (as dispatch.run_ticks)
+ *   sd_vectors pad    IN OUT   run a pad model (jump or exact) over per-tick inputs (as dispatch.run_ticks);
+ *                              the output ends with i64 the ticks cut at the phase cap
  *   sd_vectors render IN OUT   render a cursor stroke through a table (as Renderer.step)
  *   sd_vectors image  IN OUT   the same from a binary table image (sd_image_load), settings overridden
  *   sd_vectors seek   IN OUT   as image, the renderer first moved on by i64 ticks (sd_renderer_seek) with
@@ -148,6 +149,7 @@ static int run_pad(void)
     wr_i64(n_ev);
     wr_reals(ev_t, n_ev);
     wr_reals(ev_a, n_ev);
+    wr_i64(S.truncated);              /* ticks cut at the phase cap (SD_PHASES_BASE) */
     return 0;
 }
 
