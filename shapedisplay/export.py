@@ -293,8 +293,8 @@ def _firmware_sections(table: FrictionTable, P: str, p: str) -> tuple[list[str],
     objects += [f"{p}_tile_start", f"{p}_tile_list"]
     lines += ["#ifdef SD_RUNTIME_H"]
     for name in table.channels:
-        lines.append(f"static const sd_channel_t {p}_channel_{name} = {{{p}_{name}_codes, {P}_{name.upper()}_DTYPE, "
-                     f"{p}_{name}_scale, {p}_{name}_offset, {p}_{name}_background}};")
+        lines.append(f"static const sd_channel_t {p}_channel_{name} = {{{p}_{name}_codes, {P}_{name.upper()}_DTYPE, (sd_real)"
+                     f"{p}_{name}_scale, (sd_real){p}_{name}_offset, (sd_real){p}_{name}_background}};")
     cfg = dict((n, v) for n, v, _ in run_config(table.meta))
     from .runtime.settings import constant_normal_force
     n_const = float(constant_normal_force(table) or 0.0)
@@ -309,10 +309,10 @@ def _firmware_sections(table: FrictionTable, P: str, p: str) -> tuple[list[str],
         f"            blocks[i][j] = {p}_blocks[i][j];",
         f"    T->grid.rows = {P}_ROWS;",
         f"    T->grid.cols = {P}_COLS;",
-        f"    T->grid.dx = {p}_dx_m;",
-        f"    T->grid.dy = {p}_dy_m;",
-        f"    T->grid.x0 = {p}_x0_m;",
-        f"    T->grid.y0 = {p}_y0_m;",
+        f"    T->grid.dx = (sd_real){p}_dx_m;",
+        f"    T->grid.dy = (sd_real){p}_dy_m;",
+        f"    T->grid.x0 = (sd_real){p}_x0_m;",
+        f"    T->grid.y0 = (sd_real){p}_y0_m;",
         f"    T->n_blocks = {P}_N_BLOCKS;",
         "    T->blocks = (const int32_t (*)[5])blocks;",
         f"    T->tile_rows = {P}_TILE_ROWS;   /* the block index: O(1) lookup */",
@@ -328,21 +328,21 @@ def _firmware_sections(table: FrictionTable, P: str, p: str) -> tuple[list[str],
         if name in _C_SLOTS:
             lines.append(f"    T->slot[SD_SLOT_{name.upper()}] = &{p}_channel_{name};")
     lines += [
-        f"    C->pad.mass = {p}_pad_mass_kg;",
-        f"    C->pad.stiffness = {p}_pad_stiffness_n_per_m;",
-        f"    C->pad.damping = {p}_pad_damping_ns_per_m;",
-        f"    C->pad.burst_gain = {p}_burst_gain;",
-        f"    C->pad.max_stick_period = {p}_max_stick_period_s;",
-        f"    C->mu_s = {p}_mu_s;",
-        f"    C->mu_k = {p}_mu_k;",
-        f"    C->k_mu = {p}_slope_friction_gain;",
-        f"    C->skin_target = {p}_skin_target_m;",
-        f"    C->normal_force_constant = {n_const!r};   /* N where the table stores no normal_force */",
-        f"    C->tick_rate = {p}_tick_rate_hz;",
-        f"    C->audio_rate = {p}_audio_rate_hz;",
-        f"    C->carrier_hz = {p}_burst_carrier_hz;",
-        f"    C->rise_s = {p}_burst_rise_s;",
-        f"    C->decay_s = {p}_burst_decay_s;",
+        f"    C->pad.mass = (sd_real){p}_pad_mass_kg;",
+        f"    C->pad.stiffness = (sd_real){p}_pad_stiffness_n_per_m;",
+        f"    C->pad.damping = (sd_real){p}_pad_damping_ns_per_m;",
+        f"    C->pad.burst_gain = (sd_real){p}_burst_gain;",
+        f"    C->pad.max_stick_period = (sd_real){p}_max_stick_period_s;",
+        f"    C->mu_s = (sd_real){p}_mu_s;",
+        f"    C->mu_k = (sd_real){p}_mu_k;",
+        f"    C->k_mu = (sd_real){p}_slope_friction_gain;",
+        f"    C->skin_target = (sd_real){p}_skin_target_m;",
+        f"    C->normal_force_constant = (sd_real){n_const!r};   /* N where the table stores no normal_force */",
+        f"    C->tick_rate = (sd_real){p}_tick_rate_hz;",
+        f"    C->audio_rate = (sd_real){p}_audio_rate_hz;",
+        f"    C->carrier_hz = (sd_real){p}_burst_carrier_hz;",
+        f"    C->rise_s = (sd_real){p}_burst_rise_s;",
+        f"    C->decay_s = (sd_real){p}_burst_decay_s;",
         "    C->policy = SD_RETRIGGER;",
         "    C->model = SD_MODEL_JUMP;",
         "}",

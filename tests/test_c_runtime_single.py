@@ -123,3 +123,42 @@ def test_float_bounds_are_derived_not_picked():
     dt2, _, _ = float_bounds(r, table, x, y, po2, pt)
     dt3, _, _ = float_bounds(r, table, np.r_[x, x], np.r_[y, y], np.r_[po, po], np.r_[pt, pt])
     assert dt2 < dt1 < dt3
+
+
+@pytest.mark.parametrize("dtype", ["uint16", "float64"])
+def test_single_precision_plays_a_header_compiled_table(tmp_path, dtype):
+    """A table compiled in from `export --format c` (tile index, float64 codes converted by integer
+    operations) in the single-precision build: drive within the derived bound of every tick whose
+    events lie farther than the event-time bound from its edges, the same number of audio samples."""
+    from shapedisplay.export import export_c
+    from shapedisplay.runtime import Renderer
+    from test_c_runtime import stroke, widget_table
+    table = widget_table(dtype)
+    table.meta["tick_rate_hz"] = 10_000.0
+    header = export_c(table, tmp_path / "table.h", name="sd_table")
+    exe = tmp_path / "sd_play_header"
+    cmd = [_cc(), *CFLAGS, *SINGLE, f'-DSD_TABLE_HEADER="{header}"', "-I", str(CDIR), str(CDIR / "tool_play_header.c"),
+           *(str(CDIR / n) for n in LIB), "-lm", "-o", str(exe)]
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    r = Renderer(table, model="jump", tick_rate=10_000.0, audio_rate=48_000.0)
+    x, y = stroke(1200, "diagonal")
+    po, pa, pt, pA = py_render_events(r, x, y)
+    fin, fout = tmp_path / "in", tmp_path / "out"
+    fin.write_bytes(struct.pack("<q", x.size) + np.asarray(x, "<f8").tobytes() + np.asarray(y, "<f8").tobytes())
+    res = subprocess.run([str(exe), "48000", str(fin), str(fout)], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0, res.stderr
+    raw = fout.read_bytes()
+    drive = np.frombuffer(raw, "<f8", x.size)
+    (na,) = struct.unpack_from("<q", raw, 8 * x.size)
+    assert len(pt) > 20 and na == pa.size
+    dt, d_drive, _ = float_bounds(r, table, x, y, po, pt)
+    t = po["t"]
+    edge = np.zeros(len(t) + 1, bool)
+    j = np.clip(np.rint((pt - t[0]) * r.tick_rate).astype(int), 0, len(t) - 1)   # the tick time nearest each event
+    near = np.abs(t[j] - pt) <= dt      # an event that can move across that tick time changes ticks j and j + 1
+    edge[j[near]] = edge[j[near] + 1] = True
+    edge = edge[:-1]
+    assert edge.mean() < 0.2
+    assert np.abs(drive - po["drive"])[~edge].max() <= d_drive
+    assert np.abs(drive - po["drive"]).max() > 0          # float arithmetic: not the reference's bits
