@@ -133,6 +133,29 @@ class WasmRunner:
         return outs, audio, tuple(int(self.call("sd_wasm_counter", i)) for i in range(4))
 
 
+def wasm_play_events(runner, image: bytes, r, x, y):
+    """Tick by tick through the exports as sd_wasm.js steps it: outputs, audio, counters and every
+    event (absolute time, amplitude) as the host tool logs them."""
+    assert runner.load(image) == 0
+    assert runner.call("sd_wasm_configure", int(r.config["model"]), int(r.config["policy"]), r.tick_rate,
+                       r.audio_rate) == 0
+    nout = runner.call("sd_wasm_n_outputs")
+    assert nout == len(OUTPUTS.names)
+    outs, audio, et, ea = [], [], [], []
+    for xi, yi in zip(x, y):
+        runner.call("sd_wasm_step", float(xi), float(yi))
+        outs.append(runner.read(runner.call("sd_wasm_outputs"), 8 * nout))
+        na = runner.call("sd_wasm_audio_count")
+        audio.append(np.frombuffer(runner.read(runner.call("sd_wasm_audio"), 8 * na), "<f8"))
+        ne = runner.call("sd_wasm_tick_events")
+        if ne:
+            et.append(np.frombuffer(runner.read(runner.call("sd_wasm_event_times"), 8 * ne), "<f8"))
+            ea.append(np.frombuffer(runner.read(runner.call("sd_wasm_event_amplitudes"), 8 * ne), "<f8"))
+    cat = (lambda v: np.concatenate(v) if v else np.zeros(0))
+    counters = tuple(int(runner.call("sd_wasm_counter", i)) for i in range(4))
+    return np.frombuffer(b"".join(outs), OUTPUTS), cat(audio), counters, cat(et), cat(ea)
+
+
 def derived_bounds(r, outs, unit_roundoff: float, libm_ulps: float = 1.0):
     """Bounds on the differences between two builds of the runtime that do the same operations but
     differ in libm (each result within ``libm_ulps`` ulp) and/or precision (``unit_roundoff`` u):

@@ -13,7 +13,8 @@ import pytest
 from shapedisplay.runtime import wasm
 from shapedisplay.runtime.models import MODEL_IDS
 
-from runtime_vectors import CASES, WasmRunner, assert_within_derived_bounds, case_setup, derived_bounds
+from runtime_vectors import (CASES, WasmRunner, assert_within_derived_bounds, assert_within_float_bounds, case_setup,
+                             derived_bounds, py_render_events, wasm_play_events)
 from test_c_runtime import CDIR, py_render
 
 pytest.importorskip("wasmtime", reason="wasmtime (pip install 'shapedisplay[test]') runs the WebAssembly tests")
@@ -104,3 +105,24 @@ console.log(JSON.stringify({{n, bad, mu_s: rt.param("mu_s")}}));
     assert info["n"] == pa.size and info["bad"] == -11 and info["mu_s"] == r.device.friction.mu_s
     _, d_drive, _ = derived_bounds(r, po, 2.0 ** -53)
     assert np.abs(audio - pa).max() <= d_drive and np.count_nonzero(pa) > 0.2 * pa.size
+
+
+@pytest.fixture(scope="module")
+def single_module():
+    """The single-precision module (`make -C runtime-c wasm-single`): the M4F's arithmetic in a second
+    engine, with musl's float libm."""
+    if not _toolchain():
+        assert shutil.which("apt-get") is None, "clang/wasm-ld missing: scripts/install-system-deps.sh --with-toolchains"
+        pytest.skip("no clang/wasm-ld and no apt-get to install them")
+    res = subprocess.run(["make", "-s", "-C", str(CDIR), "wasm-single"], capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    return CDIR / "build" / "sd_runtime_single.wasm"
+
+
+@pytest.mark.parametrize("dtype, kind, policy, tick, audio, model", CASES)
+def test_wasm_single_precision_within_derived_bounds(single_module, dtype, kind, policy, tick, audio, model):
+    table, r, x, y, img = case_setup(dtype, kind, policy, tick, audio, model, seconds=0.12)
+    po, pa, pt, pA = py_render_events(r, x, y)
+    co, ca, (cclip, cev, cdrop, cfault), ct, cA = wasm_play_events(WasmRunner(single_module), img, r, x, y)
+    assert len(pt) > 10 and cev == len(pt) and cdrop == 0 and ca.size == pa.size
+    assert_within_float_bounds(r, table, x, y, po, pa, pt, pA, co, ca, ct, cA)

@@ -32,8 +32,9 @@
 #include <string.h>
 #include "sd_runtime.h"
 
-/* per-tick outputs as an array of doubles: sd_outputs_t holds doubles only (sd_layout.h) */
-#define SD_NOUT ((int32_t)(sizeof(sd_outputs_t) / sizeof(double)))
+/* per-tick outputs as an array of doubles (sd_outputs_t holds reals only, sd_layout.h); the
+ * single-precision build (-DSD_SINGLE, for tests) widens them into double mirrors */
+#define SD_NOUT ((int32_t)(sizeof(sd_outputs_t) / sizeof(sd_real)))
 
 #define EXPORT(name) __attribute__((export_name(#name)))
 
@@ -42,6 +43,17 @@ static sd_renderer_t R;
 static sd_config_t cfg;
 static int loaded, ready;
 static double samples[SD_NSLOT];
+#ifdef SD_SINGLE
+static double out_d[SD_NOUT], audio_d[SD_AUDIO_BLOCK_MAX], ev_t_d[SD_EVENT_RING], ev_a_d[SD_EVENT_RING];
+
+static void widen_outputs(double *dst, const sd_outputs_t *o)
+{
+    int n = 0;
+#define SD_WIDEN(kind, name) dst[n++] = (double)o->name;
+    SD_FIELDS_OUTPUTS(SD_WIDEN)
+#undef SD_WIDEN
+}
+#endif
 static uintptr_t act_lo, act_hi;          /* the active image's bytes */
 
 extern unsigned char __heap_base;
@@ -105,29 +117,29 @@ EXPORT(sd_wasm_configure) int sd_wasm_configure(int model, int policy, double ti
     if (!loaded) return SD_ERR_ARG;
     cfg.model = model;
     cfg.policy = policy;
-    cfg.tick_rate = tick_rate;
-    cfg.audio_rate = audio_rate;
+    cfg.tick_rate = (sd_real)tick_rate;
+    cfg.audio_rate = (sd_real)audio_rate;
     return restart();
 }
 
 EXPORT(sd_wasm_set) int sd_wasm_set(int index, double value)
 {
-    double *p[] = {&cfg.pad.mass, &cfg.pad.stiffness, &cfg.pad.damping, &cfg.pad.burst_gain,
+    sd_real *p[] = {&cfg.pad.mass, &cfg.pad.stiffness, &cfg.pad.damping, &cfg.pad.burst_gain,
                    &cfg.pad.max_stick_period, &cfg.mu_s, &cfg.mu_k, &cfg.k_mu, &cfg.skin_target, &cfg.tick_rate,
                    &cfg.audio_rate, &cfg.carrier_hz, &cfg.rise_s, &cfg.decay_s};
     if (!loaded || index < 0 || index >= (int)(sizeof p / sizeof p[0])) return SD_ERR_ARG;
-    *p[index] = value;
+    *p[index] = (sd_real)value;
     return restart();
 }
 
 EXPORT(sd_wasm_reset) void sd_wasm_reset(double t0)
 {
-    if (ready) sd_renderer_reset(&R, t0);
+    if (ready) sd_renderer_reset(&R, (sd_real)t0);
 }
 
 EXPORT(sd_wasm_step) double sd_wasm_step(double x, double y)
 {
-    return ready ? sd_renderer_step(&R, x, y) : 0.0;
+    return ready ? (double)sd_renderer_step(&R, (sd_real)x, (sd_real)y) : 0.0;
 }
 
 EXPORT(sd_wasm_run) int32_t sd_wasm_run(uint32_t xy_ptr, int32_t n, uint32_t outs_ptr, uint32_t audio_ptr, int32_t cap)
@@ -138,18 +150,41 @@ EXPORT(sd_wasm_run) int32_t sd_wasm_run(uint32_t xy_ptr, int32_t n, uint32_t out
     if (!ready || n < 0) return -1;
     for (i = 0; i < n; i++) {
         if (written + R.audio_cap > cap) return -1;
-        sd_renderer_step(&R, xy[2 * i], xy[2 * i + 1]);
+        sd_renderer_step(&R, (sd_real)xy[2 * i], (sd_real)xy[2 * i + 1]);
+#ifdef SD_SINGLE
+        if (outs) widen_outputs(outs + (size_t)i * SD_NOUT, &R.out);
+        if (audio && R.n_audio > 0) {
+            long a;
+            for (a = 0; a < R.n_audio; a++) audio[written + a] = (double)R.audio[a];
+            written += (int32_t)R.n_audio;
+        }
+#else
         if (outs) memcpy(outs + (size_t)i * SD_NOUT, &R.out, sizeof R.out);
         if (audio && R.n_audio > 0) {
             memcpy(audio + written, R.audio, (size_t)R.n_audio * sizeof(double));
             written += (int32_t)R.n_audio;
         }
+#endif
     }
     return written;
 }
 
+#ifdef SD_SINGLE
+EXPORT(sd_wasm_outputs) uint32_t sd_wasm_outputs(void)
+{
+    widen_outputs(out_d, &R.out);
+    return (uint32_t)(uintptr_t)out_d;
+}
+EXPORT(sd_wasm_audio) uint32_t sd_wasm_audio(void)
+{
+    long a;
+    for (a = 0; a < R.n_audio; a++) audio_d[a] = (double)R.audio[a];
+    return (uint32_t)(uintptr_t)audio_d;
+}
+#else
 EXPORT(sd_wasm_outputs) uint32_t sd_wasm_outputs(void) { return (uint32_t)(uintptr_t)&R.out; }
 EXPORT(sd_wasm_audio) uint32_t sd_wasm_audio(void) { return (uint32_t)(uintptr_t)R.audio; }
+#endif
 EXPORT(sd_wasm_audio_count) int32_t sd_wasm_audio_count(void) { return ready ? (int32_t)R.n_audio : 0; }
 EXPORT(sd_wasm_audio_cap) int32_t sd_wasm_audio_cap(void) { return ready ? (int32_t)R.audio_cap : 0; }
 EXPORT(sd_wasm_n_outputs) int32_t sd_wasm_n_outputs(void) { return SD_NOUT; }
@@ -165,7 +200,7 @@ EXPORT(sd_wasm_counter) double sd_wasm_counter(int which)
     case 1: return (double)R.run.events_total;
     case 2: return (double)R.run.events_dropped;
     case 3: return (double)R.position_faults;
-    case 4: return R.run.tick;
+    case 4: return (double)R.run.tick;
     default: return 0.0;
     }
 }
@@ -176,6 +211,21 @@ EXPORT(sd_wasm_tick_events) int32_t sd_wasm_tick_events(void)
     long n = ready ? (long)R.out.events : 0;
     return (int32_t)(n < R.run.n_recent ? n : R.run.n_recent);
 }
+#ifdef SD_SINGLE
+/* absolute times in double (the ring counts from the epoch in this build) */
+EXPORT(sd_wasm_event_times) uint32_t sd_wasm_event_times(void)
+{
+    long i, n = sd_wasm_tick_events(), i0 = (long)R.run.n_recent - n;
+    for (i = 0; i < n; i++) ev_t_d[i] = sd_event_time(&R, i0 + i);
+    return (uint32_t)(uintptr_t)ev_t_d;
+}
+EXPORT(sd_wasm_event_amplitudes) uint32_t sd_wasm_event_amplitudes(void)
+{
+    long i, n = sd_wasm_tick_events(), i0 = (long)R.run.n_recent - n;
+    for (i = 0; i < n; i++) ev_a_d[i] = (double)R.ev_a[i0 + i];
+    return (uint32_t)(uintptr_t)ev_a_d;
+}
+#else
 EXPORT(sd_wasm_event_times) uint32_t sd_wasm_event_times(void)
 {
     return (uint32_t)(uintptr_t)(R.ev_t + (R.run.n_recent - sd_wasm_tick_events()));
@@ -184,6 +234,7 @@ EXPORT(sd_wasm_event_amplitudes) uint32_t sd_wasm_event_amplitudes(void)
 {
     return (uint32_t)(uintptr_t)(R.ev_a + (R.run.n_recent - sd_wasm_tick_events()));
 }
+#endif
 
 EXPORT(sd_wasm_sample) uint32_t sd_wasm_sample(double x, double y)
 {
@@ -191,7 +242,9 @@ EXPORT(sd_wasm_sample) uint32_t sd_wasm_sample(double x, double y)
     if (!loaded) {
         for (s = 0; s < SD_NSLOT; s++) samples[s] = 0.0;
     } else {
-        sd_sample_slots(&img.table, x, y, samples);
+        sd_real v[SD_NSLOT];
+        sd_sample_slots(&img.table, (sd_real)x, (sd_real)y, v);
+        for (s = 0; s < SD_NSLOT; s++) samples[s] = (double)v[s];
     }
     return (uint32_t)(uintptr_t)samples;
 }
