@@ -162,3 +162,20 @@ def test_single_precision_plays_a_header_compiled_table(tmp_path, dtype):
     assert edge.mean() < 0.2
     assert np.abs(drive - po["drive"])[~edge].max() <= d_drive
     assert np.abs(drive - po["drive"]).max() > 0          # float arithmetic: not the reference's bits
+
+
+def test_single_precision_loader_refuses_reals_beyond_float_range(sd_single, sd_double, tmp_path):
+    """A stored scale of 1e300 is finite (the double build loads it) but no float holds it: the
+    single-precision build refuses the image with SD_ERR_IMAGE_VALUE (-16) instead of playing inf."""
+    import zlib
+    table, r, x, y, img = case_setup("uint16", "diagonal", "retrigger", 10_000.0, None, "jump", seconds=0.01)
+    bad = bytearray(img)
+    struct.pack_into("<d", bad, 224 + 8, 1e300)                     # slot 0's scale
+    struct.pack_into("<I", bad, len(bad) - 4, zlib.crc32(bytes(bad[:-4])) & 0xFFFFFFFF)
+    fin, fout = tmp_path / "in", tmp_path / "out"
+    fin.write_bytes(image_payload(bytes(bad), r, x, y))
+    env = {**os.environ, "ASAN_OPTIONS": "detect_leaks=0"}
+    single = subprocess.run([str(sd_single), "image", str(fin), str(fout)], capture_output=True, text=True, env=env)
+    double = subprocess.run([str(sd_double), "image", str(fin), str(fout)], capture_output=True, text=True)
+    assert single.returncode == 4 and "(-16)" in single.stderr
+    assert double.returncode == 0
