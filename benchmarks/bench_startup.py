@@ -17,6 +17,11 @@ printed as a ratio against the baseline median. The runs are interleaved
 (one of each command per round), so a change of machine load hits every row
 alike.
 
+Wall time is what a user waits; on a machine busy with other work it
+grows with the load, so every row also gives the CPU time (user + system) of
+the process, which on an idle machine is about its wall time. The load
+average is printed with the table.
+
 Child processes run without ``PYTHONDONTWRITEBYTECODE``: an installed package
 has its bytecode compiled at install time (pip does it), so a user's command
 does not recompile the package's modules on every start.
@@ -25,6 +30,7 @@ Usage: ``.venv/bin/python benchmarks/bench_startup.py [--runs N] [--cold-runs N]
 """
 import argparse
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -47,21 +53,28 @@ def child_env(**extra) -> dict:
     return env
 
 
-def run_once(cmd, env) -> float:
+def run_once(cmd, env) -> tuple[float, float]:
+    """(wall, cpu) seconds of one run of ``cmd``; cpu = user + system time of the child process."""
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    return time.perf_counter() - t0
+    wall = time.perf_counter() - t0
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
 
 
-def row(name, times, base_median, target=None) -> float:
-    lo, med, hi = min(times), statistics.median(times), max(times)
+def row(name, runs, base, target=None) -> None:
+    """Print wall min/median/max, its ratio to the baseline's wall median, and the same for the CPU time."""
+    wall, cpu = [w for w, _ in runs], [c for _, c in runs]
+    lo, med, hi = min(wall), statistics.median(wall), max(wall)
+    cmed = statistics.median(cpu)
     unit, scale = ("s", 1.0) if med >= 1.0 else ("ms", 1e3)
-    line = (f"{name:<44} min {lo * scale:7.1f}  median {med * scale:7.1f}  max {hi * scale:7.1f} {unit:<2}"
-            f"  ratio {med / base_median:6.1f}")
+    line = (f"{name:<44} wall min {lo * scale:7.1f}  median {med * scale:7.1f}  max {hi * scale:7.1f} {unit:<2}"
+            f" ratio {med / base[0]:6.1f} | cpu median {cmed * scale:7.1f} {unit:<2} ratio {cmed / base[1]:6.1f}")
     if target is not None:
-        line += f"   target {target:g} s {'met' if med <= target else 'NOT met'}"
+        line += (f" | target {target:g} s: wall {'met' if med <= target else 'NOT met'}, "
+                 f"cpu {'met' if cmed <= target else 'NOT met'}")
     print(line, flush=True)
-    return med
 
 
 def main() -> int:
@@ -106,9 +119,11 @@ def main() -> int:
                                                                   NUMBA_CACHE_DIR=str(fresh / "numba"))))
             cold["base"].append(run_once(warm["base"], env))
     print(f"whole process; warm rows {runs} runs, first-play rows {cold_runs} runs, each from empty caches; "
-          f"ratio = median / baseline median")
-    base = statistics.median(times["base"] + cold["base"])
-    row("baseline: python -c pass", times["base"] + cold["base"], base)
+          f"ratio = median / baseline median (wall and CPU separately); load average {os.getloadavg()[0]:.1f} "
+          f"on {os.cpu_count()} CPUs")
+    allbase = times["base"] + cold["base"]
+    base = (statistics.median(w for w, _ in allbase), statistics.median(c for _, c in allbase))
+    row("baseline: python -c pass", allbase, base)
     row('python -c "import shapedisplay"', times["import"], base)
     row("shapedisplay --help", times["help"], base, TARGET_HELP_S)
     row("play 5 s stroke, warm (auto: C runtime)", times["play"], base, TARGET_PLAY_S)
