@@ -17,6 +17,9 @@ preview, the device emulator and the C engine it feeds — goes through
 * JSON is read with a size cap and a nesting-depth cap checked before it is
   parsed, and ``NaN``/``Infinity`` are refused.
 
+:func:`write_npz` writes such containers (what ``numpy.savez_compressed``
+writes, with a compression chosen per entry for speed: see there).
+
 Anything wrong raises :class:`~shapedisplay.errors.TableError` (or the
 ``error`` class given) naming the file, the entry, the rule and the value.
 This module is on the runtime side and imports only numpy.
@@ -52,6 +55,55 @@ _NPY_HEADER = re.compile(
     r"\{'descr': '(?P<descr>[<>|=][a-zA-Z]\d{1,3})', 'fortran_order': (?P<fortran>False|True), "
     r"'shape': \((?P<shape>(?:\d{1,19}, ?)*\d{0,19})\), \}[ ]*\n?$")
 _JSON_TOKENS = re.compile(r'"(?:[^"\\]|\\.)*"|[\[\]{}]')
+
+
+#: Entries up to this many bytes are deflated at zlib's default level, as ``numpy.savez_compressed`` does.
+SMALL_ENTRY = 1 << 20
+#: A large entry is stored uncompressed if deflate (level 1) keeps more than this fraction of a sample of it.
+STORE_ABOVE_RATIO = 0.7
+_SAMPLES = 8
+_SAMPLE_BYTES = 1 << 15
+
+
+def entry_compression(data) -> tuple[int, int | None]:
+    """How :func:`write_npz` stores one entry: ``(zipfile compress type, zlib level)``.
+
+    Small entries (<= :data:`SMALL_ENTRY` bytes): deflate at zlib's default
+    level 6. Large ones: deflate at level 1 (3-5x faster than level 6 on
+    smooth maps, about 1.5-2x the bytes), or stored when deflating
+    :data:`_SAMPLES` evenly spaced 32 KiB pieces keeps more than
+    :data:`STORE_ABOVE_RATIO` of them: codes of a noisy map hardly compress,
+    and deflate spends about 25 ns a byte finding that out. Both are plain
+    zip methods that any zip or ``numpy.load`` reads.
+    """
+    view = memoryview(data).cast("B")
+    n = len(view)
+    if n <= SMALL_ENTRY:
+        return zipfile.ZIP_DEFLATED, 6
+    step = (n - _SAMPLE_BYTES) // (_SAMPLES - 1)
+    packed = sum(len(zlib.compress(view[i * step:i * step + _SAMPLE_BYTES], 1)) for i in range(_SAMPLES))
+    if packed > STORE_ABOVE_RATIO * _SAMPLES * _SAMPLE_BYTES:
+        return zipfile.ZIP_STORED, None
+    return zipfile.ZIP_DEFLATED, 1
+
+
+def write_npz(fh, arrays: dict) -> None:
+    """Write ``arrays`` ({name: ndarray}) to the binary file object ``fh`` as an ``.npz``.
+
+    Each entry ``NAME.npy`` holds the array in ``.npy`` format exactly as
+    ``numpy.save`` writes it, compressed as :func:`entry_compression`
+    chooses. Entry times are fixed (1980-01-01), so equal arrays give equal
+    bytes. :class:`NpzReader` and ``numpy.load`` read the result.
+    """
+    with zipfile.ZipFile(fh, "w", allowZip64=True) as zf:
+        for name, a in arrays.items():
+            a = np.ascontiguousarray(a)
+            method, level = entry_compression(a.reshape(-1).view(np.uint8))
+            npy = io.BytesIO()
+            np.lib.format.write_array(npy, a, allow_pickle=False)
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            zf.writestr(info, npy.getbuffer(), compress_type=method, compresslevel=level)
+            del npy
 
 
 class NpzReader:

@@ -295,25 +295,63 @@ def detect_walls(hf: HeightField, gx: np.ndarray, gy: np.ndarray, max_slope: flo
             f"slopes overflow float64 (|grad h| beyond 1e154): heights {lo:g}..{hi:g} m over spacing "
             f"dx={hf.dx:g} m, dy={hf.dy:g} m; check the units of the size and height range ({hf.source})")
     count = int(np.count_nonzero(mask))
+    n, top, spans = wall_regions(mask, WallReport.MAX_BOXES)
+    boxes = [[round((hf.x0 + c0 * hf.dx) * 1e3, 6), round((hf.x0 + c1 * hf.dx) * 1e3, 6),
+              round((hf.y0 + r0 * hf.dy) * 1e3, 6), round((hf.y0 + r1 * hf.dy) * 1e3, 6)]
+             for r0, r1, c0, c1 in spans]
+    return WallReport(mask, count, count / mask.size, limit, steepest, boxes, int(n))
+
+
+def wall_regions(mask: np.ndarray, k: int) -> tuple[int, np.ndarray, list]:
+    """Connected regions of ``mask`` (4-connected, as ``scipy.ndimage.label``) and the ``k`` largest.
+
+    Parameters
+    ----------
+    mask : ndarray (rows, cols) bool
+    k : int
+        How many of the largest regions to describe.
+
+    Returns
+    -------
+    n : int
+        Number of regions.
+    top : ndarray (min(k, n),) int64
+        Labels (``ndimage.label`` numbering: raster order of each region's
+        first sample) of the largest regions, largest first; equal sizes in
+        label order.
+    spans : list of (row_min, row_max, col_min, col_max)
+        Inclusive sample bounds of each region in ``top``.
+
+    Cost: one labelling pass, one histogram of the labels, one pass mapping
+    the chosen labels to ranks and one bounding-box pass over that (all in
+    C); choosing the largest is linear in the number of regions (a
+    threshold from the histogram of sizes, not a sort or a partition of
+    every region: a noisy 4096x4096 map has millions of them).
+    """
     from scipy import ndimage
     labels, n = ndimage.label(mask)
-    sizes = np.bincount(labels.ravel(), minlength=n + 1)
+    if n == 0:
+        return 0, np.zeros(0, np.int64), []
+    sizes = np.bincount(labels.reshape(-1), minlength=n + 1)
     sizes[0] = 0
-    k = min(WallReport.MAX_BOXES, n)
-    top = np.argpartition(sizes, -k)[-k:] if n > k else np.arange(1, n + 1)
-    top = top[np.argsort(-sizes[top], kind="stable")]
-    lut = np.zeros(n + 1, dtype=bool)
-    lut[top] = True
-    rows, cols = np.nonzero(lut[labels])
-    lab = labels[rows, cols]
+    k = min(k, n)
+    # the k-th largest size s_k from a histogram of sizes (sizes above CAP share its top bin; then
+    # fewer than mask.size / CAP regions are that large and they are sorted directly)
+    cap = 1 << 16
+    at_least = np.cumsum(np.bincount(np.minimum(sizes[1:], cap), minlength=cap + 1)[::-1])[::-1]
+    s_k = int(np.flatnonzero(at_least >= k)[-1])         # at_least[s]: regions of size >= s (s < cap)
+    above = np.flatnonzero(sizes > s_k) if s_k < cap else np.flatnonzero(sizes >= cap)
+    above = above[np.lexsort((above, -sizes[above]))]
+    if above.size < k:                                   # fill up with regions of size s_k in label order
+        above = np.concatenate([above, np.flatnonzero(sizes == s_k)[:k - above.size]])
+    cand = above[:k]
+    rank = np.zeros(n + 1, dtype=np.int32 if k >= 127 else np.int8)
+    rank[cand] = np.arange(1, k + 1)
+    ranked = rank[labels]
     del labels
-    boxes = []
-    for t in top:
-        sel = lab == t
-        r, c = rows[sel], cols[sel]
-        boxes.append([round((hf.x0 + int(c.min()) * hf.dx) * 1e3, 6), round((hf.x0 + int(c.max()) * hf.dx) * 1e3, 6),
-                      round((hf.y0 + int(r.min()) * hf.dy) * 1e3, 6), round((hf.y0 + int(r.max()) * hf.dy) * 1e3, 6)])
-    return WallReport(mask, count, count / mask.size, limit, steepest, boxes, int(n))
+    spans = [(sl[0].start, sl[0].stop - 1, sl[1].start, sl[1].stop - 1)
+             for sl in ndimage.find_objects(ranked, max_label=k)]
+    return int(n), cand.astype(np.int64), spans
 
 
 def _check_finite_peak(peak: float) -> None:

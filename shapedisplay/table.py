@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from .atomic import atomic_path
-from .container import NpzReader
+from .container import NpzReader, write_npz
 from .errors import TableError, InputError, did_you_mean, unknown_key
 
 FORMAT_NAME = "shapedisplay-friction-table"
@@ -362,19 +362,24 @@ class FrictionTable:
         """Write atomically to ``path`` (.npz). Returns the path."""
         path = Path(path)
         with atomic_path(path, suffix=".npz") as tmp:
-            tmp.write_bytes(self.to_bytes())
+            with open(tmp, "wb") as fh:
+                write_npz(fh, self._arrays())
         return path
 
     def to_bytes(self) -> bytes:
         """The bytes of the table file (.npz) that :meth:`save` writes."""
+        buf = io.BytesIO()
+        write_npz(buf, self._arrays())
+        return buf.getvalue()
+
+    def _arrays(self) -> dict:
+        """The entries of the table file: ``header`` (JSON with its checksum) and each channel, little-endian."""
         header = self.header()
         header["checksum"] = _checksum(header, self.codes)
         arrays = {"header": np.frombuffer(json.dumps(header, sort_keys=True).encode(), dtype=np.uint8)}
         for n, a in self.codes.items():
             arrays[n] = a.astype(a.dtype.newbyteorder("<"), copy=False)
-        buf = io.BytesIO()
-        np.savez_compressed(buf, **arrays)
-        return buf.getvalue()
+        return arrays
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "FrictionTable":
@@ -804,7 +809,7 @@ def _checksum(header: dict, arrays: dict) -> str:
     for n in sorted(arrays):
         a = np.asarray(arrays[n])
         d.update(n.encode() + b"\0" + a.dtype.newbyteorder("<").str.encode() + b"\0")
-        d.update(a.astype(a.dtype.newbyteorder("<"), copy=False).tobytes())
+        d.update(np.ascontiguousarray(a.astype(a.dtype.newbyteorder("<"), copy=False)).reshape(-1).view(np.uint8))
     return "sha256:" + d.hexdigest()
 
 

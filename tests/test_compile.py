@@ -241,7 +241,7 @@ def test_fast_kernels_match_numpy_bit_for_bit():
     from shapedisplay.gradients import limit_walls
     from shapedisplay.table import Quantization
     rng = np.random.default_rng(5)
-    v = rng.uniform(0.5, 4.5, 70000)          # above KERNEL_MIN_SIZE: the numba path
+    v = rng.uniform(0.5, 4.5, 70000)          # above KERNEL_MIN_SIZE: the chunked path (not a multiple of CHUNK)
     v[:100] = 0.5 + (np.arange(100) + 0.5) * (4.0 / 255)       # exact ties between codes
     for dt, top in (("uint8", 255), ("uint16", 65535)):
         q = Quantization(dt, 4.0 / top, 0.5, 0.0)
@@ -289,3 +289,24 @@ def test_pruning_property(heights, keep):
     for name in pruned.channels:
         assert pruned.quant[name] == full.quant[name]
         assert np.array_equal(pruned.dense(name), full.dense(name))
+
+
+def test_chunked_kernels_equal_whole_array_arithmetic():
+    """Chunk boundaries change nothing: the chunked passes give the whole-array numpy results bit for bit."""
+    from shapedisplay import _kernels
+    rng = np.random.default_rng(11)
+    n = 3 * _kernels.CHUNK + 1234
+    gx, gy = rng.normal(0, 2, n), rng.normal(0, 2, n)
+    m2 = gx * gx + gy * gy
+    assert _kernels.slope_scan(gx, gy, 2.25) == (int((m2 > 2.25).sum()), m2.max())
+    mask = np.empty(n, bool)
+    _kernels.wall_mask(gx, gy, 2.25, mask)
+    assert np.array_equal(mask, m2 > 2.25)
+    fx, fy = gx.copy(), gy.copy()
+    count, peak = _kernels.clip_magnitude(fx, fy, 1.5)
+    f = np.where(m2 > 2.25, 1.5 / np.sqrt(m2), 1.0)
+    assert count == int((m2 > 2.25).sum()) and peak == np.sqrt(m2.max())
+    assert np.array_equal(fx, np.where(m2 > 2.25, gx * f, gx)) and np.array_equal(fy, np.where(m2 > 2.25, gy * f, gy))
+    gx[n - 5] = np.nan
+    lo, hi = _kernels.minmax(gx)
+    assert np.isnan(lo) and np.isnan(hi)

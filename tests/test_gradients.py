@@ -173,3 +173,41 @@ def test_limit_walls_with_subnormal_slopes_warns_nothing_and_keeps_them():
         warnings.simplefilter("error")       # 1/|g|^2 overflowed with a RuntimeWarning
         lx, _ = limit_walls(gx, np.zeros_like(gx), 1.0)
     assert lx.tolist() == [[1e-160, 0.0, 1.0]]
+
+
+def _regions_by_scipy(mask, k):
+    """Reference: label with scipy, order every region by (size descending, label), boxes by search."""
+    from scipy import ndimage
+    labels, n = ndimage.label(mask)
+    sizes = np.bincount(labels.ravel(), minlength=n + 1)
+    sizes[0] = 0
+    top = np.lexsort((np.arange(n + 1), -sizes))[:min(k, n)]
+    spans = []
+    for t in top:
+        r, c = np.nonzero(labels == t)
+        spans.append((int(r.min()), int(r.max()), int(c.min()), int(c.max())))
+    return n, [int(t) for t in top], spans
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 40), st.integers(1, 40), st.floats(0.0, 1.0), st.integers(1, 30), st.integers(0, 2 ** 32 - 1))
+def test_wall_regions_match_scipy_labelling(rows, cols, density, k, seed):
+    from shapedisplay.gradients import wall_regions
+    mask = np.random.default_rng(seed).random((rows, cols)) < density
+    n, top, spans = wall_regions(mask, k)
+    assert (n, list(top), spans) == _regions_by_scipy(mask, k)
+
+
+def test_wall_regions_beyond_the_size_histogram_and_ties():
+    from shapedisplay.gradients import wall_regions
+    mask = np.zeros((700, 700), bool)
+    mask[10:310, 20:320] = True             # 90 000 samples: beyond the histogram's top bin (65 536)
+    mask[400:690, 400:690] = True           # 84 100 samples: also beyond it
+    mask[350:352, ::2] = True               # 350 regions of 2 samples: ties filled in label order
+    mask[360, 1::2] = True                  # 350 single samples
+    for k in (1, 2, 3, 20, 400, 1000):
+        n, top, spans = wall_regions(mask, k)
+        assert (n, list(top), spans) == _regions_by_scipy(mask, k)
+    assert spans[0] == (10, 309, 20, 319) and spans[1] == (400, 689, 400, 689)
+    n, top, spans = wall_regions(np.zeros((5, 5), bool), 20)
+    assert (n, top.size, spans) == (0, 0, [])

@@ -173,10 +173,10 @@ def test_save_is_atomic(tmp_path, monkeypatch):
     t, _ = _table()
     target = tmp_path / "t.npz"
 
-    def boom(fh, **arrays):
+    def boom(fh, arrays):
         fh.write(b"partial")
         raise RuntimeError("disk full")
-    monkeypatch.setattr(np, "savez_compressed", boom)
+    monkeypatch.setattr("shapedisplay.table.write_npz", boom)
     with pytest.raises(RuntimeError):
         t.save(target)
     assert list(tmp_path.iterdir()) == []
@@ -283,3 +283,36 @@ def test_from_bytes_reads_the_same_table_as_load(tmp_path):
     np.testing.assert_array_equal(u.dense("normal_force"), t.dense("normal_force"))
     with pytest.raises(TableError, match="uploaded table: unreadable or truncated"):
         FrictionTable.from_bytes(path.read_bytes()[:50])
+
+
+def test_large_table_written_fast_reads_as_the_numpy_written_file(tmp_path):
+    """The writer stores incompressible large channels and deflates the rest at level 1: the same
+    table, channel for channel, as numpy's savez_compressed of the same entries; numpy reads it too."""
+    import io
+    import zipfile
+
+    rows, cols = 1200, 1000                                # 1.2 MB per uint8 channel: above SMALL_ENTRY
+    y, x = np.mgrid[0:rows, 0:cols]
+    smooth = 0.5 + np.sin(x / 90.0) * np.cos(y / 70.0) + 1.0
+    noisy = np.random.default_rng(3).uniform(-1.0, 1.0, (rows, cols))
+    chans = {"normal_force": smooth, "lateral_x": noisy, "lateral_y": noisy[::-1].copy()}
+    quant = {n: choose_quantization(v, "uint8") for n, v in chans.items()}
+    quant["lateral_y"] = choose_quantization(noisy, "uint16")
+    t = FrictionTable.from_dense(Grid(rows, cols, 1e-4, 1e-4), chans, quant, {"source": {"x": 1}})
+    data = t.to_bytes()
+    assert data == t.to_bytes() == t.save(tmp_path / "t.npz").read_bytes()       # byte-stable
+    with zipfile.ZipFile(io.BytesIO(data)) as z:
+        methods = {i.filename: i.compress_type for i in z.infolist()}
+    assert methods == {"header.npy": zipfile.ZIP_DEFLATED, "normal_force.npy": zipfile.ZIP_DEFLATED,
+                       "lateral_x.npy": zipfile.ZIP_STORED, "lateral_y.npy": zipfile.ZIP_STORED}
+    legacy = io.BytesIO()
+    np.savez_compressed(legacy, **t._arrays())
+    old, new = FrictionTable.from_bytes(legacy.getvalue()), FrictionTable.from_bytes(data)
+    assert old.checksum() == new.checksum() and old.quant == new.quant and old.meta == new.meta
+    with np.load(io.BytesIO(data)) as z, np.load(io.BytesIO(legacy.getvalue())) as zl:
+        assert sorted(z.files) == sorted(zl.files)
+        for name in z.files:
+            assert z[name].dtype == zl[name].dtype and np.array_equal(z[name], zl[name])
+    for name in chans:
+        assert np.array_equal(new.codes[name], old.codes[name])
+        assert np.array_equal(new.dense(name), t.dense(name))
