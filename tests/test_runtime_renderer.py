@@ -335,3 +335,39 @@ def test_renderer_source_names_the_kernels_it_compiles_in():
         blob = b"".join((here / n).read_bytes() for n in deps)
         assert mod.KERNEL_SOURCES_SHA256 == hashlib.sha256(blob).hexdigest(), (
             f"{', '.join(deps)} changed: run `make generate` so that numba recompiles the cached kernels of {name}")
+
+@pytest.mark.parametrize("model", ["exact", "jump", "karnopp"])
+def test_fused_lookup_equals_table_sample_and_prepare_inputs_bit_for_bit(model):
+    """The offline render's one-pass lookup gives the inputs of FrictionTable.sample + prepare_inputs exactly,
+    on a 2-D table with every slot channel the renderer reads, sparse blocks and a background, cursor outside too."""
+    from shapedisplay.runtime.layouts import NSLOT, SLOTS
+    from shapedisplay.runtime.renderer import INPUT_ROWS, prepare_inputs
+    rng = np.random.default_rng(7)
+    rows, cols = 12, 20
+    names = ("normal_force", "grad_x", "grad_y", "lateral_x", "lateral_y", "skin_stretch", "burst_gain")
+    patch = {n: rng.uniform(0.2, 2.0, (5, 7)) for n in names}
+    quant = {n: choose_quantization(v, "uint16") for n, v in patch.items()}
+    t = FrictionTable.from_patches(Grid(rows, cols, 1e-3, 1e-3, 0.5e-3, 0.2e-3),
+                                   [((1, 2), patch), ((6, 11), patch)], quant, {n: 0.4 for n in names},
+                                   {"mapping": {"slope_friction_gain": 0.3}})
+    assert len(t.blocks) == 2
+    n = 2500
+    cp = CursorPath(np.arange(n) / 10_000.0, rng.uniform(-0.005, 0.03, n), rng.uniform(-0.005, 0.02, n),
+                    10_000.0, "random")
+    r = Renderer(t, device=quiet_device(), model=model, tick_rate=10_000)
+    got = dict(zip(INPUT_ROWS, r._inputs(cp)))
+    xm, ym = cp.x.copy(), cp.y.copy()
+    xm[1:] = 0.5 * (cp.x[1:] + cp.x[:-1])
+    ym[1:] = 0.5 * (cp.y[1:] + cp.y[:-1])
+    vals = np.zeros((NSLOT, n))
+    for i, name in enumerate(SLOTS):
+        if name in t.channels:
+            vals[i] = t.sample(name, xm, ym)
+    arrs = np.empty((7, n))
+    prepare_inputs(cp.t, cp.x, cp.y, vals, r._config, r._slot_channel, *arrs)
+    for name, want in zip(("V", "vx", "vy", "normal_force", "mu_s", "mu_k", "gain"), arrs):
+        assert got[name].tobytes() == want.tobytes(), name
+    for name, slot in (("lateral_x", "lateral_x"), ("lateral_y", "lateral_y"), ("skin_target", "skin_stretch")):
+        assert got[name].tobytes() == vals[SLOTS.index(slot)].tobytes(), name
+    res = r.render(cp)
+    assert res.lateral_x.tobytes() == got["lateral_x"].tobytes() and res.event_time.size > 0

@@ -21,7 +21,8 @@ def pack_channels(table: FrictionTable, names: list[str]):
     Returns
     -------
     blocks : ndarray (n_blocks, 5), int64 — row0, col0, rows, cols, offset
-    data : ndarray (len(names), n_values), float64 — decoded values, SI
+    data : ndarray (len(names), n_values + 1), float64 — decoded values, SI, then the background value
+        in the last column (where :func:`sample_all` reads a sample no block covers)
     background : ndarray (len(names),), float64
     grid : :data:`~.layouts.GRID` record — rows, cols, dx, dy, x0, y0
     """
@@ -37,8 +38,9 @@ def pack_channels(table: FrictionTable, names: list[str]):
         blocks = blk if blocks is None else blocks
         rows.append(np.asarray(data, dtype=np.float64))
         bgs.append(float(bg))
-    data = np.vstack(rows) if rows[0].size else np.zeros((len(names), 1))
-    return np.ascontiguousarray(blocks), np.ascontiguousarray(data), np.array(bgs), grid
+    bg = np.array(bgs)
+    data = np.hstack([np.vstack(rows), bg[:, None]])
+    return np.ascontiguousarray(blocks), np.ascontiguousarray(data), bg, grid
 
 
 @njit(cache=True)
@@ -52,11 +54,6 @@ def cell_index(blocks, r, c):
         if r0 <= r < r0 + nr and c0 <= c < c0 + nc:
             return blocks[b, 4] + (r - r0) * nc + (c - c0)
     return -1
-
-
-@njit(cache=True)
-def _value(data, bg, ch, idx):
-    return data[ch, idx] if idx >= 0 else bg[ch]
 
 
 @njit(cache=True)
@@ -74,24 +71,37 @@ def _axis_cell(p, origin, spacing, count):
 
 
 @njit(cache=True)
+def _packed_index(blocks, r, c, background):
+    """:func:`cell_index`, with the background column's index where no block covers (r, c)."""
+    i = cell_index(blocks, r, c)
+    return i if i >= 0 else background
+
+
+@njit(cache=True)
 def sample_all(blocks, data, bg, grid, x, y, out):
-    """Bilinear values of every packed channel at (x, y) metres into ``out[:n_channels]`` (``grid``: a GRID record)."""
+    """Bilinear values of every packed channel at (x, y) metres into ``out[:n_channels]`` (``grid``: a GRID record).
+
+    Background samples read the last column of ``data`` (:func:`pack_channels`): every
+    corner is one plain load (a branch choosing between ``data`` and ``bg`` per corner
+    made the lookup several times slower).
+    """
     rows = grid.rows
     cols = grid.cols
+    last = data.shape[1] - 1
     c0, c1, tx = _axis_cell(x, grid.x0, grid.dx, cols)
     nch = bg.shape[0]
     if rows == 1:
-        i0 = cell_index(blocks, 0, c0)
-        i1 = cell_index(blocks, 0, c1)
+        i0 = _packed_index(blocks, 0, c0, last)
+        i1 = _packed_index(blocks, 0, c1, last)
         for ch in range(nch):
-            out[ch] = _value(data, bg, ch, i0) * (1 - tx) + _value(data, bg, ch, i1) * tx
+            out[ch] = data[ch, i0] * (1 - tx) + data[ch, i1] * tx
         return
     r0, r1, ty = _axis_cell(y, grid.y0, grid.dy, rows)
-    i00 = cell_index(blocks, r0, c0)
-    i01 = cell_index(blocks, r0, c1)
-    i10 = cell_index(blocks, r1, c0)
-    i11 = cell_index(blocks, r1, c1)
+    i00 = _packed_index(blocks, r0, c0, last)
+    i01 = _packed_index(blocks, r0, c1, last)
+    i10 = _packed_index(blocks, r1, c0, last)
+    i11 = _packed_index(blocks, r1, c1, last)
     for ch in range(nch):
-        top = _value(data, bg, ch, i00) * (1 - tx) + _value(data, bg, ch, i01) * tx
-        bot = _value(data, bg, ch, i10) * (1 - tx) + _value(data, bg, ch, i11) * tx
+        top = data[ch, i00] * (1 - tx) + data[ch, i01] * tx
+        bot = data[ch, i10] * (1 - tx) + data[ch, i11] * tx
         out[ch] = top * (1 - ty) + bot * ty

@@ -145,6 +145,67 @@ def prepare_inputs(t, x, y, vals, config, slot_channel, V, vx, vy, N, mus, muk, 
         N[i], mus[i], muk[i], gain[i] = _derive(vals[:, i], cfg, slot_channel, vx[i], vy[i], sp)
 
 
+#: Rows of the block :func:`lookup_inputs` fills, in order.
+INPUT_ROWS = ("V", "vx", "vy", "normal_force", "mu_s", "mu_k", "gain", "lateral_x", "lateral_y", "skin_target")
+
+
+@njit(cache=True)
+def lookup_inputs(t, x, y, blocks, data, bg, grid, config, slot_channel, out):
+    """Offline, in one pass: each tick's table lookup at its motion midpoint, velocities and model inputs.
+
+    ``blocks, data, bg, grid``: the packed table (:func:`.lookup.pack_channels`); ``config``: a
+    one-element RENDER_CONFIG array; ``out``: (len(INPUT_ROWS), n) float64, rows named by
+    :data:`INPUT_ROWS`. Per tick the arithmetic of :meth:`FrictionTable.sample` (the lookup) and of
+    :func:`prepare_inputs` (the rest), so the values are theirs bit for bit; but no (NSLOT, n) array of
+    looked-up values is written and read back.
+    """
+    cfg = config[0]
+    n = t.shape[0]
+    nch = bg.shape[0]
+    scratch = np.zeros(max(nch, 1))
+    vals = np.zeros(NSLOT)
+    skin = slot_channel[Slot.SKIN_STRETCH]
+    ax = 1.0
+    ay = 0.0
+    for i in range(n):
+        if i == 0:
+            vx = 0.0
+            vy = 0.0
+            xm = x[0]
+            ym = y[0]
+        else:
+            h = t[i] - t[i - 1]
+            vx = (x[i] - x[i - 1]) / h
+            vy = (y[i] - y[i - 1]) / h
+            xm = 0.5 * (x[i] + x[i - 1])
+            ym = 0.5 * (y[i] + y[i - 1])
+        if nch > 0:
+            sample_all(blocks, data, bg, grid, xm, ym, scratch)
+        for s in range(NSLOT):
+            j = slot_channel[s]
+            vals[s] = scratch[j] if j >= 0 else 0.0
+        V, ax, ay = _axis_speed(vx, vy, ax, ay)
+        N, mus, muk, gain = _derive(vals, cfg, slot_channel, vx, vy, abs(V))
+        out[0, i] = V
+        out[1, i] = vx
+        out[2, i] = vy
+        out[3, i] = N
+        out[4, i] = mus
+        out[5, i] = muk
+        out[6, i] = gain
+        out[7, i] = vals[Slot.LATERAL_X]
+        out[8, i] = vals[Slot.LATERAL_Y]
+        out[9, i] = vals[Slot.SKIN_STRETCH] if skin >= 0 else cfg.skin_target
+
+
+@njit(cache=True)
+def skin_stretch_of(target, f, mus, N, out):
+    """``out = target * f / (mus * N)`` where ``mus * N > 0``, else 0 (arrays of shape (n,))."""
+    for i in range(f.shape[0]):
+        lim = mus[i] * N[i]
+        out[i] = target[i] * f[i] / lim if lim > 0.0 else 0.0
+
+
 def friction_limits(channels: dict, mu_s: float, mu_k: float) -> tuple[np.ndarray, np.ndarray]:
     """Breakaway and kinetic force of each sample with the cursor at rest, as every tick derives them.
 
@@ -337,21 +398,12 @@ class Renderer:
         online_step(R, self._blocks, self._data, self._bg, self._ev.copy(), self._audio.copy(), 0.0, 0.0)
 
     # ------------------------------------------------------------------ offline
-    def _inputs(self, cp: CursorPath):
-        t, x, y = cp.t, cp.x, cp.y
-        xm = np.empty_like(x)
-        ym = np.empty_like(y)
-        xm[0], ym[0] = x[0], y[0]
-        xm[1:] = 0.5 * (x[1:] + x[:-1])
-        ym[1:] = 0.5 * (y[1:] + y[:-1])
-        n = t.size
-        vals = np.zeros((NSLOT, n))
-        for i, name in enumerate(SLOTS):
-            if name in self.present:
-                vals[i] = self.table.sample(name, xm, ym)
-        V, vx, vy, N, mus, muk, gain = arrs = np.empty((7, n))       # one block: fewer page faults
-        prepare_inputs(t, x, y, vals, self._config, self._slot_channel, *arrs)
-        return vals, V, vx, vy, N, mus, muk, gain
+    def _inputs(self, cp: CursorPath) -> np.ndarray:
+        """The (len(INPUT_ROWS), n) block of per-tick inputs of an offline run (:func:`lookup_inputs`)."""
+        block = np.empty((len(INPUT_ROWS), cp.t.size))
+        lookup_inputs(cp.t, cp.x, cp.y, self._blocks, self._data, self._bg, self._grid, self._config,
+                      self._slot_channel, block)
+        return block
 
     def model_inputs(self, cursor: CursorPath):
         """The per-tick inputs :meth:`render` gives the model for ``cursor`` (after the table lookup).
@@ -375,28 +427,25 @@ class Renderer:
             raise InputError(f"`cursor` must be a CursorPath (got {type(cursor).__name__})")
         cp = cursor if cursor.tick_rate == self.tick_rate else cursor.resample(self.tick_rate)
         audio_length(cp.duration, self.audio_rate)     # refuse an impossible stream before the work
-        vals, V, vx, vy, N, mus, muk, gain = self._inputs(cp)
+        V, vx, vy, N, mus, muk, gain, lat_x, lat_y, target = self._inputs(cp)
         S, f, st, _, _, _, _, et, ea = run_kernel(self.model, cp.t, V, N, mus, muk, gain)
         if S["diverged"] != 0:
             raise ModelError(divergence_message(self.model, self.tick_rate, float(S["diverged_at"])))
-        target = vals[Slot.SKIN_STRETCH] if "skin_stretch" in self.present else \
-            np.full(cp.t.size, self.config["skin_target"])
-        lim = mus * N
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ss = np.where(lim > 0, target * f / np.where(lim > 0, lim, 1.0), 0.0)
+        ss = np.empty(cp.t.size)
+        skin_stretch_of(target, f, mus, N, ss)
         b = self.device.burst
         audio, clipped = render_bursts(et, ea, cp.t[0], cp.duration, self.audio_rate, b.carrier_hz, b.rise_s,
                                        b.decay_s, self.burst_policy)
         # f is a row of the kernel's output block: copy it so the result does not hold the whole block
         return RenderResult(cp.t.copy(), cp.x.copy(), cp.y.copy(), vx, vy, N, f.copy(), st.astype(np.int8),
-                            vals[Slot.LATERAL_X].copy(), vals[Slot.LATERAL_Y].copy(), ss, et, ea, audio, self.audio_rate, clipped,
+                            lat_x, lat_y, ss, et, ea, audio, self.audio_rate, clipped,
                             self.model.name, self.tick_rate, self.burst_policy, mus)
 
     # ------------------------------------------------------------------ online
     def _build_online(self):
         from .lookup import pack_channels
         blocks, data, bg, grid = pack_channels(self.table, self.present)
-        self._blocks, self._data, self._bg = blocks, data, bg
+        self._blocks, self._data, self._bg, self._grid = blocks, data, bg, grid
         R0 = np.zeros(ONLINE.itemsize // 8).view(ONLINE)       # one record on a float64 buffer
         R0["cfg"] = self.config
         R0["grid"] = grid
