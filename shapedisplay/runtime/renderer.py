@@ -413,7 +413,7 @@ class Renderer:
         after the model. A path not on this renderer's tick grid is resampled.
         """
         cp = cursor if cursor.tick_rate == self.tick_rate else cursor.resample(self.tick_rate)
-        _, V, _, _, N, mus, muk, gain = self._inputs(cp)
+        V, _, _, N, mus, muk, gain, _, _, _ = self._inputs(cp)
         return cp.t, V, N, mus, muk, gain
 
     def render(self, cursor: CursorPath) -> RenderResult:
