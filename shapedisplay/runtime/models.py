@@ -432,10 +432,12 @@ class PadResult:
     diverged_at: float | None = None
 
 
-def run_kernel(model: PadModel, t, V, N, mus, muk, gain, state=None):
+def run_kernel(model: PadModel, t, V, N, mus, muk, gain, state=None, out=None):
     """Run ``model`` over per-tick inputs (arrays of shape (n,)); grow the event buffer as needed.
 
     ``state`` (optional) is the initial :data:`~.layouts.PAD_STATE` (record or one-element array).
+    ``out`` (optional) is a float64 ``(6, n)`` array with C-contiguous rows to write the per-tick
+    outputs into (a caller keeping all its per-tick arrays in one block passes rows of it).
     Returns ``(state, friction, phase, x, v, wf, wd, ev_t, ev_a)``, ``state`` the final record. The six
     per-tick arrays are the rows of one ``(6, n)`` block (one large
     allocation faults its pages in far faster than six separate ones; with
@@ -449,7 +451,7 @@ def run_kernel(model: PadModel, t, V, N, mus, muk, gain, state=None):
     cap = n // 8 + 1024          # grown and re-run if a path has more events
     S0 = model._fresh_state if state is None else np.array(state, dtype=PAD_STATE).reshape(1)
     S0 = S0.view(np.uint8)       # copied as bytes: numpy copies a structured array field by field
-    block = np.empty((6, n))
+    block = np.empty((6, n)) if out is None else out
     out_f, out_s, out_x, out_v, out_wf, out_wd = block
     run_ticks = _dispatch().run_ticks
     while True:

@@ -398,9 +398,11 @@ class Renderer:
         online_step(R, self._blocks, self._data, self._bg, self._ev.copy(), self._audio.copy(), 0.0, 0.0)
 
     # ------------------------------------------------------------------ offline
-    def _inputs(self, cp: CursorPath) -> np.ndarray:
-        """The (len(INPUT_ROWS), n) block of per-tick inputs of an offline run (:func:`lookup_inputs`)."""
-        block = np.empty((len(INPUT_ROWS), cp.t.size))
+    def _inputs(self, cp: CursorPath, block=None) -> np.ndarray:
+        """The (len(INPUT_ROWS), n) block of per-tick inputs of an offline run (:func:`lookup_inputs`),
+        written into ``block`` if given."""
+        if block is None:
+            block = np.empty((len(INPUT_ROWS), cp.t.size))
         lookup_inputs(cp.t, cp.x, cp.y, self._blocks, self._data, self._bg, self._grid, self._config,
                       self._slot_channel, block)
         return block
@@ -427,19 +429,23 @@ class Renderer:
             raise InputError(f"`cursor` must be a CursorPath (got {type(cursor).__name__})")
         cp = cursor if cursor.tick_rate == self.tick_rate else cursor.resample(self.tick_rate)
         audio_length(cp.duration, self.audio_rate)     # refuse an impossible stream before the work
-        V, vx, vy, N, mus, muk, gain, lat_x, lat_y, target = self._inputs(cp)
-        S, f, st, _, _, _, _, et, ea = run_kernel(self.model, cp.t, V, N, mus, muk, gain)
+        # every per-tick array of the run in one block: the inputs, the kernel's six outputs, skin stretch and
+        # the copies of t, x, y. Fewer, larger allocations are reused by the allocator from run to run
+        # instead of being returned to the system and faulted in again (most of a short render's cost).
+        k = len(INPUT_ROWS)
+        block = np.empty((k + 10, cp.t.size))
+        V, vx, vy, N, mus, muk, gain, lat_x, lat_y, target = self._inputs(cp, block[:k])
+        S, f, st, _, _, _, _, et, ea = run_kernel(self.model, cp.t, V, N, mus, muk, gain, out=block[k:k + 6])
         if S["diverged"] != 0:
             raise ModelError(divergence_message(self.model, self.tick_rate, float(S["diverged_at"])))
-        ss = np.empty(cp.t.size)
+        ss, t, x, y = block[k + 6:]
         skin_stretch_of(target, f, mus, N, ss)
+        t[:], x[:], y[:] = cp.t, cp.x, cp.y
         b = self.device.burst
         audio, clipped = render_bursts(et, ea, cp.t[0], cp.duration, self.audio_rate, b.carrier_hz, b.rise_s,
                                        b.decay_s, self.burst_policy)
-        # f is a row of the kernel's output block: copy it so the result does not hold the whole block
-        return RenderResult(cp.t.copy(), cp.x.copy(), cp.y.copy(), vx, vy, N, f.copy(), st.astype(np.int8),
-                            lat_x, lat_y, ss, et, ea, audio, self.audio_rate, clipped,
-                            self.model.name, self.tick_rate, self.burst_policy, mus)
+        return RenderResult(t, x, y, vx, vy, N, f, st.astype(np.int8), lat_x, lat_y, ss, et, ea, audio,
+                            self.audio_rate, clipped, self.model.name, self.tick_rate, self.burst_policy, mus)
 
     # ------------------------------------------------------------------ online
     def _build_online(self):
