@@ -76,7 +76,7 @@ _RING = 4096
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "a7c283b6b93fd7ada4a455619d64d1058a4c9ea67424dd1a7f8995dd6b8dfa75"
+KERNEL_SOURCES_SHA256 = "550e38af4afbd621912c33f3108c0ec25fbbf1d8be9c6e049d419be8f5aa332e"
 
 
 @njit(cache=True)
