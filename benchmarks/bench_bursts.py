@@ -118,7 +118,7 @@ def quality(plot=None):
             ax[i].legend(fontsize=8)
         ax[1].set_xlabel("frequency (Hz)")
         fig.tight_layout()
-        fig.savefig(plot, dpi=100)
+        fig.savefig(plot, dpi=100, metadata={"Software": None})
         print(f"spectrum -> {plot}")
 
 

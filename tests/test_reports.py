@@ -340,3 +340,79 @@ def test_cli_output_must_be_directory(tmp_path, capsys):
     assert main(["report", "stability", "--quick", "-o", str(f)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--output" in err[0]
+
+
+# ================================================================ plots: nothing cropped, nothing on top of another
+def _layout_boxes(fig):
+    """Window boxes of every text-like element of a figure: titles, axis labels, tick labels, legends."""
+    fig.canvas.draw()
+    r = fig.canvas.get_renderer()
+    boxes = []
+    for t in fig.texts:
+        if t.get_text():
+            boxes.append((f"figure text {t.get_text()!r}", t.get_window_extent(r)))
+    for leg in fig.legends:
+        boxes.append(("figure legend", leg.get_window_extent(r)))
+    for i, ax in enumerate(fig.axes):
+        for name, t in (("title", ax.title), ("xlabel", ax.xaxis.label), ("ylabel", ax.yaxis.label)):
+            if t.get_text():
+                boxes.append((f"axes {i} {name}", t.get_window_extent(r)))
+        if ax.get_legend() is not None:
+            boxes.append((f"axes {i} legend", ax.get_legend().get_window_extent(r)))
+        (x0, x1), (y0, y1) = sorted(ax.get_xlim()), sorted(ax.get_ylim())
+        ticks = [t.get_window_extent(r) for t in ax.get_xticklabels() if t.get_text() and t.get_visible()
+                 and x0 <= t.get_position()[0] <= x1]      # labels of ticks outside the view are not drawn
+        ticks += [t.get_window_extent(r) for t in ax.get_yticklabels() if t.get_text() and t.get_visible()
+                  and y0 <= t.get_position()[1] <= y1]
+        if ticks:
+            from matplotlib.transforms import Bbox
+            boxes.append((f"axes {i} tick labels", Bbox.union(ticks)))
+    return boxes
+
+
+def _check_layout(fig, name):
+    from matplotlib.transforms import Bbox
+    boxes = _layout_boxes(fig)
+    page = Bbox.from_bounds(0, 0, *fig.canvas.get_width_height())
+    for label, b in boxes:      # inside the figure: the saved picture crops nothing
+        assert page.x0 - 1 <= b.x0 and b.x1 <= page.x1 + 1 and page.y0 - 1 <= b.y0 and b.y1 <= page.y1 + 1, \
+            f"{name}: {label} leaves the figure"
+    for i, (la, a) in enumerate(boxes):   # no title, label or legend on another (tick labels of one axes
+        for lb, b in boxes[i + 1:]:      # share their box with nothing but their own axes)
+            if "tick labels" in la and "tick labels" in lb:
+                continue
+            same_axes = la.split()[:2] == lb.split()[:2] and la.startswith("axes")
+            if same_axes and ("tick labels" in la or "tick labels" in lb) and "legend" not in la + lb:
+                continue    # an axis label beside its own tick labels is matplotlib's own placement
+            inter = Bbox.intersection(a, b)
+            assert inter is None or inter.width * inter.height < 4.0, f"{name}: {la} overlaps {lb}"
+
+
+@pytest.mark.parametrize("kind", ["accuracy", "stability"])
+def test_report_plots_crop_nothing_and_nothing_collides(kind, accuracy_report, stability_report, tmp_path,
+                                                        monkeypatch):
+    from shapedisplay.reports import accuracy, stability
+    rep = (accuracy_report if kind == "accuracy" else stability_report)[1]
+    checked = []
+
+    def capture(fig, path):
+        _check_layout(fig, path)
+        checked.append(path)
+        import matplotlib.pyplot as plt
+        plt.close(fig)
+
+    monkeypatch.setattr(common, "save_figure", capture)
+    (accuracy if kind == "accuracy" else stability)._plots(rep, str(tmp_path))
+    assert len(checked) >= 5
+
+
+def test_report_png_is_byte_stable(stability_report, tmp_path):
+    from shapedisplay.reports import stability
+    rep = stability_report[1]
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    files = stability._plots(rep, str(tmp_path / "a"))
+    stability._plots(rep, str(tmp_path / "b"))
+    for f in files:
+        data = (tmp_path / "a" / f).read_bytes()
+        assert data == (tmp_path / "b" / f).read_bytes() and b"matplotlib version" not in data

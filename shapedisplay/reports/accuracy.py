@@ -612,7 +612,7 @@ def _plots(rep, out_dir):
     markers = {"exact": "o", "jump": "s", "karnopp": "D", "stribeck": "o", "euler": "v", "rk4": "^",
                "Radau": "P", "BDF": "X", "LSODA": "*"}
     for case in rep["cases"]:
-        fig, ax = plt.subplots(figsize=(7.5, 5.2))
+        fig, ax = plt.subplots(figsize=(8.5, 5.2), layout="constrained")
         ok = [r for r in case["settings"] if r.get("event_rms_rel") is not None]
         vals = [r["event_rms_rel"] for r in ok if r["event_rms_rel"] > 0]
         floor = 1e-16
@@ -634,13 +634,12 @@ def _plots(rep, out_dir):
                 ax.loglog([r["cpu_s_per_sim_s"] for r in bad], [top] * len(bad), markers.get(key, "o"), ls="",
                           mfc="none", mec="red", mew=1.6, ms=9, label=f"{key}: failed/diverged")
         ax.axhline(top / 3, color="red", lw=0.5, ls=":")
-        ax.text(0.99, top / 2.2, "failed / diverged (CPU time until it stopped)", color="red", fontsize=7, ha="right",
-                transform=ax.get_yaxis_transform(), va="bottom")
         ax.set_xlabel("CPU seconds per simulated second")
         ax.set_ylabel("event-time RMS error / mean period  (floor 1e-16)")
-        ax.set_title(case["title"], fontsize=9)
+        ax.set_title(f"{case['title']}\nabove the dotted red line: failed / diverged (at the CPU time until it "
+                     "stopped)", fontsize=9)
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7, loc="best")
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)   # beside the data
         name = f"accuracy_{case['name']}.png"
         common.save_figure(fig, os.path.join(out_dir, name))
         files.append(name)

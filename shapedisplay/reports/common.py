@@ -348,9 +348,14 @@ def pyplot():
 
 
 def save_figure(fig, path):
-    """Save a figure as PNG atomically and close it."""
+    """Save a figure as PNG atomically and close it.
+
+    The saved area grows to hold everything drawn (nothing cropped), and the
+    file carries no software version: the same figure gives the same bytes.
+    """
     from ..atomic import atomic_path
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=110)
+        fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight", pad_inches=0.08,
+                    metadata={"Software": None})
     import matplotlib.pyplot as plt
     plt.close(fig)

@@ -624,7 +624,8 @@ def _plots(rep, out_dir):
         sweeps.setdefault(r["sweep"], []).append(r)
     for sweep, rs in sweeps.items():
         panels = sorted({_panel(sweep, r) for r in rs})
-        fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels) + 1, 4.2), squeeze=False)
+        fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels) + 1, 4.6), squeeze=False,
+                                 layout="constrained")
         for ax, panel in zip(axes[0], panels):
             model = panel[0]
             # worst verdicts drawn last, so a failure is never hidden under a stable case at the same point
@@ -659,8 +660,9 @@ def _plots(rep, out_dir):
             handles.append(Line2D([], [], ls="--", color="k", label="theory limit"))
         if sweep == "stribeck":
             handles.append(Line2D([], [], ls="--", color="k", label="c + W mu'(V) = 0"))
-        fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=7)
-        fig.tight_layout(rect=(0, 0.08, 1, 1))
+        # below the panels, in as many rows as the width needs (one panel: three columns)
+        fig.legend(handles=handles, loc="outside lower center", ncol=len(handles) if len(panels) > 1 else 3,
+                   fontsize=7)
         name = f"stability_{sweep}.png"
         common.save_figure(fig, os.path.join(out_dir, name))
         files.append(name)

@@ -257,13 +257,12 @@ def _figure(nrows, ncols=1, h=3.2):
     import matplotlib
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(nrows, ncols, figsize=(9, h * nrows), squeeze=False)
+    fig, ax = plt.subplots(nrows, ncols, figsize=(9, h * nrows), squeeze=False, layout="constrained")
     return plt, fig, ax
 
 
 def _save(plt, fig, path):
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    fig.savefig(path, dpi=100, metadata={"Software": None})      # no version stamped in: same data, same bytes
     plt.close(fig)
 
 
