@@ -6,7 +6,7 @@ SD     := $(VENV)/bin/shapedisplay
 STAMP  := $(VENV)/.installed
 OUT    := out
 
-.PHONY: install test demo bench report generate clean
+.PHONY: install test demo bench report generate docs-images clean
 
 $(STAMP): pyproject.toml scripts/install-system-deps.sh
 	sh scripts/install-system-deps.sh --with-xvfb --with-studio --with-toolchains
@@ -46,6 +46,11 @@ report: $(STAMP)
 # KERNEL_SOURCES_SHA256 lines): run after changing a kernel or adding a model; tests check they are current.
 generate: $(STAMP)
 	$(PY) -m shapedisplay.runtime.codegen
+
+# Every picture in docs/images from the shipped samples, byte-stable (tests/test_docs_images.py compares them);
+# previews need off-screen OpenGL, the studio screenshot Chromium (skipped with a note where missing). ~2 min.
+docs-images: $(STAMP)
+	$(PY) scripts/docs_images.py
 
 clean:
 	rm -rf $(OUT) build *.egg-info

@@ -326,8 +326,11 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
     preview.legend = legend
     if legend and annotations:     # entry text takes the entry's colour: the light grey is darkened for reading
         shown = [[label, LEGEND_GROUND_COLOR if colour == LEFT_OUT_COLOR else colour] for label, colour in legend]
-        pl.add_legend(shown, bcolor="white", border=True, size=(0.26, 0.04 * len(legend)),
-                      loc="lower right", face="rectangle", font_family="arial")
+        box_w, box_h = 0.3, min(0.032 * len(legend), 0.4)
+        actor = pl.add_legend(shown, bcolor="white", border=True, size=(box_w, box_h), face="rectangle",
+                              font_family="arial")
+        actor.SetPosition(0.985 - box_w, 0.015)         # lower right corner, inside the frame
+        actor.SetPosition2(box_w, box_h)
 
     # ---- annotations ----------------------------------------------------------------------
     if annotations:
