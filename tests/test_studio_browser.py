@@ -31,6 +31,7 @@ if sync_playwright is None or not Path(CHROMIUM).is_file():
                     pytrace=False)
     pytest.skip("needs Debian's chromium and the playwright package", allow_module_level=True)
 
+from shapedisplay.exchange.widgetmap import widget_map  # noqa: E402
 from shapedisplay.runtime import Renderer  # noqa: E402
 from shapedisplay.runtime.cursor import CursorPath, load_trace_csv  # noqa: E402
 from shapedisplay.table import FrictionTable  # noqa: E402
@@ -192,6 +193,20 @@ def test_scripted_stroke_offline_and_live_match_the_python_renderer(page, tmp_pa
     assert rate == rate2 == 48000 and mine.size == replay.size
     assert np.max(np.abs(mine - replay)) < 1e-6
     assert page.is_enabled("#dl-csv") and page.is_enabled("#dl-wav")
+    # the stroke chart marks the widgets crossed: spans equal the runs of ticks inside each widget's box
+    spans = page.evaluate("studio.chartSpans")
+    expected = []
+    x, y, t = np.asarray(live["x"]), np.asarray(live["y"]), np.asarray(live["t"])
+    for w in widget_map(table):
+        x0, y0, x1, y1 = w["bbox_m"]
+        inside = np.concatenate([[False], (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1), [False]])
+        starts = np.flatnonzero(~inside[:-1] & inside[1:])
+        ends = np.flatnonzero(inside[:-1] & ~inside[1:]) - 1
+        expected += [(w["id"], t[a], t[b]) for a, b in zip(starts, ends)]
+    expected.sort(key=lambda e: e[1])
+    assert len(expected) >= 2     # the stroke crosses the wifi toggle and the volume slider at least
+    assert [(d["id"], d["t0"], d["t1"]) for d in spans] == [(i, pytest.approx(a), pytest.approx(b))
+                                                            for i, a, b in expected]
     if SCREENSHOT_DIR:
         page.mouse.move(*page.evaluate("studio.screenOf(0.040, 0.128)"))
         page.screenshot(path=str(Path(SCREENSHOT_DIR) / "studio-phone.png"))

@@ -377,6 +377,32 @@ function drawChart(s) {
   for (const te of s.event_time) { const px = X(te); c.beginPath(); c.moveTo(px, y2 + h2 - 6); c.lineTo(px, y2 + h2); c.stroke(); }
   c.fillStyle = "#21918c"; c.fillText("burst drive", W - 90, y2 + 10);
   c.fillStyle = "#333"; c.fillText(`${(t1 - t0).toFixed(3)} s`, W - 50, H - 2); c.fillText("0", pad, H - 2);
+  // the widgets crossed: a band per stretch of ticks inside a widget's box, its id on it
+  studio.chartSpans = widgetSpans(s, studio.state.widgets || []);
+  const bandY = H - 26;
+  studio.chartSpans.forEach((sp, k) => {
+    const xa = X(sp.t0), xb = Math.max(X(sp.t1), xa + 2);
+    c.fillStyle = k % 2 ? "rgba(209,149,91,0.85)" : "rgba(91,143,209,0.85)";
+    c.fillRect(xa, bandY, xb - xa, 9);
+    c.fillStyle = "#222";
+    if (xb - xa > c.measureText(sp.id).width + 4) c.fillText(sp.id, xa + 2, bandY - 2);
+  });
+}
+
+// Stretches of the stroke inside each widget's box, by tick: [{id, t0, t1}] in time order
+// (t0, t1 the first and last tick inside; the box edges count as inside).
+function widgetSpans(s, widgets) {
+  const out = [];
+  for (const wd of widgets) {
+    const [x0, y0, x1, y1] = wd.bbox_m;
+    let start = -1;
+    for (let i = 0; i <= s.ticks; i++) {
+      const inside = i < s.ticks && s.x[i] >= x0 && s.x[i] <= x1 && s.y[i] >= y0 && s.y[i] <= y1;
+      if (inside && start < 0) start = i;
+      if (!inside && start >= 0) { out.push({id: wd.id, t0: s.t[start], t1: s.t[i - 1]}); start = -1; }
+    }
+  }
+  return out.sort((a, b) => a.t0 - b.t0);
 }
 
 // The recorded cursor trace: one row per tick, as `shapedisplay play --trace` reads it.
