@@ -5,10 +5,12 @@ import argparse
 
 PREVIEW_HELP = """\
 Show a height map, mesh, scene or compiled table as a 3D surface coloured by
-a channel, with a colour bar in physical units, a scale bar in mm and the
-vertical exaggeration stated on screen. With --trace, the played stroke is
-drawn on the surface (stick/slip segments, bursts sized by amplitude) with a
-chart of N and friction force along it; the trace must come from this table.
+a channel, with a colour bar in physical units, an x/y/z triad labelled in
+mm, a legend, walls (slope >= 1) overlaid in red and the vertical
+exaggeration stated on screen. With --trace, the played stroke is drawn on
+the surface (stick/slip segments, bursts sized by amplitude) with a chart of
+N and friction force along it marking the widgets crossed; the trace must
+come from this table.
 
 Without -o a window opens: drag to orbit, scroll to zoom, click or hover for
 a read-out of position, height and every channel, space replays the stroke.
