@@ -12,20 +12,21 @@ import importlib
 import re
 import sys
 
-#: Sub-command modules, in help order.
-COMMAND_MODULES = (
-    "shapedisplay_cli.cmd_compile",
-    "shapedisplay_cli.cmd_table",
-    "shapedisplay_cli.cmd_heightmap",
-    "shapedisplay_cli.cmd_preview",
-    "shapedisplay_cli.cmd_scene",
-    "shapedisplay_cli.cmd_import_svg",
-    "shapedisplay_cli.cmd_device",
-    "shapedisplay_cli.cmd_play",
-    "shapedisplay_cli.cmd_study",
-    "shapedisplay_cli.cmd_report",
-    "shapedisplay_cli.cmd_studio",
-)
+#: Sub-command modules, in help order, with the commands each registers (tests/test_cli_args.py checks them):
+#: a command line that names its command builds only that command's parser.
+COMMAND_MODULES = {
+    "shapedisplay_cli.cmd_compile": ("compile",),
+    "shapedisplay_cli.cmd_table": ("inspect", "export", "diff"),
+    "shapedisplay_cli.cmd_heightmap": ("heightmap",),
+    "shapedisplay_cli.cmd_preview": ("preview",),
+    "shapedisplay_cli.cmd_scene": ("check", "new"),
+    "shapedisplay_cli.cmd_import_svg": ("import-svg",),
+    "shapedisplay_cli.cmd_device": ("device",),
+    "shapedisplay_cli.cmd_play": ("play",),
+    "shapedisplay_cli.cmd_study": ("study",),
+    "shapedisplay_cli.cmd_report": ("report",),
+    "shapedisplay_cli.cmd_studio": ("studio",),
+}
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -166,21 +167,25 @@ def _check_outputs(args, line: CommandLine) -> None:
     check_outputs(inputs, outputs)
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The command-line parser: every command, or only ``command`` (a name from :data:`COMMAND_MODULES`)."""
     parser = OneLineParser(
         prog="shapedisplay",
         description="Author tactile shapes for friction-based shape displays and play them.",
     )
     parser.add_argument("--version", action="store_true", help="print the version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name in COMMAND_MODULES:
-        importlib.import_module(name).register(sub)
+    for name, commands in COMMAND_MODULES.items():
+        if command is None or command in commands:
+            importlib.import_module(name).register(sub)
     return parser
 
 
 def main(argv=None) -> int:
-    parser = build_parser()
-    line = CommandLine(parser, list(sys.argv[1:] if argv is None else argv))
+    argv = list(sys.argv[1:] if argv is None else argv)
+    known = {c for commands in COMMAND_MODULES.values() for c in commands}
+    parser = build_parser(argv[0] if argv and argv[0] in known else None)   # --help, typos: every command
+    line = CommandLine(parser, argv)
     args = parser.parse_args(line.argv)
     if args.version:
         from importlib.metadata import version

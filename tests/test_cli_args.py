@@ -126,3 +126,21 @@ def test_tick_rate_is_one_option_spelled_tick_rate_or_rate(tmp_path, capsys):
     assert rates == [2000.0, 2000.0]
     code, out, err = run(["device", "emulate", "--rate", "1500Hz", "--stream-rate", "1kHz"], capsys)
     assert code == 2 and "`--rate` must be a multiple of `--stream-rate`" in err, err
+
+
+def test_each_command_module_registers_the_commands_main_names_for_it():
+    """main builds only the named command's parser; the table it looks the command up in must be true."""
+    import argparse
+    import importlib
+
+    from shapedisplay_cli.main import COMMAND_MODULES, OneLineParser
+    for module, commands in COMMAND_MODULES.items():
+        sub = OneLineParser(prog="shapedisplay").add_subparsers(dest="command")
+        importlib.import_module(module).register(sub)
+        assert tuple(sub.choices) == commands, module
+    full = build_parser()
+    (action,) = [a for a in full._actions if isinstance(a, argparse._SubParsersAction)]
+    assert list(action.choices) == [c for commands in COMMAND_MODULES.values() for c in commands]
+    # a command line naming one command parses and reports errors as with the whole parser
+    for argv in (["play", "t.npz", "--stroke", "0:5mm @ 5mm/s", "-o", "o.wav"], ["device", "info", "p"]):
+        assert vars(build_parser(argv[0]).parse_args(argv)).keys() == vars(full.parse_args(argv)).keys()

@@ -124,6 +124,29 @@ def test_a_broken_compiler_falls_back_with_the_reason(tables, tmp_path, monkeypa
         PathRenderer(tables["phone"], engine="c").render(cp)
 
 
+def test_an_unwritable_cache_or_a_corrupt_library_falls_back_with_the_reason(tables, tmp_path, monkeypatch):
+    table = tables["phone"]
+    cp = parse_stroke("62,2 -> 62,30 @ 30mm/s", 10_000.0)
+    ref = Renderer(table, model="jump").render(cp)
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(blocker))        # the cache folder cannot be made under a file
+    monkeypatch.setattr(native, "_LIB", None)
+    r = PathRenderer(table, model="jump")
+    assert_same_result(r.render(cp), ref)
+    assert r.engine == "python" and "cannot write its cache directory" in r.note and "XDG_CACHE_HOME" in r.note
+    # a library file that does not load (say, cut short by a full disk): one line naming it
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setattr(native, "_LIB", None)
+    lib = native.library_path()
+    lib.parent.mkdir(parents=True)
+    lib.write_bytes(b"\x7fELF cut short")
+    r = PathRenderer(table, model="jump")
+    assert_same_result(r.render(cp), ref)
+    assert r.engine == "python" and str(lib) in r.note and "delete the file" in r.note
+    monkeypatch.setattr(native, "_LIB", None)
+
+
 def test_cli_play_engines_write_the_same_files(tmp_path, capsys):
     table = tmp_path / "phone.npz"
     assert main(["compile", str(SCENES / "phone.toml"), "-o", str(table)]) == 0

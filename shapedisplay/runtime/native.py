@@ -45,6 +45,9 @@ PLAY_STATUS = {-30: "more audio than expected", -31: "more stick-slip events tha
                -33: "a cursor position beyond the runtime's limit"}
 
 
+#: The per-tick outputs (fields of ``sd_outputs_t``) a :class:`RenderResult` keeps.
+RESULT_COLUMNS = ("vx", "vy", "normal_force", "friction_force", "state", "lateral_x", "lateral_y", "skin_stretch")
+
 _LIB = None
 
 
@@ -74,6 +77,29 @@ def library_path() -> Path:
     return cache_dir() / f"sd_runtime-{digest}.so"
 
 
+def _build(lib_path: Path) -> None:
+    """Compile the sources into ``lib_path`` (atomically: a temporary name, then a rename)."""
+    cc = compiler()
+    if not cc:
+        raise InputError("the C runtime needs a C compiler (cc, gcc or clang, or $CC); use the Python engine")
+    try:
+        lib_path.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(dir=lib_path.parent) as d:
+            tmp = Path(d) / lib_path.name
+            try:
+                res = subprocess.run([cc, *CFLAGS, "-I", str(RUNTIME_C), *map(str, _sources()), "-lm", "-o",
+                                      str(tmp)], capture_output=True, text=True, timeout=300)
+            except (OSError, subprocess.TimeoutExpired) as exc:
+                raise InputError(f"building the C runtime failed: cannot run {cc!r} ({exc})") from None
+            if res.returncode != 0:
+                raise InputError(f"building the C runtime with {cc!r} failed: "
+                                 f"{' '.join(res.stderr.strip().splitlines()[-1:])}")
+            os.replace(tmp, lib_path)
+    except OSError as exc:
+        raise InputError(f"building the C runtime failed: cannot write its cache directory {lib_path.parent} "
+                         f"({exc.strerror or exc}); set XDG_CACHE_HOME to a writable folder") from None
+
+
 def library() -> ctypes.CDLL:
     """Build (once per source version) and load the C runtime as a shared library."""
     global _LIB
@@ -81,22 +107,11 @@ def library() -> ctypes.CDLL:
         return _LIB
     lib_path = library_path()
     if not lib_path.is_file():
-        cc = compiler()
-        if not cc:
-            raise InputError("the C runtime needs a C compiler (cc, gcc or clang, or $CC); use the Python engine")
-        lib_path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(dir=lib_path.parent) as d:
-            tmp = Path(d) / lib_path.name
-            try:
-                res = subprocess.run([cc, *CFLAGS, "-I", str(RUNTIME_C), *map(str, _sources()), "-lm", "-o",
-                                      str(tmp)], capture_output=True, text=True, timeout=300)
-            except OSError as exc:
-                raise InputError(f"building the C runtime failed: cannot run {cc!r} ({exc})") from None
-            if res.returncode != 0:
-                raise InputError(f"building the C runtime with {cc!r} failed: "
-                                 f"{' '.join(res.stderr.strip().splitlines()[-1:])}")
-            os.replace(tmp, lib_path)
-    lib = ctypes.CDLL(str(lib_path))
+        _build(lib_path)
+    try:
+        lib = ctypes.CDLL(str(lib_path))
+    except OSError as exc:
+        raise InputError(f"loading the C runtime {lib_path} failed ({exc}); delete the file to rebuild it") from None
     vp, c_int64 = ctypes.c_void_p, ctypes.c_int64
     lib.sd_renderer_size.restype = ctypes.c_size_t
     lib.sd_image_size.restype = ctypes.c_size_t
@@ -195,7 +210,7 @@ def render_path(table, settings: RenderSettings, cursor) -> RenderResult:
     na, ne, clipped = (int(c) for c in counts)
     if na != n_audio:
         raise PathPlayError(f"the C runtime wrote {na} audio samples where {n_audio} were expected")
-    col = {name: np.ascontiguousarray(out[name]) for name in OUTPUTS.names}
+    col = {name: np.ascontiguousarray(out[name]) for name in RESULT_COLUMNS}
     return RenderResult(cp.t.copy(), cp.x.copy(), cp.y.copy(), col["vx"], col["vy"], col["normal_force"],
                         col["friction_force"], col["state"].astype(np.int8), col["lateral_x"], col["lateral_y"],
                         col["skin_stretch"], ev[0, :ne].copy(), ev[1, :ne].copy(), audio, settings.audio_rate,
