@@ -162,6 +162,14 @@ def drawing_versions() -> dict:
             out[dist] = version(dist)
         except PackageNotFoundError:
             out[dist] = None
+    import platform
+    out["machine"] = platform.machine()
+    mesa = None                       # the software rasterizer of the off-screen previews (Debian package)
+    if shutil.which("dpkg-query"):
+        res = subprocess.run(["dpkg-query", "-W", "-f=${Version}", "libgl1-mesa-dri"], capture_output=True,
+                             text=True)
+        mesa = res.stdout.strip() or None if res.returncode == 0 else None
+    out["mesa"] = mesa
     return out
 
 
