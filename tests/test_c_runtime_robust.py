@@ -173,24 +173,24 @@ def _sweep(model_name, pad, h, mu_s=0.6, dmus=(0.0, 1e-6, 0.1, 0.3, 0.55)):
 
 @pytest.mark.parametrize("h", [1 / 192_000, 1e-4, 1e-3, 1e-2])
 @pytest.mark.parametrize("name", ["jump", "exact"])
-def test_phase_cap_not_reached_by_physical_inputs(tmp_path, h, name):
+def test_phase_cap_not_reached_by_physical_inputs(plain_vectors, tmp_path, h, name):
     """The cap on phase changes per tick (SD_PHASES_BASE + 4 h omega / pi) holds every tick of the
     extreme sweep on the published pad, and on an over-damped one: no tick is cut."""
     from test_c_runtime import pad_vectors
     from shapedisplay.devices import PadParams
-    exe = _plain_vectors(tmp_path)
+    exe = plain_vectors
     for pad in (None, PadParams(1e-6, 2000.0, 1.0)):
         args = _sweep(name, pad, h)
         assert pad_vectors(exe, tmp_path, *args, truncated=True) == 0
 
 
-def test_phase_cap_bounds_a_degenerate_pad(tmp_path):
+def test_phase_cap_bounds_a_degenerate_pad(plain_vectors, tmp_path):
     """The worst case: the exact model with c = 0 and mu_k = mu_s can cycle through zero-length phases
     under reversals; the cap cuts such a tick (counted) instead of running 200 000 phase changes, and
     the state stays finite."""
     from test_c_runtime import pad_vectors
     from shapedisplay.devices import PadParams
-    exe = _plain_vectors(tmp_path)
+    exe = plain_vectors
     args = _sweep("exact", PadParams(1e-6, 2000.0, 0.0), 1e-4, dmus=(0.0,))
     cut = pad_vectors(exe, tmp_path, *args, truncated=True)
     f, phase, x, ev_t, ev_a = pad_vectors(exe, tmp_path, *args)
@@ -198,11 +198,12 @@ def test_phase_cap_bounds_a_degenerate_pad(tmp_path):
     assert np.isfinite(f).all() and np.isfinite(x).all() and np.isfinite(ev_t).all()
 
 
-def _plain_vectors(tmp_path):
-    out = tmp_path / "sd_vectors"
-    if not out.exists():
-        srcs = [str(CDIR / n) for n in (*LIB, "tool_vectors.c")]
-        res = subprocess.run(["gcc", *CFLAGS, "-I", str(CDIR), *srcs, "-lm", "-o", str(out)],
-                             capture_output=True, text=True, timeout=180)
-        assert res.returncode == 0, res.stderr
+@pytest.fixture(scope="module")
+def plain_vectors(tmp_path_factory):
+    """The host tool without sanitizers (the sweeps run many ticks)."""
+    out = tmp_path_factory.mktemp("c-plain") / "sd_vectors"
+    srcs = [str(CDIR / n) for n in (*LIB, "tool_vectors.c")]
+    res = subprocess.run(["gcc", *CFLAGS, "-I", str(CDIR), *srcs, "-lm", "-o", str(out)],
+                         capture_output=True, text=True, timeout=180)
+    assert res.returncode == 0, res.stderr
     return out
