@@ -15,10 +15,9 @@
 
 /* Over-damped pad: the two real rates r1, r2 (the small root taken as wn2 / big root, which
  * keeps its precision) and the amplitudes of y = p e^(r1 t) + q e^(r2 t) from (y0, v0). */
-static void over_modes(sd_real sig, sd_real wn2, sd_real disc, sd_real y0, sd_real v0,
-                       sd_real *r1, sd_real *r2, sd_real *p, sd_real *q)
+static void over_modes(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real *r1, sd_real *r2, sd_real *p, sd_real *q)
 {
-    sd_real sq = SD_SQRT(disc);
+    sd_real sig = P->sig, wn2 = P->wn2, sq = P->sq;
     if (sig >= SD_R(0.0)) {
         *r2 = -sig - sq;
         *r1 = wn2 / *r2;
@@ -31,16 +30,16 @@ static void over_modes(sd_real sig, sd_real wn2, sd_real disc, sd_real y0, sd_re
 }
 
 /* Free damped oscillator m y'' + c y' + k y = 0 from (y0, v0) at time t (all damping cases). */
-static void osc(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, sd_real t, sd_real *y, sd_real *v)
+static void osc(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real t, sd_real *y, sd_real *v)
 {
-    sd_real sig = SD_R(0.5) * c / m, wn2 = k / m, disc = sig * sig - wn2;
+    sd_real sig = P->sig, wn2 = P->wn2, disc = P->disc;
     if (disc < -SD_R(1e-10) * wn2) {
-        osc_under(m, c, k, y0, v0, t, y, v);
+        osc_under(P, y0, v0, t, y, v);
         return;
     }
     if (disc > SD_R(1e-10) * wn2) {
         sd_real r1, r2, p, q, e1, e2;
-        over_modes(sig, wn2, disc, y0, v0, &r1, &r2, &p, &q);
+        over_modes(P, y0, v0, &r1, &r2, &p, &q);
         e1 = SD_EXP(r1 * t);
         e2 = SD_EXP(r2 * t);
         *y = p * e1 + q * e2;
@@ -54,15 +53,18 @@ static void osc(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, sd_real
     }
 }
 
-static sd_real acc(sd_real m, sd_real c, sd_real k, sd_real y, sd_real v) { return -(c * v + k * y) / m; }
-
-static sd_real next_acc_zero(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, sd_real after)
+static sd_real acc(const sd_pad_t *P, sd_real y, sd_real v)
 {
-    sd_real sig = SD_R(0.5) * c / m, wn2 = k / m, disc = sig * sig - wn2;
-    if (disc < -SD_R(1e-10) * wn2) return next_acc_zero_under(m, c, k, y0, v0, after);
+    return -(P->p.damping * v + P->p.stiffness * y) / P->p.mass;
+}
+
+static sd_real next_acc_zero(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real after)
+{
+    sd_real sig = P->sig, wn2 = P->wn2, disc = P->disc;
+    if (disc < -SD_R(1e-10) * wn2) return next_acc_zero_under(P, y0, v0, after);
     if (disc > SD_R(1e-10) * wn2) {
         sd_real r1, r2, p, q, num, den, tz;
-        over_modes(sig, wn2, disc, y0, v0, &r1, &r2, &p, &q);
+        over_modes(P, y0, v0, &r1, &r2, &p, &q);
         num = -r2 * r2 * q;
         den = r1 * r1 * p;
         if (den == SD_R(0.0) || num / den <= SD_R(0.0)) return INFINITY;
@@ -77,28 +79,28 @@ static sd_real next_acc_zero(sd_real m, sd_real c, sd_real k, sd_real y0, sd_rea
     }
 }
 
-static sd_real wrel(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, sd_real V, sd_real s, sd_real t)
+static sd_real wrel(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_real s, sd_real t)
 {
     sd_real y, v;
-    osc(m, c, k, y0, v0, t, &y, &v);
+    osc(P, y0, v0, t, &y, &v);
     return -s * (v - V);
 }
 
-static sd_real polish(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, sd_real V, sd_real s, sd_real lo, sd_real hi)
+static sd_real polish(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_real s, sd_real lo, sd_real hi)
 {
-    sd_real wlo = wrel(m, c, k, y0, v0, V, s, lo), whi = wrel(m, c, k, y0, v0, V, s, hi), t;
+    sd_real wlo = wrel(P, y0, v0, V, s, lo), whi = wrel(P, y0, v0, V, s, hi), t;
     int it;
     if (wlo - whi > SD_R(0.0)) t = lo + (hi - lo) * wlo / (wlo - whi);
     else t = SD_R(0.5) * (lo + hi);
     if (!(lo < t && t < hi)) t = SD_R(0.5) * (lo + hi);
     for (it = 0; it < SD_POLISH_MAX; it++) {
         sd_real y, v, wt, dw, tn;
-        osc(m, c, k, y0, v0, t, &y, &v);
+        osc(P, y0, v0, t, &y, &v);
         wt = -s * (v - V);
         if (wt == SD_R(0.0)) return t;
         if (wt > SD_R(0.0)) lo = t;
         else hi = t;
-        dw = -s * acc(m, c, k, y, v);
+        dw = -s * acc(P, y, v);
         tn = dw != SD_R(0.0) ? t - wt / dw : SD_R(0.5) * (lo + hi);
         if (!(lo < tn && tn < hi)) tn = SD_R(0.5) * (lo + hi);
         if (SD_FABS(tn - t) <= SD_R(SD_POLISH_ABS) + SD_R(SD_POLISH_REL) * t || hi - lo <= SD_R(SD_POLISH_ABS) + SD_R(SD_POLISH_REL) * hi) return tn;
@@ -110,17 +112,17 @@ static sd_real polish(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, s
 /* First re-stick candidate of a slip within rem seconds: kind 0 none (t = rem), 1 crossing,
  * 2 near-tangent touch. Touches before tmin are ignored (stepping past a grazing touch that
  * was not a re-stick). */
-static int slip_search(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, sd_real V, sd_real s, sd_real rem,
-                       sd_real tmin, sd_real phase_rate, sd_real *t_out)
+static int slip_search(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_real s, sd_real rem, sd_real tmin,
+                       sd_real *t_out)
 {
     /* acceleration zeros are pi / omega_d apart: at most rem omega_d / pi + 1 = rem phase_rate / 4 + 1 in
      * rem, plus grazing touches stepped over; twice that is the bound (no re-stick found: kind 0) */
-    sd_real nmax = SD_R(8.0) + rem * phase_rate * SD_R(0.5);
+    sd_real nmax = SD_R(8.0) + rem * P->phase_rate * SD_R(0.5);
     long n_it = 0, n_cap = nmax < SD_R(SD_MAX_EVENTS_PER_TICK) ? (long)nmax : SD_MAX_EVENTS_PER_TICK;
     sd_real tol = SD_R(SD_TOL_GRAZE) * (SD_FABS(V) + SD_FABS(v0)) + SD_R(SD_TINY);
-    sd_real sig = SD_R(0.5) * c / m, wn2 = k / m, disc = sig * sig - wn2, ta = SD_R(0.0);
+    sd_real sig = P->sig, wn2 = P->wn2, disc = P->disc, ta = SD_R(0.0);
     if (sig >= SD_R(0.0) && disc < -SD_R(1e-10) * wn2) {
-        sd_real wd = SD_SQRT(-disc), bv = (wn2 * y0 + sig * v0) / wd, amp = SD_SQRT(v0 * v0 + bv * bv);
+        sd_real wd = P->wd, bv = (wn2 * y0 + sig * v0) / wd, amp = SD_SQRT(v0 * v0 + bv * bv);
         if (s * V - amp > SD_R(2.0) * tol) {
             *t_out = rem;
             return 0;
@@ -133,17 +135,17 @@ static int slip_search(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, 
             *t_out = rem;
             return 0;
         }
-        tz = next_acc_zero(m, c, k, y0, v0, ta);
+        tz = next_acc_zero(P, y0, v0, ta);
         interior = tz < rem;
         tb = interior ? tz : rem;
-        wb = wrel(m, c, k, y0, v0, V, s, tb);
+        wb = wrel(P, y0, v0, V, s, tb);
         graze = interior && wb >= -tol && wb <= tol;
         if (graze && tb < tmin) {
             ta = tb;
             continue;
         }
         if (wb < SD_R(0.0)) {
-            sd_real tr = polish(m, c, k, y0, v0, V, s, ta, tb);
+            sd_real tr = polish(P, y0, v0, V, s, ta, tb);
             *t_out = tr;
             if (interior && wb >= -tol) return 2;
             return 1;
@@ -236,13 +238,13 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, s
         xeq = F / k;
         y0 = x - xeq;
         if (mus * N > SD_R(0.0)) {
-            kind = slip_search(m, c, k, y0, v, V, s, rem, tmin, P->phase_rate, &tr);
+            kind = slip_search(P, y0, v, V, s, rem, tmin, &tr);
         } else {
             kind = 0;            /* no static friction: nothing to stick to */
             tr = rem;
         }
         tmin = SD_R(0.0);
-        osc(m, c, k, y0, v, tr, &y1, &v1);
+        osc(P, y0, v, tr, &y1, &v1);
         x = y1 + xeq;
         v = v1;
         t += tr;

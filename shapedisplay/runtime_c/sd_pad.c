@@ -24,6 +24,7 @@ void sd_pad_prepare(sd_pad_t *P, const sd_pad_params_t *params)
     P->wd = P->under ? SD_SQRT(-P->disc) : SD_R(0.0);
     P->tp = P->under ? SD_PI / P->wd : SD_R(0.0);
     P->e_tp = P->under ? SD_EXP(-P->sig * P->tp) : SD_R(0.0);
+    P->sq = P->disc > SD_R(0.0) ? SD_SQRT(P->disc) : SD_R(0.0);
     P->phase_rate = SD_R(4.0) * (P->under ? P->wd : SD_SQRT(P->wn2)) / SD_PI;
 }
 
@@ -32,7 +33,7 @@ void sd_pad_prepare(sd_pad_t *P, const sd_pad_params_t *params)
 static void restick(const sd_pad_t *P, sd_real s, sd_real xb, sd_real V, sd_real muk, sd_real N,
                     sd_real *slip_time, sd_real *x_restick)
 {
-    sd_real m = P->p.mass, c = P->p.damping, k = P->p.stiffness;
+    sd_real k = P->p.stiffness;
     sd_real sig = P->sig, wn2 = P->wn2, wd, xeq, y0, tp, e, yp, vp, ap, tz1, ypk, vpk, dt;
     *slip_time = INFINITY;
     *x_restick = xb;
@@ -46,9 +47,9 @@ static void restick(const sd_pad_t *P, sd_real s, sd_real xb, sd_real V, sd_real
     vp = -e * V;
     ap = -SD_R(2.0) * sig * vp - wn2 * yp;
     if (s * ap <= SD_R(0.0)) return;
-    tz1 = next_acc_zero_under(m, c, k, y0, V, SD_R(0.0));
+    tz1 = next_acc_zero_under(P, y0, V, SD_R(0.0));
     if (tz1 == INFINITY) return;
-    osc_under(m, c, k, y0, V, tz1 + SD_PI / wd, &ypk, &vpk);
+    osc_under(P, y0, V, tz1 + SD_PI / wd, &ypk, &vpk);
     if (s * (vpk - V) < SD_R(0.0)) return;
     dt = (V - vp) / ap;
     if (SD_FABS(dt) * wd > SD_R(0.5) * SD_PI) return;

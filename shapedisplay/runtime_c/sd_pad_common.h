@@ -30,22 +30,24 @@ static inline sd_real py_mod(sd_real a, sd_real b)
     return r;
 }
 
-/* Free under-damped oscillator m y'' + c y' + k y = 0 from (y0, v0), at time t. */
-static inline void osc_under(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, sd_real t, sd_real *y, sd_real *v)
+/* Free under-damped oscillator m y'' + c y' + k y = 0 from (y0, v0), at time t. The pad constants
+ * (sig = c/2m, wn2 = k/m, wd) come from sd_pad_prepare, computed there by the expressions the Python
+ * kernel evaluates on every call (same values, so the results are the same bits). */
+static inline void osc_under(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real t, sd_real *y, sd_real *v)
 {
-    sd_real sig = SD_R(0.5) * c / m, wn2 = k / m, disc = sig * sig - wn2;
-    sd_real wd = SD_SQRT(-disc), e = SD_EXP(-sig * t), cs = SD_COS(wd * t), sn = SD_SIN(wd * t);
+    sd_real sig = P->sig, wn2 = P->wn2;
+    sd_real wd = P->wd, e = SD_EXP(-sig * t), cs = SD_COS(wd * t), sn = SD_SIN(wd * t);
     *y = e * (y0 * cs + (v0 + sig * y0) / wd * sn);
     *v = e * (v0 * cs - (wn2 * y0 + sig * v0) / wd * sn);
 }
 
 /* First time > after (>= 0) where the under-damped free oscillator's acceleration is zero. */
-static inline sd_real next_acc_zero_under(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, sd_real after)
+static inline sd_real next_acc_zero_under(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real after)
 {
-    sd_real sig = SD_R(0.5) * c / m, wn2 = k / m, disc = sig * sig - wn2;
+    sd_real sig = P->sig, wn2 = P->wn2;
     sd_real a0 = -SD_R(2.0) * sig * v0 - wn2 * y0;
     sd_real j0 = -SD_R(2.0) * sig * a0 - wn2 * v0;
-    sd_real wd = SD_SQRT(-disc), bb = (j0 + sig * a0) / wd, phi, th1, tz;
+    sd_real wd = P->wd, bb = (j0 + sig * a0) / wd, phi, th1, tz;
     int q;
     if (a0 == SD_R(0.0) && bb == SD_R(0.0)) return INFINITY;
     phi = SD_ATAN2(bb, a0);

@@ -42,6 +42,7 @@ extern "C" {
 typedef struct {
     sd_pad_params_t p;
     sd_real sig, wn2, disc, wd, tp, e_tp;   /* c/2m, k/m, sig^2 - wn2, damped frequency, pi/wd, exp(-sig tp) */
+    sd_real sq;                            /* sqrt(disc) of an over-damped pad (disc > 0), else 0 */
     sd_real phase_rate;                    /* 4 omega / pi: bound on phase changes per second (SD_PHASES_BASE) */
     int under;                             /* under-damped (disc < 0) */
 } sd_pad_t;
