@@ -75,6 +75,25 @@ def test_same_bits_with_options_and_a_resampled_trace(tables):
     assert_same_result(got, ref)
 
 
+def test_same_bits_on_a_constant_normal_force_table(tmp_path):
+    """A slope-only mapping stores no normal_force: both engines play the header's constant N."""
+    from shapedisplay.table import FrictionTable
+    src = tmp_path / "ramp.npy"
+    np.save(src, np.tile(np.r_[np.zeros(40), np.linspace(0.0, 1e-3, 40)], (3, 1)))
+    out = tmp_path / "t.npz"
+    assert main(["compile", str(src), "--size", "80x3mm", "--mapping", "slope", "--n-base", "1.5N",
+                 "--device", "linear-slider", "-o", str(out), "-q"]) == 0
+    table = FrictionTable.load(out)
+    assert "normal_force" not in table.channels
+    for model in ("exact", "jump"):
+        py = Renderer(table, model=model)
+        cp = parse_stroke("0,1 <-> 80,1 @ 20mm/s", py.tick_rate)
+        ref = py.render(cp)
+        got = PathRenderer(table, engine="c", model=model).render(cp)
+        assert ref.event_time.size > 20 and np.all(ref.normal_force == 1.5)
+        assert_same_result(got, ref)
+
+
 def test_auto_plays_other_models_and_off_grid_paths_with_the_python_kernels(tables):
     table = tables["phone"]
     r = PathRenderer(table, model="karnopp")
