@@ -10,7 +10,7 @@ first tick:
   millisecond; numba is never imported. Models :data:`~.native.C_MODELS`.
 * ``"python"`` — the numba kernels (:class:`~.renderer.Renderer`): every model.
   Importing numba takes about half a second per process, and the first run
-  after an install compiles the kernels (15-20 s; cached on disk after).
+  after an install compiles the kernels (about 20 s; cached on disk after).
 * ``"auto"`` (default) — ``"c"`` where the C runtime can play the model and a
   C compiler is there (or the library is already built), else ``"python"``.
   A path the runtime's fixed buffers would play differently (more than half
