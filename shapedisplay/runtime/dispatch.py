@@ -22,7 +22,7 @@ REGISTRY = (
     ('tanh', 'tanh_tick', None),
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py.
-KERNEL_SOURCES_SHA256 = "7ad5d6c6e364b0bb55365fc0358c0ba828278c144ef147e836f8290283824939"
+KERNEL_SOURCES_SHA256 = "794ffe03f453c16d8e4452030e0d8477a97a94bbfb2033d6689b245e05316d06"
 
 
 @njit(cache=True)

@@ -223,8 +223,11 @@ class StribeckModel(PadModel):
     substep_s : float
         Largest substep (default 2 us). Where the negative friction slope
         self-excites the pad (``W dmu/dv < -c``) steps are further limited to
-        ``0.5 m / |c + W dmu/dv|``: cheap for the Imaizumi pad (m = 1e-4 kg),
-        slow (about 15x real time) on the 1e-6 kg Konyo pad.
+        ``0.5 m / |c + W dmu/dv|``: 1.4 us on the Imaizumi pad (m = 1e-4 kg),
+        55 ns on the 1e-6 kg Konyo pad, but only while the relative speed is
+        on the steep part of the curve (on the Konyo pad a small part of
+        each ~70 us slip); the model runs faster than real time on both
+        (``benchmarks/bench_accuracy.py`` prints the figure).
     """
 
     name = "stribeck"

@@ -706,9 +706,13 @@ def stribeck_mu(vr_abs, W, mus, muk, a, b, p, d, variant):
 
 @njit(cache=True)
 def _contactor(prm, t):
+    """Contactor position, velocity and acceleration ``A sin(w t)`` and its derivatives at ``t``."""
     A = prm.contactor_amplitude
     w = prm.contactor_omega
-    return A * math.sin(w * t), A * w * math.cos(w * t), -A * w * w * math.sin(w * t)
+    if A == 0.0:
+        return 0.0, 0.0, 0.0
+    sn = math.sin(w * t)
+    return A * sn, A * w * math.cos(w * t), -A * w * w * sn
 
 
 @njit(cache=True)
@@ -728,14 +732,16 @@ def _stribeck_slip(prm, u, du, s, V, W, mus, muk, ta, dur):
     t = ta
     tend = ta + dur
     F = 0.0
+    # the contactor velocity and the friction curve at the start of a substep are those at the end of the
+    # one before (same time, same state): computed once
+    _, dxca, _ = _contactor(prm, t)
+    vr0 = du + V - dxca
+    mu, dmu = stribeck_mu(abs(vr0), W, mus, muk, prm.stribeck_a, prm.stribeck_b, prm.stribeck_p, prm.stribeck_d, var)
     while t < tend:
-        xca, dxca, ddxca = _contactor(prm, t)
-        vr0 = du + V - dxca
         if var == 1:
             sr = _sgn(vr0)
         else:
             sr = -s if vr0 == 0.0 else _sgn(vr0)
-        mu, dmu = stribeck_mu(abs(vr0), W, mus, muk, prm.stribeck_a, prm.stribeck_b, prm.stribeck_p, prm.stribeck_d, var)
         F0 = -sr * mu * W
         ceff = c + dmu * W
         hs = min(prm.substep, tend - t)
@@ -769,12 +775,13 @@ def _stribeck_slip(prm, u, du, s, V, W, mus, muk, ta, dur):
         u = un
         du = dun
         t = tb
+        mu1, dmu1 = stribeck_mu(abs(vr1), W, mus, muk, prm.stribeck_a, prm.stribeck_b, prm.stribeck_p, prm.stribeck_d, var)
         if vr1 != 0.0:
-            mu1, _ = stribeck_mu(abs(vr1), W, mus, muk, prm.stribeck_a, prm.stribeck_b, prm.stribeck_p, prm.stribeck_d, var)
             F = -_sgn(vr1) * mu1 * W
             s = -_sgn(vr1)
         else:
             F = F0
+        vr0, mu, dmu = vr1, mu1, dmu1
     return u, du, s, 1.0, F
 
 

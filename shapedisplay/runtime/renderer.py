@@ -76,7 +76,7 @@ _RING = 4096
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "550e38af4afbd621912c33f3108c0ec25fbbf1d8be9c6e049d419be8f5aa332e"
+KERNEL_SOURCES_SHA256 = "2095fe952482b2bee7ef949a41a0c71b668a6bfd3505c347faf3a0920e1a5372"
 
 
 @njit(cache=True)
