@@ -416,3 +416,33 @@ def test_report_png_is_byte_stable(stability_report, tmp_path):
     for f in files:
         data = (tmp_path / "a" / f).read_bytes()
         assert data == (tmp_path / "b" / f).read_bytes() and b"matplotlib version" not in data
+
+
+def test_equal_error_speedup_on_known_settings():
+    from shapedisplay.reports.accuracy import equal_error
+
+    def st(family, label, err, cost, rate=None, model_cost=None):
+        return {"family": family, "label": label, "status": "ok", "missing": 0, "spurious": 0,
+                "period_rel_max": err, "cpu_s_per_sim_s": cost, "model_cpu_s_per_sim_s": model_cost,
+                "tick_rate": rate}
+    res = [st("scipy", "A", 1e-3, 10.0), st("scipy", "B", 1e-6, 50.0), st("scipy", "C", 2e-2, 1.0),  # C: > 1 %
+           st("renderer", "R1", 5e-3, 0.01, 1000.0, 0.001), st("renderer", "R2", 1e-9, 0.1, 10000.0, 0.02)]
+    q = equal_error(res, "cpu_s_per_sim_s", 1e-9, 1e-9)
+    lv = {v["period_rel_max"]: v for v in q["levels"]}
+    # 1e-9: no scipy setting that accurate; 1e-6: B vs R2; 1e-3: A vs R2 (R1 too wrong); 5e-3: A vs R1
+    assert sorted(lv) == [1e-6, 1e-3, 5e-3]
+    assert (lv[1e-6]["scipy"], lv[1e-6]["renderer"], lv[1e-6]["speedup"]) == ("B", "R2", pytest.approx(500.0))
+    assert (lv[1e-3]["scipy"], lv[1e-3]["renderer"], lv[1e-3]["speedup"]) == ("A", "R2", pytest.approx(100.0))
+    assert (lv[5e-3]["scipy"], lv[5e-3]["renderer"], lv[5e-3]["speedup"]) == ("A", "R1", pytest.approx(1000.0))
+    assert q["worst"]["period_rel_max"] == 1e-3 and q["best"]["period_rel_max"] == 5e-3
+    # the bound at 1e-3: R2's 10 kHz ticks and 48 kHz audio at 1 ns each per simulated second
+    assert q["worst"]["bound"] == pytest.approx(10.0 / (10000 * 1e-9 + 48000 * 1e-9))
+    assert not q["target_met"] and not q["target_bounded"]
+    # the model cost instead of the full render's
+    qm = equal_error(res, "model_cpu_s_per_sim_s", 1e-9)
+    assert qm["worst"]["speedup"] == pytest.approx(500.0) and qm["worst"]["renderer"] == "R2"
+    # a floor so costly that no renderer could reach the target at the worst level
+    qb = equal_error(res, "cpu_s_per_sim_s", 1e-6, 1e-6)
+    assert qb["target_bounded"] and qb["worst"]["bound"] < 1000
+    # nothing comparable
+    assert equal_error([res[0], res[2]], "cpu_s_per_sim_s", 1e-9) is None

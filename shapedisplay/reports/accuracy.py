@@ -353,6 +353,8 @@ def _run_renderer(case, s, device, ref, repeats, online_ticks, min_batch_s=0.02)
     res["ticks"] = int(cur.t.size)
     if not (np.all(np.isfinite(rr.friction_force)) and np.all(np.isfinite(rr.audio))):
         res.update(status="failed", message="non-finite output")
+    if online_ticks <= 0:
+        return res, rr.event_time, rr.event_amplitude
     # online step(): per-tick wall time
     n = min(online_ticks, cur.t.size)
     rend.reset()
@@ -401,6 +403,34 @@ def _run_peer(case, s, repeats, min_batch_s=0.02):
     return res, pr.event_time, pr.event_amplitude
 
 
+def run_setting(case, s, device, ref, runs_renderer=3, runs_peer=3, min_batch_s=0.02, online_ticks=0):
+    """Run one setting of a case (a renderer setting or a scipy peer), time it and score it against ``ref``.
+
+    Returns the setting's dict with its status, costs (CPU s per simulated
+    s: ``cpu_s_per_sim_s`` and, for the renderer, ``model_cpu_s_per_sim_s``)
+    and errors. ``online_ticks`` > 0 also times that many online ``step()``
+    calls (renderer settings).
+    """
+    et_ref = ref["event_time"]
+    window = common.match_window(et_ref, case.duration)
+    mean_int = float(np.mean(np.diff(et_ref))) if et_ref.size > 1 else case.duration
+    amp_scale = float(np.max(np.abs(ref["event_amplitude"]))) if et_ref.size else 1.0
+    if s["family"] == "renderer":
+        res, et, ea = _run_renderer(case, s, device, ref, runs_renderer, online_ticks, min_batch_s)
+    else:
+        res, et, ea = _run_peer(case, s, runs_peer, min_batch_s)
+    res = _score(res, ref, et, ea, case.duration, window, amp_scale)
+    res["event_rms_rel"] = res["event_rms_s"] / mean_int if res.get("event_rms_s") is not None else None
+    if res["status"] == "ok" and res.get("matched", 0) == 0 and et_ref.size:
+        res["status"] = "no_events"
+    return {**s, **res}
+
+
+def settings(case: Case, quick: bool) -> list[dict]:
+    """Every setting of a case: renderer models, tick rates, tables and substeps, then the scipy peers."""
+    return _model_settings(case) + _peer_settings(case, quick)
+
+
 def _score(res, ref, et, ea, duration, window, amp_scale):
     if et is None:
         res.update({k: None for k in ("event_rms_s", "event_max_s", "period_rel_rms", "period_rel_max",
@@ -428,7 +458,7 @@ def run(out_dir, quick=False, progress=True, plots=True, stream=None) -> dict:
     out_dir = prepare_output_dir(out_dir)
     stream = stream if stream is not None else sys.stderr
     cases = build_cases(quick)
-    plan = [(c, _model_settings(c) + _peer_settings(c, quick)) for c in cases]
+    plan = [(c, settings(c, quick)) for c in cases]
     total = sum(len(s) + 1 for _, s in plan)
     bar = common.Progress(total, "accuracy", stream=stream, enabled=progress)
     rep_model = 3
@@ -462,26 +492,16 @@ def run(out_dir, quick=False, progress=True, plots=True, stream=None) -> dict:
                   "null": "not computable: the run failed or diverged (see status), or too few matched events"},
               "cases": []}
     _warm_peers()
-    for case, settings in plan:
+    for case, case_settings in plan:
         device = _device(case)
         bar.update(0, f"{case.name}: reference")
         ref = reference(case, quick)
         bar.update(1, f"{case.name}: reference")
         et_ref = ref["event_time"]
-        window = common.match_window(et_ref, case.duration)
         mean_int = float(np.mean(np.diff(et_ref))) if et_ref.size > 1 else case.duration
-        amp_scale = float(np.max(np.abs(ref["event_amplitude"]))) if et_ref.size else 1.0
         results = []
-        for s in settings:
-            if s["family"] == "renderer":
-                res, et, ea = _run_renderer(case, s, device, ref, rep_model, online_ticks, batch)
-            else:
-                res, et, ea = _run_peer(case, s, rep_peer, batch)
-            res = _score(res, ref, et, ea, case.duration, window, amp_scale)
-            res["event_rms_rel"] = res["event_rms_s"] / mean_int if res.get("event_rms_s") is not None else None
-            if res["status"] == "ok" and res.get("matched", 0) == 0 and et_ref.size:
-                res["status"] = "no_events"
-            results.append({**s, **res})
+        for s in case_settings:
+            results.append(run_setting(case, s, device, ref, rep_model, rep_peer, batch, online_ticks))
             bar.update(1, f"{case.name}: {s['label']}")
         summary = _summarise(results, case.duration, floor_tick, floor_audio)
         ref_json = {k: v for k, v in ref.items() if k not in ("event_time", "event_amplitude")}
