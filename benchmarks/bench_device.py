@@ -64,7 +64,7 @@ def bench_latency(n: int, baud: int, model: str = "jump"):
     with tempfile.TemporaryDirectory() as d:
         port_file = os.path.join(d, "port")
         cmd = [sys.executable, "-m", "shapedisplay_cli.main", "device", "emulate", "--baud", str(baud),
-               "--model", model, "--timeout", "120", "--port-file", port_file]
+               "--model", model, "--stop-after", "120", "--port-file", port_file]
         proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         try:
             t_end = time.monotonic() + 60

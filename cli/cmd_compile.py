@@ -49,14 +49,10 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def add_source_arguments(p, size_flag: str = "--size") -> None:
-    """The options of picture and mesh sources, the same on compile, preview and heightmap.
-
-    ``size_flag``: the physical size option (``preview`` uses ``--size`` for
-    its picture in pixels and calls this one ``--extent``).
-    """
+def add_source_arguments(p) -> None:
+    """The options of picture and mesh sources, the same on compile, preview and heightmap."""
     g = p.add_argument_group("picture and mesh sources")
-    g.add_argument(size_flag,
+    g.add_argument("--size",
                    help="pictures: physical width x height, e.g. 60x4mm; meshes: WxH stretches the footprint, "
                         "one length (e.g. 60mm) scales the whole model")
     g.add_argument("--height", help="LO:HI, e.g. 0:2mm: integer pictures map gray 0 and full scale onto it; float "
@@ -69,9 +65,9 @@ def add_source_arguments(p, size_flag: str = "--size") -> None:
     g.add_argument("--units", help="length unit of the mesh coordinates: mm (default), cm, m, in")
 
 
-def source_given(args, extra=(), size_flag: str = "--size") -> dict:
+def source_given(args, extra=()) -> dict:
     """{option name: text or None} of the source options on the command line."""
-    given = {"size": getattr(args, size_flag.lstrip("-"))}
+    given = {"size": args.size}
     for name in ("height", "resolution", "channel", "z_units", "up", "units") + tuple(extra):
         given[name] = getattr(args, name)
     return given

@@ -52,7 +52,10 @@ def register(sub) -> None:
     q.add_argument("--stream-rate", default="1 kHz", help="cursor sample rate (default 1 kHz)")
     q.add_argument("--queue", type=int, default=64, help="cursor queue capacity, samples (default 64)")
     q.add_argument("--no-renderer", action="store_true", help="emulate a device that only plays actuator streams")
-    q.add_argument("--timeout", type=float, default=None, help="stop after this many seconds (default: Ctrl-C)")
+    q.add_argument("--stop-after", type=float, default=None, help="stop after this many seconds (default: Ctrl-C)")
+    from shapedisplay_cli.main import old_spelling
+    old_spelling(q, "--timeout", "--stop-after", dest="stop_after",
+                 why=" (--timeout is the wait for each reply in the other device commands)")
     q.add_argument("--port-file", help="also write the port path to this file")
     q.add_argument("--link", help="also create a symbolic link of this name to the pty (a stable port name)")
     q.set_defaults(func=run_emulate)
@@ -160,8 +163,8 @@ def run_emulate(args) -> int:
     from shapedisplay.atomic import write_text
     from shapedisplay.link.emulator import DeviceEmulator, EmulatorConfig
     from shapedisplay.errors import InputError
-    if args.timeout is not None and args.timeout <= 0:
-        raise InputError(f"`--timeout` must be > 0 seconds (got {args.timeout})")
+    if args.stop_after is not None and args.stop_after <= 0:
+        raise InputError(f"`--stop-after` must be > 0 seconds (got {args.stop_after})")
     cfg = EmulatorConfig.from_text(memory=args.memory, tick_rate=args.tick_rate, stream_rate=args.stream_rate,
                                    queue=args.queue, model=args.model, renderer=not args.no_renderer,
                                    baud=args.baud)
@@ -178,7 +181,7 @@ def run_emulate(args) -> int:
     print(f"device emulator on {port}  (connect with: shapedisplay device info {port}; Ctrl-C stops)", flush=True)
     signal.signal(signal.SIGTERM, lambda *a: (_ for _ in ()).throw(KeyboardInterrupt()))
     try:
-        emu.serve(timeout=args.timeout)
+        emu.serve(timeout=args.stop_after)
     except KeyboardInterrupt:
         pass
     finally:

@@ -23,14 +23,16 @@ def register(subparsers) -> None:
                               description=HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("svg", help="SVG mockup (.svg)")
     p.add_argument("-o", "--output", required=True, help="scene file to write (.toml)")
-    p.add_argument("--force", action="store_true", help="replace an existing output file")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    from shapedisplay_cli.main import old_spelling
+    old_spelling(p, "--force", "--overwrite", dest="overwrite", flag=True)
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     from shapedisplay.scene import import_svg
 
-    res = import_svg(args.svg, args.output, overwrite=args.force)
+    res = import_svg(args.svg, args.output, overwrite=args.overwrite)
     for w in res["warnings"]:
         print(f"warning: {w}")
     for n in res["notes"]:

@@ -13,16 +13,21 @@ def register(sub) -> None:
     p.add_argument("table", help="table file (.npz)")
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--stroke", help=STROKE_HELP)
-    src.add_argument("--trace", help="recorded cursor trace, CSV t,x,y (s, mm; header x_m,y_m for metres)")
-    src.add_argument("--force", help="pointing-stick force recording, CSV t,fx[,fy] (s, N); v = alpha f "
-                                     "with alpha = the device's cursor_gain")
-    p.add_argument("--start", default="0,0", help="start position for --force, 'x,y' in mm (default 0,0)")
+    src.add_argument("--cursor-csv", help="recorded cursor path, CSV t,x,y (s, mm; header x_m,y_m for metres)")
+    src.add_argument("--force-csv", help="pointing-stick force recording, CSV t,fx[,fy] (s, N); v = alpha f "
+                                         "with alpha = the device's cursor_gain (a device that has one)")
+    from shapedisplay_cli.main import old_spelling
+    old_spelling(src, "--trace", "--cursor-csv", dest="cursor_csv",
+                 why=" (--trace names a played trace .npz, as in preview and --trace-out)")
+    old_spelling(src, "--force", "--force-csv", dest="force_csv", why=" (--force means overwrite elsewhere)")
+    p.add_argument("--start", default="0,0", help="start position for --force-csv, 'x,y' in mm (default 0,0)")
     p.add_argument("--device", help="device profile (TOML path or bundled name); overrides the table's")
     p.add_argument("--model", default="exact", help="exact | jump | karnopp | stribeck | tanh | euler | rk4 (default exact)")
     p.add_argument("--tick-rate", "--rate", dest="tick_rate",
                    help="renderer tick rate, e.g. 10kHz (default: the device's; --rate is the same option)")
     p.add_argument("--audio-rate", help="audio sample rate, e.g. 48kHz (default: the device's)")
-    p.add_argument("--format", default="float32", help="WAV sample format: float32 | int16 (default float32)")
+    p.add_argument("--sample-format", default="float32", help="WAV sample format: float32 | int16 (default float32)")
+    old_spelling(p, "--format", "--sample-format", dest="sample_format", why=" (--format names a file format in export)")
     p.add_argument("--burst-policy", default="retrigger", help="retrigger | add | max (default retrigger)")
     p.add_argument("--burst-gain", help="burst gain B in 1/N (full scale per newton of breakaway force), "
                                         "e.g. 0.25; overrides the device's")
@@ -55,8 +60,8 @@ def run(args) -> int:
     from shapedisplay.table import FrictionTable
     from shapedisplay.units import parse_quantity
 
-    if args.format not in SAMPLE_FORMATS:
-        raise unknown_key("--format", args.format, SAMPLE_FORMATS)
+    if args.sample_format not in SAMPLE_FORMATS:
+        raise unknown_key("--sample-format", args.sample_format, SAMPLE_FORMATS)
     if args.plot:
         check_plot_path(args.plot)          # before any work: format known, matplotlib installed
     table = FrictionTable.load(args.table)
@@ -75,17 +80,17 @@ def run(args) -> int:
                      burst_policy=args.burst_policy, max_stick_period=msp)
     if args.stroke is not None:
         cursor = parse_stroke(args.stroke, r.tick_rate)
-    elif args.trace is not None:
-        cursor = load_trace_csv(args.trace)
+    elif args.cursor_csv is not None:
+        cursor = load_trace_csv(args.cursor_csv)
     else:
         try:
             sx, sy = (float(v) * 1e-3 for v in args.start.split(","))
         except ValueError:
             raise InputError(f"`--start` must be 'x,y' in mm (got {args.start!r})") from None
-        cursor = load_force_csv(args.force, r.device.cursor_gain, r.tick_rate, (sx, sy))
+        cursor = load_force_csv(args.force_csv, r.device.cursor_gain, r.tick_rate, (sx, sy))
     source = (f"stroke {args.stroke}" if args.stroke is not None else
-              f"trace {args.trace}" if args.trace is not None else f"force {args.force}")
-    res = play_to_files(r, cursor, args.output, args.format, trace=args.trace_out, plot=args.plot,
+              f"cursor {args.cursor_csv}" if args.cursor_csv is not None else f"force {args.force_csv}")
+    res = play_to_files(r, cursor, args.output, args.sample_format, trace=args.trace_out, plot=args.plot,
                         table_checksum=table.checksum(), ahap=args.ahap, drive_csv=args.drive_csv,
                         ahap_envelope=args.ahap_envelope == "on", description=f"{args.table}: {source}")
     s = res.summary()
@@ -99,7 +104,7 @@ def run(args) -> int:
         print(f"{s['model']} at {s['tick_rate_hz']:g} Hz ({engine}): {s['ticks']} ticks over {s['duration_s']:.4g} s, "
               f"{s['events']} stick-slip events, max friction {s['max_friction_n']:.4g} N, "
               f"slip {100 * s['slip_fraction']:.1f} % of the time")
-        print(f"audio: {s['audio_samples']} samples at {s['audio_rate_hz']:g} Hz ({args.format}) -> {args.output}; "
+        print(f"audio: {s['audio_samples']} samples at {s['audio_rate_hz']:g} Hz ({args.sample_format}) -> {args.output}; "
               f"peak {s['peak']:.3g}, clipped {s['clipped']} samples"
               + (" (lower the burst gain)" if s["clipped"] else ""))
         if args.trace_out:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import re
 
 PREVIEW_HELP = """\
 Show a height map, mesh, scene or compiled table as a 3D surface coloured by
@@ -28,7 +29,7 @@ examples:
   shapedisplay preview out/phone.npz --trace out/phone-trace.npz -o shot.png
   shapedisplay preview assets/scenes/phone.toml --color slope
   shapedisplay preview assets/meshes/keycap.stl --resolution 0.1mm -o keycap.png
-  shapedisplay preview assets/scenes/terrain.png --extent 120x80mm --height 0:2mm -o map.png --size 1200x800
+  shapedisplay preview assets/scenes/terrain.png --size 120x80mm --height 0:2mm -o map.png --pixels 1200x800
   shapedisplay preview tray.glb --up y --units m --view top -o tray.png
 
 A picture is shown as the top view it is (x to the right, y up the screen):
@@ -47,7 +48,7 @@ def register(subparsers) -> None:
     p.add_argument("--color", "--colour", dest="color", default="height",
                    help="channel colouring the surface (default height; N = normal_force)")
     p.add_argument("-o", "--output", help="write a PNG off-screen instead of opening a window")
-    p.add_argument("--size", default="1600x1000", help="picture/window size in pixels WxH (default 1600x1000)")
+    p.add_argument("--pixels", default="1600x1000", help="picture/window size in pixels WxH (default 1600x1000)")
     p.add_argument("--exaggeration", default="auto",
                    help="vertical exaggeration: auto (relief about 15%% of the width) or a number")
     p.add_argument("--view", default="iso", help="camera: iso (default), top or side")
@@ -55,8 +56,32 @@ def register(subparsers) -> None:
     p.add_argument("--cmap", default="viridis", help="colour map (default viridis)")
     p.add_argument("--no-chart", action="store_true", help="do not draw the N/friction chart of the stroke")
     from shapedisplay_cli.cmd_compile import add_source_arguments
-    add_source_arguments(p, size_flag="--extent")
+    from shapedisplay_cli.main import old_spelling
+    add_source_arguments(p)
+    old_spelling(p, "--extent", "--size", dest="size", why=" (the physical size, as in compile)")
     p.set_defaults(func=run)
+
+
+#: A size of bare whole numbers, ``1200x800``: the picture size in pixels ``--size`` used to mean.
+_PIXELS = re.compile(r"^\s*\d+\s*[x×]\s*\d+\s*$")
+
+
+def picture_size(args) -> tuple[str | None, str]:
+    """(physical size, pixel size) from the options; ``--size 1200x800`` without a unit is the old pixel size.
+
+    ``--size`` is the physical size in every command (with its unit, ``120x80mm``);
+    before, ``preview --size`` was the picture size in pixels. A value of bare
+    whole numbers cannot be a physical size (units are required), so it is
+    read the old way, with a note saying to write ``--pixels``.
+    """
+    import sys
+    size = getattr(args, "size", None)
+    if size is not None and _PIXELS.match(size):
+        print(f"shapedisplay preview: note: --size {size} without a unit is read as the picture size in pixels, "
+              f"as before; write --pixels {size.strip()} (--size is the physical size, e.g. 120x80mm)",
+              file=sys.stderr)
+        return None, size
+    return size, args.pixels
 
 
 def run(args) -> int:
@@ -64,10 +89,12 @@ def run(args) -> int:
     from shapedisplay.sources import source_options
     from shapedisplay_cli.cmd_compile import source_given
 
-    opts = source_options(args.input, flags={"size": "--extent"}, **source_given(args, size_flag="--extent"))
+    size, pixels = picture_size(args)
+    args.size = size
+    opts = source_options(args.input, **source_given(args))
     model = viewer.load_model(args.input, scene=args.scene, **opts)
     trace = viewer.load_trace(args.trace) if args.trace else None
-    preview = viewer.render(model, args.color, trace=trace, exaggeration=args.exaggeration, size=args.size,
+    preview = viewer.render(model, args.color, trace=trace, exaggeration=args.exaggeration, size=pixels,
                             off_screen=bool(args.output), view=args.view, cmap=args.cmap,
                             chart=not args.no_chart)
     try:

@@ -40,7 +40,9 @@ def register(subparsers) -> None:
                          formatter_class=argparse.RawDescriptionHelpFormatter)
     s.add_argument("name", help="scene name (file NAME.toml unless -o is given)")
     s.add_argument("-o", "--output", help="file to write (default: NAME.toml)")
-    s.add_argument("--force", action="store_true", help="overwrite an existing file")
+    s.add_argument("--overwrite", action="store_true", help="overwrite an existing file")
+    from shapedisplay_cli.main import old_spelling
+    old_spelling(s, "--force", "--overwrite", dest="overwrite", flag=True)
     s.set_defaults(func=run_new_scene)
     n.set_defaults(func=_new_usage(n))
 
@@ -88,8 +90,8 @@ def run_new_scene(args) -> int:
     from shapedisplay.scene.template import render_template
 
     out = Path(args.output) if args.output else Path(f"{args.name}.toml")
-    if out.exists() and not args.force:
-        raise InputError(f"output '{out}': file exists; choose another name or pass --force")
+    if out.exists() and not args.overwrite:
+        raise InputError(f"output '{out}': file exists; choose another name or pass --overwrite")
     write_text(out, render_template(args.name, str(out)))
     print(f"wrote {out}: check it with `shapedisplay check {out}`")
     return 0

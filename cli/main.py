@@ -40,6 +40,20 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
+def old_spelling(parser, old: str, new: str, dest: str, flag: bool = False, why: str = "") -> argparse.Action:
+    """Accept ``old``, the former name of option ``new`` (same ``dest``), hidden from --help.
+
+    One name has one meaning in every command; where a name changed, the old
+    spelling still works and the command prints a one-line note on stderr
+    saying what to write instead (``why`` adds the reason).
+    """
+    action = parser.add_argument(old, dest=dest, help=argparse.SUPPRESS, default=argparse.SUPPRESS,
+                                 **({"action": "store_true"} if flag else {}))
+    action.renamed_to = new
+    action.rename_why = why
+    return action
+
+
 def _takes_one_value(action: argparse.Action) -> bool:
     return bool(action.option_strings) and action.nargs is None and not isinstance(
         action, (argparse._StoreConstAction, argparse._CountAction, argparse._HelpAction,
@@ -85,6 +99,7 @@ class CommandLine:
     def __init__(self, parser: argparse.ArgumentParser, argv: list[str]):
         self.argv: list[str] = []
         self.typed: dict[str, str] = {}
+        self.notes: list[str] = []       # one line per old option spelling used (see old_spelling)
         current = parser
         i = 0
         while i < len(argv):
@@ -102,6 +117,9 @@ class CommandLine:
             action = _lookup_option(current, name) if token.startswith("-") and len(token) > 1 else None
             if action is not None:
                 self.typed.setdefault(action.dest, name)
+                if getattr(action, "renamed_to", None):
+                    self.notes.append(f"{current.prog}: note: {name} is now {action.renamed_to}"
+                                      f"{action.rename_why}; {name} still works")
             if action is not None and name == token and _takes_one_value(action) and i + 1 < len(argv):
                 value = argv[i + 1]
                 if value.startswith("-") and value not in ("-", "--") and _lookup_option(current, value) is None:
@@ -195,6 +213,8 @@ def main(argv=None) -> int:
         parser.print_help()
         return 2
     from shapedisplay.errors import ShapeDisplayError
+    for note in line.notes:
+        print(note, file=sys.stderr)
     try:
         _check_outputs(args, line)
         return int(args.func(args) or 0)

@@ -688,8 +688,8 @@ def source_options(path, *, flags: dict | None = None, **given) -> dict:
 
     ``given`` holds options of :data:`OPTION_KINDS` by name (``size``,
     ``height``, ``resolution``, ``channel``, ``z_units``, ``up``, ``units``,
-    ``grid``, ...); ``flags`` how a command spells one differently
-    (``preview`` calls the physical size ``--extent``). Options that do not
+    ``grid``, ...); ``flags`` how a caller spells one differently
+    (default ``--name``, as every command spells them). Options that do not
     apply to the kind of source are refused (:func:`check_applicable`). A
     scene, an SVG mockup or a table takes none and gets ``{}``.
     """

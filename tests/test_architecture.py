@@ -166,3 +166,42 @@ def test_c_runtime_checks_the_same_tick_rate_range():
     found = re.findall(r"tick_rate\s*>=\s*([\d.eE+]+)f?\s*&&\s*\w+->tick_rate\s*<=\s*([\d.eE+]+)", src)
     assert found, "sd_render.c: no tick-rate range check found"
     assert {(float(lo), float(hi)) for lo, hi in found} == {TICK_RATE_RANGE}
+
+
+def _tracked_text_files():
+    import subprocess
+    root = PACKAGE.parent
+    res = subprocess.run(["git", "ls-files"], cwd=root, capture_output=True, text=True)
+    names = res.stdout.split() if res.returncode == 0 else [
+        p.relative_to(root).as_posix() for p in root.rglob("*") if p.is_file() and ".venv" not in p.parts]
+    suffixes = (".py", ".md", ".c", ".h", ".js", ".html", ".css", ".toml", ".sh", ".txt", ".cfg", ".json")
+    return [root / n for n in names if n.endswith(suffixes) or n.endswith("Makefile")]
+
+
+def test_no_reference_to_documents_outside_the_repository():
+    """Code, comments, docstrings and docs cite the project's own docs/, never a design or style document."""
+    import re
+    outside = re.compile(r"\bDESIGN\b|\bSTYLE\.md\b|design (?:doc|document|reference)\w*,? (?:§|section )?\d")
+    found = []
+    for path in _tracked_text_files():
+        if path == Path(__file__):
+            continue
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (UnicodeDecodeError, FileNotFoundError):
+            continue
+        for i, line in enumerate(text.splitlines(), 1):
+            if outside.search(line):
+                found.append(f"{path.relative_to(PACKAGE.parent)}:{i}: {line.strip()[:100]}")
+    assert not found, "references to documents outside the repository:\n" + "\n".join(found)
+
+
+def test_links_in_the_docs_point_into_the_repository():
+    """Every relative link of README.md and docs/ names a file that exists (anchors aside)."""
+    import re
+    for doc in _docs():
+        for target in re.findall(r"\]\(([^)\s]+)\)", doc.read_text(encoding="utf-8")):
+            if re.match(r"[a-z]+:", target) or target.startswith("#"):
+                continue
+            path = (doc.parent / target.split("#")[0]).resolve()
+            assert path.exists(), f"{doc.name}: link '{target}' points to nothing"

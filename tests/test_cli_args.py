@@ -144,3 +144,74 @@ def test_each_command_module_registers_the_commands_main_names_for_it():
     # a command line naming one command parses and reports errors as with the whole parser
     for argv in (["play", "t.npz", "--stroke", "0:5mm @ 5mm/s", "-o", "o.wav"], ["device", "info", "p"]):
         assert vars(build_parser(argv[0]).parse_args(argv)).keys() == vars(full.parse_args(argv)).keys()
+
+
+# One meaning per option name: old spellings still work, with one note line on stderr.
+OLD_SPELLINGS = [
+    (["play", "TABLE", "--stroke", "0,2 -> 20,2 @ 20mm/s", "-o", "OUT/a.wav", "--format", "int16"],
+     "--format is now --sample-format"),
+    (["preview", "MAP", "--extent", "60x24mm", "--height", "0:1mm", "-o", "OUT/p.png", "--pixels", "320x200"],
+     "--extent is now --size"),
+    (["new", "scene", "s", "-o", "OUT/s.toml", "--force"], "--force is now --overwrite"),
+]
+
+
+@pytest.mark.parametrize("argv,note", OLD_SPELLINGS, ids=lambda v: v[0] if isinstance(v, list) else None)
+def test_old_option_spellings_still_work_with_a_note(argv, note, tmp_path, capsys):
+    from pathlib import Path
+
+    from shapedisplay_cli.main import build_parser, main
+    root = Path(__file__).resolve().parent.parent
+    table = tmp_path / "t.npz"
+    assert main(["compile", str(root / "assets/maps/tent_profile.png"), "-o", str(table), "--size", "60x4mm",
+                 "--height", "0:2mm", "-q"]) == 0
+    subs = {"TABLE": str(table), "MAP": str(root / "assets/maps/buttons.png")}
+    argv = [subs.get(a, a.replace("OUT", str(tmp_path))) for a in argv]
+    if argv[0] == "preview":
+        pytest.importorskip("pyvista")
+        args = build_parser().parse_args(argv)          # the parse is what changed; drawing is tested elsewhere
+        assert args.size == "60x24mm" and args.pixels == "320x200"
+        from shapedisplay_cli.main import CommandLine
+        assert any(note in n for n in CommandLine(build_parser(), argv).notes)
+        return
+    capsys.readouterr()
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert note in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_preview_size_without_a_unit_is_the_old_pixel_size(capsys):
+    from shapedisplay_cli.cmd_preview import picture_size
+    from shapedisplay_cli.main import build_parser
+    args = build_parser().parse_args(["preview", "t.npz", "--size", "1200x800"])
+    assert picture_size(args) == (None, "1200x800")
+    assert "write --pixels 1200x800" in capsys.readouterr().err
+    args = build_parser().parse_args(["preview", "m.png", "--size", "120x80mm", "--pixels", "640x400"])
+    assert picture_size(args) == ("120x80mm", "640x400")
+    assert capsys.readouterr().err == ""
+
+
+def test_no_option_name_has_two_meanings():
+    """An option spelled the same in two commands stores the same thing; the names that once meant two things
+    (--size pixels/physical, --trace cursor CSV/played trace, --force overwrite/force recording, --format
+    file/sample format, --timeout reply wait/run time) now mean one."""
+    import argparse
+
+    from shapedisplay_cli.main import build_parser
+    seen: dict = {}
+
+    def walk(parser, name):
+        for a in parser._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                for k, sp in a.choices.items():
+                    walk(sp, f"{name} {k}".strip())
+            elif a.help != argparse.SUPPRESS:
+                for o in a.option_strings:
+                    if o.startswith("--") and o != "--help":
+                        seen.setdefault(o, {})[name] = a.dest
+    walk(build_parser(), "")
+    for option, where in seen.items():
+        assert len(set(where.values())) == 1, (option, where)
+    assert {"compile", "preview", "heightmap", "studio"} <= set(seen["--size"]) and "--extent" not in seen
+    assert "play" not in seen["--trace"] and "play" not in seen["--force"] and "play" not in seen["--format"]
+    assert "device emulate" not in seen["--timeout"] and "device emulate" in seen["--stop-after"]

@@ -72,7 +72,7 @@ def test_cli_emulate_with_c_engine(tmp_path, capsys):
     from shapedisplay_cli.main import main
     port_file = tmp_path / "port"
     proc = subprocess.Popen([sys.executable, "-m", "shapedisplay_cli.main", "device", "emulate", "--engine", "c",
-                             "--timeout", "60", "--port-file", str(port_file)],
+                             "--stop-after", "60", "--port-file", str(port_file)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=dict(os.environ))
     try:
         t_end = time.monotonic() + 90

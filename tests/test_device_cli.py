@@ -18,7 +18,7 @@ from test_device_render import tent_table
 def emulator(tmp_path_factory):
     d = tmp_path_factory.mktemp("emu")
     port_file = d / "port"
-    proc = subprocess.Popen([sys.executable, "-m", "shapedisplay_cli.main", "device", "emulate", "--timeout", "60",
+    proc = subprocess.Popen([sys.executable, "-m", "shapedisplay_cli.main", "device", "emulate", "--stop-after", "60",
                              "--memory", "64 KiB", "--port-file", str(port_file)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     t_end = time.monotonic() + 60
@@ -142,7 +142,7 @@ def test_silent_port_times_out(tmp_path, capsys):
 
 def test_emulator_killed_mid_play_is_one_line_exit_2(table_path, tmp_path):
     port_file = tmp_path / "port"
-    emu = subprocess.Popen([sys.executable, "-m", "shapedisplay_cli.main", "device", "emulate", "--timeout", "60",
+    emu = subprocess.Popen([sys.executable, "-m", "shapedisplay_cli.main", "device", "emulate", "--stop-after", "60",
                             "--port-file", str(port_file)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         t_end = time.monotonic() + 60

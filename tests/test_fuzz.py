@@ -551,7 +551,7 @@ def _command_lines(rng, tmp_path) -> list[list]:
               "10x", "x", "5 kHz", "-5 Hz", "1,2", "1e400", "..", "/", "+1N"]
     compile_opts = ["--size", "--height", "--resolution", "--n-base", "--n-gain", "--mapping", "--max-slope",
                     "--weber", "--gradient", "--sigma", "--device", "--lateral-gain", "--slope-gain", "--up"]
-    play_opts = ["--tick-rate", "--rate", "--audio-rate", "--model", "--format", "--burst-policy", "--burst-gain",
+    play_opts = ["--tick-rate", "--rate", "--audio-rate", "--model", "--sample-format", "--burst-policy", "--burst-gain",
                  "--max-stick-period", "--start", "--device"]
     lines = []
     for i in range(N_COMMANDS):

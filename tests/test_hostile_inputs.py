@@ -323,10 +323,10 @@ def test_output_equal_to_an_input_is_refused(tmp_path, compiled, capsys, argv, n
 def test_link_never_replaces_a_file(tmp_path, capsys):
     victim = tmp_path / "notes.txt"
     victim.write_text("keep me")
-    code, out, err = run(["device", "emulate", "--link", victim, "--timeout", "1", "--no-renderer"], capsys)
+    code, out, err = run(["device", "emulate", "--link", victim, "--stop-after", "1", "--no-renderer"], capsys)
     assert code == 2 and "refusing to replace it" in err and len(err.strip().splitlines()) == 1
     assert victim.read_text() == "keep me" and not victim.is_symlink()
-    code, out, err = run(["device", "emulate", "--link", tmp_path / "missing" / "x", "--timeout", "1",
+    code, out, err = run(["device", "emulate", "--link", tmp_path / "missing" / "x", "--stop-after", "1",
                           "--no-renderer"], capsys)
     assert code == 2 and "does not exist" in err
 
@@ -334,7 +334,7 @@ def test_link_never_replaces_a_file(tmp_path, capsys):
 def test_emulator_link_is_removed_on_exit(tmp_path, capsys):
     pytest.importorskip("serial")
     link = tmp_path / "port"
-    code, out, err = run(["device", "emulate", "--link", link, "--timeout", "0.2", "--no-renderer"], capsys)
+    code, out, err = run(["device", "emulate", "--link", link, "--stop-after", "0.2", "--no-renderer"], capsys)
     assert code == 0 and "device emulator on" in out
     assert not os.path.lexists(link)
 

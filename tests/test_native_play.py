@@ -173,7 +173,7 @@ def test_cli_play_engines_write_the_same_files(tmp_path, capsys):
     for engine in ("c", "python"):
         args = ["play", str(table), "--stroke", "62,2 -> 62,60 @ 30mm/s", "--model", "jump", "--engine", engine,
                 "-o", str(tmp_path / f"{engine}.wav"), "--trace-out", str(tmp_path / f"{engine}.npz"),
-                "--ahap", str(tmp_path / f"{engine}.ahap"), "--format", "int16", "--json"]
+                "--ahap", str(tmp_path / f"{engine}.ahap"), "--sample-format", "int16", "--json"]
         capsys.readouterr()
         assert main(args) == 0
         out[engine] = json.loads(capsys.readouterr().out)

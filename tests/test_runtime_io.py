@@ -177,13 +177,13 @@ def test_cli_play_int16_trace_and_force(tiny_table, tmp_path):
     csv = tmp_path / "c.csv"
     csv.write_text("t,x,y\n" + "\n".join(f"{i * 0.01},{i * 0.5},2" for i in range(100)))
     out = tmp_path / "o.wav"
-    assert main(["play", str(path), "--device", str(dev), "--trace", str(csv), "--model", "jump",
-                 "--format", "int16", "-o", str(out)]) == 0
+    assert main(["play", str(path), "--device", str(dev), "--cursor-csv", str(csv), "--model", "jump",
+                 "--sample-format", "int16", "-o", str(out)]) == 0
     with wave.open(str(out)) as w:
         assert w.getnframes() == int(0.99 * 48000) + 1
     fcsv = tmp_path / "f.csv"
     fcsv.write_text("\n".join(f"{i / 5000},0.5" for i in range(5001)))
-    assert main(["play", str(path), "--device", str(dev), "--force", str(fcsv), "--start", "0,2",
+    assert main(["play", str(path), "--device", str(dev), "--force-csv", str(fcsv), "--start", "0,2",
                  "-o", str(out), "--json"]) == 0
 
 
@@ -207,12 +207,12 @@ def test_cli_burst_gain_scales_the_audio(tiny_table, tmp_path, capsys):
     (["--stroke", "0,2 -> 60,2 @ 20mm/s", "--rate", "50Hz"], "100 Hz..192 kHz"),
     (["--stroke", "0,2 -> 60,2 @ 20mm/s", "--rate", "200kHz"], "100 Hz..192 kHz"),
     (["--stroke", "0,2 -> 60,2 @ 20mm/s", "--model", "verlet"], "unknown model"),
-    (["--stroke", "0,2 -> 60,2 @ 20mm/s", "--format", "mp3"], "--format"),
+    (["--stroke", "0,2 -> 60,2 @ 20mm/s", "--sample-format", "mp3"], "--sample-format"),
     (["--stroke", "0,2 -> 60,2 @ 20mm/s", "--model", "euler", "--rate", "1kHz"], "diverged"),
     (["--stroke", ""], "needs a speed"),
     (["--stroke", "0,2 -> 6e4,2 @ 1mm/s"], "ticks"),
     (["--stroke", "0,2 -> 60,2 @ 0.01mm/s", "--rate", "100Hz"], "audio of 6000 s"),  # 2.9e8 samples at 48 kHz
-    (["--trace", ""], "no such file"),
+    (["--cursor-csv", ""], "no such file"),
     (["--stroke", "0,2 -> 60,2 @ 20mm/s", "--plot", "PLOT.xyz"], "suffix"),
     (["--stroke", "0,2 -> 60,2 @ 20mm/s", "--plot", "/nonexistent-dir/p.png"], "does not exist"),
     (["--stroke", "0,2 -> 60,2 @ 20mm/s", "--trace-out", "/nonexistent-dir/t.npz"], "does not exist"),

@@ -177,7 +177,7 @@ def test_scripted_stroke_offline_and_live_match_the_python_renderer(page, tmp_pa
     tpath.write_bytes(page.studio.get("/api/table")[1])
     cp = load_trace_csv(csv)
     assert np.array_equal(cp.x, live["x"]) and np.array_equal(cp.y, live["y"])
-    r = subprocess.run([sys.executable, "-m", "shapedisplay", "play", str(tpath), "--trace", str(csv),
+    r = subprocess.run([sys.executable, "-m", "shapedisplay", "play", str(tpath), "--cursor-csv", str(csv),
                         "-o", str(tmp_path / "replay.wav"), "--trace-out", str(tmp_path / "replay.npz")],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr

@@ -100,7 +100,7 @@ def test_import_svg_writes_the_equivalent_scene(tmp_path, capsys):
     before = out.read_bytes()
     assert main(["import-svg", str(MOCKUP), "-o", str(out)]) == 2              # never overwritten silently
     assert "exists" in capsys.readouterr().err and out.read_bytes() == before
-    assert main(["import-svg", str(MOCKUP), "-o", str(out), "--force"]) == 0
+    assert main(["import-svg", str(MOCKUP), "-o", str(out), "--overwrite"]) == 0
     assert main(["compile", str(MOCKUP), "-o", str(tmp_path / "t.npz"), "-q"]) == 0
 
 

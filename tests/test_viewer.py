@@ -425,7 +425,7 @@ def test_cli_writes_png_of_requested_size(tmp_path, table, trace_path, capsys):
     table.save(tpath)
     out = tmp_path / "shot.png"
     assert run_cli(["preview", str(tpath), "--trace", str(trace_path), "--color", "N", "-o", str(out),
-                    "--size", "400x260"]) == 0
+                    "--pixels", "400x260"]) == 0
     assert "wrote" in capsys.readouterr().out
     from PIL import Image
     img = np.asarray(Image.open(out).convert("RGB"))
@@ -445,10 +445,10 @@ def test_cli_bad_inputs_one_line_exit_2(tmp_path, table, capsys):
         (["preview", str(tpath), "-o", str(tmp_path / "a.jpg")], "PNG"),
         (["preview", str(tpath), "--exaggeration", "-2", "-o", str(tmp_path / "a.png")], "exaggeration"),
         (["preview", str(tpath), "--resolution", "1mm", "-o", str(tmp_path / "a.png")], "--resolution"),
-        (["preview", os.path.join(MAPS, "buttons.png"), "-o", str(tmp_path / "a.png")], "--extent"),
-        (["preview", os.path.join(MAPS, "buttons.png"), "--extent", "80x50mm", "-o", str(tmp_path / "a.png")],
+        (["preview", os.path.join(MAPS, "buttons.png"), "-o", str(tmp_path / "a.png")], "--size"),
+        (["preview", os.path.join(MAPS, "buttons.png"), "--size", "80x50mm", "-o", str(tmp_path / "a.png")],
          "--height"),
-        (["preview", str(tpath), "--size", "10x10", "-o", str(tmp_path / "a.png")], "64..8192"),
+        (["preview", str(tpath), "--pixels", "10x10", "-o", str(tmp_path / "a.png")], "64..8192"),
         (["preview", str(tpath), "--view", "below", "-o", str(tmp_path / "a.png")], "valid: iso, side, top"),
         (["preview", str(tpath), "--scene", os.path.join(SCENES, "phone.toml"), "-o", str(tmp_path / "a.png")],
          "does not fit table"),
@@ -646,7 +646,7 @@ def test_trace_written_by_the_runtime_is_drawn_and_checked(tmp_path, table, caps
     assert run_cli(["play", str(tab), "--stroke", "0:100mm @ 100mm/s", "-o", str(tmp_path / "mp.wav"),
                     "--trace-out", str(trace)]) == 0
     out = tmp_path / "mp.png"
-    assert run_cli(["preview", str(tab), "--trace", str(trace), "-o", str(out), "--size", "400x300"]) == 0
+    assert run_cli(["preview", str(tab), "--trace", str(trace), "-o", str(out), "--pixels", "400x300"]) == 0
     tr = viewer.load_trace(trace)
     assert tr.table_checksum == viewer.load_model(tab).checksum and tr.event_time.size > 0
     other = tmp_path / "other.npz"

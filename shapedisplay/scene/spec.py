@@ -153,7 +153,7 @@ def import_svg(path, output, *, overwrite: bool = False) -> dict:
     if output.suffix.lower() != ".toml":
         raise InputError(f"`-o`: the scene file must end in .toml (got '{output}')")
     if output.exists() and (output.resolve() == path.resolve() or not overwrite):
-        raise InputError(f"`-o`: '{output}' exists; remove it or pass --force to replace it")
+        raise InputError(f"`-o`: '{output}' exists; remove it or pass --overwrite to replace it")
     notes: list = []
     data = svg_scene_data(path, notes)
     scene = parse_scene(data, str(path), path.resolve().parent)   # the checks compiling the SVG makes

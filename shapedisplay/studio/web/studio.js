@@ -409,7 +409,7 @@ function widgetSpans(s, widgets) {
 studio.traceCSV = function (s) {
   s = s || studio.lastStroke;
   const rows = [`# shapedisplay studio stroke: ${s.ticks} ticks at ${s.tickRate} Hz, table ${s.generation}`,
-                `# replay: shapedisplay play TABLE --trace stroke.csv --rate ${s.tickRate}Hz -o stroke.wav`, "t,x_m,y_m"];
+                `# replay: shapedisplay play TABLE --cursor-csv stroke.csv --rate ${s.tickRate}Hz -o stroke.wav`, "t,x_m,y_m"];
   for (let i = 0; i < s.ticks; i++) rows.push(`${s.t[i]},${s.x[i]},${s.y[i]}`);
   return rows.join("\n") + "\n";
 };
