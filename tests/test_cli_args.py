@@ -213,5 +213,5 @@ def test_no_option_name_has_two_meanings():
     for option, where in seen.items():
         assert len(set(where.values())) == 1, (option, where)
     assert {"compile", "preview", "heightmap", "studio"} <= set(seen["--size"]) and "--extent" not in seen
-    assert "play" not in seen["--trace"] and "play" not in seen["--force"] and "play" not in seen["--format"]
+    assert "play" not in seen["--trace"] and "--force" not in seen and "play" not in seen["--format"]
     assert "device emulate" not in seen["--timeout"] and "device emulate" in seen["--stop-after"]
