@@ -64,7 +64,7 @@ def run(args) -> int:
     desc = mesh.save_heightmap(hf, out, solid=not args.surface_only, base_thickness=base)
     m = hf.meta
     lo, hi = float(hf.heights.min()), float(hf.heights.max())
-    print(f"{out}: {hf.rows}x{hf.cols} samples (rows x cols), dx={hf.dx * 1e3:.4g} mm, dy={hf.dy * 1e3:.4g} mm, "
+    print(f"{out}: {hf.cols} x {hf.rows} samples (cols x rows), dx={hf.dx * 1e3:.4g} mm, dy={hf.dy * 1e3:.4g} mm, "
           f"heights {lo * 1e3:.4g}..{hi * 1e3:.4g} mm; {desc}")
     if m.get("kind") == "mesh":
         w, h = m["footprint_m"]

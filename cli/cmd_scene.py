@@ -71,7 +71,7 @@ def run_check(args) -> int:
         return 0
     c = scene.canvas
     shape = f"{c.width * 1e3:g} mm strip (1-D)" if c.is_1d else f"{c.width * 1e3:g} x {c.height * 1e3:g} mm"
-    print(f"scene '{scene.name}' ({scene.path}): {shape}, {c.rows} x {c.cols} samples of "
+    print(f"scene '{scene.name}' ({scene.path}): {shape}, {c.cols} x {c.rows} samples of "
           f"{c.spacing * 1e3:g} mm, device '{scene.device.name}'")
     for w in scene.widgets:
         x0, y0, x1, y1 = w.bbox

@@ -43,7 +43,7 @@ def format_summary(s: dict) -> str:
     meta = s.get("meta", {})
     lines = [
         f"table format {s['format_version']}, checksum {s['checksum']}",
-        f"grid: {g['rows']} x {g['cols']} samples{' (1-D)' if s['is_1d'] else ''}, "
+        f"grid: {g['cols']} x {g['rows']} samples{' (1-D)' if s['is_1d'] else ''}, "
         f"dx={g['dx_m'] * 1e3:.4g} mm, dy={g['dy_m'] * 1e3:.4g} mm, origin ({g['x0_m'] * 1e3:.4g}, "
         f"{g['y0_m'] * 1e3:.4g}) mm, extent {g['cols'] * g['dx_m'] * 1e3:.4g} x {g['rows'] * g['dy_m'] * 1e3:.4g} mm",
     ]

@@ -498,7 +498,7 @@ def format_report(report: dict) -> str:
     """Human-readable multi-line summary of a compile report."""
     g = report["grid"]
     lines = [f"source: {report['source']}",
-             f"grid: {g['rows']} x {g['cols']} samples, dx={g['dx_m'] * 1e3:.4g} mm, dy={g['dy_m'] * 1e3:.4g} mm"
+             f"grid: {g['cols']} x {g['rows']} samples, dx={g['dx_m'] * 1e3:.4g} mm, dy={g['dy_m'] * 1e3:.4g} mm"
              + (" (1-D)" if report.get("is_1d") else ""),
              f"device: {report['device']}   mapping: {report['mapping']}"]
     sc = report.get("scale")

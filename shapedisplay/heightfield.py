@@ -34,7 +34,7 @@ def check_grid_size(rows: int, cols: int, what: str) -> None:
     n = int(rows) * int(cols)
     if n > MAX_SAMPLES:
         raise InputError(
-            f"{what}: grid of {rows}x{cols} = {n} samples ({n * 8 / 2**30:.1f} GiB as float64) "
+            f"{what}: grid of {cols} x {rows} = {n} samples ({n * 8 / 2**30:.1f} GiB as float64) "
             f"exceeds the limit of {MAX_SAMPLES} samples"
         )
 
@@ -201,5 +201,5 @@ class HeightField:
                            self.source if source is None else source, dict(self.meta), self.mask)
 
     def __repr__(self) -> str:
-        return (f"HeightField({self.rows}x{self.cols}, dx={self.dx * 1e3:g} mm, dy={self.dy * 1e3:g} mm, "
+        return (f"HeightField({self.cols} x {self.rows} samples, dx={self.dx * 1e3:g} mm, dy={self.dy * 1e3:g} mm, "
                 f"h=[{self.heights.min() * 1e3:.4g}, {self.heights.max() * 1e3:.4g}] mm, source={self.source!r})")

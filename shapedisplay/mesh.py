@@ -637,7 +637,7 @@ def heightfield_to_mesh(hf: HeightField, solid: bool = True, base_thickness: flo
         Counter-clockwise seen from outside (normals point out / up).
     """
     if hf.rows < 2:
-        raise InputError(f"`hf`: a 1-D profile ({hf.rows}x{hf.cols}) has no surface to triangulate; need >= 2 rows")
+        raise InputError(f"`hf`: a 1-D profile ({hf.cols} x {hf.rows} samples) has no surface to triangulate; need >= 2 rows")
     rows, cols = hf.rows, hf.cols
     xx, yy = np.meshgrid(hf.x, hf.y)
     top = np.column_stack([xx.ravel(), yy.ravel(), hf.heights.ravel()])

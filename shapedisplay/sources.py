@@ -537,7 +537,7 @@ def load_image(path, size, height_range, *, resolution=None, channel=None, z_uni
         raise unknown_key("image type", suffix or "(no suffix)", IMAGE_SUFFIXES)
     rows, cols = values.shape
     if rows * cols < 2:
-        raise InputError(f"{where}: {rows}x{cols} pixels; a height map needs at least 2 samples")
+        raise InputError(f"{where}: {cols} x {rows} pixels; a height map needs at least 2 samples")
     if size is not None and resolution is not None:
         raise InputError(f"{where}: give `size` or `resolution`, not both (got size={size!r}, "
                          f"resolution={resolution!r})")

@@ -222,7 +222,7 @@ class FrictionTable:
                                      f"({int(np.count_nonzero(~np.isfinite(a)))} NaN/inf values)")
             shape = next(iter(arrs.values())).shape
             if r0 < 0 or c0 < 0 or r0 + shape[0] > grid.rows or c0 + shape[1] > grid.cols:
-                raise InputError(f"patch {shape} at row {r0}, col {c0} lies outside the {grid.rows}x{grid.cols} canvas")
+                raise InputError(f"patch {shape} at row {r0}, col {c0} lies outside the {grid.cols} x {grid.rows}-sample canvas")
             coded = {n: quant[n].encode(arrs[n]).ravel() for n in names}
             key = hashlib.sha256(repr(shape).encode() + b"".join(coded[n].tobytes() for n in names)).hexdigest()
             if key not in seen:
@@ -576,7 +576,7 @@ def _grid(header: dict) -> Grid:
         if not (_is_int(v) and v >= 1):
             raise TableError(f"header 'grid.{key}' must be an integer >= 1 (got {_short(v)})")
     if g["rows"] * g["cols"] > MAX_CANVAS_SAMPLES:
-        raise TableError(f"grid of {g['rows']}x{g['cols']} samples exceeds the limit of {MAX_CANVAS_SAMPLES}")
+        raise TableError(f"grid of {g['cols']} x {g['rows']} samples exceeds the limit of {MAX_CANVAS_SAMPLES}")
     dx = _number(g, "dx_m", "grid", 0.0, MAX_COORDINATE_M, lo_open=True)
     dy = _number(g, "dy_m", "grid", 0.0, MAX_COORDINATE_M, lo_open=True)
     x0 = _number(g, "x0_m", "grid", -MAX_COORDINATE_M, MAX_COORDINATE_M)
@@ -627,7 +627,7 @@ def _parse_layout(header: dict, arrays: dict):
     blocks = [_int_list(b, 3, "each block [row0, col0, patch]") for b in header["blocks"]]
     n_vals = sum(r * c for r, c in patches)
     if n_vals > cap:
-        raise TableError(f"patches hold {n_vals} values; at most {cap} fit a {grid.rows}x{grid.cols} table")
+        raise TableError(f"patches hold {n_vals} values; at most {cap} fit a {grid.cols} x {grid.rows}-sample table")
     channels = header["channels"]
     if not isinstance(channels, dict):
         raise TableError(f"'channels' must be an object (got {type(channels).__name__})")

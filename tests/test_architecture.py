@@ -205,3 +205,17 @@ def test_links_in_the_docs_point_into_the_repository():
                 continue
             path = (doc.parent / target.split("#")[0]).resolve()
             assert path.exists(), f"{doc.name}: link '{target}' points to nothing"
+
+
+def test_sizes_are_printed_cols_by_rows():
+    """Every message prints a grid as cols x rows samples (W x H), never rows first."""
+    import re
+    rows_first = re.compile(r"\{[^{}]*\brows?\b[^{}]*\}\s*[x×]\s*\{[^{}]*\bcols?\b[^{}]*\}|"
+                            r"\{[^{}]*shape\[0\][^{}]*\}\s*[x×]\"?\s*f?\"?\s*\{[^{}]*shape\[1\]")
+    found = []
+    for path in sorted([*PACKAGE.rglob("*.py"), *(PACKAGE.parent / "cli").rglob("*.py")]):
+        for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+            if rows_first.search(line):
+                found.append(f"{path.relative_to(PACKAGE.parent)}:{i}: {line.strip()}")
+    assert not found, "\n".join(found)
+    assert rows_first.search('f"{grid.rows}x{grid.cols} samples"') and rows_first.search('f"{a.shape[0]}x{a.shape[1]}"')

@@ -97,7 +97,7 @@ def glb_document(table) -> tuple[dict, bytes]:
     g = table.grid
     rows, cols = g.rows, g.cols
     if rows * cols > MAX_TEXELS:
-        raise InputError(f"glb export: {rows} x {cols} samples exceed the {MAX_TEXELS:,}-texel limit")
+        raise InputError(f"glb export: {cols} x {rows} samples exceed the {MAX_TEXELS:,}-texel limit")
     chans = haptic_channels(table)
     h, how = heights_of(table, chans["stiffness"])
     r, c = np.mgrid[0:rows, 0:cols]

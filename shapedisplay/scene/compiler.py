@@ -744,7 +744,7 @@ def format_widget_report(report: dict) -> str:
     for w in report.get("widgets", []):
         notes = "; ".join(w["notes"])
         r, c = w["block_shape"]
-        lines.append(f"  {w['id']:<14} {w['type']:<7} block {w['block']:>2} ({r}x{c}) {w['bytes']:>7} bytes"
+        lines.append(f"  {w['id']:<14} {w['type']:<7} block {w['block']:>2} ({c}x{r}) {w['bytes']:>7} bytes"
                      + (f"  {notes}" if notes else ""))
     for msg in report.get("warnings", []):
         lines.append(f"warning: {msg}")

@@ -302,7 +302,7 @@ def _parse_canvas(raw, ctx: Ctx) -> Canvas:
     n = canvas.rows * canvas.cols
     if n > MAX_CANVAS_SAMPLES:
         raise ctx.error("", "canvas.resolution",
-                        f"gives {canvas.rows}x{canvas.cols} = {n} samples, more than the limit of "
+                        f"gives {canvas.cols} x {canvas.rows} = {n} samples, more than the limit of "
                         f"{MAX_CANVAS_SAMPLES}; use a coarser resolution (got {spacing * 1e3:g} mm)")
     return canvas
 

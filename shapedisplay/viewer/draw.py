@@ -343,8 +343,8 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
         if model.strip:
             lines.append("1-D profile drawn as a strip")
         if stride > 1:
-            lines.append(f"drawn with 1 in {stride} samples per axis of the {model.relief.shape[0]}x"
-                         f"{model.relief.shape[1]} grid; read-out uses all")
+            lines.append(f"drawn with 1 in {stride} samples per axis of the {model.relief.shape[1]} x "
+                         f"{model.relief.shape[0]}-sample grid; read-out uses all")
         if model.stored is not None:
             lines.append("grey: " + (model.ground or "flat ground, stored as one value"))
         if preview.wall_actor is not None:

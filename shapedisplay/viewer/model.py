@@ -503,8 +503,8 @@ def _check_scene_fits(scene, table, path) -> None:
     if not same:
         raise InputError(
             f"`--scene` '{scene.path}' does not fit table '{path}': the scene's canvas is "
-            f"{c.rows}x{c.cols} samples of {c.spacing * 1e3:g} mm from (0, 0), the table's grid "
-            f"{g.rows}x{g.cols} samples of {g.dx * 1e3:g} x {g.dy * 1e3:g} mm from "
+            f"{c.cols} x {c.rows} samples of {c.spacing * 1e3:g} mm from (0, 0), the table's grid "
+            f"{g.cols} x {g.rows} samples of {g.dx * 1e3:g} x {g.dy * 1e3:g} mm from "
             f"({g.x0 * 1e3:g}, {g.y0 * 1e3:g}) mm; give the scene the table was compiled from")
 
 
