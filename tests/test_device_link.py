@@ -521,3 +521,18 @@ def test_emulator_config_from_text_checks_every_rule():
         with pytest.raises(InputError, match=rule):
             EmulatorConfig.from_text(**kw)
     assert EmulatorConfig.from_text(model="none-needed", renderer=False).renderer is False
+
+
+def test_each_stream_problem_says_what_to_do():
+    """The warnings `device play` prints name the cause and the action, not only the count."""
+    from shapedisplay.link.host import StreamReport
+    rep = StreamReport(sent=1000, rendered=900, underruns=443, overruns=50, clipped=7, bad_frames=3)
+    lines = rep.problems()
+    assert len(lines) == 5
+    under = next(p for p in lines if "without a new cursor sample" in p)
+    assert "443 of 1343" in under and "busy computer" in under and "Play again" in under
+    assert "lower the burst gain" in next(p for p in lines if "clipped" in p)
+    assert "check the cable" in next(p for p in lines if "damaged" in p)
+    assert "backpressure" in next(p for p in lines if "dropped" in p)
+    assert "device info PORT" in lines[-1]
+    assert StreamReport(sent=10, rendered=10).problems() == []

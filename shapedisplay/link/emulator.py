@@ -805,7 +805,8 @@ class DeviceEmulator:
                 # the renderer does not advance, so its time stays locked to the samples rendered.
                 self.counters["underruns"] += 1
                 self._event(P.Err.UNDERRUN, self.counters["underruns"],
-                            f"{self.counters['underruns']} render periods without a cursor sample")
+                            f"{self.counters['underruns']} cursor periods without a new cursor sample "
+                            "(the host sent late; the last position held)")
                 expect += period
                 continue
             index, t_us, x, y = item

@@ -108,18 +108,27 @@ class StreamReport:
     events: list = field(default_factory=list)
 
     def problems(self) -> list[str]:
-        """One line per fault the device reported during the stream."""
+        """One line per fault the device reported during the stream: what happened, why, and what to do."""
         out = []
         if self.overruns:
-            out.append(f"device dropped {self.overruns} cursor samples: stream faster than the device renders")
+            out.append(f"device dropped {self.overruns} cursor samples: the host sent them faster than the device "
+                       "renders; stream with backpressure on (the default), or lower the stream rate")
         if self.underruns:
-            out.append(f"device ran {self.underruns} render periods without a cursor sample (held the last)")
+            periods = self.rendered + self.underruns
+            out.append(f"device ran {self.underruns} of {periods} cursor periods "
+                       f"({100 * self.underruns / max(periods, 1):.0f} %) without a new cursor sample and held "
+                       "the last position: the host did not send samples on time (a busy computer or a slow "
+                       "line), so the stroke played less smoothly than asked; nothing is lost or wrong in the "
+                       "table. Play again with fewer programs running, or raise the line rate (--baud)")
         if self.clipped:
-            out.append(f"device clipped {self.clipped} actuator samples to full scale")
+            out.append(f"device clipped {self.clipped} actuator samples to full scale: lower the burst gain "
+                       "(the device profile's [burst] gain, or play --burst-gain to try a value)")
         if self.bad_frames:
-            out.append(f"device received {self.bad_frames} damaged frames (CRC/COBS check failed) and dropped them")
+            out.append(f"device received {self.bad_frames} damaged frames (CRC/COBS check failed) and dropped "
+                       "them: check the cable and that both ends use the same line rate (--baud)")
         if self.rendered < self.sent - self.overruns - self.bad_frames:     # losses not reported above
-            out.append(f"device rendered {self.rendered} of {self.sent} samples sent")
+            out.append(f"device rendered {self.rendered} of {self.sent} samples sent: play again; if it "
+                       "repeats, `shapedisplay device info PORT` shows the device's fault counters")
         return out
 
 
