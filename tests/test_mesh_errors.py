@@ -162,7 +162,7 @@ def test_huge_grid_refused_before_allocation():
     box = trimesh.creation.box(extents=(10, 10, 4))
     with pytest.raises(InputError) as e:
         mesh.mesh_to_heightfield(box, resolution=1e-9)
-    assert "grid of 10000001x10000001" in one_line(e) and "exceeds the limit" in one_line(e)
+    assert "grid of 10000001 x 10000001" in one_line(e) and "exceeds the limit" in one_line(e)
     with pytest.raises(InputError, match="with supersample=16: grid of"):
         mesh.mesh_to_heightfield(box, grid=(8000, 8000), supersample=16)
 

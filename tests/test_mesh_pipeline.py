@@ -84,7 +84,7 @@ def test_heightmap_command_writes_every_format(tmp_path, capsys):
         rc = main(["heightmap", str(KEYCAP), "-o", str(out), "--resolution", "0.5mm", "--margin", "1mm"])
         assert rc == 0 and out.is_file()
     text = capsys.readouterr().out
-    assert "41x41 samples" in text and "5120 triangles from 1 mesh(es), 0 degenerate faces dropped" in text
+    assert "41 x 41 samples" in text and "5120 triangles from 1 mesh(es), 0 degenerate faces dropped" in text
     ref = mesh.mesh_to_heightfield(KEYCAP, resolution=0.5 * MM, margin=1 * MM)
     np.testing.assert_array_equal(np.load(tmp_path / "keycap.npy")[::-1], ref.heights)   # top view
     back = mesh.mesh_to_heightfield(tmp_path / "keycap.stl", resolution=0.5 * MM)
@@ -110,7 +110,7 @@ def test_heightmap_command_options(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv, pattern", [
-    (["--resolution", "0.0001mm"], "grid of 180001x180001"),
+    (["--resolution", "0.0001mm"], "grid of 180001 x 180001"),
     (["--resolution", "0.1"], "`--resolution` needs a unit"),
     (["--units", "yd"], "unknown mesh units 'yd'"),
     (["--up", "q"], "`--up` must be one of x, y, z"),

@@ -173,7 +173,7 @@ def test_mesh_options_on_preview_and_heightmap_take_negative_axes(tmp_path, caps
     assert main(["heightmap", str(tmp_path / "tray.glb"), "-o", str(tmp_path / "u.npy"), "--up", "-y",
                  "--size", "30x15mm", "--height", "0:1mm", "--resolution", "1mm"]) == 0
     out = capsys.readouterr().out
-    assert "31x16 samples" in out or "16x31 samples" in out
+    assert "31 x 16 samples" in out or "16 x 31 samples" in out
     assert np.load(tmp_path / "u.npy").max() == pytest.approx(1e-3)
     from shapedisplay.sources import source_options
     assert source_options(tmp_path / "tray.glb", up="-y", units="m", size="60mm", flags={"size": "--extent"}) == {

@@ -76,7 +76,7 @@ def test_page_loads_the_phone_scene(page):
     assert [w["id"] for w in st["widgets"]][:3] == ["frame", "app-1", "app-2"]
     assert page.evaluate("document.getElementById('map').naturalWidth") == 161          # cols
     assert page.evaluate("document.getElementById('map').naturalHeight") == 321         # rows
-    assert "grid: 321 x 161 samples" in page.inner_text("#report")
+    assert "grid: 161 x 321 samples" in page.inner_text("#report")
     assert page.input_value("#channel") == "normal_force"                               # N by default
     assert "id = \"call\"" in page.input_value("#text")
     # the top view is the same way up as the preview: the home well (low y) is drawn near the bottom

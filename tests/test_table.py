@@ -129,7 +129,7 @@ def _rename_channel(h):
     (lambda h: h.update(blocks=[[0, 0, 7]]), None, r"block at \(0, 0\) names patch 7"),
     (lambda h: h.update(patches=[[4]]), None, r"each patch shape must be 2 non-negative integers \(got \[4\]\)"),
     (lambda h: h.update(channels=["normal_force"]), None, r"'channels' must be an object \(got \['normal_force'\]\)"),
-    (lambda h: h["grid"].update(rows=10 ** 9, cols=10 ** 9), None, r"grid of 1000000000x1000000000 samples exceeds"),
+    (lambda h: h["grid"].update(rows=10 ** 9, cols=10 ** 9), None, r"grid of 1000000000 x 1000000000 samples exceeds"),
     (lambda h: h["grid"].update(dx_m=-1.0), None, r"header 'grid.dx_m' must be within 0..1000 \(got -1.0\)"),
     (lambda h: h["grid"].update(rows="four"), None, r"header 'grid.rows' must be an integer >= 1 \(got 'four'\)"),
     (lambda h: h.update(device="handheld"), None, r"'device' must be an object \(got 'handheld'\)"),

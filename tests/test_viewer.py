@@ -682,7 +682,7 @@ def test_large_grid_drawn_at_a_stride_with_full_colour_range(monkeypatch):
     m = viewer.model_from_heightfield(hf)
     assert viewer.draw_stride(61, 81) == 3
     p = viewer.render(m, "height", size=(W, H))
-    assert "drawn with 1 in 3 samples per axis of the 61x81 grid" in p.info
+    assert "drawn with 1 in 3 samples per axis of the 81 x 61-sample grid" in p.info
     assert p.surface_actor.mapper.dataset.n_points == 21 * 28   # 0,3,..,60 and 0,3,..,78,80
     assert p.surface_actor.mapper.scalar_range == pytest.approx((hf.heights.min() * 1e3, hf.heights.max() * 1e3))
     p.close()
