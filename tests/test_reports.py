@@ -360,13 +360,14 @@ def _layout_boxes(fig):
         if ax.get_legend() is not None:
             boxes.append((f"axes {i} legend", ax.get_legend().get_window_extent(r)))
         (x0, x1), (y0, y1) = sorted(ax.get_xlim()), sorted(ax.get_ylim())
-        ticks = [t.get_window_extent(r) for t in ax.get_xticklabels() if t.get_text() and t.get_visible()
-                 and x0 <= t.get_position()[0] <= x1]      # labels of ticks outside the view are not drawn
-        ticks += [t.get_window_extent(r) for t in ax.get_yticklabels() if t.get_text() and t.get_visible()
+        xticks = [t.get_window_extent(r) for t in ax.get_xticklabels() if t.get_text() and t.get_visible()
+                  and x0 <= t.get_position()[0] <= x1]      # labels of ticks outside the view are not drawn
+        yticks = [t.get_window_extent(r) for t in ax.get_yticklabels() if t.get_text() and t.get_visible()
                   and y0 <= t.get_position()[1] <= y1]
-        if ticks:
-            from matplotlib.transforms import Bbox
-            boxes.append((f"axes {i} tick labels", Bbox.union(ticks)))
+        from matplotlib.transforms import Bbox
+        for axis, ticks in (("x", xticks), ("y", yticks)):    # each row of labels its own box
+            if ticks:
+                boxes.append((f"axes {i} {axis} tick labels", Bbox.union(ticks)))
     return boxes
 
 
