@@ -140,7 +140,7 @@ def choose_quantization(values: np.ndarray, dtype: str = "auto", max_error: floa
         raise unknown_key("quantization dtype", dtype, list(_DTYPES) + ["auto"])
     top = np.iinfo(_DTYPES[dtype]).max
     scale = (hi - lo) / top if hi > lo else 0.0
-    offset = lo
+    offset = lo + 0.0   # -0.0 -> 0.0: the header stores the offset as JSON, which reads -0.0 back as 0.0
     if lo < 0.0 < hi:
         # Signed channels (slopes, lateral forces): put zero exactly on a code so
         # that flat ground decodes to 0, not to a small bias.

@@ -316,3 +316,14 @@ def test_large_table_written_fast_reads_as_the_numpy_written_file(tmp_path):
     for name in chans:
         assert np.array_equal(new.codes[name], old.codes[name])
         assert np.array_equal(new.dense(name), t.dense(name))
+
+
+def test_negative_zero_channel_keeps_its_checksum(tmp_path):
+    # A channel of -0.0 values: its offset must not carry the sign into the header.
+    grid = Grid(1, 2, 1e-4, 2e-4, 0.05e-3, 0.1e-3)
+    values = np.array([[-0.0, -0.0]])
+    t = FrictionTable.from_dense(grid, {"normal_force": values},
+                                 {"normal_force": choose_quantization(values, "uint8")}, {})
+    t.save(tmp_path / "t.npz")
+    u = FrictionTable.load(tmp_path / "t.npz")
+    assert u.checksum() == t.checksum() and u.quant == t.quant
