@@ -219,3 +219,20 @@ def test_sizes_are_printed_cols_by_rows():
                 found.append(f"{path.relative_to(PACKAGE.parent)}:{i}: {line.strip()}")
     assert not found, "\n".join(found)
     assert rows_first.search('f"{grid.rows}x{grid.cols} samples"') and rows_first.search('f"{a.shape[0]}x{a.shape[1]}"')
+
+
+def test_physics_page_covers_every_model_of_the_registry():
+    """docs/physics.md has a section per renderer model, with its published sources listed."""
+    from shapedisplay.runtime.models import MODELS
+    text = (PACKAGE.parent / "docs" / "physics.md").read_text(encoding="utf-8")
+    headings = [line for line in text.splitlines() if line.startswith("### ")]
+    for name in MODELS:
+        assert any(f"`{name}`" in h for h in headings), f"docs/physics.md: no section for model '{name}'"
+    assert "## References" in text and text.count("\n- ") >= 5
+    readme = (PACKAGE.parent / "README.md").read_text(encoding="utf-8")
+    assert "(docs/physics.md)" in readme and "(physics.md)" in (PACKAGE.parent / "docs" / "renderer.md").read_text()
+
+
+def test_readme_stays_within_20_kb():
+    """The README is the designer's first hour; detail goes to docs/."""
+    assert (PACKAGE.parent / "README.md").stat().st_size <= 20_000
