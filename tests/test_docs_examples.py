@@ -287,6 +287,15 @@ def test_every_block_has_a_known_kind():
                 assert b.file.startswith("out/"), f"{b.where}: file={b.file} must be under out/"
 
 
+def test_no_indented_code_blocks():
+    """Code is fenced, with an info string the test reads; an indented block would escape the convention."""
+    for doc in DOCUMENTS:
+        lines = FENCE.sub("", doc.read_text(encoding="utf-8")).split("\n")
+        for i in range(1, len(lines)):
+            assert not (lines[i].startswith("    ") and not lines[i - 1].strip()), \
+                f"{_doc_id(doc)}: indented code block {lines[i].strip()[:40]!r}; fence it (docs/README.md)"
+
+
 def test_every_document_shows_runnable_examples():
     """The convention is not emptied by marking everything read-only."""
     runnable = sum(b.runs for doc in DOCUMENTS for b in blocks_of(doc))
