@@ -48,6 +48,11 @@ on ``j``, so a stream synthesised in one call (offline) or tick by tick
 ``CARRIER_BLOCK`` rotations' round-off (~1e-14 rad), and a tick costs one
 ``sin``/``cos`` pair per ``CARRIER_BLOCK`` samples.
 
+The offline stream's kernels (:func:`synth_stream`'s passes) are compiled
+with numpy's error model: their divisors (the sample rate, ``rise``,
+``decay``) are positive by the settings' rules, so only numba's
+ZeroDivisionError checks go; the arithmetic and every sample are unchanged.
+
 Burst state
 -----------
 A :data:`~.layouts.BURST_STATE` record (C: ``sd_burst_state_t``): the
@@ -284,7 +289,7 @@ def synth(BS, ev_t, ev_a, n_ev, t_origin, rate, j0, j1, carrier, rise, decay, po
     return clipped
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _seg(te, e0, a, t, rise, decay):
     """:func:`_segment` on explicit values (the same arithmetic, kept in registers by the offline loop)."""
     tau = t - te
@@ -297,7 +302,7 @@ def _seg(te, e0, a, t, rise, decay):
     return 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy, out):
     """``out[j] = E(t_origin + j / rate)`` for ``j < n``: what :func:`envelope_at` gives sample by sample."""
     if policy == Policy.ADD:
@@ -327,7 +332,7 @@ def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy,
     BS.a = a
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _clip1(v):
     """(v limited to [-1, 1], 1 if it was limited)."""
     if v > 1.0:
@@ -337,7 +342,7 @@ def _clip1(v):
     return v, 0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _apply_carrier(BS, rate, carrier, n, out):
     """Multiply ``out[:n]`` (envelope samples from sample 0) by the carrier in place; count limited samples.
 

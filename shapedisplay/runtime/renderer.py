@@ -62,7 +62,7 @@ from .bursts import carrier_at, envelope_at, finished_events, forget_events, new
 from .cursor import MAX_POSITION_M, CursorPath
 from .dispatch import model_tick
 from .layouts import NSLOT, ONLINE, OUTPUTS, SLOTS, Slot
-from .lookup import sample_all
+from .lookup import bilinear, corners, sample_all
 from .models import PadModel, check_dispatch, divergence_message, run_kernel
 from .result import RenderResult
 # the settings' home is .settings (numba-free, shared with the C engine); these names stay importable from here
@@ -76,10 +76,10 @@ _RING = 4096
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "2095fe952482b2bee7ef949a41a0c71b668a6bfd3505c347faf3a0920e1a5372"
+KERNEL_SOURCES_SHA256 = "e031a413fd12bd988d9feb03159a26349080c499361065f9764d0394d955a8fc"
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _derive(vals, cfg, slot_channel, vx, vy, speed):
     """Per-tick model inputs from the slot values: (N, mu_s, mu_k, gain).
 
@@ -111,7 +111,7 @@ def _derive(vals, cfg, slot_channel, vx, vy, speed):
     return N, mus, muk, gain
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _axis_speed(vx, vy, ax, ay):
     """Signed pad speed along an axis that follows the motion (reversal -> negative)."""
     sp = math.sqrt(vx * vx + vy * vy)
@@ -149,7 +149,7 @@ def prepare_inputs(t, x, y, vals, config, slot_channel, V, vx, vy, N, mus, muk, 
 INPUT_ROWS = ("V", "vx", "vy", "normal_force", "mu_s", "mu_k", "gain", "lateral_x", "lateral_y", "skin_target")
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def lookup_inputs(t, x, y, blocks, data, bg, grid, config, slot_channel, out):
     """Offline, in one pass: each tick's table lookup at its motion midpoint, velocities and model inputs.
 
@@ -158,13 +158,19 @@ def lookup_inputs(t, x, y, blocks, data, bg, grid, config, slot_channel, out):
     :data:`INPUT_ROWS`. Per tick the arithmetic of :meth:`FrictionTable.sample` (the lookup) and of
     :func:`prepare_inputs` (the rest), so the values are theirs bit for bit; but no (NSLOT, n) array of
     looked-up values is written and read back.
+
+    Compiled with numpy's error model: no division here can have a zero divisor (``h > 0`` on a cursor
+    path, the grid spacing > 0, ``N``, speed and ``sp`` tested before dividing), so only the
+    ZeroDivisionError checks go, which otherwise kept the inlined lookup and derivation from being
+    optimised as one loop body (the same values, about 1.3x faster).
     """
     cfg = config[0]
     n = t.shape[0]
     nch = bg.shape[0]
-    scratch = np.zeros(max(nch, 1))
     vals = np.zeros(NSLOT)
     skin = slot_channel[Slot.SKIN_STRETCH]
+    last = data.shape[1] - 1
+    one_row = grid.rows == 1
     ax = 1.0
     ay = 0.0
     for i in range(n):
@@ -180,10 +186,10 @@ def lookup_inputs(t, x, y, blocks, data, bg, grid, config, slot_channel, out):
             xm = 0.5 * (x[i] + x[i - 1])
             ym = 0.5 * (y[i] + y[i - 1])
         if nch > 0:
-            sample_all(blocks, data, bg, grid, xm, ym, scratch)
-        for s in range(NSLOT):
-            j = slot_channel[s]
-            vals[s] = scratch[j] if j >= 0 else 0.0
+            i00, i01, i10, i11, tx, ty = corners(blocks, grid, last, xm, ym)
+            for s in range(NSLOT):
+                j = slot_channel[s]
+                vals[s] = bilinear(data, j, one_row, i00, i01, i10, i11, tx, ty) if j >= 0 else 0.0
         V, ax, ay = _axis_speed(vx, vy, ax, ay)
         N, mus, muk, gain = _derive(vals, cfg, slot_channel, vx, vy, abs(V))
         out[0, i] = V
