@@ -193,3 +193,21 @@ def test_whole_stream_synthesis_is_the_sample_by_sample_one_bit_for_bit(n, rate,
     ca = synth(sa, et, ea, ne, t0, rate, 0, n, 300.0, 0.005, 0.03, pid, a)
     cb = synth_stream(sb, et, ea, ne, t0, rate, n, 300.0, 0.005, 0.03, pid, b)
     assert ca == cb and a.tobytes() == b.tobytes() and sa.tobytes() == sb.tobytes()
+
+
+@pytest.mark.parametrize("policy", sorted(BURST_POLICIES))
+def test_whole_stream_synthesis_with_events_on_sample_times_and_repeated(policy):
+    """Events exactly at sample times (an event sounds from the next sample) and several at one time: the
+    whole-stream synthesis still writes what synth writes sample by sample."""
+    from shapedisplay.runtime.bursts import policy_id, synth, synth_stream
+    rate, t0, n = 48000.0, 0.0125, 3000
+    js = np.array([0, 5, 5, 6, 700, 701, 1500, 1500, 1500, 2999])
+    et = t0 + js / rate
+    ea = np.linspace(0.2, 1.4, js.size)
+    pid = policy_id(policy)
+    a, b = np.zeros(n), np.empty(n)
+    sa, sb = new_burst_state(300.0, rate)[0], new_burst_state(300.0, rate)[0]
+    ca = synth(sa, et, ea, et.size, t0, rate, 0, n, 300.0, 0.005, 0.03, pid, a)
+    cb = synth_stream(sb, et, ea, et.size, t0, rate, n, 300.0, 0.005, 0.03, pid, b)
+    assert ca == cb and a.tobytes() == b.tobytes() and sa.tobytes() == sb.tobytes()
+    assert np.abs(b).max() > 0.1

@@ -310,12 +310,17 @@ def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy,
             out[j] = envelope_at(BS, ev_t, ev_a, n_ev, t_origin + j / rate, rise, decay, policy)
         return
     retrigger = policy == Policy.RETRIGGER
+    # the sample times first (a loop the compiler vectorises), then run by run: the events before a
+    # sample enter, and the samples up to the next event's time take one segment's values
+    for j in range(n):
+        out[j] = t_origin + j / rate
     i_in = BS.i_in
     te = BS.te
     e0 = BS.e0
     a = BS.a
-    for j in range(n):
-        t = t_origin + j / rate
+    j = 0
+    while j < n:
+        t = out[j]
         while i_in < n_ev and ev_t[i_in] < t:
             tn = ev_t[i_in]
             an = ev_a[i_in]
@@ -325,7 +330,15 @@ def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy,
                 e0 = e_now
                 a = an
             i_in += 1
-        out[j] = _seg(te, e0, a, t, rise, decay)
+        k = n
+        if i_in < n_ev:
+            tn = ev_t[i_in]
+            k = j + 1
+            while k < n and not tn < out[k]:
+                k += 1
+        for m in range(j, k):
+            out[m] = _seg(te, e0, a, out[m], rise, decay)
+        j = k
     BS.i_in = i_in
     BS.te = te
     BS.e0 = e0

@@ -76,7 +76,7 @@ _RING = 4096
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "e031a413fd12bd988d9feb03159a26349080c499361065f9764d0394d955a8fc"
+KERNEL_SOURCES_SHA256 = "7730e827f70b62131850046ece4b93d15cb20b9f569442788498afbd38e80305"
 
 
 @njit(cache=True, inline="always")
