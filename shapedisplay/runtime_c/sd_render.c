@@ -261,6 +261,30 @@ static void forget_events(sd_burst_state_t *B, const sd_real *ev_t, const sd_rea
     B->i_out = B->i_out > k ? B->i_out - k : 0;
 }
 
+/* v clipped to [-1, 1]; counts a clipped sample in *clipped. */
+static sd_real clip_unit(sd_real v, long *clipped)
+{
+    if (v > SD_R(1.0)) {
+        *clipped += 1;
+        return SD_R(1.0);
+    }
+    if (v < -SD_R(1.0)) {
+        *clipped += 1;
+        return -SD_R(1.0);
+    }
+    return v;
+}
+
+/* The carrier after samples j0..j1-1, for the next call to continue from. */
+static void keep_carrier(sd_burst_state_t *B, sd_real cr, sd_real sr, int64_t j0, int64_t j1)
+{
+    if (j1 > j0) {
+        B->cc = cr;
+        B->cs = sr;
+        B->cj = j1;
+    }
+}
+
 #ifdef SD_SINGLE
 /* Carrier cos/sin at the phase ph (2^-64 cycles): the top 32 bits as a signed angle in [-pi, pi). */
 static void carrier_at(uint64_t ph, sd_real *c, sd_real *s)
@@ -281,7 +305,7 @@ static long synth(sd_burst_state_t *B, const sd_clock_t *K, const sd_real *ev_t,
     long clipped = 0;
     int64_t j;
     for (j = j0; j < j1; j++) {
-        sd_real t, val;
+        sd_real t;
         if (j % SD_CARRIER_BLOCK == 0 || (j == j0 && B->cj != j)) {
             carrier_at((uint64_t)j * K->dphase_sample, &cr, &sr);
         } else {
@@ -290,21 +314,9 @@ static long synth(sd_burst_state_t *B, const sd_clock_t *K, const sd_real *ev_t,
             sr = sn;
         }
         t = (sd_real)(int32_t)(j - K->epoch_sample) * K->inv_audio;
-        val = envelope_at(B, ev_t, ev_a, n_ev, t, rise, decay, policy) * sr;
-        if (val > SD_R(1.0)) {
-            val = SD_R(1.0);
-            clipped += 1;
-        } else if (val < -SD_R(1.0)) {
-            val = -SD_R(1.0);
-            clipped += 1;
-        }
-        out[j - j0] = val;
+        out[j - j0] = clip_unit(envelope_at(B, ev_t, ev_a, n_ev, t, rise, decay, policy) * sr, &clipped);
     }
-    if (j1 > j0) {
-        B->cc = cr;
-        B->cs = sr;
-        B->cj = j1;
-    }
+    keep_carrier(B, cr, sr, j0, j1);
     return clipped;
 }
 #else
@@ -320,7 +332,7 @@ static long synth(sd_burst_state_t *B, const sd_real *ev_t, const sd_real *ev_a,
     long clipped = 0;
     int64_t j, q;
     for (j = j0; j < j1; j++) {
-        sd_real t, val;
+        sd_real t;
         if (j % SD_CARRIER_BLOCK == 0) {
             sd_real th = w * ((sd_real)j / rate);
             cr = SD_COS(th);
@@ -342,21 +354,9 @@ static long synth(sd_burst_state_t *B, const sd_real *ev_t, const sd_real *ev_a,
             sr = sn;
         }
         t = t_origin + (sd_real)j / rate;
-        val = envelope_at(B, ev_t, ev_a, n_ev, t, rise, decay, policy) * sr;
-        if (val > SD_R(1.0)) {
-            val = SD_R(1.0);
-            clipped += 1;
-        } else if (val < -SD_R(1.0)) {
-            val = -SD_R(1.0);
-            clipped += 1;
-        }
-        out[j - j0] = val;
+        out[j - j0] = clip_unit(envelope_at(B, ev_t, ev_a, n_ev, t, rise, decay, policy) * sr, &clipped);
     }
-    if (j1 > j0) {
-        B->cc = cr;
-        B->cs = sr;
-        B->cj = j1;
-    }
+    keep_carrier(B, cr, sr, j0, j1);
     return clipped;
 }
 
