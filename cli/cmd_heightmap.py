@@ -14,7 +14,7 @@ taken through heightmap and back keeps its orientation.
 
 examples:
   shapedisplay heightmap assets/meshes/keycap.stl -o keycap.png --resolution 0.1mm
-  shapedisplay heightmap model.glb -o map.npy --grid 512x512 --up y --units m
+  shapedisplay heightmap model.glb -o map.npy --samples 512x512 --up y --units m
   shapedisplay heightmap assets/meshes/keycap.stl -o check.stl --resolution 0.2mm
   shapedisplay heightmap statue.glb -o statue.png --up y --size 60mm --height 0:3mm
   shapedisplay heightmap icon.png -o icon.stl --size 20x20mm --height 0:1mm
@@ -32,7 +32,12 @@ def register(subparsers) -> None:
     from shapedisplay_cli.cmd_compile import add_source_arguments
     add_source_arguments(p)
     g = p.add_argument_group("mesh rasterising")
-    g.add_argument("--grid", help="grid size ROWSxCOLS, e.g. 512x512 (exclusive with --resolution)")
+    g.add_argument("--samples", help="grid size in samples, COLSxROWS (width first, as sizes are printed), "
+                                     "e.g. 512x256 (exclusive with --resolution)")
+    from shapedisplay_cli.main import old_spelling
+    old_spelling(g, "--grid", "--samples COLSxROWS", dest="grid",
+                 why=" (columns first, as every size is printed; --grid takes ROWSxCOLS)")
+    p.set_defaults(grid=None)
     g.add_argument("--supersample", help="k: k x k sub-samples per sample (anti-aliasing; default 1)")
     g.add_argument("--supersample-mode", help="reduce sub-samples by mean (default) or max")
     g.add_argument("--background", help="height where the mesh does not reach (default 0mm)")
@@ -78,7 +83,7 @@ def run(args) -> int:
     return 0
 
 
-_MESH_EXTRA = ("grid", "supersample", "supersample_mode", "background", "margin", "method")
+_MESH_EXTRA = ("samples", "grid", "supersample", "supersample_mode", "background", "margin", "method")
 
 
 def _load(args, src, mesh):

@@ -618,7 +618,7 @@ def resolution_option(text) -> float:
 OPTION_KINDS = {
     "size": ("image", "mesh"), "height": ("image", "mesh"), "resolution": ("image", "mesh"),
     "channel": ("image",), "z_units": ("image",),
-    "up": ("mesh",), "units": ("mesh",), "grid": ("mesh",), "supersample": ("mesh",),
+    "up": ("mesh",), "units": ("mesh",), "samples": ("mesh",), "grid": ("mesh",), "supersample": ("mesh",),
     "supersample_mode": ("mesh",), "background": ("mesh",), "margin": ("mesh",), "method": ("mesh",),
 }
 _KIND_WORDS = {("image",): "image sources", ("mesh",): "meshes", ("image", "mesh"): "images and meshes"}
@@ -683,12 +683,25 @@ def _up_option(text: str):
     return text
 
 
+def _samples_option(text, name: str) -> tuple[int, int]:
+    """``COLSxROWS`` (width first, as every size is printed) -> the mesh loader's ``grid=(rows, cols)``."""
+    parts = str(text).lower().replace(" ", "").split("x")
+    try:
+        cols, rows = (int(v) for v in parts)
+    except ValueError:
+        raise InputError(f"`{name}` must look like COLSxROWS, e.g. 512x256 (got {text!r})") from None
+    if cols < 2 or rows < 2:
+        raise InputError(f"`{name}` must be at least 2x2 samples (got {cols} cols x {rows} rows)")
+    return rows, cols
+
+
 def source_options(path, *, flags: dict | None = None, **given) -> dict:
     """:func:`load_source` keyword arguments from command-line strings (None = not given).
 
     ``given`` holds options of :data:`OPTION_KINDS` by name (``size``,
     ``height``, ``resolution``, ``channel``, ``z_units``, ``up``, ``units``,
-    ``grid``, ...); ``flags`` how a caller spells one differently
+    ``samples`` (COLSxROWS), ``grid`` (its former spelling, ROWSxCOLS), ...);
+    ``flags`` how a caller spells one differently
     (default ``--name``, as every command spells them). Options that do not
     apply to the kind of source are refused (:func:`check_applicable`). A
     scene, an SVG mockup or a table takes none and gets ``{}``.
@@ -723,6 +736,13 @@ def source_options(path, *, flags: dict | None = None, **given) -> dict:
         opts["resolution"] = resolution_option(given["resolution"])
     if "up" in given:
         opts["up"] = _up_option(given["up"])
+    if "samples" in given:
+        if "grid" in given:
+            raise InputError(f"give `{flag('samples')}` (COLSxROWS) or `{flag('grid')}` (ROWSxCOLS), not both")
+        if "resolution" in given:
+            raise InputError(f"give either `{flag('resolution')}` or `{flag('samples')}`, not both "
+                             f"(got {given['resolution']!r} and {given['samples']!r})")
+        opts["grid"] = _samples_option(given["samples"], flag("samples"))
     for name in ("channel", "z_units", "units", "grid", "supersample_mode", "background", "margin", "method"):
         if name in given:
             opts[name] = given[name]

@@ -97,7 +97,7 @@ def test_heightmap_command_writes_every_format(tmp_path, capsys):
 
 def test_heightmap_command_options(tmp_path, capsys):
     out = tmp_path / "k.npy"
-    rc = main(["heightmap", str(KEYCAP), "-o", str(out), "--grid", "31x61", "--up", "z",
+    rc = main(["heightmap", str(KEYCAP), "-o", str(out), "--samples", "61x31", "--up", "z",
                "--supersample", "3", "--supersample-mode", "max", "--background=-1mm", "--method", "numpy"])
     assert rc == 0
     h = np.load(out)[::-1]                    # written as the top view
@@ -107,6 +107,23 @@ def test_heightmap_command_options(tmp_path, capsys):
     np.testing.assert_allclose(h, ref.heights, atol=1e-15)
     rc = main(["heightmap", str(KEYCAP), "-o", str(out), "--grid", "9x9", "--up", "0,0,1"])
     assert rc == 0
+
+
+def test_heightmap_samples_are_cols_by_rows_and_grid_is_the_old_rows_by_cols(tmp_path, capsys):
+    out = tmp_path / "k.npy"
+    assert main(["heightmap", str(KEYCAP), "-o", str(out), "--samples", "40x12"]) == 0
+    assert np.load(out).shape == (12, 40)                       # rows x cols of the array
+    assert "40 x 12 samples (cols x rows)" in capsys.readouterr().out
+    assert main(["heightmap", str(KEYCAP), "-o", str(out), "--grid", "12x40"]) == 0
+    assert np.load(out).shape == (12, 40)
+    assert "--grid is now --samples COLSxROWS" in capsys.readouterr().err
+    for argv, pattern in ((["--samples", "40x12", "--grid", "12x40"], "not both"),
+                          (["--samples", "40x12", "--resolution", "0.1mm"], "`--resolution` or `--samples`"),
+                          (["--samples", "40"], "`--samples` must look like COLSxROWS"),
+                          (["--samples", "1x12"], "at least 2x2")):
+        assert main(["heightmap", str(KEYCAP), "-o", str(out), *argv]) == 2
+        err = capsys.readouterr().err
+        assert pattern in err and "Traceback" not in err, err
 
 
 @pytest.mark.parametrize("argv, pattern", [
