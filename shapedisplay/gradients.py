@@ -329,7 +329,8 @@ def wall_regions(mask: np.ndarray, k: int) -> tuple[int, np.ndarray, list]:
     every region: a noisy 4096x4096 map has millions of them).
     """
     from scipy import ndimage
-    labels, n = ndimage.label(mask)
+    labels = np.empty(mask.shape, np.intp)   # bincount's own index type: no converted copy of the labels
+    n = int(ndimage.label(mask, output=labels))
     if n == 0:
         return 0, np.zeros(0, np.int64), []
     sizes = np.bincount(labels.reshape(-1), minlength=n + 1)
