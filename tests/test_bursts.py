@@ -175,12 +175,13 @@ def test_renderer_drive_on_the_published_pad_every_policy(V):
 
 
 @settings(max_examples=60, deadline=None)
-@given(n=st.sampled_from([1, 2, 63, 64, 65, 255, 256, 257, 320, 321, 1000, 4099]),
+@given(n=st.sampled_from([1, 2, 63, 64, 65, 255, 256, 257, 320, 321, 511, 512, 513, 577, 1000, 4099]),
        rate=st.sampled_from([8000.0, 44100.0, 48000.0, 96000.0]), policy=st.sampled_from(sorted(BURST_POLICIES)),
        seed=st.integers(0, 2 ** 32 - 1), gain=st.sampled_from([0.3, 2.5]))
 def test_whole_stream_synthesis_is_the_sample_by_sample_one_bit_for_bit(n, rate, policy, seed, gain):
-    """render_bursts' two-pass synthesis (envelope, then four carrier blocks side by side) writes exactly
-    what synth writes sample by sample: audio, clipped count and the final burst state."""
+    """render_bursts' two-pass synthesis (the envelope piece by piece, then eight carrier blocks side by side)
+    writes exactly what synth writes sample by sample, for every policy: audio, clipped count and the final
+    burst state."""
     from shapedisplay.runtime.bursts import policy_id, synth, synth_stream
     rng = np.random.default_rng(seed)
     ne = int(rng.integers(0, 40))

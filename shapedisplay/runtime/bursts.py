@@ -48,10 +48,14 @@ on ``j``, so a stream synthesised in one call (offline) or tick by tick
 ``CARRIER_BLOCK`` rotations' round-off (~1e-14 rad), and a tick costs one
 ``sin``/``cos`` pair per ``CARRIER_BLOCK`` samples.
 
-The offline stream's kernels (:func:`synth_stream`'s passes) are compiled
-with numpy's error model: their divisors (the sample rate, ``rise``,
-``decay``) are positive by the settings' rules, so only numba's
-ZeroDivisionError checks go; the arithmetic and every sample are unchanged.
+The offline stream (:func:`synth_stream`) computes the same samples in two
+passes: the envelope piece by piece (between two transitions the envelope
+is one expression of the sample time, for every policy), then the carrier,
+eight blocks side by side. Both are loops without branches that the
+compiler vectorises. They are compiled with numpy's error model: their
+divisors (the sample rate, ``rise``, ``decay``) are positive by the
+settings' rules, so only numba's ZeroDivisionError checks go; the
+arithmetic and every sample are unchanged.
 
 Burst state
 -----------
@@ -134,6 +138,64 @@ def _shift_ref(BS, tnew, decay):
     BS.tref = tnew
 
 
+@njit(cache=True, inline="always")
+def _add_advance(BS, ev_t, ev_a, n_ev, t, rise, decay):
+    """``add``: apply every transition before ``t`` to the running sums, in time order.
+
+    Returns the time of the earliest transition still pending (``inf`` if none): until a sample time
+    passes it, the sums stay as they are.
+    """
+    i_in = BS.i_in
+    i_mid = BS.i_mid
+    i_out = BS.i_out
+    dur = rise + decay
+    while True:
+        # the earliest pending transition before t
+        t_in = ev_t[i_in] if i_in < n_ev else np.inf
+        t_mid = ev_t[i_mid] + rise if i_mid < i_in else np.inf
+        t_out = ev_t[i_out] + dur if i_out < i_mid else np.inf
+        if t_out <= t_mid and t_out <= t_in:
+            if not t_out < t:
+                nxt = t_out
+                break
+            a = ev_a[i_out]
+            u = 1.0 + (ev_t[i_out] + rise - BS.tref) / decay
+            BS.q0 -= a * u * u
+            BS.q1 -= a * u
+            BS.q2 -= a
+            i_out += 1
+            if i_out == i_mid:           # no decaying burst left: clear the round-off
+                BS.q0 = 0.0
+                BS.q1 = 0.0
+                BS.q2 = 0.0
+        elif t_mid <= t_in:
+            if not t_mid < t:
+                nxt = t_mid
+                break
+            a = ev_a[i_mid]
+            BS.ra -= a
+            BS.rat -= a * (ev_t[i_mid] - BS.tref)
+            u = 1.0 + (ev_t[i_mid] + rise - BS.tref) / decay
+            BS.q0 += a * u * u
+            BS.q1 += a * u
+            BS.q2 += a
+            i_mid += 1
+            if i_mid == i_in:            # no rising burst left
+                BS.ra = 0.0
+                BS.rat = 0.0
+        else:
+            if not t_in < t:
+                nxt = t_in
+                break
+            _shift_ref(BS, ev_t[i_in], decay)
+            BS.ra += ev_a[i_in]
+            i_in += 1
+    BS.i_in = i_in
+    BS.i_mid = i_mid
+    BS.i_out = i_out
+    return nxt
+
+
 @njit(cache=True)
 def envelope_at(BS, ev_t, ev_a, n_ev, t, rise, decay, policy):
     """Advance the burst state over every event transition before ``t`` and return ``E(t)``.
@@ -156,51 +218,8 @@ def envelope_at(BS, ev_t, ev_a, n_ev, t, rise, decay, policy):
             i_in += 1
         BS.i_in = i_in
         return _segment(BS, t, rise, decay)
-    i_mid = BS.i_mid
-    i_out = BS.i_out
-    dur = rise + decay
-    while True:
-        # the earliest pending transition before t
-        t_in = ev_t[i_in] if i_in < n_ev else np.inf
-        t_mid = ev_t[i_mid] + rise if i_mid < i_in else np.inf
-        t_out = ev_t[i_out] + dur if i_out < i_mid else np.inf
-        if t_out <= t_mid and t_out <= t_in:
-            if not t_out < t:
-                break
-            a = ev_a[i_out]
-            u = 1.0 + (ev_t[i_out] + rise - BS.tref) / decay
-            BS.q0 -= a * u * u
-            BS.q1 -= a * u
-            BS.q2 -= a
-            i_out += 1
-            if i_out == i_mid:           # no decaying burst left: clear the round-off
-                BS.q0 = 0.0
-                BS.q1 = 0.0
-                BS.q2 = 0.0
-        elif t_mid <= t_in:
-            if not t_mid < t:
-                break
-            a = ev_a[i_mid]
-            BS.ra -= a
-            BS.rat -= a * (ev_t[i_mid] - BS.tref)
-            u = 1.0 + (ev_t[i_mid] + rise - BS.tref) / decay
-            BS.q0 += a * u * u
-            BS.q1 += a * u
-            BS.q2 += a
-            i_mid += 1
-            if i_mid == i_in:            # no rising burst left
-                BS.ra = 0.0
-                BS.rat = 0.0
-        else:
-            if not t_in < t:
-                break
-            _shift_ref(BS, ev_t[i_in], decay)
-            BS.ra += ev_a[i_in]
-            i_in += 1
-    BS.i_in = i_in
-    BS.i_mid = i_mid
-    BS.i_out = i_out
-    if i_out == i_in:
+    _add_advance(BS, ev_t, ev_a, n_ev, t, rise, decay)
+    if BS.i_out == BS.i_in:
         return 0.0
     return _sums(BS, t, rise, decay)
 
@@ -302,18 +321,92 @@ def _seg(te, e0, a, t, rise, decay):
     return 0.0
 
 
+@njit(cache=True, inline="always")
+def _first_not_below(out, j, k, guess, base, limit):
+    """First ``m`` in ``[j, k]`` with ``not (out[m] - base < limit)`` (``k`` if none), searched from ``guess``.
+
+    ``out[j:k]`` is non-decreasing, so the predicate is false then true along it, and the search only
+    steps from a guess near the answer: the test is the same comparison a sample-by-sample loop makes.
+    """
+    m = min(max(guess, j), k)
+    while m > j and not (out[m - 1] - base < limit):
+        m -= 1
+    while m < k and out[m] - base < limit:
+        m += 1
+    return m
+
+
+@njit(cache=True, inline="always")
+def _first_not_below2(out, j, k, guess, te, rise, decay):
+    """First ``m`` in ``[j, k]`` with ``not ((out[m] - te) - rise < decay)`` (``k`` if none), from ``guess``."""
+    m = min(max(guess, j), k)
+    while m > j and not ((out[m - 1] - te) - rise < decay):
+        m -= 1
+    while m < k and (out[m] - te) - rise < decay:
+        m += 1
+    return m
+
+
+@njit(cache=True, inline="always")
+def _first_after(out, j, k, guess, tn):
+    """First ``m`` in ``[j, k]`` with ``tn < out[m]`` (``k`` if none), searched from ``guess`` (``out`` non-decreasing)."""
+    m = min(max(guess, j), k)
+    while m > j and tn < out[m - 1]:
+        m -= 1
+    while m < k and not tn < out[m]:
+        m += 1
+    return m
+
+
+@njit(cache=True, inline="always")
+def _index_near(t, t_origin, rate):
+    """The sample index near time ``t`` (a starting guess for the searches above; any value is safe)."""
+    g = (t - t_origin) * rate
+    if not g > 0.0:
+        return 0
+    if g > 9.0e18:
+        return 9 * 10 ** 18
+    return int(g)
+
+
 @njit(cache=True, error_model="numpy")
 def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy, out):
-    """``out[j] = E(t_origin + j / rate)`` for ``j < n``: what :func:`envelope_at` gives sample by sample."""
-    if policy == Policy.ADD:
-        for j in range(n):
-            out[j] = envelope_at(BS, ev_t, ev_a, n_ev, t_origin + j / rate, rise, decay, policy)
-        return
-    retrigger = policy == Policy.RETRIGGER
-    # the sample times first (a loop the compiler vectorises), then run by run: the events before a
-    # sample enter, and the samples up to the next event's time take one segment's values
+    """``out[j] = E(t_origin + j / rate)`` for ``j < n``: what :func:`envelope_at` gives sample by sample.
+
+    The sample times first (a loop the compiler vectorises); then, run by run, the transitions before a
+    sample are applied and the samples up to the next transition take the values of one piece of the
+    envelope: for ``retrigger``/``max`` the rise, the decay and the silence of one segment, for ``add``
+    the two running polynomials. Each piece is a loop without branches, which the compiler vectorises
+    (the two divisions per sample included); every value is computed by the same operations as
+    :func:`_segment` and :func:`_sums`, so bit for bit the same. The pieces' bounds come from the same
+    comparisons, searched from the index the event time gives.
+    """
     for j in range(n):
         out[j] = t_origin + j / rate
+    if policy == Policy.ADD:
+        j = 0
+        while j < n:
+            nxt = _add_advance(BS, ev_t, ev_a, n_ev, out[j], rise, decay)
+            k = _first_after(out, j + 1, n, _index_near(nxt, t_origin, rate), nxt)
+            v = out[j:k]
+            if BS.i_out == BS.i_in:
+                v[:] = 0.0
+            else:
+                tref = BS.tref
+                ra = BS.ra
+                rat = BS.rat
+                q0 = BS.q0
+                q1 = BS.q1
+                q2 = BS.q2
+                for m in range(v.shape[0]):
+                    dt = v[m] - tref
+                    e = (ra * dt - rat) / rise
+                    x = dt / decay
+                    e += q0 - 2.0 * q1 * x + q2 * x * x
+                    v[m] = e if e > 0.0 else 0.0
+            j = k
+        return
+    retrigger = policy == Policy.RETRIGGER
     i_in = BS.i_in
     te = BS.te
     e0 = BS.e0
@@ -333,11 +426,20 @@ def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy,
         k = n
         if i_in < n_ev:
             tn = ev_t[i_in]
-            k = j + 1
-            while k < n and not tn < out[k]:
-                k += 1
-        for m in range(j, k):
-            out[m] = _seg(te, e0, a, out[m], rise, decay)
+            k = _first_after(out, j + 1, n, _index_near(tn, t_origin, rate), tn)
+        # samples j .. k-1 play segment (te, e0, a): rise until tau >= rise, decay until u >= decay, then 0
+        m1 = _first_not_below(out, j, k, _index_near(te + rise, t_origin, rate), te, rise)
+        v = out[j:m1]                    # (loops over views: the compiler vectorises them, not range(j, m1))
+        for m in range(v.shape[0]):
+            v[m] = e0 + (a - e0) * ((v[m] - te) / rise)
+        m2 = m1
+        if m1 < k:
+            m2 = _first_not_below2(out, m1, k, _index_near(te + rise + decay, t_origin, rate), te, rise, decay)
+            v = out[m1:m2]
+            for m in range(v.shape[0]):
+                r = 1.0 - ((v[m] - te) - rise) / decay
+                v[m] = a * r * r
+        out[m2:k] = 0.0
         j = k
     BS.i_in = i_in
     BS.te = te
@@ -360,10 +462,12 @@ def _apply_carrier(BS, rate, carrier, n, out):
     """Multiply ``out[:n]`` (envelope samples from sample 0) by the carrier in place; count limited samples.
 
     The same carrier samples as :func:`synth` (anchors at multiples of
-    :data:`CARRIER_BLOCK`, the same rotation in between), but four blocks
-    are rotated side by side: the blocks are independent, so their four
-    recurrences fill the floating-point pipeline that one recurrence leaves
-    mostly waiting.
+    :data:`CARRIER_BLOCK`, the same rotation in between), but eight blocks
+    are rotated side by side into a scratch row: the blocks are independent,
+    so their eight recurrences fill the floating-point pipeline that one
+    recurrence leaves mostly waiting; the product with the envelope and the
+    limiting then run as one loop without branches, which the compiler
+    vectorises.
     """
     w = 2.0 * math.pi * carrier
     cd = BS.rc
@@ -371,43 +475,51 @@ def _apply_carrier(BS, rate, carrier, n, out):
     blk = CARRIER_BLOCK
     clipped = 0
     nb = (n + blk - 1) // blk
+    car = np.empty(8 * blk)
     b = 0
-    while b + 4 < nb:                     # groups of four whole blocks; the last block is left to the tail
+    while b + 8 < nb:                     # groups of eight whole blocks; the last block is left to the tail
         j0 = b * blk
-        j1 = j0 + blk
-        j2 = j1 + blk
-        j3 = j2 + blk
-        t0 = w * (j0 / rate)
-        t1 = w * (j1 / rate)
-        t2 = w * (j2 / rate)
-        t3 = w * (j3 / rate)
-        c0 = math.cos(t0)
-        s0 = math.sin(t0)
-        c1 = math.cos(t1)
-        s1 = math.sin(t1)
-        c2 = math.cos(t2)
-        s2 = math.sin(t2)
-        c3 = math.cos(t3)
-        s3 = math.sin(t3)
+        c0 = math.cos(w * (j0 / rate))
+        s0 = math.sin(w * (j0 / rate))
+        c1 = math.cos(w * ((j0 + blk) / rate))
+        s1 = math.sin(w * ((j0 + blk) / rate))
+        c2 = math.cos(w * ((j0 + 2 * blk) / rate))
+        s2 = math.sin(w * ((j0 + 2 * blk) / rate))
+        c3 = math.cos(w * ((j0 + 3 * blk) / rate))
+        s3 = math.sin(w * ((j0 + 3 * blk) / rate))
+        c4 = math.cos(w * ((j0 + 4 * blk) / rate))
+        s4 = math.sin(w * ((j0 + 4 * blk) / rate))
+        c5 = math.cos(w * ((j0 + 5 * blk) / rate))
+        s5 = math.sin(w * ((j0 + 5 * blk) / rate))
+        c6 = math.cos(w * ((j0 + 6 * blk) / rate))
+        s6 = math.sin(w * ((j0 + 6 * blk) / rate))
+        c7 = math.cos(w * ((j0 + 7 * blk) / rate))
+        s7 = math.sin(w * ((j0 + 7 * blk) / rate))
         for k in range(blk):
             if k > 0:
                 c0, s0 = c0 * cd - s0 * sd, s0 * cd + c0 * sd
                 c1, s1 = c1 * cd - s1 * sd, s1 * cd + c1 * sd
                 c2, s2 = c2 * cd - s2 * sd, s2 * cd + c2 * sd
                 c3, s3 = c3 * cd - s3 * sd, s3 * cd + c3 * sd
-            v, c = _clip1(out[j0 + k] * s0)
-            out[j0 + k] = v
-            clipped += c
-            v, c = _clip1(out[j1 + k] * s1)
-            out[j1 + k] = v
-            clipped += c
-            v, c = _clip1(out[j2 + k] * s2)
-            out[j2 + k] = v
-            clipped += c
-            v, c = _clip1(out[j3 + k] * s3)
-            out[j3 + k] = v
-            clipped += c
-        b += 4
+                c4, s4 = c4 * cd - s4 * sd, s4 * cd + c4 * sd
+                c5, s5 = c5 * cd - s5 * sd, s5 * cd + c5 * sd
+                c6, s6 = c6 * cd - s6 * sd, s6 * cd + c6 * sd
+                c7, s7 = c7 * cd - s7 * sd, s7 * cd + c7 * sd
+            car[k] = s0
+            car[blk + k] = s1
+            car[2 * blk + k] = s2
+            car[3 * blk + k] = s3
+            car[4 * blk + k] = s4
+            car[5 * blk + k] = s5
+            car[6 * blk + k] = s6
+            car[7 * blk + k] = s7
+        v = out[j0:j0 + 8 * blk]
+        for m in range(v.shape[0]):
+            x = v[m] * car[m]
+            clipped += (x > 1.0) | (x < -1.0)
+            x = 1.0 if x > 1.0 else x
+            v[m] = -1.0 if x < -1.0 else x
+        b += 8
     cr = BS.cc
     sr = BS.cs
     for j in range(b * blk, n):

@@ -76,7 +76,7 @@ _RING = 4096
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "7730e827f70b62131850046ece4b93d15cb20b9f569442788498afbd38e80305"
+KERNEL_SOURCES_SHA256 = "858b651805e46c77d06d74bdfa5dfa89b33a47669e944fb91d7b687729634d48"
 
 
 @njit(cache=True, inline="always")
