@@ -66,7 +66,12 @@ def cell_index(blocks, r, c):
 @njit(cache=True, inline="always")
 def _axis_cell(p, origin, spacing, count):
     """Samples ``(i0, i1)`` around position ``p`` (m) on one axis and the weight of ``i1``; edge held outside."""
-    f = (p - origin) / spacing
+    return axis_cell_at((p - origin) / spacing, count)
+
+
+@njit(cache=True, inline="always")
+def axis_cell_at(f, count):
+    """:func:`_axis_cell` from the position in samples ``f = (p - origin) / spacing``."""
     if f < 0.0:
         f = 0.0
     if f > count - 1:

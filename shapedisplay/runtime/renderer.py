@@ -62,7 +62,7 @@ from .bursts import carrier_at, envelope_at, finished_events, forget_events, new
 from .cursor import MAX_POSITION_M, CursorPath
 from .dispatch import model_tick
 from .layouts import NSLOT, ONLINE, OUTPUTS, SLOTS, Slot
-from .lookup import bilinear, corners, sample_all
+from .lookup import _packed_index, axis_cell_at, bilinear, corners, sample_all
 from .models import PadModel, check_dispatch, divergence_message, run_kernel
 from .result import RenderResult
 # the settings' home is .settings (numba-free, shared with the C engine); these names stay importable from here
@@ -76,7 +76,7 @@ _RING = 4096
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "858b651805e46c77d06d74bdfa5dfa89b33a47669e944fb91d7b687729634d48"
+KERNEL_SOURCES_SHA256 = "0502eee4d14a08afd156f2f7395968acac59fdab4a774ce9a35d0719da3ecdaa"
 
 
 @njit(cache=True, inline="always")
@@ -150,20 +150,168 @@ INPUT_ROWS = ("V", "vx", "vy", "normal_force", "mu_s", "mu_k", "gain", "lateral_
 
 
 @njit(cache=True, error_model="numpy")
-def lookup_inputs(t, x, y, blocks, data, bg, grid, config, slot_channel, out):
-    """Offline, in one pass: each tick's table lookup at its motion midpoint, velocities and model inputs.
+def lookup_inputs(t, x, y, blocks, data, bg, grid, config, slot_channel, out, scratch):
+    """Offline: each tick's table lookup at its motion midpoint, velocities and model inputs.
 
     ``blocks, data, bg, grid``: the packed table (:func:`.lookup.pack_channels`); ``config``: a
     one-element RENDER_CONFIG array; ``out``: (len(INPUT_ROWS), n) float64, rows named by
-    :data:`INPUT_ROWS`. Per tick the arithmetic of :meth:`FrictionTable.sample` (the lookup) and of
-    :func:`prepare_inputs` (the rest), so the values are theirs bit for bit; but no (NSLOT, n) array of
-    looked-up values is written and read back.
+    :data:`INPUT_ROWS`; ``scratch``: (4, n) int64, overwritten. Per tick the arithmetic of
+    :meth:`FrictionTable.sample` (the lookup) and of :func:`prepare_inputs` (the rest), so the values are
+    theirs bit for bit; but no (NSLOT, n) array of looked-up values is written and read back.
+
+    A table whose friction coefficients do not vary along the path (no ``friction_scale``,
+    ``breakaway_force`` or ``kinetic_force`` channel, no active slope term) takes
+    :func:`_lookup_passes`: one pass per quantity, each a short loop the compiler vectorises where it
+    can. Any other table takes :func:`_lookup_fused`, one pass over the ticks that derives every input.
 
     Compiled with numpy's error model: no division here can have a zero divisor (``h > 0`` on a cursor
     path, the grid spacing > 0, ``N``, speed and ``sp`` tested before dividing), so only the
     ZeroDivisionError checks go, which otherwise kept the inlined lookup and derivation from being
     optimised as one loop body (the same values, about 1.3x faster).
     """
+    cfg = config[0]
+    varying = (slot_channel[Slot.FRICTION_SCALE] >= 0 or slot_channel[Slot.BREAKAWAY_FORCE] >= 0
+               or slot_channel[Slot.KINETIC_FORCE] >= 0 or (cfg.k_mu != 0.0 and slot_channel[Slot.GRAD_X] >= 0))
+    if varying:
+        _lookup_fused(t, x, y, blocks, data, bg, grid, config, slot_channel, out)
+    else:
+        _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, scratch)
+
+
+@njit(cache=True, error_model="numpy")
+def _motion(t, x, y, grid, two_d, out):
+    """Rows 0-2 of :func:`lookup_inputs` (``V``, ``vx``, ``vy``) and each tick's midpoint in table samples
+    (rows 4 and 5, ``(x_mid - x0) / dx`` and the same in y if ``two_d``): what :func:`_axis_speed` and
+    :func:`.lookup.corners` compute, in loops over whole rows (loops over views, which the compiler
+    vectorises, divisions and square roots included)."""
+    n = t.shape[0]
+    sp = out[0]
+    vx = out[1]
+    vy = out[2]
+    ux = out[4]
+    uy = out[5]
+    vx[0] = 0.0
+    vy[0] = 0.0
+    t1 = t[1:]
+    t0 = t[:-1]
+    x1 = x[1:]
+    x0 = x[:-1]
+    y1 = y[1:]
+    y0 = y[:-1]
+    vx1 = vx[1:]
+    vy1 = vy[1:]
+    for i in range(n - 1):
+        h = t1[i] - t0[i]
+        vx1[i] = (x1[i] - x0[i]) / h
+        vy1[i] = (y1[i] - y0[i]) / h
+    # the unit vector of the motion (rows 4, 5; unused where the speed is 0)
+    for i in range(n):
+        s = math.sqrt(vx[i] * vx[i] + vy[i] * vy[i])
+        sp[i] = s
+        ux[i] = vx[i] / s
+        uy[i] = vy[i] / s
+    # the pad axis follows the motion: one short pass in order (each tick's sign depends on the last axis)
+    ax = 1.0
+    ay = 0.0
+    for i in range(n):
+        s = sp[i]
+        if s == 0.0:
+            sp[i] = 0.0
+        else:
+            dx = ux[i]
+            dy = uy[i]
+            if dx * ax + dy * ay >= 0.0:
+                ax = dx
+                ay = dy
+            else:
+                sp[i] = -s
+                ax = -dx
+                ay = -dy
+    # the midpoints in table samples
+    ux[0] = (x[0] - grid.x0) / grid.dx
+    fx = ux[1:]
+    for i in range(n - 1):
+        fx[i] = (0.5 * (x1[i] + x0[i]) - grid.x0) / grid.dx
+    if two_d:
+        uy[0] = (y[0] - grid.y0) / grid.dy
+        fy = uy[1:]
+        for i in range(n - 1):
+            fy[i] = (0.5 * (y1[i] + y0[i]) - grid.y0) / grid.dy
+
+
+@njit(cache=True, error_model="numpy")
+def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, scratch):
+    """:func:`lookup_inputs` for a table whose ``mu_s``, ``mu_k`` are the device's: motion, cells, channels,
+    then the derivation of :func:`_derive` row by row."""
+    cfg = config[0]
+    n = t.shape[0]
+    two_d = grid.rows != 1
+    _motion(t, x, y, grid, two_d, out)
+    # the four samples around each midpoint (scratch rows) and their weights (rows 4, 5 in place)
+    fx = out[4]
+    fy = out[5]
+    last = data.shape[1] - 1
+    i00 = scratch[0]
+    i01 = scratch[1]
+    i10 = scratch[2]
+    i11 = scratch[3]
+    if bg.shape[0] > 0:
+        cols = grid.cols
+        rows = grid.rows
+        for i in range(n):
+            c0, c1, tx = axis_cell_at(fx[i], cols)
+            fx[i] = tx
+            if two_d:
+                r0, r1, ty = axis_cell_at(fy[i], rows)
+                fy[i] = ty
+                i00[i] = _packed_index(blocks, r0, c0, last)
+                i01[i] = _packed_index(blocks, r0, c1, last)
+                i10[i] = _packed_index(blocks, r1, c0, last)
+                i11[i] = _packed_index(blocks, r1, c1, last)
+            else:
+                i00[i] = _packed_index(blocks, 0, c0, last)
+                i01[i] = _packed_index(blocks, 0, c1, last)
+    # each stored channel into its row (N, gain, lateral x/y, skin target); a missing one gets its default
+    for s, row, default in ((Slot.NORMAL_FORCE, 3, cfg.normal_force_constant), (Slot.BURST_GAIN, 6, 1.0),
+                            (Slot.LATERAL_X, 7, 0.0), (Slot.LATERAL_Y, 8, 0.0),
+                            (Slot.SKIN_STRETCH, 9, cfg.skin_target)):
+        ch = slot_channel[s]
+        dst = out[row]
+        if ch < 0:
+            dst[:] = default
+            continue
+        d = data[ch]
+        if two_d:
+            for i in range(n):
+                tx = fx[i]
+                ty = fy[i]
+                top = d[i00[i]] * (1 - tx) + d[i01[i]] * tx
+                bot = d[i10[i]] * (1 - tx) + d[i11[i]] * tx
+                dst[i] = top * (1 - ty) + bot * ty
+        else:
+            for i in range(n):
+                tx = fx[i]
+                dst[i] = d[i00[i]] * (1 - tx) + d[i01[i]] * tx
+    # the derivation (_derive with fs = 1 and no slope term): N and the gain at least 0, constant mu_s, mu_k
+    N = out[3]
+    gain = out[6]
+    for i in range(n):
+        v = N[i]
+        N[i] = 0.0 if v < 0.0 else v
+    for i in range(n):
+        v = gain[i]
+        gain[i] = 0.0 if v < 0.0 else v
+    mus = cfg.mu_s * 1.0
+    muk = cfg.mu_k * 1.0
+    if muk > mus:
+        muk = mus
+    out[4, :] = mus
+    out[5, :] = muk
+
+
+@njit(cache=True, error_model="numpy")
+def _lookup_fused(t, x, y, blocks, data, bg, grid, config, slot_channel, out):
+    """:func:`lookup_inputs` in one pass over the ticks (any table)."""
     cfg = config[0]
     n = t.shape[0]
     nch = bg.shape[0]
@@ -404,13 +552,14 @@ class Renderer:
         online_step(R, self._blocks, self._data, self._bg, self._ev.copy(), self._audio.copy(), 0.0, 0.0)
 
     # ------------------------------------------------------------------ offline
-    def _inputs(self, cp: CursorPath, block=None) -> np.ndarray:
+    def _inputs(self, cp: CursorPath, block=None, scratch=None) -> np.ndarray:
         """The (len(INPUT_ROWS), n) block of per-tick inputs of an offline run (:func:`lookup_inputs`),
-        written into ``block`` if given."""
+        written into ``block`` if given; ``scratch``: 4 rows of n float64 it may overwrite."""
         if block is None:
             block = np.empty((len(INPUT_ROWS), cp.t.size))
+        scratch = (np.empty((4, cp.t.size)) if scratch is None else scratch).view(np.int64)
         lookup_inputs(cp.t, cp.x, cp.y, self._blocks, self._data, self._bg, self._grid, self._config,
-                      self._slot_channel, block)
+                      self._slot_channel, block, scratch)
         return block
 
     def model_inputs(self, cursor: CursorPath):
@@ -440,7 +589,7 @@ class Renderer:
         # instead of being returned to the system and faulted in again (most of a short render's cost).
         k = len(INPUT_ROWS)
         block = np.empty((k + 10, cp.t.size))
-        V, vx, vy, N, mus, muk, gain, lat_x, lat_y, target = self._inputs(cp, block[:k])
+        V, vx, vy, N, mus, muk, gain, lat_x, lat_y, target = self._inputs(cp, block[:k], block[k + 6:])
         S, f, st, _, _, _, _, et, ea = run_kernel(self.model, cp.t, V, N, mus, muk, gain, out=block[k:k + 6])
         if S["diverged"] != 0:
             raise ModelError(divergence_message(self.model, self.tick_rate, float(S["diverged_at"])))
