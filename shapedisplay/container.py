@@ -94,16 +94,29 @@ def write_npz(fh, arrays: dict) -> None:
     ``numpy.save`` writes it, compressed as :func:`entry_compression`
     chooses. Entry times are fixed (1980-01-01), so equal arrays give equal
     bytes. :class:`NpzReader` and ``numpy.load`` read the result.
+
+    The array bytes stream from the array into the zip entry a chunk at a
+    time (no ``.npy`` copy of the array in memory); the bytes are those of
+    ``ZipFile.writestr`` on the whole ``numpy.save`` output (the tests
+    compare them).
     """
     with zipfile.ZipFile(fh, "w", allowZip64=True) as zf:
         for name, a in arrays.items():
             a = np.ascontiguousarray(a)
-            method, level = entry_compression(a.reshape(-1).view(np.uint8))
-            npy = io.BytesIO()
-            np.lib.format.write_array(npy, a, allow_pickle=False)
+            if a.dtype.hasobject:
+                raise ValueError(f"entry '{name}': object arrays cannot be stored")
+            data = a.reshape(-1).view(np.uint8)
+            method, level = entry_compression(data)
+            head = io.BytesIO()
+            np.lib.format.write_array_header_1_0(head, np.lib.format.header_data_from_array_1_0(a))
             info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
-            zf.writestr(info, npy.getbuffer(), compress_type=method, compresslevel=level)
-            del npy
+            info.compress_type = method
+            info._compresslevel = level                        # what writestr sets
+            info.file_size = head.tell() + data.size          # as writestr sets it (zip64 decided from it)
+            with zf.open(info, "w") as dest:
+                dest.write(head.getbuffer())
+                for i in range(0, data.size, _CHUNK):
+                    dest.write(data[i:i + _CHUNK])
 
 
 class NpzReader:

@@ -327,3 +327,36 @@ def test_negative_zero_channel_keeps_its_checksum(tmp_path):
     t.save(tmp_path / "t.npz")
     u = FrictionTable.load(tmp_path / "t.npz")
     assert u.checksum() == t.checksum() and u.quant == t.quant
+
+
+def test_streamed_npz_bytes_equal_writestr_of_the_whole_npy():
+    """write_npz streams each array into its zip entry a chunk at a time: the file is byte for byte what
+    ZipFile.writestr of numpy.save's whole output gives (deflate fed in chunks makes the same stream)."""
+    import io
+    import zipfile
+
+    from shapedisplay.container import _CHUNK, entry_compression, write_npz
+    rng = np.random.default_rng(9)
+    y, x = np.mgrid[0:1500, 0:1700]
+    arrays = {"header": np.frombuffer(b'{"a": 1}', np.uint8),
+              "smooth": np.rint(120 + 100 * np.sin(x / 80.0) * np.cos(y / 60.0)).astype(np.uint8),   # deflate 1
+              "noisy": rng.integers(0, 65535, (1500, 1700), dtype=np.uint16),                         # stored
+              "wide": rng.normal(0, 1, 3 * _CHUNK // 8 + 77),                                         # float64
+              "empty": np.zeros((0, 3), np.float32)}
+    expected = io.BytesIO()
+    with zipfile.ZipFile(expected, "w", allowZip64=True) as zf:
+        for name, a in arrays.items():
+            npy = io.BytesIO()
+            np.lib.format.write_array(npy, a, allow_pickle=False)
+            method, level = entry_compression(a.reshape(-1).view(np.uint8))
+            zf.writestr(zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0)), npy.getbuffer(),
+                        compress_type=method, compresslevel=level)
+    got = io.BytesIO()
+    write_npz(got, arrays)
+    assert got.getvalue() == expected.getvalue()
+    with zipfile.ZipFile(got) as z:
+        assert {i.filename: i.compress_type for i in z.infolist()}["smooth.npy"] == zipfile.ZIP_DEFLATED
+        assert {i.filename: i.compress_type for i in z.infolist()}["noisy.npy"] == zipfile.ZIP_STORED
+    with np.load(io.BytesIO(got.getvalue())) as z:
+        for name, a in arrays.items():
+            assert z[name].dtype == a.dtype and np.array_equal(z[name], a)
