@@ -35,27 +35,59 @@ def _buffers(n: int):
     return np.empty(k), np.empty(k)
 
 
-def slope_scan(gx, gy, limit2):
-    """(count of gx^2+gy^2 > limit2, max of gx^2+gy^2) over flat arrays."""
+def wall_scan(gx, gy, limit2):
+    """One pass: (count of gx^2+gy^2 > limit2, max of gx^2+gy^2, mask or None) over flat arrays.
+
+    The mask (flat bool, True where gx^2+gy^2 > limit2) is allocated only
+    once a chunk holds such a sample; None means there is none.
+    """
     count = 0
     peak = 0.0
+    mask = None
     b1, b2 = _buffers(gx.size)
+    bb = np.empty(b1.size, dtype=bool)
     with np.errstate(over="ignore"):
         for s in _chunks(gx.size):
             k = s.stop - s.start
             m2 = _magnitude_sq(gx[s], gy[s], b1[:k], b2[:k])
             peak = max(peak, float(m2.max()))
-            count += int(np.count_nonzero(m2 > limit2))
-    return count, peak
+            w = np.greater(m2, limit2, out=bb[:k])
+            c = int(np.count_nonzero(w))
+            if c and mask is None:
+                mask = np.empty(gx.size, dtype=bool)
+                mask[:s.start] = False
+            count += c
+            if mask is not None:
+                mask[s] = w
+    return count, peak, mask
 
 
-def wall_mask(gx, gy, limit2, out):
-    """out[i] = gx^2 + gy^2 > limit2 (flat arrays)."""
-    b1, b2 = _buffers(gx.size)
+def clip_where(fx, fy, limit, mask):
+    """Scale (fx, fy) in place to magnitude ``limit`` where ``mask`` (flat bool) is True, keeping direction.
+
+    The samples of ``mask`` must be those with fx^2 + fy^2 > limit^2 (what
+    :func:`wall_scan` returns): then this is :func:`clip_magnitude` without
+    the pass that finds them (the same operations on the same samples).
+    Returns the count clipped.
+    """
+    count = 0
     with np.errstate(over="ignore"):
-        for s in _chunks(gx.size):
-            k = s.stop - s.start
-            np.greater(_magnitude_sq(gx[s], gy[s], b1[:k], b2[:k]), limit2, out=out[s])
+        for s in _chunks(fx.size):
+            over = np.flatnonzero(mask[s])
+            if over.size:
+                cx = fx[s]
+                cy = fy[s]
+                x = cx[over]
+                y = cy[over]
+                m2 = np.multiply(x, x)
+                m2 += np.multiply(y, y)
+                f = limit / np.sqrt(m2)
+                x *= f
+                y *= f
+                cx[over] = x
+                cy[over] = y
+                count += int(over.size)
+    return count
 
 
 def clip_magnitude(fx, fy, limit):

@@ -327,14 +327,17 @@ def compile_heightfield(hf: HeightField, device=None, mapping: MappingOptions = 
 
     # -- gradient analysis (walls are analysed for every compile)
     gx, gy = gradient(hf, options.gradient_method, **options.gradient_kw)
-    walls = detect_walls(hf, gx, gy, options.max_slope)
+    # one 8-byte-per-sample scratch array: the wall labels, then the normal force (fresh memory costs a
+    # process page faults; on a 4096x4096 map each such array is 128 MiB)
+    work = np.empty(hf.shape, dtype=np.float64)
+    walls = detect_walls(hf, gx, gy, options.max_slope, work=work)
     uses_slopes = any(n in kept for n in ("grad_x", "grad_y", "lateral_x", "lateral_y"))
     if walls.count == 0:
         walls.limited = "no walls"
     elif not uses_slopes:
         walls.limited = "not needed: no kept channel uses slopes (N steps where the walls are)"
     elif options.limit_walls:
-        limit_walls(gx, gy, options.max_slope, out=(gx, gy))
+        limit_walls(gx, gy, options.max_slope, out=(gx, gy), walls=walls)
         walls.limited = f"slope magnitude clipped to {options.max_slope:g}, direction kept"
     else:
         walls.limited = "not limited (limit_walls=False)"
@@ -359,7 +362,7 @@ def compile_heightfield(hf: HeightField, device=None, mapping: MappingOptions = 
     n_min = min(max(mapping.n_base, lo_n), hi_n)
     if mapping.height and (any(k in kept for k in ("normal_force", "skin_stretch"))
                            or (mapping.lateral == "normal" and "lateral_x" in kept)):
-        n, clamped["normal_force"] = normal_force(hf, device, mapping)
+        n, clamped["normal_force"] = normal_force(hf, device, mapping, out=work)
         n_min = _min_nonzero_abs(n) or n_min
         if "normal_force" in kept:
             code("normal_force", n)
@@ -380,7 +383,7 @@ def compile_heightfield(hf: HeightField, device=None, mapping: MappingOptions = 
         if "lateral_y" in kept:
             code("lateral_y", fy, n_min)
         del fx, fy
-    gx = gy = None
+    gx = gy = work = None
     if "skin_stretch" in kept:
         s, clamped["skin_stretch"] = skin_stretch(n if mapping.height else None, hf.shape, device, mapping)
         code("skin_stretch", s)

@@ -366,20 +366,27 @@ class ForceChannels(dict):
         self.clamped: dict = {}
 
 
-def normal_force(hf: HeightField, device, mapping: MappingOptions) -> tuple[np.ndarray, dict]:
-    """Normal force N (rows, cols), newtons, clamped to the device range; and a clamping note."""
+def normal_force(hf: HeightField, device, mapping: MappingOptions, *, out: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, dict]:
+    """Normal force N (rows, cols), newtons, clamped to the device range; and a clamping note.
+
+    ``out``: a float64 array of the heights' shape to write N into (else a new one).
+    """
     h = hf.heights
     beta = mapping.perceptual_exponent
+    if out is not None and (out.shape != h.shape or out.dtype != np.float64):
+        raise InputError(f"`out` must be a float64 array of shape {h.shape} (got {out.dtype} {out.shape})")
     if beta is None:
-        n = np.multiply(h, mapping.n_gain)
+        n = np.multiply(h, mapping.n_gain, out=out)
     else:
         d0 = float(np.max(np.abs(h), initial=0.0))
         if d0 > 0:
             inc = perceptual_scale(np.abs(h), d0, mapping.n_gain * d0, beta,
                                    min(mapping.perceptual_threshold, mapping.n_gain * d0 * (1 - 1e-12)))
-            n = np.copysign(inc, h, out=inc)
+            n = np.copysign(inc, h, out=inc if out is None else out)
         else:
-            n = np.zeros_like(h)
+            n = np.zeros_like(h) if out is None else out
+            n[...] = 0.0
     n += mapping.n_base
     lo, hi = device.normal_force_range
     return n, _clamp(n, lo, hi, "normal_force", "N")

@@ -254,7 +254,8 @@ def _magnitude_sq(gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
     return m2
 
 
-def detect_walls(hf: HeightField, gx: np.ndarray, gy: np.ndarray, max_slope: float) -> WallReport:
+def detect_walls(hf: HeightField, gx: np.ndarray, gy: np.ndarray, max_slope: float, *,
+                 work: np.ndarray | None = None) -> WallReport:
     """Find samples steeper than ``max_slope`` and describe where they are.
 
     Parameters
@@ -265,6 +266,10 @@ def detect_walls(hf: HeightField, gx: np.ndarray, gy: np.ndarray, max_slope: flo
         Slopes.
     max_slope : float
         Steepest renderable slope (dimensionless, > 0; ``inf`` disables).
+    work : ndarray (rows, cols) float64, optional
+        Scratch memory the region labelling may use (overwritten), so that a
+        caller can reuse it afterwards instead of the process taking fresh
+        memory twice.
 
     Returns
     -------
@@ -276,12 +281,11 @@ def detect_walls(hf: HeightField, gx: np.ndarray, gy: np.ndarray, max_slope: flo
     fx, fy = _flat(gx), _flat(gy)
     if fx is not None and fy is not None and gx.shape == gy.shape and gx.size:
         from . import _kernels
-        count, peak2 = _kernels.slope_scan(fx, fy, limit * limit)
+        count, peak2, flat_mask = _kernels.wall_scan(fx, fy, limit * limit)
         steepest = math.sqrt(peak2)
         if math.isinf(limit) or count == 0:
             return WallReport(np.zeros(gx.shape, dtype=bool), 0, 0.0, limit, steepest)
-        mask = np.empty(gx.shape, dtype=bool)
-        _kernels.wall_mask(fx, fy, limit * limit, mask.reshape(-1))
+        mask = flat_mask.reshape(gx.shape)
     else:
         m2 = _magnitude_sq(gx, gy)
         steepest = math.sqrt(float(m2.max(initial=0.0)))
@@ -295,14 +299,18 @@ def detect_walls(hf: HeightField, gx: np.ndarray, gy: np.ndarray, max_slope: flo
             f"slopes overflow float64 (|grad h| beyond 1e154): heights {lo:g}..{hi:g} m over spacing "
             f"dx={hf.dx:g} m, dy={hf.dy:g} m; check the units of the size and height range ({hf.source})")
     count = int(np.count_nonzero(mask))
-    n, top, spans = wall_regions(mask, WallReport.MAX_BOXES)
+    labels = None
+    if work is not None and work.shape == mask.shape and work.dtype.itemsize == np.dtype(np.intp).itemsize \
+            and work.flags.c_contiguous and work.flags.writeable:
+        labels = work.view(np.intp)
+    n, top, spans = wall_regions(mask, WallReport.MAX_BOXES, out=labels)
     boxes = [[round((hf.x0 + c0 * hf.dx) * 1e3, 6), round((hf.x0 + c1 * hf.dx) * 1e3, 6),
               round((hf.y0 + r0 * hf.dy) * 1e3, 6), round((hf.y0 + r1 * hf.dy) * 1e3, 6)]
              for r0, r1, c0, c1 in spans]
     return WallReport(mask, count, count / mask.size, limit, steepest, boxes, int(n))
 
 
-def wall_regions(mask: np.ndarray, k: int) -> tuple[int, np.ndarray, list]:
+def wall_regions(mask: np.ndarray, k: int, *, out: np.ndarray | None = None) -> tuple[int, np.ndarray, list]:
     """Connected regions of ``mask`` (4-connected, as ``scipy.ndimage.label``) and the ``k`` largest.
 
     Parameters
@@ -310,6 +318,8 @@ def wall_regions(mask: np.ndarray, k: int) -> tuple[int, np.ndarray, list]:
     mask : ndarray (rows, cols) bool
     k : int
         How many of the largest regions to describe.
+    out : ndarray (rows, cols) intp, optional
+        Where to write the labels (scratch: overwritten, not part of the result).
 
     Returns
     -------
@@ -328,9 +338,14 @@ def wall_regions(mask: np.ndarray, k: int) -> tuple[int, np.ndarray, list]:
     threshold from the histogram of sizes, not a sort or a partition of
     every region: a noisy 4096x4096 map has millions of them).
     """
-    from scipy import ndimage
-    labels = np.empty(mask.shape, np.intp)   # bincount's own index type: no converted copy of the labels
-    n = int(ndimage.label(mask, output=labels))
+    label, find_objects = _labelling()
+    if out is None:
+        out = np.empty(mask.shape, np.intp)  # bincount's own index type: no converted copy of the labels
+    elif out.shape != mask.shape or out.dtype != np.intp or not out.flags.c_contiguous:
+        raise InputError(f"`out` must be a C-contiguous intp array of shape {mask.shape} "
+                         f"(got {out.dtype} {out.shape})")
+    labels = out
+    n = label(mask, labels)
     if n == 0:
         return 0, np.zeros(0, np.int64), []
     sizes = np.bincount(labels.reshape(-1), minlength=n + 1)
@@ -349,10 +364,77 @@ def wall_regions(mask: np.ndarray, k: int) -> tuple[int, np.ndarray, list]:
     rank = np.zeros(n + 1, dtype=np.int32 if k >= 127 else np.int8)
     rank[cand] = np.arange(1, k + 1)
     ranked = rank[labels]
-    del labels
+    del labels, out
     spans = [(sl[0].start, sl[0].stop - 1, sl[1].start, sl[1].stop - 1)
-             for sl in ndimage.find_objects(ranked, max_label=k)]
+             for sl in find_objects(ranked, k)]
     return int(n), cand.astype(np.int64), spans
+
+
+#: 4-connectivity of :func:`wall_regions` (``scipy.ndimage.generate_binary_structure(2, 1)``).
+_CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
+_LABELLING = None
+
+
+def _labelling():
+    """``(label(mask, out) -> n, find_objects(labels, max_label) -> slices)``: scipy.ndimage's C routines.
+
+    Importing ``scipy.ndimage`` costs a process about 0.25 s of CPU (it
+    pulls in scipy's array-API layer, ``numpy.f2py`` and ``numpy.testing``
+    to build its docstrings and dispatch), twice what labelling a 4096x4096
+    map takes. The two compiled modules behind ``label`` and
+    ``find_objects`` (``scipy.ndimage._ni_label``, ``scipy.ndimage._nd_image``)
+    load in about 0.02 s, so they are loaded on their own, under their own
+    names: a later ``import scipy.ndimage`` finds them in ``sys.modules``
+    and uses the same modules (and once it is imported they are taken from
+    there). With a scipy whose layout differs the public functions are
+    used; both give the same labels (the tests compare them).
+    """
+    global _LABELLING
+    if _LABELLING is None:
+        _LABELLING = _direct_labelling() or _public_labelling()
+    return _LABELLING
+
+
+def _public_labelling():
+    from scipy import ndimage
+    return (lambda mask, out: int(ndimage.label(mask, output=out)),
+            lambda labels, k: ndimage.find_objects(labels, max_label=k))
+
+
+def _direct_labelling():
+    import importlib.machinery
+    import importlib.util
+    import os
+    import sys
+    try:
+        mods = []
+        for name in ("_ni_label", "_nd_image"):
+            full = f"scipy.ndimage.{name}"
+            mod = sys.modules.get(full)
+            if mod is None:
+                spec = importlib.util.find_spec("scipy")
+                folder = os.path.join(spec.submodule_search_locations[0], "ndimage")
+                path = next(p for p in (os.path.join(folder, name + s) for s in importlib.machinery.EXTENSION_SUFFIXES)
+                            if os.path.isfile(p))
+                loader = importlib.machinery.ExtensionFileLoader(full, path)
+                mod = importlib.util.module_from_spec(importlib.util.spec_from_file_location(full, path, loader=loader))
+                sys.modules[full] = mod
+                try:
+                    loader.exec_module(mod)
+                except BaseException:
+                    del sys.modules[full]
+                    raise
+            mods.append(mod)
+        raw_label, raw_find = mods[0]._label, mods[1].find_objects
+    except Exception:   # another scipy layout: the public functions below
+        return None
+
+    def label(mask, out):
+        return int(raw_label(np.asarray(mask), _CROSS, out))
+
+    def find_objects(labels, k):
+        return raw_find(np.asarray(labels), k)
+    return label, find_objects
 
 
 def _check_finite_peak(peak: float) -> None:
@@ -360,12 +442,16 @@ def _check_finite_peak(peak: float) -> None:
         raise InputError("slopes overflow float64 (|grad h| beyond 1e154); check the units of the spacing and heights")
 
 
-def limit_walls(gx: np.ndarray, gy: np.ndarray, max_slope: float, *, out=None) -> tuple[np.ndarray, np.ndarray]:
+def limit_walls(gx: np.ndarray, gy: np.ndarray, max_slope: float, *, out=None,
+                walls: WallReport | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Clip the slope magnitude to ``max_slope``, keeping its direction.
 
     Where ``|grad h| > max_slope`` the slope becomes
     ``max_slope * grad h / |grad h|``; elsewhere it is unchanged.
     ``out=(gx_out, gy_out)`` may be ``(gx, gy)`` to work in place.
+    ``walls``: the report :func:`detect_walls` gave for these slopes and
+    this ``max_slope`` (with its mask); only its wall samples are then
+    visited (same result, without a pass over every sample).
     """
     limit = _check_max_slope(max_slope)
     if out is None:
@@ -380,6 +466,10 @@ def limit_walls(gx: np.ndarray, gy: np.ndarray, max_slope: float, *, out=None) -
     fx, fy = _flat(ox), _flat(oy)
     if fx is not None and fy is not None and ox.shape == oy.shape and ox.size:
         from . import _kernels
+        if walls is not None and walls.mask is not None and walls.mask.shape == ox.shape \
+                and walls.max_slope == limit and math.isfinite(walls.steepest):
+            _kernels.clip_where(fx, fy, float(limit), np.ascontiguousarray(walls.mask).reshape(-1))
+            return ox, oy
         _, peak = _kernels.clip_magnitude(fx, fy, float(limit))
         _check_finite_peak(peak)
         return ox, oy

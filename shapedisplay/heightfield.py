@@ -19,6 +19,7 @@ every reader and writer of picture-ordered data (PNG/TIFF/JPEG pictures and
 from __future__ import annotations
 
 import hashlib
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -125,8 +126,12 @@ class HeightField:
             raise InputError(f"`heights` is empty (got shape {h.shape})")
         if h.size == 1:
             raise InputError(f"`heights` has a single sample; a shape needs at least 2 (got shape {h.shape})")
-        bad = ~np.isfinite(h)
-        if bad.any():
+        # a finite sum means every sample is finite (NaN and inf propagate through it): one pass,
+        # no temporary; an overflowing sum of finite samples falls through to the full check
+        with np.errstate(over="ignore", invalid="ignore"):
+            total = float(np.add.reduce(h, axis=None))
+        if not math.isfinite(total) and not np.isfinite(h).all():
+            bad = ~np.isfinite(h)
             r, c = np.argwhere(bad)[0]
             raise InputError(
                 f"`heights` must be finite: {int(bad.sum())} NaN/inf samples, first at row {r}, col {c} "

@@ -345,7 +345,9 @@ class FrictionTable:
         for n, a in self.codes.items():
             if a.ndim != 1 or a.size != n_vals:
                 raise TableError(f"channel '{n}' holds {a.size} values; the patches need {n_vals}")
-        occupied = np.zeros((g.rows, g.cols), dtype=bool) if g.rows * g.cols <= 1 << 26 else None
+        # one block cannot overlap another (and the map of occupied samples would cost a canvas of memory)
+        occupied = np.zeros((g.rows, g.cols), dtype=bool) if g.rows * g.cols <= 1 << 26 and len(self.blocks) > 1 \
+            else None
         for r0, c0, p in self.blocks:
             if not 0 <= p < len(self.patch_shapes):
                 raise TableError(f"block at ({r0}, {c0}) names patch {p}; only {len(self.patch_shapes)} exist")

@@ -2,6 +2,7 @@
 import json
 import shutil
 import subprocess
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -298,15 +299,106 @@ def test_chunked_kernels_equal_whole_array_arithmetic():
     n = 3 * _kernels.CHUNK + 1234
     gx, gy = rng.normal(0, 2, n), rng.normal(0, 2, n)
     m2 = gx * gx + gy * gy
-    assert _kernels.slope_scan(gx, gy, 2.25) == (int((m2 > 2.25).sum()), m2.max())
-    mask = np.empty(n, bool)
-    _kernels.wall_mask(gx, gy, 2.25, mask)
+    count, peak, mask = _kernels.wall_scan(gx, gy, 2.25)
+    assert (count, peak) == (int((m2 > 2.25).sum()), m2.max())
     assert np.array_equal(mask, m2 > 2.25)
     fx, fy = gx.copy(), gy.copy()
     count, peak = _kernels.clip_magnitude(fx, fy, 1.5)
     f = np.where(m2 > 2.25, 1.5 / np.sqrt(m2), 1.0)
     assert count == int((m2 > 2.25).sum()) and peak == np.sqrt(m2.max())
     assert np.array_equal(fx, np.where(m2 > 2.25, gx * f, gx)) and np.array_equal(fy, np.where(m2 > 2.25, gy * f, gy))
+    wx, wy = gx.copy(), gy.copy()           # only the masked samples visited: the same values bit for bit
+    assert _kernels.clip_where(wx, wy, 1.5, mask) == count
+    assert np.array_equal(wx, fx) and np.array_equal(wy, fy)
+    # walls only in the last chunk: the mask is all False before it; no wall at all: no mask
+    quiet = np.zeros(n)
+    quiet[n - 3] = 2.0
+    count, peak, mask = _kernels.wall_scan(quiet, np.zeros(n), 2.25)
+    assert (count, peak, int(mask.sum()), bool(mask[n - 3])) == (1, 4.0, 1, True)
+    assert _kernels.wall_scan(quiet, np.zeros(n), 4.0) == (0, 4.0, None)
     gx[n - 5] = np.nan
     lo, hi = _kernels.minmax(gx)
     assert np.isnan(lo) and np.isnan(hi)
+
+
+def test_limit_walls_given_the_wall_report_visits_only_walls_with_the_same_result():
+    from shapedisplay.gradients import detect_walls, limit_walls
+    rng = np.random.default_rng(8)
+    gx, gy = rng.normal(0, 2, (300, 300)), rng.normal(0, 2, (300, 300))
+    hf = sources.from_array(np.zeros((300, 300)), 1e-4)
+    walls = detect_walls(hf, gx, gy, 1.5)
+    plain = limit_walls(gx, gy, 1.5)
+    masked = limit_walls(gx, gy, 1.5, walls=walls)
+    assert np.array_equal(plain[0], masked[0]) and np.array_equal(plain[1], masked[1])
+    other = detect_walls(hf, gx, gy, 2.0)        # a report for another limit is not used
+    again = limit_walls(gx, gy, 1.5, walls=other)
+    assert np.array_equal(plain[0], again[0]) and np.array_equal(plain[1], again[1])
+
+
+def test_compile_of_a_walled_map_is_unchanged_by_the_shared_scratch_and_the_masked_clipping(monkeypatch):
+    """The scratch array shared by the wall labels and N, and wall clipping that visits only the walls, give
+    the table that fresh arrays and a clipping pass over every sample give (codes channel for channel)."""
+    from shapedisplay import compile as compile_mod
+    rng = np.random.default_rng(3)
+    h = np.cumsum(rng.normal(0, 2e-5, (300, 320)), axis=1) + rng.normal(0, 3e-5, (300, 320))
+    hf = sources.from_array(h, 0.1e-3)
+    m = MappingOptions.parse("height+lateral")
+    fast = compile_heightfield(hf, RIG, m)
+    assert fast.report["walls"]["count"] > 1000 and fast.report["walls"]["regions"] > 100
+    detect, limit = compile_mod.detect_walls, compile_mod.limit_walls
+    monkeypatch.setattr(compile_mod, "detect_walls", lambda *a, work=None: detect(*a))
+    monkeypatch.setattr(compile_mod, "limit_walls", lambda *a, walls=None, **kw: limit(*a, **kw))
+    plain = compile_heightfield(hf, RIG, m)
+    assert fast.report == plain.report and fast.table.quant == plain.table.quant
+    for name in fast.table.channels:
+        assert np.array_equal(fast.table.codes[name], plain.table.codes[name]), name
+    assert fast.table.to_bytes() == plain.table.to_bytes()
+
+
+def test_normal_force_written_into_a_given_array():
+    from shapedisplay.forces import normal_force
+    h = np.random.default_rng(1).uniform(-1e-3, 3e-3, (40, 50))
+    hf = sources.from_array(h, 0.1e-3)
+    for m in (MappingOptions.parse("height"), MappingOptions.parse("height+perceptual", perceptual_exponent=0.6)):
+        n, note = normal_force(hf, RIG, m)
+        out = np.full(h.shape, np.nan)
+        n2, note2 = normal_force(hf, RIG, m, out=out)
+        assert n2 is out and np.array_equal(n, n2) and note == note2
+    with pytest.raises(InputError, match="`out` must be a float64 array of shape"):
+        normal_force(hf, RIG, MappingOptions.parse("height"), out=np.empty((40, 50), np.float32))
+
+
+def test_wall_labelling_loads_no_scipy_ndimage_and_a_later_import_shares_it(tmp_path):
+    """Labelling walls takes scipy.ndimage's compiled routines without importing the package (about 0.25 s
+    of start-up); the same labels as ndimage.label; importing scipy.ndimage afterwards still works."""
+    code = (
+        "import sys, numpy as np\n"
+        "from shapedisplay.gradients import wall_regions\n"
+        "mask = np.random.default_rng(4).random((300, 300)) < 0.4\n"
+        "n, top, spans = wall_regions(mask, 5)\n"
+        "print('scipy.ndimage' in sys.modules)\n"
+        "from scipy import ndimage\n"
+        "labels, m = ndimage.label(mask)\n"
+        "print(n == m, ndimage.find_objects(labels)[top[0] - 1] == "
+        "(slice(spans[0][0], spans[0][1] + 1), slice(spans[0][2], spans[0][3] + 1)))\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == ["False", "True", "True"]
+
+
+def test_wall_labelling_falls_back_to_the_public_scipy_functions(monkeypatch):
+    from shapedisplay import gradients
+    mask = np.random.default_rng(6).random((200, 210)) < 0.45
+    direct = gradients.wall_regions(mask, 7)
+    monkeypatch.setattr(gradients, "_LABELLING", gradients._public_labelling())
+    public = gradients.wall_regions(mask, 7)
+    assert direct[0] == public[0] and np.array_equal(direct[1], public[1]) and direct[2] == public[2]
+
+
+def test_heights_whose_sum_overflows_are_still_finite():
+    h = np.full((4, 5), 1.5e308)
+    assert sources.from_array(h, 1e-3).heights.max() == 1.5e308
+    h = h.copy()
+    h[2, 3] = np.inf
+    with pytest.raises(InputError, match="1 NaN/inf samples, first at row 2, col 3"):
+        sources.from_array(h, 1e-3)
