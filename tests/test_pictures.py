@@ -302,3 +302,47 @@ def test_npy_sources(tmp_path):
         sources.load_image(tmp_path / "i8.npy", "2x1mm", "0:1mm")
     with pytest.raises(InputError, match=r"`channel` applies to colour pictures"):
         sources.load_image(tmp_path / "h.npy", "4x3mm", None, channel="r")
+
+
+@pytest.mark.parametrize("kind", ["8-bit", "16-bit", "16-bit big endian tiff", "interlaced", "grey+alpha"])
+def test_grey_pictures_decoded_into_the_array_equal_pillows_pixels(tmp_path, kind, monkeypatch):
+    """8- and 16-bit grey pictures are decoded straight into a numpy array (no copies through bytes): the
+    same pixels as numpy.asarray of the Pillow image, for every layout; other modes take the usual path."""
+    import shapedisplay.imageio as imageio
+    g16 = (np.random.default_rng(2).integers(0, 65536, (37, 53))).astype(np.uint16)
+    p = tmp_path / "m.png"
+    if kind == "8-bit":
+        write_png(p, (g16 >> 8).astype(np.uint8))
+    elif kind == "16-bit":
+        write_png(p, g16)
+    elif kind == "16-bit big endian tiff":
+        p = tmp_path / "m.tif"
+        Image.frombytes("I;16B", (53, 37), g16.astype(">u2").tobytes()).save(p)
+    elif kind == "interlaced":
+        p.write_bytes(_adam7_gray8((g16 >> 8).astype(np.uint8)))
+    else:
+        Image.fromarray(np.dstack([(g16 >> 8).astype(np.uint8), np.full((37, 53), 255, np.uint8)]), "LA").save(p)
+    with Image.open(p) as im:
+        expected = np.asarray(im.convert("I;16") if im.mode == "I;16B" else im)
+        expected = expected[..., 0] if expected.ndim == 3 else expected
+        direct = im.mode in imageio._DIRECT_MODES
+    used = []
+    real = imageio._decode_target
+
+    def spy(im):
+        pixels, core = real(im)
+        used.append(pixels is not None)
+        return pixels, core
+    monkeypatch.setattr(imageio, "_decode_target", spy)
+    pic = read_picture(p)
+    assert used == [direct] and pic.values.dtype == expected.dtype and np.array_equal(pic.values, expected)
+    monkeypatch.setattr(imageio, "_decode_target", lambda im: (None, None))     # the usual path: same values
+    assert np.array_equal(read_picture(p).values, pic.values)
+
+
+def test_truncated_grey_png_decoded_into_the_array_is_refused(tmp_path):
+    write_png(tmp_path / "good.png", np.arange(64 * 80, dtype=np.uint16).reshape(64, 80) * 7)
+    good = (tmp_path / "good.png").read_bytes()
+    (tmp_path / "trunc.png").write_bytes(good[: len(good) // 2])
+    with pytest.raises(FileFormatError, match="corrupt or truncated"):
+        read_picture(tmp_path / "trunc.png")
