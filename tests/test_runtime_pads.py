@@ -146,6 +146,61 @@ def test_delta_mu_zero_slips_once_then_slides(c):
         assert np.allclose(r.friction_force[-100:], 1.0)
 
 
+def test_exact_phase_cap_is_the_c_runtimes():
+    """The exact kernel cuts a tick at the cap the C runtime derives, PHASES_BASE + 4 h omega / pi (omega
+    damped, or natural when the pad is not under-damped), never above MAX_EVENTS_PER_TICK."""
+    import re
+    from pathlib import Path
+    from shapedisplay.runtime import pads
+    h_src = (Path(pads.__file__).parent.parent / "runtime_c" / "sd_runtime.h").read_text()
+    assert int(re.search(r"#define SD_PHASES_BASE (\d+)", h_src).group(1)) == pads.PHASES_BASE
+    assert int(re.search(r"#define SD_MAX_EVENTS_PER_TICK (\d+)L", h_src).group(1)) == pads.MAX_EVENTS_PER_TICK
+    w = math.sqrt(2000.0 / 1e-6)
+    assert pads.phase_cap(1e-6, 0.0, 2000.0, 1e-4) == 32 + int(1e-4 * 4 * w / math.pi)     # c = 0
+    wd = math.sqrt(2000.0 / 1e-6 - (0.5 * 0.01 / 1e-6) ** 2)
+    assert pads.phase_cap(1e-6, 0.01, 2000.0, 1e-2) == int(32 + 1e-2 * 4 * wd / math.pi)
+    assert pads.phase_cap(1e-6, 1.0, 2000.0, 1e-2) == int(32 + 1e-2 * 4 * w / math.pi)                 # over-damped
+    assert pads.phase_cap(1e-6, 0.01, 2000.0, 1e3) == pads.MAX_EVENTS_PER_TICK
+    assert pads.phase_cap(1e-6, 0.01, 2000.0, math.nan) == pads.MAX_EVENTS_PER_TICK
+
+
+@pytest.mark.parametrize("rev", [40, 41])
+def test_exact_undamped_equal_coefficients_reversal_closed_form(rev):
+    """c = 0, mu_k = mu_s (the degenerate pad): breakaway at 50 mm/s, then the surface reverses at a tick
+    boundary during the slip. In closed form (undamped arcs): the friction turns at once (the relative
+    velocity is reversed), the pad reaches the surface speed beyond the static limit, so the friction turns
+    back and the pad returns to the surface speed at the mirror point of its arc, inside the limit, and
+    sticks until the force reaches the other limit. The kernel follows this to round-off, with no tick
+    cut; it used to step through zero-length phases with the friction along the relative motion and
+    re-stick microseconds late."""
+    from shapedisplay.devices import load_device
+    from shapedisplay.runtime.models import get_model, run_kernel
+    m, k, thr, U = 1e-6, 2000.0, 0.3, 0.05
+    w = math.sqrt(k / m)
+    n = 200
+    t = np.arange(n) * 1e-4
+    V = np.where(np.arange(n) < rev, U, -U)
+    ones = np.ones(n)
+    dev = load_device(None).with_(pad=PadParams(m, k, 0.0), friction=FrictionParams(0.6, 0.6))
+    S, f, ph, x, v, wf, wd, et, ea = run_kernel(get_model("exact", dev), t, V, 0.5 * ones, 0.6 * ones,
+                                                0.6 * ones, ones)
+    assert S["truncated"] == 0 and et.size == 2
+    # closed form
+    tR = t[rev - 1]
+    tau = tR - thr / (k * U)                          # since the breakaway (x = thr / k, v = U)
+    x0, v0 = thr / k + U / w * math.sin(w * tau), U * math.cos(w * tau)
+    y0 = x0 + thr / k                                 # slip about -thr / k until v = -U
+    a = (math.acos(-U / math.hypot(v0, w * y0)) - math.atan2(w * y0, v0)) % (2 * math.pi)
+    x1 = -thr / k + y0 * math.cos(a) + v0 / w * math.sin(a)
+    yp = x1 - thr / k
+    assert k * x1 > thr                               # beyond the limit: the friction turns back
+    t2 = tR + a / w + 2 * math.atan(w * yp / U) / w    # back at -U at the mirror point, f = thr - k yp
+    tb = t2 + (2 * thr - k * yp) / (k * U)
+    assert et[0] == pytest.approx(thr / (k * U), abs=1e-15)
+    assert abs(et[1] - tb) < 1e-12
+    assert np.all(ph[rev:int(tb / 1e-4)] == 0.0)
+
+
 def test_v_zero_long_stick_no_creep():
     r = simulate_pad("exact", V=0.0, N=2.0, pad=KONYO, tick_rate=1000, duration=0.5)
     assert len(r.event_time) == 0 and np.all(r.state == 0) and np.all(r.x == 0)

@@ -22,7 +22,7 @@ REGISTRY = (
     ('tanh', 'tanh_tick', None),
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py.
-KERNEL_SOURCES_SHA256 = "794ffe03f453c16d8e4452030e0d8477a97a94bbfb2033d6689b245e05316d06"
+KERNEL_SOURCES_SHA256 = "578e793c80f11e415f0fec68c98d661a2992182658815a216659943b248d97c9"
 
 
 @njit(cache=True)

@@ -448,7 +448,6 @@ def run_kernel(model: PadModel, t, V, N, mus, muk, gain, state=None, out=None):
     """
     # Short paths (a few hundred ticks) cost about as much in this Python wrapper as in the compiled
     # loop: one allocation for the six outputs, one for both event rows, a cached initial state.
-    from . import pads
     check_dispatch()
     n = t.shape[0]
     cap = n // 8 + 1024          # grown and re-run if a path has more events
@@ -467,8 +466,8 @@ def run_kernel(model: PadModel, t, V, N, mus, muk, gain, state=None, out=None):
         cap = n_ev + 64
     st = S[0]
     if S["truncated"][0] > 0:
-        raise ModelError(f"model '{model.name}' exceeded {pads.MAX_EVENTS_PER_TICK} phase changes in one tick "
-                         f"({int(st['truncated'])} ticks); inputs are outside the model's range")
+        raise ModelError(f"model '{model.name}' reached its cap on phase changes in one tick "
+                         f"({int(st['truncated'])} ticks cut); inputs are outside the model's range")
     ev = ev[:, :n_ev].copy()
     return st, out_f, out_s, out_x, out_v, out_wf, out_wd, ev[0], ev[1]
 

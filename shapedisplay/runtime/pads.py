@@ -61,6 +61,9 @@ from .layouts import PAD_STATE, record
 # ----------------------------------------------------------------- state
 #: Safety cap on phase changes inside one tick (never reached by physical inputs).
 MAX_EVENTS_PER_TICK = 200_000
+#: The exact model's cap on phase changes in a tick of length h: PHASES_BASE + h * 4 omega / pi
+#: (:func:`phase_cap`; the C runtime's SD_PHASES_BASE).
+PHASES_BASE = 32
 _ADMIT = 1.0 - 1e-9      # re-stick admissible if |f| <= _ADMIT * mu_s N
 _ADMIT_TOUCH = 1.0 - 1e-6  # stricter for tangent touches (grazing at the limit is not a re-stick)
 
@@ -248,6 +251,26 @@ def _polish(m, c, k, y0, v0, V, s, lo, hi):
 
 
 @njit(cache=True)
+def phase_rate(m, c, k):
+    """Bound on the phase changes per second of a pad, 4 omega / pi (omega the damped frequency, or the
+    natural one when the pad is not under-damped): a stick-slip cycle is two phases and its slip lasts at
+    least a quarter of the damped period."""
+    sig = 0.5 * c / m
+    wn2 = k / m
+    disc = sig * sig - wn2
+    under = disc < -1e-10 * wn2
+    return 4.0 * (math.sqrt(-disc) if under else math.sqrt(wn2)) / math.pi
+
+
+@njit(cache=True)
+def phase_cap(m, c, k, h):
+    """Phase changes a tick of length ``h`` may take: PHASES_BASE + h * 4 omega / pi, at most
+    MAX_EVENTS_PER_TICK (also for NaN); the phases cut by the tick's edges are in the base."""
+    n = PHASES_BASE + h * phase_rate(m, c, k)
+    return int(n) if n < MAX_EVENTS_PER_TICK else MAX_EVENTS_PER_TICK
+
+
+@njit(cache=True)
 def slip_search(m, c, k, y0, v0, V, s, rem, tmin):
     """Find the first re-stick candidate of a slip phase within ``rem`` seconds.
 
@@ -255,8 +278,19 @@ def slip_search(m, c, k, y0, v0, V, s, rem, tmin):
     velocity through zero, 2 near-tangent touch (|w| below a round-off
     tolerance at an extremum). Touches before ``tmin`` are ignored (used to
     step past a grazing touch that was not a re-stick).
+
+    A slip that starts with the relative velocity already past zero by more
+    than round-off (``w(0) < -tol``: the surface velocity changed at a tick
+    boundary) crosses at once: kind 1 at t = 0.
     """
     tol = 1e-12 * (abs(V) + abs(v0)) + 1e-300
+    if -s * (v0 - V) < -tol:
+        return 1, 0.0
+    # acceleration zeros are pi / omega_d apart: at most rem omega_d / pi + 1 = rem phase_rate / 4 + 1 of
+    # them in rem, plus grazing touches stepped over; twice that bounds the loop (then kind 0)
+    nmax = 8.0 + rem * phase_rate(m, c, k) * 0.5
+    n_cap = int(nmax) if nmax < MAX_EVENTS_PER_TICK else MAX_EVENTS_PER_TICK
+    n_it = 0
     # quick rejection: |v(t)| bounded by the oscillation envelope
     sig = 0.5 * c / m
     wn2 = k / m
@@ -269,6 +303,9 @@ def slip_search(m, c, k, y0, v0, V, s, rem, tmin):
             return 0, rem
     ta = 0.0
     while True:
+        n_it += 1
+        if n_it > n_cap:
+            return 0, rem
         tz = _next_acc_zero(m, c, k, y0, v0, ta)
         interior = tz < rem
         tb = tz if interior else rem
@@ -416,10 +453,11 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
     t = 0.0
     nev0 = n_ev
     it = 0
+    it_cap = phase_cap(m, c, k, h)
     tmin = 0.0
     while t < h:
         it += 1
-        if it > MAX_EVENTS_PER_TICK:
+        if it > it_cap:
             st.truncated += 1
             break
         rem = h - t
@@ -464,14 +502,23 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
             t = h
             break
         fst = k * x + c * V
-        # no static friction at all (N = 0 or mu_s = 0): the pad never sticks again
-        if mus * N > 0.0 and abs(fst) <= (_ADMIT if kind == 1 else _ADMIT_TOUCH) * mus * N:
+        thr = mus * N
+        # Re-stick if static friction holds the pad: the stick force well inside the limit, or at the limit
+        # and moving inwards (the stick lasts; at the limit and moving outwards it would end at once, a
+        # stick of zero length). No static friction at all (N = 0 or mu_s = 0): never again.
+        afs = abs(fst)
+        if thr > 0.0 and (afs <= (_ADMIT if kind == 1 else _ADMIT_TOUCH) * thr
+                          or (fst * V <= 0.0 and afs <= thr * (1.0 + 1e-12))):
             phase = 0.0
             # re-stick: the pad takes the surface velocity (|v - V| ~ 1e-15 m/s)
             v = V
             age = 0.0
         elif kind == 1:
+            # the pad passes the surface speed: the friction turns; after a located crossing the slip goes
+            # on from w = 0 (the root's residual |v - V| would otherwise read as a crossing back at once)
             s = -s
+            if tr > 0.0:
+                v = V
         else:
             # grazing touch that is not a re-stick: keep slipping past it; the
             # next touch or crossing is at least one extremum (pi / omega_d) away

@@ -111,7 +111,7 @@ static sd_real polish(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_r
 
 /* First re-stick candidate of a slip within rem seconds: kind 0 none (t = rem), 1 crossing,
  * 2 near-tangent touch. Touches before tmin are ignored (stepping past a grazing touch that
- * was not a re-stick). */
+ * was not a re-stick). A slip starting with w(0) < -tol crosses at once (kind 1, t = 0). */
 static int slip_search(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_real s, sd_real rem, sd_real tmin,
                        sd_real *t_out)
 {
@@ -121,6 +121,12 @@ static int slip_search(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_
     long n_it = 0, n_cap = nmax < SD_R(SD_MAX_EVENTS_PER_TICK) ? (long)nmax : SD_MAX_EVENTS_PER_TICK;
     sd_real tol = SD_R(SD_TOL_GRAZE) * (SD_FABS(V) + SD_FABS(v0)) + SD_R(SD_TINY);
     sd_real sig = P->sig, wn2 = P->wn2, disc = P->disc, ta = SD_R(0.0);
+    /* the relative velocity already past zero by more than rounding (the surface velocity changed at a
+     * tick boundary): a crossing at once */
+    if (-s * (v0 - V) < -tol) {
+        *t_out = SD_R(0.0);
+        return 1;
+    }
     if (sig >= SD_R(0.0) && disc < -SD_R(1e-10) * wn2) {
         sd_real wd = P->wd, bv = (wn2 * y0 + sig * v0) / wd, amp = SD_SQRT(v0 * v0 + bv * bv);
         if (s * V - amp > SD_R(2.0) * tol) {
@@ -189,7 +195,7 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, s
     it = 0;
     tmin = SD_R(0.0);
     while (t < h) {
-        sd_real rem, F, xeq, y0, tr, y1, v1, fst;
+        sd_real rem, F, xeq, y0, tr, y1, v1, fst, lim, afs;
         int kind;
         it += 1;
         if (it > it_cap) {
@@ -253,13 +259,21 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, s
             break;
         }
         fst = k * x + c * V;
-        /* no static friction at all (N = 0 or mu_s = 0): the pad never sticks again */
-        if (mus * N > SD_R(0.0) && SD_FABS(fst) <= (kind == 1 ? ADMIT : ADMIT_TOUCH) * mus * N) {
+        lim = mus * N;
+        afs = SD_FABS(fst);
+        /* re-stick if static friction holds the pad: well inside the limit, or at the limit and moving
+         * inwards (at the limit and moving outwards the stick would end at once). No static friction at
+         * all (N = 0 or mu_s = 0): the pad never sticks again */
+        if (lim > SD_R(0.0) && (afs <= (kind == 1 ? ADMIT : ADMIT_TOUCH) * lim
+                                || (fst * V <= SD_R(0.0) && afs <= lim * (SD_R(1.0) + SD_R(SD_TOL_BREAK))))) {
             phase = SD_R(0.0);
             v = V;
             age = SD_R(0.0);
         } else if (kind == 1) {
+            /* the pad passes the surface speed: the friction turns; after a located crossing the slip
+             * goes on from w = 0 (the root's residual would read as a crossing back at once) */
             s = -s;
+            if (tr > SD_R(0.0)) v = V;
         } else {
             /* grazing touch that is not a re-stick: keep slipping past it; the next touch or
              * crossing is at least one extremum (pi / omega_d) away */

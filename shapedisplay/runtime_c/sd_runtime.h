@@ -26,9 +26,9 @@ extern "C" {
  * when it is not under-damped), never more than SD_MAX_EVENTS_PER_TICK. A stick-slip cycle is two
  * phases and its slip lasts at least a quarter of the damped period, pi / (2 omega): a tick of length h
  * holds at most 4 h omega / pi of them, plus the phases cut by the tick's edges. A tick that reaches the
- * cap stops there and counts it (pad state `truncated`): only degenerate pads do (e.g. the exact model
- * with c = 0 and mu_k = mu_s, which can cycle through zero-length phases). Measured on a sweep of V up
- * to 1000 m/s, N up to 1000 N, h up to 10 ms: at most 0.25 of the cap. */
+ * cap stops there and counts it (pad state `truncated`; pads.phase_cap is the same cap). Measured on a
+ * sweep of V up to 1000 m/s, N up to 1000 N, h up to 10 ms: at most 0.25 of the cap; the degenerate pad
+ * (exact model, c = 0, mu_k = mu_s, under reversals) takes no zero-length phases either. */
 #define SD_PHASES_BASE 32
 #define SD_MAX_EVENTS_PER_TICK 200000L
 /* Newton/bisection steps of the exact model's re-stick polish (measured at most 46 in double) */
