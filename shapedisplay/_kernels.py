@@ -119,7 +119,19 @@ def clip_magnitude(fx, fy, limit):
 
 def minmax(a):
     """(min, max) of a flat array in one pass (NaN propagates)."""
-    lo = hi = a[0]
+    return minmax_update(a)
+
+
+def minmax_update(a, state=None):
+    """:func:`minmax` of consecutive pieces of one flat array: ``state`` is what the previous piece returned.
+
+    Every piece but the last must hold a whole number of chunks: the pieces
+    then see the chunks :func:`minmax` of the whole array sees, and the
+    result after the last piece is its result (even for NaN and signed zeros).
+    """
+    lo, hi = (a[0], a[0]) if state is None else state
+    if lo != lo:
+        return lo, hi
     for s in _chunks(a.size):
         c = a[s]
         cl, ch = c.min(), c.max()

@@ -145,7 +145,7 @@ def _min_nonzero_abs(values: np.ndarray, lo: float | None = None, hi: float | No
 
 def perceptual_bound(name: str, values: np.ndarray, device, options: CompileOptions,
                      mapping: MappingOptions | None = None, n_min: float | None = None,
-                     _range: tuple | None = None) -> tuple[float, str]:
+                     _range: tuple | None = None, _min_abs=None) -> tuple[float, str]:
     """Largest quantization error of channel ``name`` that is not felt (module docs).
 
     Returns
@@ -167,7 +167,7 @@ def perceptual_bound(name: str, values: np.ndarray, device, options: CompileOpti
         return (w2 * mu_k / mapping.slope_friction_gain,
                 f"w/2 * mu_k / K_mu = {w2:g} * {mu_k:g} / {mapping.slope_friction_gain:g}")
     lo, hi = _range if _range is not None else (None, None)
-    m = _min_nonzero_abs(values, lo, hi)
+    m = _min_nonzero_abs(values, lo, hi) if _min_abs is None else _min_abs()
     if m == 0:
         return math.inf, "channel is zero everywhere"
     return w2 * m, f"w/2 * smallest nonzero |value| = {w2:g} * {m:.6g} {CHANNELS[name][0]}"
@@ -212,9 +212,14 @@ def _choose(name, values, device, options, mapping, n_min):
     if values.size == 0:
         raise InputError(f"channel '{name}' is empty")
     lo, hi = _minmax(values)
+    return _choose_range(name, lo, hi, values, device, options, mapping, n_min)
+
+
+def _choose_range(name, lo, hi, values, device, options, mapping, n_min, min_abs=None):
+    """:func:`_choose` once the channel's range is known (``min_abs``: smallest nonzero |value|, when asked)."""
     if not (math.isfinite(lo) and math.isfinite(hi)):
         raise InputError(f"channel '{name}' holds NaN/inf values; cannot quantize")
-    bound, rule = perceptual_bound(name, values, device, options, mapping, n_min, (lo, hi))
+    bound, rule = perceptual_bound(name, values, device, options, mapping, n_min, (lo, hi), min_abs)
     if options.quantize != "auto":
         return _coding(options.quantize, lo, hi), bound, rule
     for dt in ("uint8", "uint16", "float32"):
@@ -325,6 +330,213 @@ def compile_heightfield(hf: HeightField, device=None, mapping: MappingOptions = 
                          + "; ".join(f"{k}: {v}" for k, v in left_out.items() if k in
                                      ("normal_force", "grad_x", "lateral_x", "skin_stretch")))
 
+    band = _band_rows(hf, kept, mapping, options)
+    if band:
+        walls, codes, quant, qinfo, clamped = _compile_by_bands(hf, device, mapping, options, kept, band)
+    else:
+        walls, codes, quant, qinfo, clamped = _compile_whole(hf, device, mapping, options, kept)
+    return _assemble(hf, device, mapping, options, kept, left_out, walls, codes, quant, qinfo, clamped)
+
+
+def _qinfo(q, bound, rule) -> dict:
+    return {"dtype": q.dtype, "scale": q.scale, "offset": q.offset, "max_error": float(q.max_error),
+            "bound": None if math.isinf(bound) else bound, "rule": rule, "meets_bound": bool(q.max_error <= bound)}
+
+
+def _limited(walls, kept, options) -> bool:
+    """Set ``walls.limited``; True if the wall slopes are to be clipped."""
+    uses_slopes = any(n in kept for n in ("grad_x", "grad_y", "lateral_x", "lateral_y"))
+    if walls.count == 0:
+        walls.limited = "no walls"
+    elif not uses_slopes:
+        walls.limited = "not needed: no kept channel uses slopes (N steps where the walls are)"
+    elif options.limit_walls:
+        walls.limited = f"slope magnitude clipped to {options.max_slope:g}, direction kept"
+        return True
+    else:
+        walls.limited = "not limited (limit_walls=False)"
+    return False
+
+
+#: Maps of at least this many samples compile a band of rows at a time when they can (:func:`_band_rows`).
+BANDS_MIN_SIZE = 1 << 20
+#: Samples per band, about (2 MiB per float64 array of a band).
+BAND_SAMPLES = 1 << 18
+
+
+def _band_rows(hf, kept, mapping, options) -> int:
+    """Rows per band if this compile can run band by band (:func:`_compile_by_bands`), else 0.
+
+    Band by band: central slopes; only normal_force (from height, no
+    perceptual reshaping) and the gradient law's lateral_x/lateral_y kept.
+    A band holds a whole number of the range passes' chunks, so every range
+    is the whole array's bit for bit.
+    """
+    from ._kernels import CHUNK
+    if hf.heights.size < max(BANDS_MIN_SIZE, KERNEL_MIN_SIZE) or hf.rows < 3 or hf.cols < 3 \
+            or options.gradient_method != "central" or not set(kept) <= {"normal_force", "lateral_x", "lateral_y"}:
+        return 0
+    if "normal_force" in kept and (not mapping.height or mapping.perceptual_exponent is not None
+                                   or math.copysign(1.0, mapping.n_base) < 0):   # -0.0 would make -0.0 forces
+        return 0
+    if "lateral_x" in kept and mapping.lateral != "gradient":
+        return 0
+    unit = CHUNK // math.gcd(hf.cols, CHUNK)
+    band = unit * max(1, BAND_SAMPLES // (unit * hf.cols))
+    return band if band < hf.rows else 0
+
+
+def _encode_into(q: Quantization, values: np.ndarray, out: np.ndarray) -> None:
+    """``out[...] = _encode(q, values)`` for a band of a large channel (flat, C-contiguous)."""
+    if q.dtype in _TOP and q.scale > 0:
+        from . import _kernels
+        _kernels.encode(values, q.offset, q.scale, float(_TOP[q.dtype]), out)
+    else:
+        out[...] = q.encode(values)
+
+
+def _compile_by_bands(hf, device, mapping, options, kept, band):
+    """What :func:`_compile_whole` computes, a band of rows at a time.
+
+    The slopes, N and the lateral forces never exist as whole float64
+    arrays (on a 4096x4096 map, 384 MiB of memory the process does not take
+    from the system, page by page; a band's arrays stay in the CPU cache).
+    Pass 1 finds the walls and each channel's range; pass 2 computes each
+    band again and codes it. Every value comes from the same operations on
+    the same samples as the whole-array path: the same table bit for bit
+    (the tests compare them). Rare cases (clamped N, a range that needs the
+    smallest nonzero value) take one more pass.
+    """
+    from . import _kernels
+    from .forces import _check_lateral_peak, clamp_note, lateral_clip_note
+    from .gradients import WallReport, _check_steepest, central_band, wall_report
+
+    h = hf.heights
+    rows, cols = h.shape
+    limit = options.max_slope
+    need_n = bool(mapping.height) and "normal_force" in kept
+    lateral = "lateral_x" in kept
+    lo_n, hi_n = device.normal_force_range
+    fmax = float(device.lateral_force_max)
+    gxb, gyb = np.empty((band, cols)), np.empty((band, cols))
+    nb = np.empty((band, cols)) if need_n else None
+    bands = [(r0, min(r0 + band, rows)) for r0 in range(0, rows, band)]
+
+    def forces_n(r0, r1, clamp):
+        n = np.multiply(h[r0:r1], mapping.n_gain, out=nb[:r1 - r0])
+        n += mapping.n_base
+        if clamp:
+            np.clip(n, lo_n, hi_n, out=n)
+        return n.reshape(-1)
+
+    def forces_lateral(r0, r1, wall_mask):
+        gx, gy = gxb[:r1 - r0], gyb[:r1 - r0]
+        central_band(h, hf.dx, hf.dy, r0, r1, gx, gy)
+        fx, fy = gx.reshape(-1), gy.reshape(-1)
+        if wall_mask is not None:
+            _kernels.clip_where(fx, fy, limit, wall_mask[r0 * cols:r1 * cols])
+        np.multiply(fx, -mapping.lateral_gain, out=fx)
+        np.multiply(fy, -mapping.lateral_gain, out=fy)
+        return fx, fy, _kernels.clip_magnitude(fx, fy, fmax if fmax > 0 else math.inf)
+
+    # -- pass 1: walls, ranges
+    mask, count, peak2 = None, 0, 0.0
+    n_range = fx_range = fy_range = None
+    lat_count, lat_peak = 0, 0.0
+    clip_walls = lateral and options.limit_walls
+    for r0, r1 in bands:
+        gx, gy = gxb[:r1 - r0], gyb[:r1 - r0]
+        central_band(h, hf.dx, hf.dy, r0, r1, gx, gy)
+        fx, fy = gx.reshape(-1), gy.reshape(-1)
+        c, p2, m = _kernels.wall_scan(fx, fy, limit * limit)
+        peak2 = max(peak2, p2)
+        if c:
+            if not math.isinf(limit):
+                _check_steepest(hf, math.sqrt(p2))    # what the whole-array scan refuses, before anything else
+            if mask is None:
+                mask = np.zeros(rows * cols, dtype=bool)
+            mask[r0 * cols:r1 * cols] = m
+            count += c
+            if clip_walls:
+                _kernels.clip_where(fx, fy, limit, m)
+        if need_n:
+            n_range = _kernels.minmax_update(forces_n(r0, r1, False), n_range)
+        if lateral:
+            np.multiply(fx, -mapping.lateral_gain, out=fx)
+            np.multiply(fy, -mapping.lateral_gain, out=fy)
+            cnt, peak = _kernels.clip_magnitude(fx, fy, fmax if fmax > 0 else math.inf)
+            lat_count += cnt
+            lat_peak = max(lat_peak, peak)
+            fx_range = _kernels.minmax_update(fx, fx_range)
+            fy_range = _kernels.minmax_update(fy, fy_range)
+    steepest = math.sqrt(peak2)
+    if math.isinf(limit) or count == 0:
+        walls = WallReport(np.zeros(h.shape, dtype=bool), 0, 0.0, limit, steepest)
+    else:
+        _check_steepest(hf, steepest)
+        walls = wall_report(hf, mask.reshape(h.shape), count, limit, steepest)
+    wall_mask = mask if _limited(walls, kept, options) else None
+    walls.mask = mask = None
+
+    codes, quant, qinfo, clamped = {}, {}, {}, {}
+
+    def min_abs(values_of):   # smallest nonzero |value| over the bands (as _min_nonzero_abs)
+        m = math.inf
+        for r0, r1 in bands:
+            a = np.abs(values_of(r0, r1))
+            a[a == 0] = np.inf
+            m = min(m, float(a.min()))
+        return m if math.isfinite(m) else 0.0
+
+    def choose(name, rng, n_min, values_of):
+        lo, hi = float(rng[0]), float(rng[1])
+        q, bound, rule = _choose_range(name, lo, hi, None, device, options, mapping, n_min,
+                                       lambda: lo if lo > 0 else -hi if hi < 0 else min_abs(values_of))
+        quant[name] = q
+        qinfo[name] = _qinfo(q, bound, rule)
+        codes[name] = np.empty(h.shape, dtype=np.dtype(q.dtype))
+
+    n_min = min(max(mapping.n_base, lo_n), hi_n)
+    clamp = False
+    if need_n:
+        amin, amax = float(n_range[0]), float(n_range[1])
+        below = above = 0
+        clamp = amin < lo_n or amax > hi_n
+        if clamp:   # count and clamp, and the range of the clamped forces
+            n_range = None
+            for r0, r1 in bands:
+                n = forces_n(r0, r1, False)
+                below += int(np.count_nonzero(n < lo_n)) if amin < lo_n else 0
+                above += int(np.count_nonzero(n > hi_n)) if amax > hi_n else 0
+                np.clip(n, lo_n, hi_n, out=n)
+                n_range = _kernels.minmax_update(n, n_range)
+        clamped["normal_force"] = clamp_note(lo_n, hi_n, "N", amin, amax, below, above, h.size)
+        vmin, vmax = float(n_range[0]), float(n_range[1])
+        n_of = lambda r0, r1: forces_n(r0, r1, clamp)   # noqa: E731
+        n_min = (vmin if vmin > 0 else -vmax if vmax < 0 else min_abs(n_of)) or n_min
+        choose("normal_force", n_range, None, n_of)
+    if lateral:
+        _check_lateral_peak(lat_peak)
+        clamped["lateral"] = lateral_clip_note(fmax, lat_count, lat_peak, h.size)
+        choose("lateral_x", fx_range, n_min, lambda r0, r1: forces_lateral(r0, r1, wall_mask)[0])
+        if "lateral_y" in kept:
+            choose("lateral_y", fy_range, n_min, lambda r0, r1: forces_lateral(r0, r1, wall_mask)[1])
+
+    # -- pass 2: code each band
+    for r0, r1 in bands:
+        out = slice(r0 * cols, r1 * cols)
+        if need_n:
+            _encode_into(quant["normal_force"], forces_n(r0, r1, clamp), codes["normal_force"].reshape(-1)[out])
+        if lateral:
+            fx, fy, _ = forces_lateral(r0, r1, wall_mask)
+            _encode_into(quant["lateral_x"], fx, codes["lateral_x"].reshape(-1)[out])
+            if "lateral_y" in kept:
+                _encode_into(quant["lateral_y"], fy, codes["lateral_y"].reshape(-1)[out])
+    return walls, codes, quant, qinfo, clamped
+
+
+def _compile_whole(hf, device, mapping, options, kept):
+    """Walls and coded channels computed on whole arrays (any method and mapping)."""
     # -- gradient analysis (walls are analysed for every compile)
     gx, gy = gradient(hf, options.gradient_method, **options.gradient_kw)
     # one 8-byte-per-sample scratch array: the wall labels, then the normal force (fresh memory costs a
@@ -332,15 +544,8 @@ def compile_heightfield(hf: HeightField, device=None, mapping: MappingOptions = 
     work = np.empty(hf.shape, dtype=np.float64)
     walls = detect_walls(hf, gx, gy, options.max_slope, work=work)
     uses_slopes = any(n in kept for n in ("grad_x", "grad_y", "lateral_x", "lateral_y"))
-    if walls.count == 0:
-        walls.limited = "no walls"
-    elif not uses_slopes:
-        walls.limited = "not needed: no kept channel uses slopes (N steps where the walls are)"
-    elif options.limit_walls:
+    if _limited(walls, kept, options):
         limit_walls(gx, gy, options.max_slope, out=(gx, gy), walls=walls)
-        walls.limited = f"slope magnitude clipped to {options.max_slope:g}, direction kept"
-    else:
-        walls.limited = "not limited (limit_walls=False)"
     walls.mask = None
     if not uses_slopes:
         del gx, gy
@@ -353,9 +558,7 @@ def compile_heightfield(hf: HeightField, device=None, mapping: MappingOptions = 
         q, bound, rule = _choose(name, values, device, options, mapping, n_min)
         codes[name] = _encode(q, values)
         quant[name] = q
-        qinfo[name] = {"dtype": q.dtype, "scale": q.scale, "offset": q.offset, "max_error": float(q.max_error),
-                       "bound": None if math.isinf(bound) else bound, "rule": rule,
-                       "meets_bound": bool(q.max_error <= bound)}
+        qinfo[name] = _qinfo(q, bound, rule)
 
     n = None
     lo_n, hi_n = device.normal_force_range
@@ -388,8 +591,11 @@ def compile_heightfield(hf: HeightField, device=None, mapping: MappingOptions = 
         s, clamped["skin_stretch"] = skin_stretch(n if mapping.height else None, hf.shape, device, mapping)
         code("skin_stretch", s)
         del s
-    n = None
+    return walls, codes, quant, qinfo, clamped
 
+
+def _assemble(hf, device, mapping, options, kept, left_out, walls, codes, quant, qinfo, clamped):
+    """The table and report from the coded channels."""
     grid = Grid(hf.rows, hf.cols, hf.dx, hf.dy, hf.x0, hf.y0)
     # an extruded profile (every row identical in every stored channel) keeps one row
     repeated = hf.rows > 1 and all(bool((c[1] == c[0]).all()) for c in codes.values()) \

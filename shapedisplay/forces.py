@@ -446,8 +446,14 @@ def _clamp(a: np.ndarray, lo: float, hi: float, name: str, unit: str) -> dict:
     above = int(np.count_nonzero(a > hi)) if amax > hi else 0
     if below or above:
         np.clip(a, lo, hi, out=a)
+    return clamp_note(lo, hi, unit, amin, amax, below, above, a.size)
+
+
+def clamp_note(lo: float, hi: float, unit: str, amin: float, amax: float, below: int, above: int,
+               size: int) -> dict:
+    """The report of a clamp to [lo, hi] of ``size`` values spanning ``amin..amax`` (``below``/``above`` clamped)."""
     return {"range": [lo, hi], "unit": unit, "below": below, "above": above,
-            "fraction": (below + above) / a.size, "max_excess": max(lo - amin, amax - hi, 0.0),
+            "fraction": (below + above) / size, "max_excess": max(lo - amin, amax - hi, 0.0),
             "raw_min": amin, "raw_max": amax}
 
 
@@ -455,6 +461,15 @@ def _check_lateral_peak(peak: float) -> None:
     if not math.isfinite(peak):   # |F|^2 overflowed: clipping would lose the direction (and give 0)
         raise InputError("lateral forces overflow float64 (|F| beyond 1e154 N); check the lateral gain "
                          "and the units of the heights and spacing")
+
+
+def lateral_clip_note(fmax: float, count: int, peak: float, size: int) -> dict:
+    """The report of lateral forces whose magnitude peaked at ``peak`` with ``count`` of ``size`` clipped
+    to ``fmax`` (no limit if ``fmax`` <= 0); refuses an infinite peak."""
+    _check_lateral_peak(peak)
+    return {"range": [0.0, fmax if fmax > 0 else None], "unit": "N", "below": 0, "above": int(count),
+            "fraction": int(count) / size, "max_excess": max(peak - fmax, 0.0) if fmax > 0 else 0.0,
+            "raw_min": 0.0, "raw_max": float(peak), "rule": "magnitude clipped, direction kept"}
 
 
 def lateral_force(gx: np.ndarray, gy: np.ndarray | None, device, mapping: MappingOptions,
@@ -494,11 +509,7 @@ def lateral_force(gx: np.ndarray, gy: np.ndarray | None, device, mapping: Mappin
     if flx is not None and fly is not None and fx.size:
         from . import _kernels
         cnt, peak = _kernels.clip_magnitude(flx, fly, fmax if fmax > 0 else math.inf)
-        _check_lateral_peak(peak)
-        note = {"range": [0.0, fmax if fmax > 0 else None], "unit": "N", "below": 0, "above": int(cnt),
-                "fraction": int(cnt) / fx.size, "max_excess": max(peak - fmax, 0.0) if fmax > 0 else 0.0,
-                "raw_min": 0.0, "raw_max": float(peak), "rule": "magnitude clipped, direction kept"}
-        return fx, fy, note
+        return fx, fy, lateral_clip_note(fmax, cnt, peak, fx.size)
     with np.errstate(over="ignore"):   # an overflow shows as an infinite peak, refused below
         m2 = np.multiply(fx, fx)
         if fy is not None:

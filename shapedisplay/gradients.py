@@ -58,6 +58,26 @@ def _diff_axis(h: np.ndarray, step: float, axis: int, out: np.ndarray) -> np.nda
     return out
 
 
+def central_band(h: np.ndarray, dx: float, dy: float, r0: int, r1: int, gx: np.ndarray, gy: np.ndarray) -> None:
+    """Rows ``r0..r1-1`` of :func:`central`'s slopes of ``h`` (at least 3 x 3), written into ``gx``, ``gy``.
+
+    The same operations on the same samples as the whole-array function, so
+    the same values bit for bit; lets a large map be processed a band of
+    rows at a time.
+    """
+    _diff_axis(h[r0:r1], dx, 1, gx)
+    rows = h.shape[0]
+    lo, hi = max(r0, 1), min(r1, rows - 1)
+    if hi > lo:
+        inner = gy[lo - r0:hi - r0]
+        np.subtract(h[lo + 1:hi + 1], h[lo - 1:hi - 1], out=inner)
+        inner *= 0.5 / dy
+    if r0 == 0:
+        gy[0] = (4.0 * (h[1] - h[0]) - (h[2] - h[0])) * (0.5 / dy)
+    if r1 == rows:
+        gy[rows - 1 - r0] = (4.0 * (h[-1] - h[-2]) - (h[-1] - h[-3])) * (0.5 / dy)
+
+
 def central(hf: HeightField) -> tuple[np.ndarray, np.ndarray]:
     """Central differences, O(dx^2) everywhere (one-sided second order at edges)."""
     h = hf.heights
@@ -293,12 +313,21 @@ def detect_walls(hf: HeightField, gx: np.ndarray, gy: np.ndarray, max_slope: flo
             return WallReport(np.zeros(gx.shape, dtype=bool), 0, 0.0, limit, steepest)
         mask = np.greater(m2, limit * limit, out=np.empty(gx.shape, dtype=bool))
         del m2
+    _check_steepest(hf, steepest)
+    return wall_report(hf, mask, int(np.count_nonzero(mask)), limit, steepest, work)
+
+
+def _check_steepest(hf: HeightField, steepest: float) -> None:
     if not math.isfinite(steepest):
         lo, hi = float(hf.heights.min()), float(hf.heights.max())
         raise InputError(
             f"slopes overflow float64 (|grad h| beyond 1e154): heights {lo:g}..{hi:g} m over spacing "
             f"dx={hf.dx:g} m, dy={hf.dy:g} m; check the units of the size and height range ({hf.source})")
-    count = int(np.count_nonzero(mask))
+
+
+def wall_report(hf: HeightField, mask: np.ndarray, count: int, limit: float, steepest: float,
+                work: np.ndarray | None = None) -> WallReport:
+    """The :class:`WallReport` of ``count`` > 0 wall samples in ``mask`` (regions and their boxes)."""
     labels = None
     if work is not None and work.shape == mask.shape and work.dtype.itemsize == np.dtype(np.intp).itemsize \
             and work.flags.c_contiguous and work.flags.writeable:

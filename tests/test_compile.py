@@ -402,3 +402,132 @@ def test_heights_whose_sum_overflows_are_still_finite():
     h[2, 3] = np.inf
     with pytest.raises(InputError, match="1 NaN/inf samples, first at row 2, col 3"):
         sources.from_array(h, 1e-3)
+
+
+def _compile_both_ways(monkeypatch, hf, device, mapping, options=CompileOptions(), chunk=1024, band_samples=4096):
+    """(banded, whole-array) compiles of ``hf`` (None if it is not compiled band by band): small chunks and
+    bands so that a small map has many of both."""
+    from shapedisplay import _kernels, compile as compile_mod, gradients
+    monkeypatch.setattr(_kernels, "CHUNK", chunk)
+    monkeypatch.setattr(gradients, "KERNEL_MIN_SIZE", 1)      # both ways through the chunked passes
+    monkeypatch.setattr(compile_mod, "KERNEL_MIN_SIZE", 1)
+    monkeypatch.setattr(compile_mod, "BANDS_MIN_SIZE", 1)
+    monkeypatch.setattr(compile_mod, "BAND_SAMPLES", band_samples)
+    kept = compile_mod.needed_channels(device, mapping, hf.is_1d)[0]
+    if not compile_mod._band_rows(hf, [n for n in CHANNELS if n in kept], mapping, options):
+        return None
+    banded = compile_heightfield(hf, device, mapping, options)
+    monkeypatch.setattr(compile_mod, "BANDS_MIN_SIZE", 1 << 60)
+    whole = compile_heightfield(hf, device, mapping, options)
+    return banded, whole
+
+
+def _assert_same_table(a, b):
+    assert a.report == b.report
+    assert a.table.quant == b.table.quant and a.table.meta == b.table.meta
+    for name in b.table.channels:
+        assert a.table.codes[name].dtype == b.table.codes[name].dtype
+        assert np.array_equal(a.table.codes[name], b.table.codes[name]), name
+    assert a.table.to_bytes() == b.table.to_bytes()
+
+
+def _noisy_map(rows, cols, seed, noise=3e-5):
+    rng = np.random.default_rng(seed)
+    return np.cumsum(rng.normal(0, 2e-5, (rows, cols)), axis=1) + rng.normal(0, noise, (rows, cols))
+
+
+@pytest.mark.parametrize("rows, cols", [(300, 256), (257, 300), (301, 300), (40, 4096)])
+@pytest.mark.parametrize("gain", ["1N", "3N"])
+def test_banded_compile_gives_the_whole_array_table(monkeypatch, rows, cols, gain):
+    """Band by band (slopes, walls, N and lateral forces a band of rows at a time, two passes) is the same
+    table bit for bit as the whole-array compile: walls, clipping, ranges, codes, report."""
+    hf = sources.from_array(_noisy_map(rows, cols, rows), 0.1e-3)
+    banded, whole = _compile_both_ways(monkeypatch, hf, RIG, MappingOptions.parse("height+lateral", lateral_gain=gain))
+    assert whole.report["walls"]["count"] > 1000 and whole.report["walls"]["regions"] > 100
+    assert (whole.report["clamped"]["lateral"]["above"] > 0) == (gain == "3N")    # 1.5 N at most on this rig
+    _assert_same_table(banded, whole)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2 ** 32 - 1), rows=st.integers(17, 90), cols=st.integers(3, 70),
+       noise=st.sampled_from([0.0, 1e-6, 3e-5, 1e-3]), gain=st.sampled_from(["0.2N/mm", "1N/mm", "40N/mm"]),
+       base=st.sampled_from(["0N", "0.5N", "3N"]), max_slope=st.sampled_from([0.3, 1.0, np.inf]),
+       limit=st.booleans(), quantize=st.sampled_from(["auto", "uint8", "uint16", "float32"]),
+       lateral=st.sampled_from(["height", "height+lateral", "lateral"]))
+def test_banded_compile_property(seed, rows, cols, noise, gain, base, max_slope, limit, quantize, lateral):
+    import contextlib
+
+    from hypothesis import assume
+    hf = sources.from_array(_noisy_map(rows, cols, seed, noise), 0.1e-3)
+    m = MappingOptions.parse(lateral, n_gain=gain, n_base=base)
+    opts = CompileOptions(quantize=quantize, max_slope=max_slope, limit_walls=limit)
+    with pytest.MonkeyPatch.context() as mp:
+        try:
+            both = _compile_both_ways(mp, hf, RIG, m, opts, chunk=16, band_samples=64)
+            assume(both is not None)
+            banded, whole = both
+        except InputError as exc:       # refused: the whole-array compile refuses with the same message
+            mp.setattr("shapedisplay.compile.BANDS_MIN_SIZE", 1 << 60)
+            with pytest.raises(InputError) as again:
+                compile_heightfield(hf, RIG, m, opts)
+            assert str(again.value) == str(exc)
+            return
+    _assert_same_table(banded, whole)
+    with contextlib.suppress(KeyError):
+        assert banded.report["clamped"]["normal_force"] == whole.report["clamped"]["normal_force"]
+
+
+@pytest.mark.filterwarnings("ignore:overflow encountered")
+def test_banded_compile_refuses_overflowing_slopes_as_the_whole_array_compile(monkeypatch):
+    h = np.zeros((40, 50))
+    h[20, 25] = 1e300
+    hf = sources.from_array(h, 1e-9)
+    for size in (1, 1 << 60):
+        monkeypatch.setattr("shapedisplay.compile.BANDS_MIN_SIZE", size)
+        monkeypatch.setattr("shapedisplay.compile.BAND_SAMPLES", 256)
+        monkeypatch.setattr("shapedisplay._kernels.CHUNK", 64)
+        with pytest.raises(InputError, match="slopes overflow float64"):
+            compile_heightfield(hf, RIG, MappingOptions.parse("height+lateral"))
+
+
+def test_banded_compile_only_where_it_gives_the_same_table():
+    from shapedisplay.compile import _band_rows
+    hf = sources.from_array(np.zeros((2048, 2048)), 0.1e-3)
+    kept = ["normal_force", "lateral_x", "lateral_y"]
+    m = MappingOptions.parse("height+lateral")
+    assert _band_rows(hf, kept, m, CompileOptions()) == 128
+    assert not _band_rows(hf, kept, m, CompileOptions(gradient_method="gaussian"))
+    assert not _band_rows(hf, kept + ["skin_stretch"], m, CompileOptions())
+    assert not _band_rows(hf, kept, MappingOptions.parse("height+lateral-normal"), CompileOptions())
+    assert not _band_rows(hf, kept, MappingOptions.parse("height+lateral+perceptual"), CompileOptions())
+    assert not _band_rows(hf, kept, m.with_(n_base=-0.0), CompileOptions())
+    assert not _band_rows(sources.from_array(np.zeros((100, 100)), 0.1e-3), kept, m, CompileOptions())
+
+
+def test_banded_compile_where_the_bounds_need_the_smallest_nonzero_value(monkeypatch):
+    """N reaching 0 and a frictionless pad: the perceptual bounds come from the smallest nonzero |value|
+    of N and of the lateral forces, which the banded compile finds in extra passes: the same table."""
+    from shapedisplay.devices import FrictionParams
+    dev = RIG.with_(normal_force_range=(0.0, 8.0), friction=FrictionParams(mu_s=0.5, mu_k=0.0))
+    h = _noisy_map(200, 256, 5)
+    h[:, :40] = -1e-3                              # N = 0.5 N + 1 N/mm * h clamps at 0 here
+    hf = sources.from_array(h, 0.1e-3)
+    banded, whole = _compile_both_ways(monkeypatch, hf, dev, MappingOptions.parse("height+lateral"))
+    assert whole.report["clamped"]["normal_force"]["below"] > 0
+    assert "smallest nonzero" in whole.report["quantization"]["normal_force"]["rule"]
+    assert "smallest nonzero" in whole.report["quantization"]["lateral_x"]["rule"]
+    _assert_same_table(banded, whole)
+
+
+@settings(max_examples=40, deadline=None)
+@given(rows=st.integers(3, 30), cols=st.integers(3, 12), cuts=st.lists(st.integers(1, 29), max_size=5),
+       seed=st.integers(0, 2 ** 32 - 1))
+def test_central_slopes_of_bands_are_the_whole_map_slopes(rows, cols, cuts, seed):
+    from shapedisplay.gradients import central, central_band
+    h = np.random.default_rng(seed).normal(0, 1e-3, (rows, cols))
+    gx, gy = central(sources.from_array(h, 0.1e-3))
+    edges = sorted({0, rows, *(c for c in cuts if c < rows)})
+    bx, by = np.full_like(h, np.nan), np.full_like(h, np.nan)
+    for r0, r1 in zip(edges, edges[1:]):
+        central_band(h, 0.1e-3, 0.1e-3, r0, r1, bx[r0:r1], by[r0:r1])
+    assert np.array_equal(bx, gx) and np.array_equal(by, gy)
