@@ -340,6 +340,7 @@ _ALL_SLOTS = ("normal_force", "grad_x", "grad_y", "lateral_x", "lateral_y", "ski
 
 
 @pytest.mark.parametrize("model, names, rows, kmu", [
+    ("jump", ("normal_force", "lateral_x", "burst_gain"), -1, 0.0), ("jump", ("normal_force", "lateral_y"), -12, 0.0),
     ("exact", _ALL_SLOTS, 12, 0.3), ("jump", _ALL_SLOTS, 12, 0.3), ("karnopp", _ALL_SLOTS, 12, 0.3),
     ("jump", ("normal_force", "friction_scale", "kinetic_force"), 12, 0.0),
     ("jump", _ALL_SLOTS, 12, 0.0), ("exact", ("normal_force", "lateral_y", "burst_gain"), 12, 0.0),
@@ -349,17 +350,25 @@ def test_fused_lookup_equals_table_sample_and_prepare_inputs_bit_for_bit(model, 
     """The offline render's lookup gives the inputs of FrictionTable.sample + prepare_inputs exactly, on sparse
     blocks with a background, cursor outside too: in one pass (tables whose friction coefficients vary: slope
     term, friction_scale, kinetic_force) and in passes over whole rows (every other table, 2-D and one-row,
-    normal_force missing, negative N and gain clamped)."""
+    normal_force missing, negative N and gain clamped; ``rows < 0``: a dense table of ``-rows`` rows, one block)."""
     from shapedisplay.runtime.layouts import NSLOT, SLOTS
     from shapedisplay.runtime.renderer import INPUT_ROWS, prepare_inputs
     rng = np.random.default_rng(7)
     cols = 20
-    patch = {n: rng.uniform(-0.3, 2.0, (min(5, rows), 7)) for n in names}
-    quant = {n: choose_quantization(v, "uint16") for n, v in patch.items()}
-    t = FrictionTable.from_patches(Grid(rows, cols, 1e-3, 1e-3, 0.5e-3, 0.2e-3),
-                                   [((0 if rows == 1 else 1, 2), patch), ((0 if rows == 1 else 6, 11), patch)], quant,
-                                   {n: 0.4 for n in names}, {"mapping": {"slope_friction_gain": kmu, "n_base": 1.5}})
-    assert len(t.blocks) == 2
+    if rows < 0:
+        rows = -rows
+        dense = {n: rng.uniform(-0.3, 2.0, (rows, cols)) for n in names}
+        t = FrictionTable.from_dense(Grid(rows, cols, 1e-3, 1e-3, 0.5e-3, 0.2e-3), dense,
+                                     {n: choose_quantization(v, "uint16") for n, v in dense.items()}, {})
+        assert len(t.blocks) == 1
+    else:
+        patch = {n: rng.uniform(-0.3, 2.0, (min(5, rows), 7)) for n in names}
+        quant = {n: choose_quantization(v, "uint16") for n, v in patch.items()}
+        t = FrictionTable.from_patches(Grid(rows, cols, 1e-3, 1e-3, 0.5e-3, 0.2e-3),
+                                       [((0 if rows == 1 else 1, 2), patch), ((0 if rows == 1 else 6, 11), patch)],
+                                       quant, {n: 0.4 for n in names},
+                                       {"mapping": {"slope_friction_gain": kmu, "n_base": 1.5}})
+        assert len(t.blocks) == 2
     n = 2500
     cp = CursorPath(np.arange(n) / 10_000.0, rng.uniform(-0.005, 0.03, n), rng.uniform(-0.005, 0.02, n),
                     10_000.0, "random")

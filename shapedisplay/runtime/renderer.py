@@ -258,19 +258,41 @@ def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, s
     if bg.shape[0] > 0:
         cols = grid.cols
         rows = grid.rows
-        for i in range(n):
-            c0, c1, tx = axis_cell_at(fx[i], cols)
-            fx[i] = tx
-            if two_d:
+        # one block covering the canvas (a dense table): a sample's index is the block's offset + r cols + c,
+        # no search over the blocks
+        whole = (blocks.shape[0] == 1 and blocks[0, 0] == 0 and blocks[0, 1] == 0 and blocks[0, 2] == rows
+                 and blocks[0, 3] == cols)
+        off = blocks[0, 4] if whole else 0
+        if whole and not two_d:
+            for i in range(n):
+                c0, c1, tx = axis_cell_at(fx[i], cols)
+                fx[i] = tx
+                i00[i] = off + c0
+                i01[i] = off + c1
+        elif whole:
+            for i in range(n):
+                c0, c1, tx = axis_cell_at(fx[i], cols)
                 r0, r1, ty = axis_cell_at(fy[i], rows)
+                fx[i] = tx
                 fy[i] = ty
-                i00[i] = _packed_index(blocks, r0, c0, last)
-                i01[i] = _packed_index(blocks, r0, c1, last)
-                i10[i] = _packed_index(blocks, r1, c0, last)
-                i11[i] = _packed_index(blocks, r1, c1, last)
-            else:
-                i00[i] = _packed_index(blocks, 0, c0, last)
-                i01[i] = _packed_index(blocks, 0, c1, last)
+                i00[i] = off + r0 * cols + c0
+                i01[i] = off + r0 * cols + c1
+                i10[i] = off + r1 * cols + c0
+                i11[i] = off + r1 * cols + c1
+        else:
+            for i in range(n):
+                c0, c1, tx = axis_cell_at(fx[i], cols)
+                fx[i] = tx
+                if two_d:
+                    r0, r1, ty = axis_cell_at(fy[i], rows)
+                    fy[i] = ty
+                    i00[i] = _packed_index(blocks, r0, c0, last)
+                    i01[i] = _packed_index(blocks, r0, c1, last)
+                    i10[i] = _packed_index(blocks, r1, c0, last)
+                    i11[i] = _packed_index(blocks, r1, c1, last)
+                else:
+                    i00[i] = _packed_index(blocks, 0, c0, last)
+                    i01[i] = _packed_index(blocks, 0, c1, last)
     # each stored channel into its row (N, gain, lateral x/y, skin target); a missing one gets its default
     for s, row, default in ((Slot.NORMAL_FORCE, 3, cfg.normal_force_constant), (Slot.BURST_GAIN, 6, 1.0),
                             (Slot.LATERAL_X, 7, 0.0), (Slot.LATERAL_Y, 8, 0.0),
