@@ -71,11 +71,12 @@ import math
 import numpy as np
 from numba import njit
 
+from .exactdiv import div_fixed, divisor_ok, span_ok
 from .layouts import BURST_POLICIES, BURST_STATE, Policy, record
 from .settings import MAX_AUDIO_SAMPLES, audio_length, policy_id  # noqa: F401 (their home is .settings)
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to layouts.py (Policy).
-KERNEL_SOURCES_SHA256 = "1de118086c95548d5800b081f3c9cd9c1b6f930a02e5cc6b4dce292b82ecfd89"
+KERNEL_SOURCES_SHA256 = "9892df14a5477877c3ae9769c859defdc285d80a3f2149f1cecba8d4f22bdb79"
 #: Carrier re-anchored with sin/cos every this many samples (rotation in between).
 CARRIER_BLOCK = 64
 
@@ -381,8 +382,18 @@ def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy,
     :func:`_segment` and :func:`_sums`, so bit for bit the same. The pieces' bounds come from the same
     comparisons, searched from the index the event time gives.
     """
-    for j in range(n):
-        out[j] = t_origin + j / rate
+    # the divisions by the rate, rise and decay are multiply-adds with the same bits (.exactdiv) where its
+    # conditions hold: on the divisors here, on each piece's dividends (monotone along it) at its two ends
+    yr = 1.0 / rate
+    yrise = 1.0 / rise
+    ydecay = 1.0 / decay
+    fast = divisor_ok(rate) and divisor_ok(rise) and divisor_ok(decay)
+    if fast:
+        for j in range(n):
+            out[j] = t_origin + div_fixed(float(j), rate, yr)
+    else:
+        for j in range(n):
+            out[j] = t_origin + j / rate
     if policy == Policy.ADD:
         j = 0
         while j < n:
@@ -398,12 +409,22 @@ def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy,
                 q0 = BS.q0
                 q1 = BS.q1
                 q2 = BS.q2
-                for m in range(v.shape[0]):
-                    dt = v[m] - tref
-                    e = (ra * dt - rat) / rise
-                    x = dt / decay
-                    e += q0 - 2.0 * q1 * x + q2 * x * x
-                    v[m] = e if e > 0.0 else 0.0
+                d0 = v[0] - tref
+                d1 = v[v.shape[0] - 1] - tref
+                if fast and span_ok(d0, d1) and span_ok(ra * d0 - rat, ra * d1 - rat):
+                    for m in range(v.shape[0]):
+                        dt = v[m] - tref
+                        e = div_fixed(ra * dt - rat, rise, yrise)
+                        x = div_fixed(dt, decay, ydecay)
+                        e += q0 - 2.0 * q1 * x + q2 * x * x
+                        v[m] = e if e > 0.0 else 0.0
+                else:
+                    for m in range(v.shape[0]):
+                        dt = v[m] - tref
+                        e = (ra * dt - rat) / rise
+                        x = dt / decay
+                        e += q0 - 2.0 * q1 * x + q2 * x * x
+                        v[m] = e if e > 0.0 else 0.0
             j = k
         return
     retrigger = policy == Policy.RETRIGGER
@@ -430,15 +451,24 @@ def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy,
         # samples j .. k-1 play segment (te, e0, a): rise until tau >= rise, decay until u >= decay, then 0
         m1 = _first_not_below(out, j, k, _index_near(te + rise, t_origin, rate), te, rise)
         v = out[j:m1]                    # (loops over views: the compiler vectorises them, not range(j, m1))
-        for m in range(v.shape[0]):
-            v[m] = e0 + (a - e0) * ((v[m] - te) / rise)
+        if v.shape[0] > 0 and fast and span_ok(v[0] - te, v[v.shape[0] - 1] - te):
+            for m in range(v.shape[0]):
+                v[m] = e0 + (a - e0) * div_fixed(v[m] - te, rise, yrise)
+        else:
+            for m in range(v.shape[0]):
+                v[m] = e0 + (a - e0) * ((v[m] - te) / rise)
         m2 = m1
         if m1 < k:
             m2 = _first_not_below2(out, m1, k, _index_near(te + rise + decay, t_origin, rate), te, rise, decay)
             v = out[m1:m2]
-            for m in range(v.shape[0]):
-                r = 1.0 - ((v[m] - te) - rise) / decay
-                v[m] = a * r * r
+            if v.shape[0] > 0 and fast and span_ok((v[0] - te) - rise, (v[v.shape[0] - 1] - te) - rise):
+                for m in range(v.shape[0]):
+                    r = 1.0 - div_fixed((v[m] - te) - rise, decay, ydecay)
+                    v[m] = a * r * r
+            else:
+                for m in range(v.shape[0]):
+                    r = 1.0 - ((v[m] - te) - rise) / decay
+                    v[m] = a * r * r
         out[m2:k] = 0.0
         j = k
     BS.i_in = i_in

@@ -33,8 +33,8 @@ C_DIR = HERE.parent / "runtime_c"
 #: Runtime modules whose cached kernels use other files, and those files (in generation order).
 KERNEL_DEPENDENCIES = {
     "dispatch.py": ("pads.py",),
-    "bursts.py": ("layouts.py",),
-    "renderer.py": ("dispatch.py", "lookup.py", "bursts.py", "layouts.py"),
+    "bursts.py": ("layouts.py", "exactdiv.py"),
+    "renderer.py": ("dispatch.py", "lookup.py", "bursts.py", "layouts.py", "exactdiv.py"),
 }
 _HASH_LINE = re.compile(r'^KERNEL_SOURCES_SHA256 = "[0-9a-f]*"$', re.M)
 _OUTS = ("out_f, out_state, out_x, out_v, out_wf, out_wd")

@@ -76,7 +76,7 @@ _RING = 4096
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "3d5c1b8ce3fc2a90c77d8ccf674c51f27b864079fc63ec4e3de9095371ace25b"
+KERNEL_SOURCES_SHA256 = "acdd695a57b61372eba0340fb9571fccee91895bfca02dacd40bfa8592cc2112"
 
 
 @njit(cache=True, inline="always")
