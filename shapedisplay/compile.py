@@ -437,7 +437,9 @@ def _compile_by_bands(hf, device, mapping, options, kept, band):
             _kernels.clip_where(fx, fy, limit, wall_mask[r0 * cols:r1 * cols])
         np.multiply(fx, -mapping.lateral_gain, out=fx)
         np.multiply(fy, -mapping.lateral_gain, out=fy)
-        return fx, fy, _kernels.clip_magnitude(fx, fy, fmax if fmax > 0 else math.inf)
+        if lat_count:   # else pass 1 found no force beyond the limit: clipping would change nothing
+            _kernels.clip_magnitude(fx, fy, fmax if fmax > 0 else math.inf)
+        return fx, fy
 
     # -- pass 1: walls, ranges
     mask, count, peak2 = None, 0, 0.0
@@ -528,7 +530,7 @@ def _compile_by_bands(hf, device, mapping, options, kept, band):
         if need_n:
             _encode_into(quant["normal_force"], forces_n(r0, r1, clamp), codes["normal_force"].reshape(-1)[out])
         if lateral:
-            fx, fy, _ = forces_lateral(r0, r1, wall_mask)
+            fx, fy = forces_lateral(r0, r1, wall_mask)
             _encode_into(quant["lateral_x"], fx, codes["lateral_x"].reshape(-1)[out])
             if "lateral_y" in kept:
                 _encode_into(quant["lateral_y"], fy, codes["lateral_y"].reshape(-1)[out])

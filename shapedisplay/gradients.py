@@ -347,8 +347,9 @@ def wall_regions(mask: np.ndarray, k: int, *, out: np.ndarray | None = None) -> 
     mask : ndarray (rows, cols) bool
     k : int
         How many of the largest regions to describe.
-    out : ndarray (rows, cols) intp, optional
+    out : ndarray (rows, cols) intp or int32, optional
         Where to write the labels (scratch: overwritten, not part of the result).
+        By default a new int32 array (intp beyond 2**31 samples).
 
     Returns
     -------
@@ -361,7 +362,9 @@ def wall_regions(mask: np.ndarray, k: int, *, out: np.ndarray | None = None) -> 
     spans : list of (row_min, row_max, col_min, col_max)
         Inclusive sample bounds of each region in ``top``.
 
-    Cost: one labelling pass, one histogram of the labels, one pass mapping
+    Cost: one labelling pass, one histogram of the labels (``bincount`` for
+    intp labels; ``np.add.at`` for int32 labels, which ``bincount`` would
+    first copy into intp: twice the memory), one pass mapping
     the chosen labels to ranks and one bounding-box pass over that (all in
     C); choosing the largest is linear in the number of regions (a
     threshold from the histogram of sizes, not a sort or a partition of
@@ -369,15 +372,20 @@ def wall_regions(mask: np.ndarray, k: int, *, out: np.ndarray | None = None) -> 
     """
     label, find_objects = _labelling()
     if out is None:
-        out = np.empty(mask.shape, np.intp)  # bincount's own index type: no converted copy of the labels
-    elif out.shape != mask.shape or out.dtype != np.intp or not out.flags.c_contiguous:
-        raise InputError(f"`out` must be a C-contiguous intp array of shape {mask.shape} "
+        out = np.empty(mask.shape, np.int32 if mask.size < 2 ** 31 else np.intp)
+    elif out.shape != mask.shape or out.dtype not in (np.dtype(np.intp), np.dtype(np.int32)) \
+            or not out.flags.c_contiguous:
+        raise InputError(f"`out` must be a C-contiguous intp or int32 array of shape {mask.shape} "
                          f"(got {out.dtype} {out.shape})")
     labels = out
     n = label(mask, labels)
     if n == 0:
         return 0, np.zeros(0, np.int64), []
-    sizes = np.bincount(labels.reshape(-1), minlength=n + 1)
+    if labels.dtype == np.dtype(np.intp):
+        sizes = np.bincount(labels.reshape(-1), minlength=n + 1)
+    else:
+        sizes = np.zeros(n + 1, np.intp)
+        np.add.at(sizes, labels.reshape(-1), 1)
     sizes[0] = 0
     k = min(k, n)
     # the k-th largest size s_k from a histogram of sizes (sizes above CAP share its top bin; then

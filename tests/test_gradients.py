@@ -211,3 +211,14 @@ def test_wall_regions_beyond_the_size_histogram_and_ties():
     assert spans[0] == (10, 309, 20, 319) and spans[1] == (400, 689, 400, 689)
     n, top, spans = wall_regions(np.zeros((5, 5), bool), 20)
     assert (n, top.size, spans) == (0, 0, [])
+
+
+def test_wall_regions_with_int32_and_intp_labels_agree():
+    from shapedisplay.gradients import wall_regions
+    mask = np.random.default_rng(12).random((90, 110)) < 0.45
+    by32 = wall_regions(mask, 9, out=np.empty(mask.shape, np.int32))
+    bypt = wall_regions(mask, 9, out=np.empty(mask.shape, np.intp))
+    assert by32[0] == bypt[0] and np.array_equal(by32[1], bypt[1]) and by32[2] == bypt[2]
+    assert (by32[0], list(by32[1]), by32[2]) == _regions_by_scipy(mask, 9)
+    with pytest.raises(InputError, match="`out` must be a C-contiguous intp or int32 array"):
+        wall_regions(mask, 9, out=np.empty(mask.shape, np.int16))
