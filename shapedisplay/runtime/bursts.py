@@ -76,7 +76,7 @@ from .layouts import BURST_POLICIES, BURST_STATE, Policy, record
 from .settings import MAX_AUDIO_SAMPLES, audio_length, policy_id  # noqa: F401 (their home is .settings)
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to layouts.py (Policy).
-KERNEL_SOURCES_SHA256 = "9892df14a5477877c3ae9769c859defdc285d80a3f2149f1cecba8d4f22bdb79"
+KERNEL_SOURCES_SHA256 = "d161a2cfcc005bec4fe37e37b5dfa9f253c2ac4e27a90278373ac2a6abf326df"
 #: Carrier re-anchored with sin/cos every this many samples (rotation in between).
 CARRIER_BLOCK = 64
 

@@ -22,7 +22,7 @@ REGISTRY = (
     ('tanh', 'tanh_tick', None),
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py.
-KERNEL_SOURCES_SHA256 = "578e793c80f11e415f0fec68c98d661a2992182658815a216659943b248d97c9"
+KERNEL_SOURCES_SHA256 = "7f8ed0a3729742fb44e8824376256609875e82560edade44bd804cd39523f37e"
 
 
 @njit(cache=True)

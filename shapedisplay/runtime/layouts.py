@@ -72,14 +72,14 @@ PAD_STATE = _layout("PAD_STATE", [
     ("diverged", i8, "1 once an explicit baseline blew up (outputs frozen at zero)"),
     ("truncated", i8, "ticks cut at the safety cap on phase changes"),
     ("n_events", i8, "stick-to-slip events in the last tick"),
-    ("memo_valid", i8, "1 if the memo_* fields hold the last re-stick of the jump model"),
+    ("memo_valid", i8, "nonzero if the memo_* fields hold the last slip outcome (jump: 1; exact: its kind, 1 or 2)"),
     ("memo_s", f8, "memo input: slip direction"),
-    ("memo_x", f8, "memo input: spring stretch at breakaway, m"),
+    ("memo_x", f8, "memo input: spring stretch at breakaway (exact: at the slip start), m"),
     ("memo_v", f8, "memo input: surface velocity, m/s"),
     ("memo_muk", f8, "memo input: kinetic coefficient"),
     ("memo_n", f8, "memo input: normal force, N"),
     ("memo_slip_time", f8, "memo output: slip time, s"),
-    ("memo_x_restick", f8, "memo output: spring stretch at re-stick, m"),
+    ("memo_x_restick", f8, "memo output: spring stretch at re-stick (exact: from the slip equilibrium), m"),
 ])
 
 PAD_PARAMS = _layout("PAD_PARAMS", [

@@ -99,6 +99,11 @@ class PadModel:
         it imports the kernels, which a model used only for its parameters never needs)."""
         return self.new_state()
 
+    @functools.cached_property
+    def _fresh_state_bytes(self) -> bytes:
+        """The bytes of :attr:`_fresh_state` (what :func:`run_kernel` starts each run from)."""
+        return self._fresh_state.tobytes()
+
     @property
     def model_id(self) -> int:
         """Position in :data:`MODELS` (the kernel number of :mod:`.dispatch` and of ``SD_MODEL_*`` in C)."""
@@ -451,13 +456,14 @@ def run_kernel(model: PadModel, t, V, N, mus, muk, gain, state=None, out=None):
     check_dispatch()
     n = t.shape[0]
     cap = n // 8 + 1024          # grown and re-run if a path has more events
-    S0 = model._fresh_state if state is None else np.array(state, dtype=PAD_STATE).reshape(1)
-    S0 = S0.view(np.uint8)       # copied as bytes: numpy copies a structured array field by field
+    # the state is made from its bytes (numpy copies a structured array field by field, and a view of
+    # copied bytes as PAD_STATE costs three times a fresh array over a bytearray)
+    S0 = model._fresh_state_bytes if state is None else np.array(state, dtype=PAD_STATE).reshape(1).tobytes()
     block = np.empty((6, n)) if out is None else out
     out_f, out_s, out_x, out_v, out_wf, out_wd = block
-    run_ticks = _dispatch().run_ticks
+    run_ticks = _RUN_TICKS[0] if _RUN_TICKS else _run_ticks()
     while True:
-        S = S0.copy().view(PAD_STATE)
+        S = np.frombuffer(bytearray(S0), PAD_STATE)
         ev = np.empty((2, cap))
         n_ev = run_ticks(model.model_id, S, model.param_block, t, V, N, mus, muk, gain,
                          out_f, out_s, out_x, out_v, out_wf, out_wd, ev[0], ev[1])
@@ -476,6 +482,15 @@ def _dispatch():
     """The generated dispatch module (imported on first use: it compiles or loads every kernel)."""
     from . import dispatch
     return dispatch
+
+
+#: dispatch.run_ticks once imported (an import statement per run_kernel call costs ~0.7 us)
+_RUN_TICKS: list = []
+
+
+def _run_ticks():
+    _RUN_TICKS.append(_dispatch().run_ticks)
+    return _RUN_TICKS[0]
 
 
 def _as_ticks(value, n, field):

@@ -163,33 +163,50 @@ def _acc(m, c, k, y, v):
 
 
 @njit(cache=True)
+def _acc_zero_phase(sig, wn2, wd, y0, v0):
+    """Under-damped free oscillator from (y0, v0): the phase ``th1`` (rad, in (0, pi]) of its first
+    acceleration zero after t = 0, the zeros being at ``(th1 + n pi) / wd``; -1 if the acceleration is 0."""
+    a0 = -2.0 * sig * v0 - wn2 * y0
+    j0 = -2.0 * sig * a0 - wn2 * v0
+    bb = (j0 + sig * a0) / wd
+    if a0 == 0.0 and bb == 0.0:
+        return -1.0
+    # a(t) ~ a0 cos(th) + bb sin(th) = R cos(th - phi); zeros at th = phi + pi/2 + n pi
+    phi = math.atan2(bb, a0)
+    th1 = (phi + 0.5 * math.pi) % math.pi
+    if th1 < 1e-9 or th1 > math.pi - 1e-9:
+        # the zero at t = 0 is the start point itself
+        th1 = math.pi if th1 > 1.0 else th1 + math.pi
+        if th1 < math.pi:
+            th1 = math.pi
+    return th1
+
+
+@njit(cache=True)
+def _acc_zero_after(th1, wd, after):
+    """First acceleration zero ``(th1 + n pi) / wd`` later than ``after`` (s); inf if ``th1 < 0``."""
+    if th1 < 0.0:
+        return np.inf
+    tz = th1 / wd
+    if tz <= after:
+        nper = math.floor((after - tz) * wd / math.pi) + 1.0
+        tz = (th1 + nper * math.pi) / wd
+        while tz <= after:
+            tz += math.pi / wd
+    return tz
+
+
+@njit(cache=True)
 def _next_acc_zero(m, c, k, y0, v0, after):
     """First time > ``after`` (s) where the free oscillator's acceleration is 0; inf if none."""
     sig = 0.5 * c / m
     wn2 = k / m
     disc = sig * sig - wn2
-    a0 = -2.0 * sig * v0 - wn2 * y0
-    j0 = -2.0 * sig * a0 - wn2 * v0
     if disc < -1e-10 * wn2:
         wd = math.sqrt(-disc)
-        bb = (j0 + sig * a0) / wd
-        if a0 == 0.0 and bb == 0.0:
-            return np.inf
-        # a(t) ~ a0 cos(th) + bb sin(th) = R cos(th - phi); zeros at th = phi + pi/2 + n pi
-        phi = math.atan2(bb, a0)
-        th1 = (phi + 0.5 * math.pi) % math.pi
-        if th1 < 1e-9 or th1 > math.pi - 1e-9:
-            # the zero at t = 0 is the start point itself
-            th1 = math.pi if th1 > 1.0 else th1 + math.pi
-            if th1 < math.pi:
-                th1 = math.pi
-        tz = th1 / wd
-        if tz <= after:
-            nper = math.floor((after - tz) * wd / math.pi) + 1.0
-            tz = (th1 + nper * math.pi) / wd
-            while tz <= after:
-                tz += math.pi / wd
-        return tz
+        return _acc_zero_after(_acc_zero_phase(sig, wn2, wd, y0, v0), wd, after)
+    a0 = -2.0 * sig * v0 - wn2 * y0
+    j0 = -2.0 * sig * a0 - wn2 * v0
     if disc > 1e-10 * wn2:
         sq = math.sqrt(disc)
         if sig >= 0.0:
@@ -221,10 +238,8 @@ def _w(m, c, k, y0, v0, V, s, t):
 
 
 @njit(cache=True)
-def _polish(m, c, k, y0, v0, V, s, lo, hi):
-    """Root of w in [lo, hi] with w(lo) >= 0 > w(hi): safeguarded Newton, ~1e-15 s."""
-    wlo = _w(m, c, k, y0, v0, V, s, lo)
-    whi = _w(m, c, k, y0, v0, V, s, hi)
+def _polish(m, c, k, y0, v0, V, s, lo, hi, wlo, whi):
+    """Root of w in [lo, hi] with w(lo) = wlo >= 0 > w(hi) = whi: safeguarded Newton, ~1e-15 s."""
     if wlo - whi > 0.0:
         t = lo + (hi - lo) * wlo / (wlo - whi)
     else:
@@ -291,31 +306,38 @@ def slip_search(m, c, k, y0, v0, V, s, rem, tmin):
     nmax = 8.0 + rem * phase_rate(m, c, k) * 0.5
     n_cap = int(nmax) if nmax < MAX_EVENTS_PER_TICK else MAX_EVENTS_PER_TICK
     n_it = 0
-    # quick rejection: |v(t)| bounded by the oscillation envelope
     sig = 0.5 * c / m
     wn2 = k / m
     disc = sig * sig - wn2
-    if sig >= 0.0 and disc < -1e-10 * wn2:
-        wd = math.sqrt(-disc)
+    under = disc < -1e-10 * wn2
+    wd = math.sqrt(-disc) if under else 0.0
+    # quick rejection: |v(t)| bounded by the oscillation envelope
+    if sig >= 0.0 and under:
         bv = (wn2 * y0 + sig * v0) / wd
         amp = math.sqrt(v0 * v0 + bv * bv)
         if s * V - amp > 2.0 * tol:
             return 0, rem
+    # under-damped: the acceleration zeros (th1 + n pi) / wd, th1 found once
+    th1 = _acc_zero_phase(sig, wn2, wd, y0, v0) if under else 0.0
     ta = 0.0
+    wa = 0.0          # w(ta), known once ta > 0 (the last bracket's end)
     while True:
         n_it += 1
         if n_it > n_cap:
             return 0, rem
-        tz = _next_acc_zero(m, c, k, y0, v0, ta)
+        tz = _acc_zero_after(th1, wd, ta) if under else _next_acc_zero(m, c, k, y0, v0, ta)
         interior = tz < rem
         tb = tz if interior else rem
         wb = _w(m, c, k, y0, v0, V, s, tb)
         graze = interior and wb >= -tol and wb <= tol
         if graze and tb < tmin:
             ta = tb
+            wa = wb
             continue
         if wb < 0.0:
-            tr = _polish(m, c, k, y0, v0, V, s, ta, tb)
+            if ta == 0.0:
+                wa = _w(m, c, k, y0, v0, V, s, ta)
+            tr = _polish(m, c, k, y0, v0, V, s, ta, tb, wa, wb)
             if interior and wb >= -tol:
                 return 2, tr
             return 1, tr
@@ -326,6 +348,7 @@ def slip_search(m, c, k, y0, v0, V, s, rem, tmin):
         if not interior:
             return 0, rem
         ta = tb
+        wa = wb
 
 
 # ================================================================ exact model
@@ -455,6 +478,13 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
     it = 0
     it_cap = phase_cap(m, c, k, h)
     tmin = 0.0
+    # under-damped pad: a slip's re-stick search visits acceleration zeros pi / omega_d apart, so its
+    # outcome does not depend on the time left in the tick once that exceeds the re-stick time plus
+    # one such interval (memo_span); beyond it a repeated slip start reuses the stored outcome
+    sig = 0.5 * c / m
+    wn2 = k / m
+    disc = sig * sig - wn2
+    memo_span = math.pi / math.sqrt(-disc) * (1.0 + 1e-6) if disc < -1e-10 * wn2 else np.inf
     while t < h:
         it += 1
         if it > it_cap:
@@ -478,6 +508,10 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
             f = k * x + c * V
             x0 = x
             s, x = _breakaway(x, f, V, forced, mus, N, k, c)
+            if dt > 0.0 and not forced:
+                # loaded to the limit within this span: the breakaway stretch in closed form (the summed
+                # stick steps differ from it by rounding only), so steady strokes repeat it bit for bit
+                x = (s * mus * N - c * V) / k
             wf += 0.5 * k * (x * x - x0 * x0)
             n_ev = _record(ev_t, ev_a, n_ev, t0 + t, B * abs(k * x))
             phase = 1.0
@@ -487,12 +521,32 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
         F = s * muk * N
         xeq = F / k
         y0 = x - xeq
-        if mus * N > 0.0:
+        fresh = tmin == 0.0 and v == V and mus * N > 0.0
+        hit = False
+        if fresh and st.memo_valid != 0 and st.memo_s == s and st.memo_x == x and st.memo_v == V \
+                and st.memo_muk == muk and st.memo_n == N and rem > st.memo_slip_time + memo_span:
+            # slip_search and osc are pure functions of these inputs: the same bits out as last time
+            hit = True
+            kind = st.memo_valid
+            tr = st.memo_slip_time
+            y1 = st.memo_x_restick
+            v1 = V             # not used unless the slip goes on (then recomputed below)
+        elif mus * N > 0.0:
             kind, tr = slip_search(m, c, k, y0, v, V, s, rem, tmin)
         else:
             kind, tr = 0, rem      # no static friction: nothing to stick to
         tmin = 0.0
-        y1, v1 = osc(m, c, k, y0, v, tr)
+        if not hit:
+            y1, v1 = osc(m, c, k, y0, v, tr)
+            if fresh and kind != 0 and rem > tr + memo_span:
+                st.memo_valid = kind
+                st.memo_s = s
+                st.memo_x = x
+                st.memo_v = V
+                st.memo_muk = muk
+                st.memo_n = N
+                st.memo_slip_time = tr
+                st.memo_x_restick = y1
         wdmp += osc_damping_work(m, c, k, y0, v, tr)
         wf += F * (y1 - y0)
         x = y1 + xeq
@@ -523,6 +577,8 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
             # grazing touch that is not a re-stick: keep slipping past it; the
             # next touch or crossing is at least one extremum (pi / omega_d) away
             tmin = 0.5 * math.pi * math.sqrt(m / k)
+            if hit:
+                _, v = osc(m, c, k, y0, V, tr)     # the slip started at v = V
     st.v = v
     st.work_friction = wf
     st.work_damping = wdmp

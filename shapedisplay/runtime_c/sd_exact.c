@@ -205,7 +205,7 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, s
         rem = h - t;
         if (phase == SD_R(0.0)) {
             sd_real thr = mus * N, f = k * x + c * V;
-            int brk = 0, forced = 0;
+            int brk = 0, forced = 0, loaded = 0;
             v = V;
             if (SD_FABS(f) > thr * (SD_R(1.0) + SD_R(SD_TOL_BREAK)) || (SD_FABS(f) >= thr && f * V > SD_R(0.0) && thr > SD_R(0.0))
                 || (thr == SD_R(0.0) && f != SD_R(0.0))) {
@@ -230,9 +230,12 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, s
                 f = k * x + c * V;
                 brk = 1;
                 forced = tf < tb;
+                loaded = tn > SD_R(0.0) && !forced;
             }
             if (brk) {
                 s = breakaway(&x, f, V, forced, mus, N, k, c);
+                /* loaded to the limit within this span: the breakaway stretch in closed form */
+                if (loaded) x = (s * mus * N - c * V) / k;
                 n_ev = record(ev_t, ev_a, cap, n_ev, t0 + t, B * SD_FABS(k * x));
                 phase = SD_R(1.0);
                 age = SD_R(0.0);
