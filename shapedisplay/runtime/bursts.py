@@ -76,7 +76,7 @@ from .layouts import BURST_POLICIES, BURST_STATE, Policy, record
 from .settings import MAX_AUDIO_SAMPLES, audio_length, policy_id  # noqa: F401 (their home is .settings)
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to layouts.py (Policy).
-KERNEL_SOURCES_SHA256 = "d161a2cfcc005bec4fe37e37b5dfa9f253c2ac4e27a90278373ac2a6abf326df"
+KERNEL_SOURCES_SHA256 = "688484c836f5e3ff294b9593f2e5e7f7aa81836432e3b7411d7df8cf367b6f38"
 #: Carrier re-anchored with sin/cos every this many samples (rotation in between).
 CARRIER_BLOCK = 64
 

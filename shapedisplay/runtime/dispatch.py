@@ -22,7 +22,7 @@ REGISTRY = (
     ('tanh', 'tanh_tick', None),
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py.
-KERNEL_SOURCES_SHA256 = "7f8ed0a3729742fb44e8824376256609875e82560edade44bd804cd39523f37e"
+KERNEL_SOURCES_SHA256 = "a62eb4d786a2f04df16dde77babd1e72a6591e42604af3ff128a1bc5c72e1e4b"
 
 
 @njit(cache=True)

@@ -72,7 +72,7 @@ PAD_STATE = _layout("PAD_STATE", [
     ("diverged", i8, "1 once an explicit baseline blew up (outputs frozen at zero)"),
     ("truncated", i8, "ticks cut at the safety cap on phase changes"),
     ("n_events", i8, "stick-to-slip events in the last tick"),
-    ("memo_valid", i8, "nonzero if the memo_* fields hold the last slip outcome (jump: 1; exact: its kind, 1 or 2)"),
+    ("memo_valid", i8, "1 if the memo_* fields hold the last slip outcome (jump and exact models)"),
     ("memo_s", f8, "memo input: slip direction"),
     ("memo_x", f8, "memo input: spring stretch at breakaway (exact: at the slip start), m"),
     ("memo_v", f8, "memo input: surface velocity, m/s"),

@@ -239,30 +239,52 @@ def _w(m, c, k, y0, v0, V, s, t):
 
 @njit(cache=True)
 def _polish(m, c, k, y0, v0, V, s, lo, hi, wlo, whi):
-    """Root of w in [lo, hi] with w(lo) = wlo >= 0 > w(hi) = whi: safeguarded Newton, ~1e-15 s."""
+    """Root of w in [lo, hi] with w(lo) = wlo >= 0 > w(hi) = whi: safeguarded Newton, ~1e-16 s.
+
+    Returns ``(t, y, v)``: the root and the oscillator state there. A Newton
+    step whose own error (``|w'' / 2 w'| dt^2``, and the next order's
+    ``omega^2 |dt|^3 / 6``) is below the tolerance ends the search: its
+    end state is the Taylor expansion about the last evaluation (velocity,
+    acceleration, jerk), which is exact to rounding over such a step.
+    """
     if wlo - whi > 0.0:
         t = lo + (hi - lo) * wlo / (wlo - whi)
     else:
         t = 0.5 * (lo + hi)
     if not (lo < t < hi):
         t = 0.5 * (lo + hi)
+    wn2 = k / m
     for _ in range(200):
         y, v = osc(m, c, k, y0, v0, t)
         wt = -s * (v - V)
         if wt == 0.0:
-            return t
+            return t, y, v
         if wt > 0.0:
             lo = t
         else:
             hi = t
-        dw = -s * _acc(m, c, k, y, v)
-        tn = t - wt / dw if dw != 0.0 else 0.5 * (lo + hi)
+        a = _acc(m, c, k, y, v)
+        dw = -s * a
+        newton = dw != 0.0
+        tn = t - wt / dw if newton else 0.5 * (lo + hi)
         if not (lo < tn < hi):
             tn = 0.5 * (lo + hi)
-        if abs(tn - t) <= 1e-16 + 1e-15 * t or hi - lo <= 1e-16 + 1e-15 * hi:
-            return tn
+            newton = False
+        d = tn - t
+        tol = 1e-16 + 1e-15 * t
+        if newton:
+            j = -(c * a + k * v) / m
+            ad = abs(d)
+            if ad <= tol or hi - lo <= 1e-16 + 1e-15 * hi \
+                    or (abs(j) * d * d <= 2.0 * abs(a) * tol and wn2 * ad * ad * ad <= 6.0 * tol):
+                return tn, y + d * (v + d * (0.5 * a + d * j / 6.0)), v + d * (a + 0.5 * d * j)
+        elif abs(d) <= tol or hi - lo <= 1e-16 + 1e-15 * hi:
+            y, v = osc(m, c, k, y0, v0, tn)
+            return tn, y, v
         t = tn
-    return 0.5 * (lo + hi)
+    t = 0.5 * (lo + hi)
+    y, v = osc(m, c, k, y0, v0, t)
+    return t, y, v
 
 
 @njit(cache=True)
@@ -289,10 +311,11 @@ def phase_cap(m, c, k, h):
 def slip_search(m, c, k, y0, v0, V, s, rem, tmin):
     """Find the first re-stick candidate of a slip phase within ``rem`` seconds.
 
-    Returns ``(kind, t)``: kind 0 none (t = rem), 1 crossing of the relative
-    velocity through zero, 2 near-tangent touch (|w| below a round-off
-    tolerance at an extremum). Touches before ``tmin`` are ignored (used to
-    step past a grazing touch that was not a re-stick).
+    Returns ``(kind, t, y, v)``: kind 0 none (t = rem), 1 crossing of the
+    relative velocity through zero, 2 near-tangent touch (|w| below a
+    round-off tolerance at an extremum); ``y, v`` the oscillator state at
+    ``t``. Touches before ``tmin`` are ignored (used to step past a grazing
+    touch that was not a re-stick).
 
     A slip that starts with the relative velocity already past zero by more
     than round-off (``w(0) < -tol``: the surface velocity changed at a tick
@@ -300,7 +323,7 @@ def slip_search(m, c, k, y0, v0, V, s, rem, tmin):
     """
     tol = 1e-12 * (abs(V) + abs(v0)) + 1e-300
     if -s * (v0 - V) < -tol:
-        return 1, 0.0
+        return 1, 0.0, y0, v0
     # acceleration zeros are pi / omega_d apart: at most rem omega_d / pi + 1 = rem phase_rate / 4 + 1 of
     # them in rem, plus grazing touches stepped over; twice that bounds the loop (then kind 0)
     nmax = 8.0 + rem * phase_rate(m, c, k) * 0.5
@@ -316,7 +339,8 @@ def slip_search(m, c, k, y0, v0, V, s, rem, tmin):
         bv = (wn2 * y0 + sig * v0) / wd
         amp = math.sqrt(v0 * v0 + bv * bv)
         if s * V - amp > 2.0 * tol:
-            return 0, rem
+            y, v = osc(m, c, k, y0, v0, rem)
+            return 0, rem, y, v
     # under-damped: the acceleration zeros (th1 + n pi) / wd, th1 found once
     th1 = _acc_zero_phase(sig, wn2, wd, y0, v0) if under else 0.0
     ta = 0.0
@@ -324,11 +348,13 @@ def slip_search(m, c, k, y0, v0, V, s, rem, tmin):
     while True:
         n_it += 1
         if n_it > n_cap:
-            return 0, rem
+            y, v = osc(m, c, k, y0, v0, rem)
+            return 0, rem, y, v
         tz = _acc_zero_after(th1, wd, ta) if under else _next_acc_zero(m, c, k, y0, v0, ta)
         interior = tz < rem
         tb = tz if interior else rem
-        wb = _w(m, c, k, y0, v0, V, s, tb)
+        yb, vb = osc(m, c, k, y0, v0, tb)
+        wb = -s * (vb - V)
         graze = interior and wb >= -tol and wb <= tol
         if graze and tb < tmin:
             ta = tb
@@ -337,16 +363,16 @@ def slip_search(m, c, k, y0, v0, V, s, rem, tmin):
         if wb < 0.0:
             if ta == 0.0:
                 wa = _w(m, c, k, y0, v0, V, s, ta)
-            tr = _polish(m, c, k, y0, v0, V, s, ta, tb, wa, wb)
+            tr, yr, vr = _polish(m, c, k, y0, v0, V, s, ta, tb, wa, wb)
             if interior and wb >= -tol:
-                return 2, tr
-            return 1, tr
+                return 2, tr, yr, vr
+            return 1, tr, yr, vr
         if wb == 0.0:
-            return (2 if interior else 1), tb
+            return (2 if interior else 1), tb, yb, vb
         if graze:
-            return 2, tb
+            return 2, tb, yb, vb
         if not interior:
-            return 0, rem
+            return 0, rem, yb, vb
         ta = tb
         wa = wb
 
@@ -527,19 +553,19 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
                 and st.memo_muk == muk and st.memo_n == N and rem > st.memo_slip_time + memo_span:
             # slip_search and osc are pure functions of these inputs: the same bits out as last time
             hit = True
-            kind = st.memo_valid
+            kind = 1
             tr = st.memo_slip_time
             y1 = st.memo_x_restick
-            v1 = V             # not used unless the slip goes on (then recomputed below)
+            v1 = V             # a crossing: the pad sticks or goes on from the surface speed
         elif mus * N > 0.0:
-            kind, tr = slip_search(m, c, k, y0, v, V, s, rem, tmin)
+            kind, tr, y1, v1 = slip_search(m, c, k, y0, v, V, s, rem, tmin)
         else:
             kind, tr = 0, rem      # no static friction: nothing to stick to
+            y1, v1 = osc(m, c, k, y0, v, tr)
         tmin = 0.0
         if not hit:
-            y1, v1 = osc(m, c, k, y0, v, tr)
-            if fresh and kind != 0 and rem > tr + memo_span:
-                st.memo_valid = kind
+            if fresh and kind == 1 and rem > tr + memo_span:
+                st.memo_valid = 1
                 st.memo_s = s
                 st.memo_x = x
                 st.memo_v = V
@@ -577,8 +603,6 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
             # grazing touch that is not a re-stick: keep slipping past it; the
             # next touch or crossing is at least one extremum (pi / omega_d) away
             tmin = 0.5 * math.pi * math.sqrt(m / k)
-            if hit:
-                _, v = osc(m, c, k, y0, V, tr)     # the slip started at v = V
     st.v = v
     st.work_friction = wf
     st.work_damping = wdmp

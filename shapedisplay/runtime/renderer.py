@@ -76,7 +76,7 @@ _RING = 4096
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "44f755f4424cbcf76041cda9a717f3b5dda682d4c95418fe12ed32a9f9ab2cd3"
+KERNEL_SOURCES_SHA256 = "76a4f174d1ca339daae2487d4fa4f28568ae98b3601b50ed49a16341647e25b9"
 
 
 @njit(cache=True, inline="always")

@@ -86,34 +86,63 @@ static sd_real wrel(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_rea
     return -s * (v - V);
 }
 
-static sd_real polish(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_real s, sd_real lo, sd_real hi)
+/* Root of w in [lo, hi] with w(lo) = wlo >= 0 > w(hi) = whi, and the oscillator state there: safeguarded
+ * Newton; a Newton step whose own error (|w''/2w'| dt^2 and omega^2 |dt|^3 / 6) is below the tolerance
+ * ends it, with the state by Taylor expansion about the last evaluation (pads._polish). */
+static sd_real polish(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_real s, sd_real lo, sd_real hi,
+                      sd_real wlo, sd_real whi, sd_real *y_out, sd_real *v_out)
 {
-    sd_real wlo = wrel(P, y0, v0, V, s, lo), whi = wrel(P, y0, v0, V, s, hi), t;
+    sd_real m = P->p.mass, c = P->p.damping, k = P->p.stiffness, wn2 = k / m, t;
     int it;
     if (wlo - whi > SD_R(0.0)) t = lo + (hi - lo) * wlo / (wlo - whi);
     else t = SD_R(0.5) * (lo + hi);
     if (!(lo < t && t < hi)) t = SD_R(0.5) * (lo + hi);
     for (it = 0; it < SD_POLISH_MAX; it++) {
-        sd_real y, v, wt, dw, tn;
+        sd_real y, v, wt, a, dw, tn, d, tol;
+        int newton;
         osc(P, y0, v0, t, &y, &v);
         wt = -s * (v - V);
-        if (wt == SD_R(0.0)) return t;
+        if (wt == SD_R(0.0)) {
+            *y_out = y;
+            *v_out = v;
+            return t;
+        }
         if (wt > SD_R(0.0)) lo = t;
         else hi = t;
-        dw = -s * acc(P, y, v);
-        tn = dw != SD_R(0.0) ? t - wt / dw : SD_R(0.5) * (lo + hi);
-        if (!(lo < tn && tn < hi)) tn = SD_R(0.5) * (lo + hi);
-        if (SD_FABS(tn - t) <= SD_R(SD_POLISH_ABS) + SD_R(SD_POLISH_REL) * t || hi - lo <= SD_R(SD_POLISH_ABS) + SD_R(SD_POLISH_REL) * hi) return tn;
+        a = acc(P, y, v);
+        dw = -s * a;
+        newton = dw != SD_R(0.0);
+        tn = newton ? t - wt / dw : SD_R(0.5) * (lo + hi);
+        if (!(lo < tn && tn < hi)) {
+            tn = SD_R(0.5) * (lo + hi);
+            newton = 0;
+        }
+        d = tn - t;
+        tol = SD_R(SD_POLISH_ABS) + SD_R(SD_POLISH_REL) * t;
+        if (newton) {
+            sd_real j = -(c * a + k * v) / m, ad = SD_FABS(d);
+            if (ad <= tol || hi - lo <= SD_R(SD_POLISH_ABS) + SD_R(SD_POLISH_REL) * hi
+                || (SD_FABS(j) * d * d <= SD_R(2.0) * SD_FABS(a) * tol && wn2 * ad * ad * ad <= SD_R(6.0) * tol)) {
+                *y_out = y + d * (v + d * (SD_R(0.5) * a + d * j / SD_R(6.0)));
+                *v_out = v + d * (a + SD_R(0.5) * d * j);
+                return tn;
+            }
+        } else if (SD_FABS(d) <= tol || hi - lo <= SD_R(SD_POLISH_ABS) + SD_R(SD_POLISH_REL) * hi) {
+            osc(P, y0, v0, tn, y_out, v_out);
+            return tn;
+        }
         t = tn;
     }
-    return SD_R(0.5) * (lo + hi);
+    t = SD_R(0.5) * (lo + hi);
+    osc(P, y0, v0, t, y_out, v_out);
+    return t;
 }
 
 /* First re-stick candidate of a slip within rem seconds: kind 0 none (t = rem), 1 crossing,
  * 2 near-tangent touch. Touches before tmin are ignored (stepping past a grazing touch that
  * was not a re-stick). A slip starting with w(0) < -tol crosses at once (kind 1, t = 0). */
 static int slip_search(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_real s, sd_real rem, sd_real tmin,
-                       sd_real *t_out)
+                       sd_real *t_out, sd_real *y_out, sd_real *v_out)
 {
     /* acceleration zeros are pi / omega_d apart: at most rem omega_d / pi + 1 = rem phase_rate / 4 + 1 in
      * rem, plus grazing touches stepped over; twice that is the bound (no re-stick found: kind 0) */
@@ -125,37 +154,43 @@ static int slip_search(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_
      * tick boundary): a crossing at once */
     if (-s * (v0 - V) < -tol) {
         *t_out = SD_R(0.0);
+        *y_out = y0;
+        *v_out = v0;
         return 1;
     }
     if (sig >= SD_R(0.0) && disc < -SD_R(1e-10) * wn2) {
         sd_real wd = P->wd, bv = (wn2 * y0 + sig * v0) / wd, amp = SD_SQRT(v0 * v0 + bv * bv);
         if (s * V - amp > SD_R(2.0) * tol) {
             *t_out = rem;
+            osc(P, y0, v0, rem, y_out, v_out);
             return 0;
         }
     }
     for (;;) {
-        sd_real tz, tb, wb;
+        sd_real tz, tb, wb, yb, vb;
         int interior, graze;
         if (++n_it > n_cap) {
             *t_out = rem;
+            osc(P, y0, v0, rem, y_out, v_out);
             return 0;
         }
         tz = next_acc_zero(P, y0, v0, ta);
         interior = tz < rem;
         tb = interior ? tz : rem;
-        wb = wrel(P, y0, v0, V, s, tb);
+        osc(P, y0, v0, tb, &yb, &vb);
+        wb = -s * (vb - V);
         graze = interior && wb >= -tol && wb <= tol;
         if (graze && tb < tmin) {
             ta = tb;
             continue;
         }
         if (wb < SD_R(0.0)) {
-            sd_real tr = polish(P, y0, v0, V, s, ta, tb);
-            *t_out = tr;
+            *t_out = polish(P, y0, v0, V, s, ta, tb, wrel(P, y0, v0, V, s, ta), wb, y_out, v_out);
             if (interior && wb >= -tol) return 2;
             return 1;
         }
+        *y_out = yb;
+        *v_out = vb;
         if (wb == SD_R(0.0)) {
             *t_out = tb;
             return interior ? 2 : 1;
@@ -247,13 +282,13 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, s
         xeq = F / k;
         y0 = x - xeq;
         if (mus * N > SD_R(0.0)) {
-            kind = slip_search(P, y0, v, V, s, rem, tmin, &tr);
+            kind = slip_search(P, y0, v, V, s, rem, tmin, &tr, &y1, &v1);
         } else {
             kind = 0;            /* no static friction: nothing to stick to */
             tr = rem;
+            osc(P, y0, v, tr, &y1, &v1);
         }
         tmin = SD_R(0.0);
-        osc(P, y0, v, tr, &y1, &v1);
         x = y1 + xeq;
         v = v1;
         t += tr;

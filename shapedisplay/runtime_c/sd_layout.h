@@ -65,7 +65,7 @@ typedef struct {
     int64_t diverged;               /* 1 once an explicit baseline blew up (outputs frozen at zero) */
     int64_t truncated;              /* ticks cut at the safety cap on phase changes */
     int64_t n_events;               /* stick-to-slip events in the last tick */
-    int64_t memo_valid;             /* nonzero if the memo_* fields hold the last slip outcome (jump: 1; exact: its kind, 1 or 2) */
+    int64_t memo_valid;             /* 1 if the memo_* fields hold the last slip outcome (jump and exact models) */
     sd_real memo_s;                 /* memo input: slip direction */
     sd_real memo_x;                 /* memo input: spring stretch at breakaway (exact: at the slip start), m */
     sd_real memo_v;                 /* memo input: surface velocity, m/s */
