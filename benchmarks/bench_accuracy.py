@@ -1,6 +1,6 @@
 """Speed against scipy at equal error, and the ``stribeck`` model against real time.
 
-Run: ``.venv/bin/python benchmarks/bench_accuracy.py [--runs 3] [--quick] [--cases a,b]``.
+Run: ``.venv/bin/python benchmarks/bench_accuracy.py [--runs 3] [--quick] [--cases a,b] [--models exact]``.
 
 Targets:
 
@@ -45,7 +45,7 @@ def mmm(values, spec=".3g"):
     return "/".join(format(x, spec) for x in (min(v), statistics.median(v), max(v)))
 
 
-def part_scipy(runs, quick, only):
+def part_scipy(runs, quick, only, models=()):
     cases = [c for c in A.build_cases(quick) if not only or c.name in only]
     per_case = {}
     floors = []
@@ -59,7 +59,8 @@ def part_scipy(runs, quick, only):
             if case.name not in refs:
                 refs[case.name] = A.reference(case, quick)     # untimed; the same every run
             ref = refs[case.name]
-            results = [A.run_setting(case, s, device, ref, runs_renderer=1, runs_peer=1) for s in A.settings(case, quick)]
+            results = [A.run_setting(case, s, device, ref, runs_renderer=1, runs_peer=1) for s in A.settings(case, quick)
+                       if not models or s["family"] == "scipy" or s["model"] in models]
             eq = {kind: A.equal_error(results, cost, ft, fa if kind == "render" else 0.0)
                   for kind, cost in A.COSTS.items()}
             per_case.setdefault(case.name, []).append(eq)
@@ -139,12 +140,13 @@ def main():
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--quick", action="store_true", help="the quick report's cases (a smoke run)")
     ap.add_argument("--cases", default="", help="comma-separated case names (default: all)")
+    ap.add_argument("--models", default="", help="comma-separated renderer models to compare (default: all of a case's)")
     ap.add_argument("--skip-scipy", action="store_true")
     ap.add_argument("--skip-stribeck", action="store_true")
     a = ap.parse_args()
     only = {x for x in a.cases.split(",") if x}
     if not a.skip_scipy:
-        part_scipy(a.runs, a.quick, only)
+        part_scipy(a.runs, a.quick, only, {x for x in a.models.split(",") if x})
     if not a.skip_stribeck:
         part_stribeck(a.runs)
 
