@@ -11,8 +11,8 @@ with the case's reference:
   (the discrepancy is reported); the belt benchmark also against its closed
   form;
 * the Stribeck cases (contactor, belt; no closed form): Radau at rtol 1e-12
-  (1e-10 in quick mode), cross-checked against the ``stribeck`` kernel with
-  a tenth of the smallest substep of the case.
+  (1e-10 in quick mode), cross-checked against the ``stribeck`` kernel
+  (Taylor slip steps at its own tolerance).
 
 Errors (:func:`.common.event_errors`): event-time RMS and max after matching,
 missing and spurious events, relative stick-period error, burst-amplitude
@@ -148,7 +148,6 @@ def build_cases(quick: bool) -> list[Case]:
         "stribeck_contactor", "Stribeck pad on a 9 Hz 1.25 mm contactor, finger at 0.1 m/s, W = 1 N", "stribeck",
         dict(IMAIZUMI), 0.25 if quick else 0.5, (lambda t: 0.1), (lambda t: 1.0), models=("stribeck",),
         rates=(1000.0,) if quick else (1000.0, 10000.0),
-        substeps=(8e-6, 2e-6, 0.5e-6) if quick else (16e-6, 8e-6, 4e-6, 2e-6, 1e-6, 0.5e-6),
         contactor={"hz": 9.0, "amplitude_m": 1.25e-3}))
     # block on a moving belt (Coulomb), closed-form stick-slip period
     Vbelt, Nbelt = 0.2, 1.0
@@ -160,7 +159,7 @@ def build_cases(quick: bool) -> list[Case]:
     cases.append(Case(
         "belt_stribeck", "block on a moving belt with Stribeck friction (a = 3 s/m, b = 0.1 s/m, 0.2 m/s)",
         "stribeck", dict(BELT_STRIBECK), 30.0 if quick else 60.0, (lambda t: Vbelt), (lambda t: Nbelt),
-        models=("stribeck",), rates=(100.0, 1000.0), substeps=(1e-2, 1e-3) if quick else (1e-2, 1e-3, 1e-4),
+        models=("stribeck",), rates=(100.0, 1000.0),
         contactor={"hz": 0.0, "amplitude_m": 0.0}, extra={"V": Vbelt, "N": Nbelt}))
     return cases
 
@@ -272,11 +271,11 @@ def reference(case: Case, quick: bool) -> dict:
                       omega=2 * math.pi * case.contactor["hz"], t_end=case.duration)
     out.update(kind="Radau", rtol=rtol, event_time=pr.event_time, event_amplitude=pr.event_amplitude,
                description=f"solve_ivp Radau at rtol {rtol:g} with stick/slip events (no closed form exists)")
+    from ..runtime import pads
     from ..runtime.models import get_model, run_kernel
-    sub = min(case.substeps) / 10.0
     t0 = time.process_time()
     model = get_model("stribeck", _device(case), contactor_hz=case.contactor["hz"],
-                      contactor_amplitude_m=case.contactor["amplitude_m"], substep_s=sub)
+                      contactor_amplitude_m=case.contactor["amplitude_m"])
     tt = np.arange(int(round(case.duration * 1000.0)) + 1) / 1000.0
     ones = np.ones_like(tt)
     Vt = float(case.V(0.0)) * ones
@@ -285,7 +284,8 @@ def reference(case: Case, quick: bool) -> dict:
     cpu = time.process_time() - t0
     e = common.event_errors(pr.event_time, pr.event_amplitude, ket, kea,
                             common.match_window(pr.event_time, case.duration))
-    out["cross_check"] = {"method": f"stribeck kernel, {sub * 1e6:g} us substeps", "window_s": case.duration,
+    out["cross_check"] = {"method": f"stribeck kernel (Taylor steps, tolerance {pads.STRIBECK_TOL:g})",
+                          "window_s": case.duration,
                           "cpu_s": cpu,
                           "events_compared": e["matched"], "missing": e["missing"], "spurious": e["spurious"],
                           "max_abs_s": e["event_max_s"], "rms_s": e["event_rms_s"], "status": pr.status}

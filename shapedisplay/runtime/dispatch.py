@@ -22,7 +22,7 @@ REGISTRY = (
     ('tanh', 'tanh_tick', None),
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py.
-KERNEL_SOURCES_SHA256 = "a62eb4d786a2f04df16dde77babd1e72a6591e42604af3ff128a1bc5c72e1e4b"
+KERNEL_SOURCES_SHA256 = "28d14766cb847f352c6388293616df9cda86d930e7d992ceceb570d8afb98377"
 
 
 @njit(cache=True)

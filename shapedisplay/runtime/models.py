@@ -225,27 +225,32 @@ class StribeckModel(PadModel):
     variant : {"stribeck", "premax"}
     contactor_hz, contactor_amplitude_m : float, optional
         Override the contactor stimulus.
-    substep_s : float
-        Largest substep (default 2 us). Where the negative friction slope
-        self-excites the pad (``W dmu/dv < -c``) steps are further limited to
-        ``0.5 m / |c + W dmu/dv|``: 1.4 us on the Imaizumi pad (m = 1e-4 kg),
-        55 ns on the 1e-6 kg Konyo pad, but only while the relative speed is
-        on the steep part of the curve (on the Konyo pad a small part of
-        each ~70 us slip); the model runs faster than real time on both
-        (``benchmarks/bench_accuracy.py`` prints the figure).
+    substep_s : float, optional
+        Largest integration step, s. Plain curve: the slip runs by Taylor
+        steps of adaptive order and length (truncation error per step below
+        ``pads.STRIBECK_TOL`` of the pad's scales; on the negative slope the
+        self-excitation shortens them by itself); default no limit beyond the
+        tick. Pre-maximum variant: fixed exponential substeps (default 2 us),
+        further limited to ``0.5 m / |c + W dmu/dv|`` where the negative
+        friction slope self-excites the pad (``W dmu/dv < -c``): 1.4 us on the
+        Imaizumi pad (m = 1e-4 kg), 55 ns on the 1e-6 kg Konyo pad. The model
+        runs faster than real time on both (``benchmarks/bench_accuracy.py``
+        prints the figure).
     """
 
     name = "stribeck"
     kernel = Kernel("stribeck_tick")
 
     def __init__(self, device=None, variant="stribeck", contactor_hz=None, contactor_amplitude_m=None,
-                 substep_s=2e-6):
+                 substep_s=None):
         if variant not in ("stribeck", "premax"):
             raise unknown_key("stribeck variant", variant, ("stribeck", "premax"))
         self.variant = variant
         self._chz = contactor_hz
         self._camp = contactor_amplitude_m
-        if not (substep_s > 0 and math.isfinite(substep_s)):
+        if substep_s is None:
+            substep_s = 2e-6 if variant == "premax" else math.inf
+        elif not (substep_s > 0 and math.isfinite(substep_s)):
             raise InputError(f"`substep_s` must be > 0 (got {substep_s!r})")
         self._hsub = float(substep_s)
         super().__init__(device)

@@ -842,20 +842,425 @@ def _contactor(prm, t):
     return A * sn, A * w * math.cos(w * t), -A * w * w * sn
 
 
-@njit(cache=True)
-def _stribeck_slip(prm, u, du, s, V, W, mus, muk, ta, dur):
-    """Slip of the Imaizumi pad over ``dur`` seconds from ``ta``; returns (u, du, s, phase, F).
+# ---------------------------------------------------------------- plain Stribeck curve: Taylor slip steps
+#: Highest order of the Taylor slip step (coefficients kept per step; the step picks its order below it).
+STRIBECK_MAX_ORDER = 14
+#: Local error allowed per Taylor slip step, relative to the pad's scales (stretch ``mu_s W / k``, speed
+#: ``|V| + A omega + mu_s W / sqrt(k m)``).
+STRIBECK_TOL = 1e-13
+_STRIBECK_SAMPLES = 4    # sign checks of the relative speed per step (a touch inside one step is seen)
 
-    Adaptive exponential Rosenbrock steps: the friction is linearised about
-    the current relative velocity, the linear oscillator solved in closed
-    form; on the negative Stribeck slope the step keeps the growth factor
-    below e^0.5 (the self-excitation is physical; the step only resolves it).
-    Stops early at a re-stick and finishes the span in stick.
+
+@njit(cache=True, error_model="numpy")
+def _stribeck_series(prm, W, V, mus, muk, sr, t, u, z, hcap, co):
+    """Taylor coefficients of a slip of the plain Stribeck curve about ``t``; returns ``(p, h)``.
+
+    Slip with the relative velocity ``vr = z + V - x_c'(t)`` of sign ``sr``:
+    ``u' = z``, ``m z' = -c z - k u - sr W mu(sr vr)``, ``mu(q) = mu_k +
+    (mu_s - mu_k) exp(-a q / W) + b q / W``. The normalised coefficients
+    (``x_j = x^(j)(t) / j!``) of ``u``, ``z``, ``vr``, the exponent and its
+    exponential go to ``co[0..4, j]`` by the recurrences of automatic
+    differentiation (``E = exp(g)``: ``j E_j = sum_i i g_i E_(j-i)``; the
+    contactor's ``A omega cos(omega t)`` in closed form). ``p`` is the order
+    used, ``h`` the step (at most ``hcap``) whose last terms stay below
+    :data:`STRIBECK_TOL` of the pad's scales: the truncation error of the
+    step and of its dense output (the polynomial itself) anywhere inside it.
     """
     m = prm.mass
     k = prm.stiffness
     c = prm.damping
-    var = prm.stribeck_variant
+    a = prm.stribeck_a
+    b = prm.stribeck_b
+    A = prm.contactor_amplitude
+    om = prm.contactor_omega
+    dmu = mus - muk
+    C = 0.0
+    S = 0.0
+    if A != 0.0:
+        C = math.cos(om * t)
+        S = math.sin(om * t)
+    us = 1.0 / (mus * W / k + abs(u) + 1e-300)
+    zs = 1.0 / (abs(V) + A * om + mus * W / math.sqrt(k * m) + abs(z) + 1e-300)
+    tol = STRIBECK_TOL
+    pmax = STRIBECK_MAX_ORDER
+    co[0, 0] = u
+    co[1, 0] = z
+    cw = A * om
+    fric = W > 0.0
+    # the exponential's rate; infinite for a vanishing load (the drop to mu_k happens at once: E = 0)
+    sa = -a * sr / W if fric else 0.0
+    # the drop's force is at most (mu_s - mu_k) W: left out where it is below round-off of the other forces
+    # (a vanishing load; its exponential would vary faster than any step resolves)
+    drop = fric and math.isfinite(sa) and dmu * W > 1e-17 * (k * abs(u) + c * abs(z) + abs(b * (z + V)) + A * om * k)
+    e_prev = 1.0
+    p = pmax
+    hc = hcap
+    hp = 1.0         # hc ** j, kept by multiplication (hc ** (j + 1) after the update below)
+    flat = False
+    for j in range(pmax + 1):
+        r = j & 3
+        cj = C if r == 0 else (-S if r == 1 else (-C if r == 2 else S))
+        vr = co[1, j] - cw * cj
+        cw *= om / (j + 1)
+        if j == 0:
+            vr += V
+        co[2, j] = vr
+        if j == pmax:
+            break
+        if fric:
+            # friction -sr W mu = -sr W (mu_k + (mu_s - mu_k) E) - b vr
+            E = 0.0
+            if drop:
+                g = sa * vr
+                co[3, j] = g
+                if j == 0:
+                    E = math.exp(g)
+                    if g < -700.0:
+                        # far down the curve (E < 1e-304): E stays 0 over a step short enough that the
+                        # exponent cannot climb by 100 (its higher terms would only overflow here)
+                        flat = True
+                        drop = False
+                        E = 0.0
+                else:
+                    acc = 0.0
+                    for i in range(1, j + 1):
+                        acc += i * co[3, i] * co[4, j - i]
+                    E = acc / j
+            co[4, j] = E
+            fr = -sr * W * ((muk if j == 0 else 0.0) + dmu * E) - b * vr
+        else:
+            fr = 0.0
+        co[0, j + 1] = co[1, j] / (j + 1)
+        co[1, j + 1] = (fr - c * co[1, j] - k * co[0, j]) / (m * (j + 1))
+        if flat and j == 0:
+            # the exponent's rate from the relative acceleration (the contactor's included)
+            g1 = sa * (co[1, 1] + A * om * om * S)
+            if g1 > 0.0 and 100.0 / g1 < hc:
+                hc = 100.0 / g1
+                hp = 1.0
+        # a short step (the rest of a tick) needs fewer terms: stop once two terms are negligible
+        e = max(abs(co[0, j + 1]) * us, abs(co[1, j + 1]) * zs)
+        hp_prev = hp
+        hp *= hc
+        if j >= 3:
+            if e * hp <= tol and e_prev * hp_prev <= tol and math.isfinite(co[1, j + 1] + co[0, j + 1]):
+                p = j + 1
+                # vr's coefficient of the last order
+                r = p & 3
+                cj = C if r == 0 else (-S if r == 1 else (-C if r == 2 else S))
+                co[2, p] = co[1, p] - cw * cj
+                return p, hc
+        e_prev = e
+    # full order: the step from the last two terms (Jorba & Zou); an overflow anywhere reaches the last
+    # terms (each order is built from all lower ones) and gives no step
+    e1 = max(abs(co[0, p - 1]) * us, abs(co[1, p - 1]) * zs)
+    e2 = max(abs(co[0, p]) * us, abs(co[1, p]) * zs)
+    if not (math.isfinite(e1) and math.isfinite(e2) and math.isfinite(co[2, p])):
+        return p, 0.0
+    h1 = (tol / e1) ** (1.0 / (p - 1)) if e1 > 0.0 else math.inf
+    h2 = (tol / e2) ** (1.0 / p) if e2 > 0.0 else math.inf
+    return p, min(h1, h2, hc)
+
+
+@njit(cache=True, inline="always")
+def _plain_friction(vr_abs, W, mus, muk, a, b):
+    """``(W mu, W dmu/d|vr|)`` of the plain Stribeck curve at relative speed ``vr_abs`` (N, N s/m).
+
+    Written without ``b |vr| / W`` so that a vanishing load stays finite
+    (the viscous term ``b |vr|`` does not vanish with W).
+    """
+    if not W > 0.0:
+        return 0.0, 0.0
+    e = math.exp(-a * vr_abs / W) if vr_abs > 0.0 else 1.0
+    return W * (muk + (mus - muk) * e) + b * vr_abs, b - (mus - muk) * a * e
+
+
+@njit(cache=True, inline="always")
+def _horner(co, row, p, tau):
+    acc = co[row, p]
+    for j in range(p - 1, -1, -1):
+        acc = acc * tau + co[row, j]
+    return acc
+
+
+@njit(cache=True, inline="always")
+def _horner_d(co, row, p, tau):
+    """Value and derivative of the polynomial ``co[row, :p+1]`` at ``tau``."""
+    acc = co[row, p]
+    d = 0.0
+    for j in range(p - 1, -1, -1):
+        d = d * tau + acc
+        acc = acc * tau + co[row, j]
+    return acc, d
+
+
+@njit(cache=True, error_model="numpy")
+def _series_root(co, p, sr, lo, hi):
+    """Root of ``sr * vr`` (row 2 of ``co``) in ``(lo, hi]`` with ``sr vr(lo) > 0 >= sr vr(hi)``: safeguarded Newton."""
+    t = hi
+    for _ in range(100):
+        f, d = _horner_d(co, 2, p, t)
+        f *= sr
+        d *= sr
+        if f > 0.0:
+            lo = t
+        else:
+            hi = t
+        tn = t - f / d if d != 0.0 else 0.5 * (lo + hi)
+        if not (lo < tn <= hi):
+            tn = 0.5 * (lo + hi)
+        if abs(tn - t) <= 1e-16 * (1.0 + abs(t)) or hi - lo <= 1e-17 + 1e-16 * hi:
+            return tn
+        t = tn
+    return hi
+
+
+@njit(cache=True, inline="always")
+def _stick_force(prm, V, ua, xca, ta, t):
+    """Stuck on the contactor since ``ta`` (stretch ``ua``, contactor at ``xca``): ``(u, z, F, F')`` at ``t``.
+
+    ``F = m x_c'' + c z + k u`` is the friction needed to keep the pad on the contactor.
+    """
+    m = prm.mass
+    k = prm.stiffness
+    c = prm.damping
+    A = prm.contactor_amplitude
+    om = prm.contactor_omega
+    xc = 0.0
+    dxc = 0.0
+    ddxc = 0.0
+    dddxc = 0.0
+    if A != 0.0:
+        sn = math.sin(om * t)
+        cs = math.cos(om * t)
+        xc = A * sn
+        dxc = A * om * cs
+        ddxc = -A * om * om * sn
+        dddxc = -A * om * om * om * cs
+    u = ua + (xc - xca) - V * (t - ta)
+    z = dxc - V
+    return u, z, m * ddxc + c * z + k * u, m * dddxc + c * ddxc + k * z
+
+
+@njit(cache=True, error_model="numpy")
+def _stribeck_stick(prm, V, thr, ua, ta, te):
+    """Stick from ``ta`` (stretch ``ua``) to at most ``te``: the first time ``|F|`` exceeds ``thr``, or ``te``.
+
+    Returns ``(t, broke, u, z, F)`` with the state and the needed friction at
+    ``t``. ``F(t)`` is a sinusoid plus a linear function,
+    ``|F''| <= A omega^2 sqrt((k - m omega^2)^2 + (c omega)^2)``: most ticks
+    are cleared at once by ``|F(te)| + |F'(te)| dt + |F''| dt^2 / 2 <= thr``
+    (Taylor's bound back from the end); otherwise pieces whose ends lie below
+    ``thr`` by more than ``|F''| dt^2 / 8`` cannot reach it, the others are
+    quartered (to 1e-13 s, a grazing touch) and a crossing is polished by
+    safeguarded Newton (to ~1e-16 s).
+    """
+    m = prm.mass
+    k = prm.stiffness
+    c = prm.damping
+    A = prm.contactor_amplitude
+    om = prm.contactor_omega
+    xca = A * math.sin(om * ta) if A != 0.0 else 0.0
+    fpp = A * om * om * math.sqrt((k - m * om * om) ** 2 + (c * om) ** 2) if A != 0.0 else 0.0
+    ub, zb, Fb, dFb = _stick_force(prm, V, ua, xca, ta, te)
+    dt = te - ta
+    if abs(Fb) + abs(dFb) * dt + 0.5 * fpp * dt * dt <= thr:
+        return te, False, ub, zb, Fb
+    _, _, Fa, _ = _stick_force(prm, V, ua, xca, ta, ta)
+    if abs(Fa) > thr:
+        u, z, F, _ = _stick_force(prm, V, ua, xca, ta, ta)
+        return ta, True, u, z, F
+    x = ta
+    tb = te
+    broke = False
+    for _ in range(100_000):
+        if x >= te:
+            break
+        if dt > te - x:
+            dt = te - x
+        xb = x + dt
+        _, _, Fb, _ = _stick_force(prm, V, ua, xca, ta, xb)
+        if abs(Fb) > thr:
+            # crossing in (x, xb]: root of |F| - thr (one crossing: the piece's curvature is small)
+            lo = x
+            hi = xb
+            sg = 1.0 if Fb > 0.0 else -1.0
+            tt = hi
+            tb = hi
+            for _ in range(100):
+                _, _, Ft, dF = _stick_force(prm, V, ua, xca, ta, tt)
+                f = sg * Ft - thr
+                if f > 0.0:
+                    hi = tt
+                else:
+                    lo = tt
+                tn = tt - f / (sg * dF) if dF != 0.0 else 0.5 * (lo + hi)
+                if not (lo < tn <= hi):
+                    tn = 0.5 * (lo + hi)
+                if abs(tn - tt) <= 1e-16 * (1.0 + abs(tt)) or hi - lo <= 1e-16 * (1.0 + abs(hi)):
+                    tb = tn
+                    break
+                tt = tn
+                tb = hi
+            broke = True
+            break
+        if max(abs(Fa), abs(Fb)) + 0.125 * fpp * dt * dt <= thr or dt <= 1e-13:
+            x = xb
+            Fa = Fb
+            dt *= 2.0
+        else:
+            dt *= 0.25
+    if not broke:
+        tb = x if x < te else te
+    u, z, F, _ = _stick_force(prm, V, ua, xca, ta, tb)
+    return tb, broke, u, z, F
+
+
+@njit(cache=True, error_model="numpy")
+def _stribeck_taylor_slip(prm, u, z, sr, V, W, mus, muk, t, te):
+    """Slip of the plain Stribeck curve from ``t`` to at most ``te`` by Taylor steps.
+
+    Returns ``(u, z, sr, stuck, t)``: ``stuck`` True at a re-stick (the
+    relative speed reaches zero, located on the step's polynomial by
+    safeguarded Newton, with the needed friction within ``mu_s W``); a zero
+    with more friction needed reverses the slip.
+    """
+    m = prm.mass
+    k = prm.stiffness
+    c = prm.damping
+    A = prm.contactor_amplitude
+    om = prm.contactor_omega
+    hmin = 1e-6 * math.sqrt(m / k)
+    co = np.empty((5, STRIBECK_MAX_ORDER + 1))     # the step's Taylor coefficients (see _stribeck_series)
+    for _ in range(MAX_EVENTS_PER_TICK):
+        if t >= te:
+            break
+        p, hs = _stribeck_series(prm, W, V, mus, muk, sr, t, u, z, min(te - t, prm.substep), co)
+        if not (hs >= hmin):
+            # the series cannot follow the friction curve here (its exponential varies on a time scale far
+            # below the pad's, at absurd speeds): one linearised exponential step keeps the state bounded
+            vr0 = co[2, 0]
+            muW, dmuW = _plain_friction(max(sr * vr0, 0.0), W, mus, muk, prm.stribeck_a, prm.stribeck_b)
+            ceff = c + dmuW
+            hs = min(te - t, prm.substep)
+            if ceff < 0.0:
+                hs = min(hs, 0.5 * m / (-ceff))
+            dxcm = A * om * math.cos(om * (t + 0.5 * hs)) if A != 0.0 else 0.0
+            ueq = (-sr * muW - dmuW * (V - dxcm - vr0)) / k
+            y1, z = osc(m, ceff, k, u - ueq, z, hs)
+            u = y1 + ueq
+            t = t + hs if t + hs < te else te
+            dxc = A * om * math.cos(om * t) if A != 0.0 else 0.0
+            if sr * (z + V - dxc) < 0.0:
+                ddxc = -A * om * om * math.sin(om * t) if A != 0.0 else 0.0
+                if abs(m * ddxc + c * (dxc - V) + k * u) <= mus * W:
+                    return u, dxc - V, sr, True, t
+                sr = -sr
+            continue
+        # first sign change of sr * vr over the step
+        lo = 0.0
+        flo = sr * co[2, 0]
+        root = -1.0
+        for i in range(1, _STRIBECK_SAMPLES + 1):
+            tau = hs * i / _STRIBECK_SAMPLES
+            f = sr * _horner(co, 2, p, tau)
+            if f <= 0.0:
+                if flo > 0.0:
+                    root = _series_root(co, p, sr, lo, tau)
+                elif i == 1 and flo == 0.0:
+                    root = 0.0      # starting at vr = 0 and moving the other way
+                break
+            lo = tau
+            flo = f
+        if root < 0.0:
+            u = _horner(co, 0, p, hs)
+            z = _horner(co, 1, p, hs)
+            t = t + hs if t + hs < te else te
+            continue
+        if root > 0.0:
+            u = _horner(co, 0, p, root)
+            z = _horner(co, 1, p, root)
+            t += root
+        # relative speed zero: re-stick if the friction needed to follow the contactor is admissible
+        ddxc = -A * om * om * math.sin(om * t) if A != 0.0 else 0.0
+        dxc = A * om * math.cos(om * t) if A != 0.0 else 0.0
+        Fst = m * ddxc + c * (dxc - V) + k * u
+        if abs(Fst) <= mus * W:
+            return u, dxc - V, sr, True, t
+        # more friction needed than the static limit: the slip goes on in the direction the force drives
+        srn = -1.0 if Fst > 0.0 else 1.0
+        if srn == sr and root == 0.0:
+            # a touch of zero at the step's start (a breakaway exactly at the limit): take the step as it is
+            u = _horner(co, 0, p, hs)
+            z = _horner(co, 1, p, hs)
+            t = t + hs if t + hs < te else te
+            continue
+        sr = srn
+    return u, z, sr, False, t
+
+
+@njit(cache=True, error_model="numpy")
+def _stribeck_plain_tick(st, prm, t0, h, V, W, mus, muk, B, ev_t, ev_a, n_ev):
+    """The plain Stribeck curve over one tick: stick in closed form, slip by Taylor steps (see stribeck_tick)."""
+    k = prm.stiffness
+    A = prm.contactor_amplitude
+    om = prm.contactor_omega
+    u = st.x
+    z = st.v
+    phase = st.phase
+    sr = -st.s if st.s != 0.0 else 1.0
+    if phase != 0.0:
+        # a new finger speed at the tick start can reverse the relative velocity: friction follows it
+        vr = z + V - (A * om * math.cos(om * t0) if A != 0.0 else 0.0)
+        if vr != 0.0:
+            sr = 1.0 if vr > 0.0 else -1.0
+    t = t0
+    te = t0 + h
+    thr = mus * W
+    F = 0.0
+    for _ in range(MAX_EVENTS_PER_TICK):
+        if phase == 0.0:
+            t, broke, u, z, F = _stribeck_stick(prm, V, thr, u, t, te)
+            if not broke:
+                break
+            n_ev = _record(ev_t, ev_a, n_ev, t, B * abs(k * u))
+            sr = -1.0 if F > 0.0 else 1.0
+            phase = 1.0
+            continue
+        u, z, sr, stuck, t = _stribeck_taylor_slip(prm, u, z, sr, V, W, mus, muk, t, te)
+        if stuck:
+            phase = 0.0
+            continue
+        if t < te:
+            st.truncated += 1      # the slip's step cap ran out before the end of the tick
+        break
+    else:
+        st.truncated += 1
+    if phase == 1.0:
+        dxc = A * om * math.cos(om * te) if A != 0.0 else 0.0
+        muW, _ = _plain_friction(abs(z + V - dxc), W, mus, muk, prm.stribeck_a, prm.stribeck_b)
+        F = -sr * muW
+    st.x = u
+    st.v = z
+    st.phase = phase
+    st.s = -sr
+    st.f = F
+    return n_ev
+
+
+@njit(cache=True)
+def _stribeck_slip(prm, u, du, s, V, W, mus, muk, ta, dur):
+    """Pre-maximum variant: ``dur`` seconds from ``ta`` by exponential Rosenbrock substeps; returns (u, du, s, F).
+
+    The friction (continuous through zero relative speed in this variant) is
+    linearised about the current relative velocity and the linear oscillator
+    solved in closed form; on the negative Stribeck slope the step keeps the
+    growth factor below e^0.5 (the self-excitation is physical; the step only
+    resolves it).
+    """
+    m = prm.mass
+    k = prm.stiffness
+    c = prm.damping
     t = ta
     tend = ta + dur
     F = 0.0
@@ -863,13 +1268,9 @@ def _stribeck_slip(prm, u, du, s, V, W, mus, muk, ta, dur):
     # one before (same time, same state): computed once
     _, dxca, _ = _contactor(prm, t)
     vr0 = du + V - dxca
-    mu, dmu = stribeck_mu(abs(vr0), W, mus, muk, prm.stribeck_a, prm.stribeck_b, prm.stribeck_p, prm.stribeck_d, var)
+    mu, dmu = stribeck_mu(abs(vr0), W, mus, muk, prm.stribeck_a, prm.stribeck_b, prm.stribeck_p, prm.stribeck_d, 1)
     while t < tend:
-        if var == 1:
-            sr = _sgn(vr0)
-        else:
-            sr = -s if vr0 == 0.0 else _sgn(vr0)
-        F0 = -sr * mu * W
+        F0 = -_sgn(vr0) * mu * W
         ceff = c + dmu * W
         hs = min(prm.substep, tend - t)
         if ceff < 0.0:
@@ -881,35 +1282,19 @@ def _stribeck_slip(prm, u, du, s, V, W, mus, muk, ta, dur):
         _, dxcm, _ = _contactor(prm, t + 0.5 * hs)
         ueq = (F0 - dmu * W * (V - dxcm - vr0)) / k
         y1, v1 = osc(m, ceff, k, u - ueq, du, hs)
-        un = y1 + ueq
-        dun = v1
-        tb = t + hs
-        xcb, dxcb, ddxcb = _contactor(prm, tb)
-        vr1 = dun + V - dxcb
-        if var == 0 and vr0 != 0.0 and _sgn(vr1) != _sgn(vr0):
-            # relative velocity crossed zero: re-stick if the needed friction is admissible
-            fr = vr0 / (vr0 - vr1)
-            tc = t + fr * hs
-            xcc, dxcc, ddxcc = _contactor(prm, tc)
-            uc = u + fr * (un - u)
-            Fst = m * ddxcc + c * (dxcc - V) + k * uc
-            if abs(Fst) <= mus * W:
-                xce, dxce, ddxce = _contactor(prm, tend)
-                u = uc + (xce - xcc) - V * (tend - tc)
-                du = dxce - V
-                return u, du, s, 0.0, m * ddxce + c * du + k * u
-            s = -s
-        u = un
-        du = dun
-        t = tb
-        mu1, dmu1 = stribeck_mu(abs(vr1), W, mus, muk, prm.stribeck_a, prm.stribeck_b, prm.stribeck_p, prm.stribeck_d, var)
+        u = y1 + ueq
+        du = v1
+        t += hs
+        _, dxcb, _ = _contactor(prm, t)
+        vr1 = du + V - dxcb
+        mu, dmu = stribeck_mu(abs(vr1), W, mus, muk, prm.stribeck_a, prm.stribeck_b, prm.stribeck_p, prm.stribeck_d, 1)
         if vr1 != 0.0:
-            F = -_sgn(vr1) * mu1 * W
+            F = -_sgn(vr1) * mu * W
             s = -_sgn(vr1)
         else:
             F = F0
-        vr0, mu, dmu = vr1, mu1, dmu1
-    return u, du, s, 1.0, F
+        vr0 = vr1
+    return u, du, s, F
 
 
 @njit(cache=True)
@@ -917,80 +1302,54 @@ def stribeck_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
     """Imaizumi pad on a laterally vibrating contactor, finger bone at speed ``V``.
 
     ``st.x`` is the spring stretch u = x_p - x_f, ``st.v`` its rate; ``W = N``.
-    Stick: the pad moves with the contactor (u' = x_c' - V, exact);
-    breakaway when the needed friction ``m x_c'' + c u' + k u`` exceeds
-    ``mu_s W`` (located by bisection to ~1e-18 s). Slip: the friction is
-    linearised about the current relative velocity and the resulting linear
-    oscillator is solved in closed form over substeps of at most ``prm.substep``
-    (an exponential Rosenbrock step: stable on the stiff pre-maximum branch
-    and on the self-exciting negative Stribeck slope). Re-stick at a zero of
-    the relative velocity when the needed friction is within ``mu_s W``.
     The friction force ``F`` on the pad is reported in ``st.f``.
+
+    Plain Stribeck curve (``prm.stribeck_variant == 0``): stick in closed
+    form (the pad moves with the contactor, u' = x_c' - V; breakaway when the
+    needed friction ``m x_c'' + c u' + k u`` exceeds ``mu_s W``, located to
+    ~1e-16 s). Slip by Taylor series steps of adaptive order and length
+    (:func:`_stribeck_series`: each step's truncation error below
+    :data:`STRIBECK_TOL` of the pad's scales, steps at most ``prm.substep``
+    long); the re-stick is the zero of the relative velocity on the step's
+    polynomial (dense output as accurate as the step), taken when the needed
+    friction is within ``mu_s W``. A step cut at the end of a tick restarts
+    from its own polynomial, so event times depend on the tick rate only
+    within that tolerance.
+
+    Pre-maximum variant (1): friction is continuous through zero, no
+    set-valued stick: exponential Rosenbrock substeps of at most
+    ``prm.substep`` (:func:`_stribeck_slip`). The pre-maximum region counts
+    as "stick" (state 0): entered when |vr| <= d W, left (the stick-to-slip
+    event, located to one substep) when |vr| >= 2 d W, clear of the jump of
+    mu at d W (the hysteresis keeps round-off from chattering there).
     """
-    m = prm.mass
-    k = prm.stiffness
-    c = prm.damping
     B = prm.burst_gain * gain
+    nev0 = n_ev
+    if prm.stribeck_variant != 1:
+        n_ev = _stribeck_plain_tick(st, prm, t0, h, V, N, mus, muk, B, ev_t, ev_a, n_ev)
+        st.n_events = n_ev - nev0
+        return n_ev
+    k = prm.stiffness
     W = N
     u = st.x
     du = st.v
     phase = st.phase
     s = st.s
     F = st.f
-    nev0 = n_ev
     nsub = int(math.ceil(h / prm.substep - 1e-9))
     if nsub < 1:
         nsub = 1
     hs = h / nsub
-    premax = prm.stribeck_variant == 1
     for i in range(nsub):
         ta = t0 + i * hs
-        if premax:
-            # friction is continuous through zero: no set-valued stick. The
-            # pre-maximum region counts as "stick" (state 0): entered when
-            # |vr| <= d W, left (the stick-to-slip event, located to one
-            # substep) when |vr| >= 2 d W, clear of the jump of mu at d W
-            # (the hysteresis keeps round-off from chattering there).
-            u, du, s, _, F = _stribeck_slip(prm, u, du, s, V, W, mus, muk, ta, hs)
-            _, dxc, _ = _contactor(prm, ta + hs)
-            avr = abs(du + V - dxc)
-            if phase == 0.0 and avr >= 2.0 * prm.stribeck_d * W:
-                n_ev = _record(ev_t, ev_a, n_ev, ta + hs, B * abs(k * u))
-                phase = 1.0
-            elif phase == 1.0 and avr <= prm.stribeck_d * W:
-                phase = 0.0
-            continue
-        if phase == 0.0:
-            xca, dxca, ddxca = _contactor(prm, ta)
-            xcb, dxcb, ddxcb = _contactor(prm, ta + hs)
-            ub = u + (xcb - xca) - V * hs
-            Fb = m * ddxcb + c * (dxcb - V) + k * ub
-            if abs(Fb) <= mus * W:
-                u = ub
-                du = dxcb - V
-                F = Fb
-                continue
-            lo = 0.0
-            hi = hs
-            for _ in range(60):
-                mid = 0.5 * (lo + hi)
-                xcm, dxcm, ddxcm = _contactor(prm, ta + mid)
-                Fm = m * ddxcm + c * (dxcm - V) + k * (u + (xcm - xca) - V * mid)
-                if abs(Fm) > mus * W:
-                    hi = mid
-                else:
-                    lo = mid
-            xcm, dxcm, ddxcm = _contactor(prm, ta + hi)
-            u = u + (xcm - xca) - V * hi
-            du = dxcm - V
-            Fb = m * ddxcm + c * du + k * u
-            n_ev = _record(ev_t, ev_a, n_ev, ta + hi, B * abs(k * u))
-            s = _sgn(Fb)
+        u, du, s, F = _stribeck_slip(prm, u, du, s, V, W, mus, muk, ta, hs)
+        _, dxc, _ = _contactor(prm, ta + hs)
+        avr = abs(du + V - dxc)
+        if phase == 0.0 and avr >= 2.0 * prm.stribeck_d * W:
+            n_ev = _record(ev_t, ev_a, n_ev, ta + hs, B * abs(k * u))
             phase = 1.0
-            if hs - hi > 0.0:
-                u, du, s, phase, F = _stribeck_slip(prm, u, du, s, V, W, mus, muk, ta + hi, hs - hi)
-            continue
-        u, du, s, phase, F = _stribeck_slip(prm, u, du, s, V, W, mus, muk, ta, hs)
+        elif phase == 1.0 and avr <= prm.stribeck_d * W:
+            phase = 0.0
     st.x = u
     st.v = du
     st.phase = phase

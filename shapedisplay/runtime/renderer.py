@@ -76,7 +76,7 @@ _RING = 4096
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "76a4f174d1ca339daae2487d4fa4f28568ae98b3601b50ed49a16341647e25b9"
+KERNEL_SOURCES_SHA256 = "9eebe576732d4abfad57209e99affb3155f294a3b6a4851e6d91369c82cc9691"
 
 
 @njit(cache=True, inline="always")
