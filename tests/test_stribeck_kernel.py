@@ -137,7 +137,7 @@ def test_outputs_finite_and_bounded(segments, contactor):
 @settings(max_examples=25, deadline=None)
 @given(st.lists(st.tuples(st.floats(-0.3, 0.3), _LOADS), min_size=3, max_size=12), _CONTACTORS)
 def test_outputs_bounded_and_events_independent_of_tick_cuts(segments, contactor):
-    """Inputs held for 20 ms each; ticks of 1 ms, cut in three, give the same events (to the step tolerance)."""
+    """Inputs held for 20 ms each; ticks of 1 ms, cut in three, give the same events (within the step tolerance)."""
     hz, amp = contactor
     V = np.repeat([s[0] for s in segments], 20)
     N = np.repeat([s[1] for s in segments], 20)
@@ -155,4 +155,6 @@ def test_outputs_bounded_and_events_independent_of_tick_cuts(segments, contactor
     et1, et3 = runs[0][0][-2], runs[1][0][-2]
     assert et1.size == et3.size
     if et1.size:
-        assert np.max(np.abs(et1 - et3)) < 1e-9
+        # each step's error is below 1e-13 of the pad's scales; a light load (W / a of 0.2 mm/s at 10 mN)
+        # takes thousands of short steps, whose errors add up to ~1e-9 s
+        assert np.max(np.abs(et1 - et3)) < 1e-8
