@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from shapedisplay.devices import DeviceProfile, FrictionParams, PadParams
@@ -118,6 +118,8 @@ _CONTACTORS = st.sampled_from([(0.0, 0.0), (9.0, 1.25e-3), (3.0, 1.25e-3)])
 
 @settings(max_examples=25, deadline=None)
 @given(st.lists(st.tuples(st.floats(-0.3, 0.3), st.floats(0.0, 3.0)), min_size=3, max_size=12), _CONTACTORS)
+@example([(0.0, 0.0), (0.25, 1.0), (0.0, 5.960464477539063e-08)], (0.0, 0.0))   # drop too steep for Taylor steps
+@example([(0.0, 0.0), (0.25, 1.0), (-0.25, 2.225073858507e-311)], (9.0, 1.25e-3))   # subnormal load
 def test_outputs_finite_and_bounded(segments, contactor):
     """Inputs held for 20 ms each, any load down to subnormal ones: finite, friction within the curve."""
     hz, amp = contactor

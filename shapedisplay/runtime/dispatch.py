@@ -22,7 +22,7 @@ REGISTRY = (
     ('tanh', 'tanh_tick', None),
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py.
-KERNEL_SOURCES_SHA256 = "28d14766cb847f352c6388293616df9cda86d930e7d992ceceb570d8afb98377"
+KERNEL_SOURCES_SHA256 = "1c0fa1fbe3da66b0aad8542ddd19027460d64662e66c0d55aa32efeda9beea0c"
 
 
 @njit(cache=True)

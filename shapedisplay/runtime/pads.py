@@ -849,6 +849,9 @@ STRIBECK_MAX_ORDER = 14
 #: ``|V| + A omega + mu_s W / sqrt(k m)``).
 STRIBECK_TOL = 1e-13
 _STRIBECK_SAMPLES = 4    # sign checks of the relative speed per step (a touch inside one step is seen)
+#: Taylor steps per slip call before the linearised fallback takes over (a load so light that the curve's
+#: drop needs steps far shorter than the pad's time scales; bounded work per tick instead of the step cap)
+_STRIBECK_MAX_TAYLOR_STEPS = 20_000
 
 
 @njit(cache=True, error_model="numpy")
@@ -1132,13 +1135,14 @@ def _stribeck_taylor_slip(prm, u, z, sr, V, W, mus, muk, t, te):
     om = prm.contactor_omega
     hmin = 1e-6 * math.sqrt(m / k)
     co = np.empty((5, STRIBECK_MAX_ORDER + 1))     # the step's Taylor coefficients (see _stribeck_series)
-    for _ in range(MAX_EVENTS_PER_TICK):
+    for it in range(MAX_EVENTS_PER_TICK):
         if t >= te:
             break
         p, hs = _stribeck_series(prm, W, V, mus, muk, sr, t, u, z, min(te - t, prm.substep), co)
-        if not (hs >= hmin):
+        if not (hs >= hmin) or it >= _STRIBECK_MAX_TAYLOR_STEPS:
             # the series cannot follow the friction curve here (its exponential varies on a time scale far
-            # below the pad's, at absurd speeds): one linearised exponential step keeps the state bounded
+            # below the pad's: absurd speeds, micronewton loads): a linearised exponential step keeps the
+            # state bounded
             vr0 = co[2, 0]
             muW, dmuW = _plain_friction(max(sr * vr0, 0.0), W, mus, muk, prm.stribeck_a, prm.stribeck_b)
             ceff = c + dmuW

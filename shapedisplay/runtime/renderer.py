@@ -76,7 +76,7 @@ _RING = 4096
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "9eebe576732d4abfad57209e99affb3155f294a3b6a4851e6d91369c82cc9691"
+KERNEL_SOURCES_SHA256 = "1190bbc0a3c20f6bcb9205ab2cc7605cc05d221adc3dedf0bd47be84d09565ab"
 
 
 @njit(cache=True, inline="always")
