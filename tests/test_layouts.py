@@ -127,10 +127,10 @@ def test_a_new_registry_line_gets_its_own_branches():
     extra = registry_entries() + (("mine", "mine_tick", None),)
     src = codegen.dispatch_source(extra)
     i = len(extra) - 1
-    assert src.count("pads.mine_tick(") == 2                      # model_tick and run_ticks
+    assert src.count("pads.mine_tick(") == 3                      # model_tick, run_ticks and render_ticks
     assert f"    if model == {i}:\n        return pads.mine_tick(" in src
     fast = registry_entries() + (("mine", "mine_tick", "with_work"),)
-    assert "st.x = x\n            n_ev = pads.mine_tick(" in codegen.dispatch_source(fast)
+    assert codegen.dispatch_source(fast).count("st.x = x\n            n_ev = pads.mine_tick(") == 2
 
 
 def test_policy_and_slot_numbers_used_by_kernels():

@@ -389,3 +389,97 @@ def test_fused_lookup_equals_table_sample_and_prepare_inputs_bit_for_bit(model, 
         assert got[name].tobytes() == vals[SLOTS.index(slot)].tobytes(), name
     res = r.render(cp)
     assert res.lateral_x.tobytes() == got["lateral_x"].tobytes() and res.event_time.size > 0
+
+
+def _render_with_run_kernel(r, cp):
+    """What Renderer.render computes, with the model run by run_kernel (all six per-tick rows) instead of the
+    render's own tick loop: the reference it must equal bit for bit."""
+    from shapedisplay.runtime.bursts import render_bursts
+    from shapedisplay.runtime.models import run_kernel
+    from shapedisplay.runtime.renderer import skin_stretch_of
+    V, vx, vy, N, mus, muk, gain, lx, ly, target = r._inputs(cp)
+    S, f, st, *_, et, ea = run_kernel(r.model, cp.t, V, N, mus, muk, gain)
+    ss = np.empty_like(f)
+    skin_stretch_of(target, f, mus, N, ss)
+    b = r.device.burst
+    audio, clipped = render_bursts(et, ea, cp.t[0], cp.duration, r.audio_rate, b.carrier_hz, b.rise_s, b.decay_s,
+                                   r.burst_policy)
+    return dict(t=cp.t, x=cp.x, y=cp.y, vx=vx, vy=vy, normal_force=N, friction_force=f, state=st.astype(np.int8),
+                lateral_x=lx, lateral_y=ly, skin_stretch=ss, event_time=et, event_amplitude=ea, audio=audio,
+                clipped=clipped, mu_s=mus)
+
+
+@pytest.mark.parametrize("model, names, rows, kmu, policy, gain", [
+    ("jump", ("normal_force",), -1, 0.0, "retrigger", 0.3), ("exact", ("normal_force", "lateral_x"), -1, 0.0, "add", 0.3),
+    ("jump", ("normal_force", "lateral_y", "skin_stretch"), -12, 0.0, "max", 3.0),
+    ("exact", ("normal_force", "friction_scale", "grad_x", "grad_y"), 12, 0.3, "retrigger", 3.0),
+    ("karnopp", ("normal_force", "burst_gain"), 12, 0.0, "add", 0.3),
+    ("stribeck", ("normal_force", "kinetic_force"), 1, 0.0, "retrigger", 0.3),
+    ("tanh", ("normal_force", "breakaway_force"), 12, 0.0, "max", 0.3),
+    ("karnopp", ("normal_force",), 1, 0.0, "max", 0.3), ("jump", ("lateral_x",), 1, 0.0, "retrigger", 0.3),
+    ("jump", ("normal_force", "grad_x"), 1, 0.3, "add", 3.0)])
+def test_render_tick_loop_equals_run_kernel_bit_for_bit(model, names, rows, kmu, policy, gain):
+    """render() runs the model through dispatch.render_ticks (friction and phase stored, nothing else): every
+    output equals the render built on run_kernel bit for bit, on dense and sparse, one-row and 2-D tables (every
+    lookup path), five models, three burst policies, clipping on and off, a random walk with reversals, a stroke
+    and a path that barely moves."""
+    rng = np.random.default_rng(11)
+    cols = 40
+    meta = {"mapping": {"slope_friction_gain": kmu, "n_base": 1.5}}
+    if rows < 0:
+        rows = -rows
+        dense = {n: rng.uniform(-0.3, 2.0, (rows, cols)) for n in names}
+        t = FrictionTable.from_dense(Grid(rows, cols, 1e-3, 1e-3, 0.5e-3, 0.2e-3), dense,
+                                     {n: choose_quantization(v, "uint16") for n, v in dense.items()}, meta)
+    else:
+        patch = {n: rng.uniform(0.2, 2.0, (min(5, rows), 9)) for n in names}
+        quant = {n: choose_quantization(v, "uint16") for n, v in patch.items()}
+        t = FrictionTable.from_patches(Grid(rows, cols, 1e-3, 1e-3, 0.5e-3, 0.2e-3),
+                                       [((0 if rows == 1 else 1, 2), patch), ((0 if rows == 1 else 6, 21), patch)],
+                                       quant, {n: 0.4 for n in names}, meta)
+    dev = load_device(None).with_(burst=BurstParams(gain=gain))
+    n = 3001
+    walk = CursorPath(np.arange(n) / 10_000.0, 0.01 + np.cumsum(rng.normal(0, 2e-5, n)),
+                      0.004 + np.cumsum(rng.normal(0, 1e-5, n)), 10_000.0, "walk")
+    r = Renderer(t, device=dev, model=model, tick_rate=10_000, burst_policy=policy)
+    clipped = 0
+    for cp in (walk, parse_stroke("2,1 <-> 30,3 @ 60 mm/s", 10_000), parse_stroke("5,1 -> 5.0001,1 @ 1 mm/s", 10_000)):
+        got = r.render(cp)
+        want = _render_with_run_kernel(r, cp)
+        for name, w in want.items():
+            g = getattr(got, name)
+            if name == "clipped":
+                assert g == w
+            else:
+                assert g.dtype == w.dtype and g.shape == w.shape and g.tobytes() == w.tobytes(), name
+        clipped += got.clipped
+    assert (clipped > 0) == (gain > 1.0)
+
+
+@pytest.mark.parametrize("model", ["exact", "jump", "karnopp", "stribeck", "euler", "rk4", "tanh"])
+def test_render_ticks_equals_run_ticks_state_events_and_rows(model):
+    """dispatch.render_ticks against dispatch.run_ticks on the same inputs (stick, slip, reversals; 20 kHz so the
+    explicit baselines stay stable): the same friction rows, the phase as astype(int8), the same events and the
+    same final state field by field, the work terms of a last tick taken on the stuck fast path included."""
+    from shapedisplay.runtime.dispatch import render_ticks, run_ticks
+    from shapedisplay.runtime.models import get_model
+    dev = load_device(None)
+    m = get_model(model, dev)
+    rng = np.random.default_rng(3)
+    for n, V in ((4000, 0.04 * np.sin(np.arange(4000) / 300.0)), (2000, np.full(2000, 1e-4)),
+                 (3, np.array([0.0, 0.01, 0.02]))):
+        t = np.arange(n) / 20_000.0
+        N = 1.0 + 0.5 * rng.random(n)
+        mus = np.full(n, dev.friction.mu_s)
+        muk = np.full(n, dev.friction.mu_k)
+        gain = np.ones(n)
+        S1, S2 = m.new_state(), m.new_state()
+        rows = np.empty((6, n))
+        ev1, ev2 = np.zeros((2, n)), np.zeros((2, n))
+        n1 = run_ticks(m.model_id, S1, m.param_block, t, V, N, mus, muk, gain, *rows, ev1[0], ev1[1])
+        f = np.empty(n)
+        ph = np.empty(n, np.int8)
+        n2 = render_ticks(m.model_id, S2, m.param_block, t, V, N, mus, muk, gain, f, ph, ev2[0], ev2[1])
+        assert n1 == n2 and ev1.tobytes() == ev2.tobytes()
+        assert f.tobytes() == rows[0].tobytes() and ph.tobytes() == rows[1].astype(np.int8).tobytes()
+        assert S1.tobytes() == S2.tobytes(), [(k, S1[k], S2[k]) for k in S1.dtype.names if S1[k] != S2[k]]

@@ -38,14 +38,40 @@ KERNEL_DEPENDENCIES = {
 }
 _HASH_LINE = re.compile(r'^KERNEL_SOURCES_SHA256 = "[0-9a-f]*"$', re.M)
 _OUTS = ("out_f, out_state, out_x, out_v, out_wf, out_wd")
+_RENDER_OUTS = "out_f, out_phase"
 _ARGS = "prm, t[i - 1], {h}, {V}, N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev"
 
 
-def _stick_fast_branch(mid: int, kernel: str, with_work: bool) -> str:
-    work = ("out_wf[i] = fa * Vi * h + 0.5 * k * Vi * Vi * h * h\n"
-            "                    out_wd[i] = c * Vi * Vi * h") if with_work else \
-        ("out_wf[i] = 0.0\n"
-         "                    out_wd[i] = 0.0")
+def _stick_fast_branch(mid: int, kernel: str, with_work: bool, render: bool = False) -> str:
+    """One model's branch of ``run_ticks`` (``render``: of ``render_ticks``, which stores friction and phase only)."""
+    if render:
+        stores = ("out_f[i] = fe\n"
+                  "                    out_phase[i] = 0")
+        keep = "xa = x\n                    " if with_work else ""
+        last_work = ("            Vi = V[n - 1]\n"
+                     "            h = t[n - 1] - t[n - 2]\n"
+                     "            fa = k * xa + c * Vi\n"
+                     "            st.work_friction = fa * Vi * h + 0.5 * k * Vi * Vi * h * h\n"
+                     "            st.work_damping = c * Vi * Vi * h\n") if with_work else \
+            ("            st.work_friction = 0.0\n"
+             "            st.work_damping = 0.0\n")
+        outs, store = _RENDER_OUTS, "_store_render"
+        start = "xa = x\n        " if with_work else ""
+    else:
+        work = ("out_wf[i] = fa * Vi * h + 0.5 * k * Vi * Vi * h * h\n"
+                "                    out_wd[i] = c * Vi * Vi * h") if with_work else \
+            ("out_wf[i] = 0.0\n"
+             "                    out_wd[i] = 0.0")
+        stores = ("out_f[i] = fe\n"
+                  "                    out_state[i] = 0.0\n"
+                  "                    out_x[i] = xe\n"
+                  "                    out_v[i] = Vi\n"
+                  f"                    {work}")
+        keep = ""
+        last_work = ("            st.work_friction = out_wf[n - 1]\n"
+                     "            st.work_damping = out_wd[n - 1]\n")
+        outs, store = _OUTS, "_store"
+        start = ""
     return f'''    if model == {mid}:
         # Stuck ticks (the common case) run inline with the stretch in a register; the
         # kernel runs when a breakaway may happen or the pad slips. Same arithmetic as
@@ -54,7 +80,7 @@ def _stick_fast_branch(mid: int, kernel: str, with_work: bool) -> str:
         c = prm.damping
         fast_ok = prm.max_stick_period == 0.0
         x = st.x
-        phase = st.phase
+        {start}phase = st.phase
         synced = True
         for i in range(1, n):
             Vi = V[i]
@@ -65,18 +91,14 @@ def _stick_fast_branch(mid: int, kernel: str, with_work: bool) -> str:
                 fe = k * xe + c * Vi
                 thr = mus[i] * N[i]
                 if abs(fa) < thr and abs(fe) < thr:
-                    x = xe
-                    out_f[i] = fe
-                    out_state[i] = 0.0
-                    out_x[i] = xe
-                    out_v[i] = Vi
-                    {work}
+                    {keep}x = xe
+                    {stores}
                     synced = False
                     continue
             if not synced:
                 st.x = x
             n_ev = pads.{kernel}(st, {_ARGS.format(h="h", V="Vi")})
-            _store(st, i, {_OUTS})
+            {store}(st, i, {outs})
             x = st.x
             phase = st.phase
             synced = True
@@ -84,18 +106,17 @@ def _stick_fast_branch(mid: int, kernel: str, with_work: bool) -> str:
             st.x = x
             st.v = V[n - 1]
             st.f = out_f[n - 1]
-            st.work_friction = out_wf[n - 1]
-            st.work_damping = out_wd[n - 1]
-            st.n_events = 0
+{last_work}            st.n_events = 0
         return n_ev
 '''
 
 
-def _plain_branch(mid: int, kernel: str) -> str:
+def _plain_branch(mid: int, kernel: str, render: bool = False) -> str:
+    store, outs = ("_store_render", _RENDER_OUTS) if render else ("_store", _OUTS)
     return f'''    if model == {mid}:
         for i in range(1, n):
             n_ev = pads.{kernel}(st, {_ARGS.format(h="t[i] - t[i - 1]", V="V[i]")})
-            _store(st, i, {_OUTS})
+            {store}(st, i, {outs})
         return n_ev
 '''
 
@@ -108,6 +129,8 @@ def dispatch_source(registry) -> str:
                     for i, (_, k, _) in enumerate(registry))
     branches = "".join(_stick_fast_branch(i, k, f == "with_work") if f else _plain_branch(i, k)
                        for i, (_, k, f) in enumerate(registry))
+    render_branches = "".join(_stick_fast_branch(i, k, f == "with_work", True) if f else _plain_branch(i, k, True)
+                              for i, (_, k, f) in enumerate(registry))
     return f'''"""Kernel dispatch by model id. GENERATED by `make generate` from runtime.models.MODELS: do not edit.
 
 A model id is the position of the model in ``MODELS`` (``SD_MODEL_*`` in
@@ -169,6 +192,31 @@ def run_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_state, o
     st.work_damping = 0.0
     _store(st, 0, {_OUTS})
 {branches}    return n_ev
+
+
+@njit(cache=True)
+def _store_render(st, i, out_f, out_phase):
+    out_f[i] = st.f
+    out_phase[i] = st.phase
+
+
+@njit(cache=True)
+def render_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_phase, ev_t, ev_a):
+    """:func:`run_ticks` for the offline render, which keeps only the friction force and the phase:
+    ``out_f`` float64 and ``out_phase`` int8 (the phase converted as numpy's ``astype`` does), shape
+    (n,). The same model arithmetic, state and events as :func:`run_ticks`; the other four rows are not
+    written (less memory traffic per tick).
+    """
+    st = state[0]
+    prm = params[0]
+    n = t.shape[0]
+    n_ev = 0
+    if n == 0:
+        return 0
+    st.work_friction = 0.0
+    st.work_damping = 0.0
+    _store_render(st, 0, {_RENDER_OUTS})
+{render_branches}    return n_ev
 '''
 
 

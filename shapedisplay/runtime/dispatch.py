@@ -191,3 +191,136 @@ def run_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_state, o
             _store(st, i, out_f, out_state, out_x, out_v, out_wf, out_wd)
         return n_ev
     return n_ev
+
+
+@njit(cache=True)
+def _store_render(st, i, out_f, out_phase):
+    out_f[i] = st.f
+    out_phase[i] = st.phase
+
+
+@njit(cache=True)
+def render_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_phase, ev_t, ev_a):
+    """:func:`run_ticks` for the offline render, which keeps only the friction force and the phase:
+    ``out_f`` float64 and ``out_phase`` int8 (the phase converted as numpy's ``astype`` does), shape
+    (n,). The same model arithmetic, state and events as :func:`run_ticks`; the other four rows are not
+    written (less memory traffic per tick).
+    """
+    st = state[0]
+    prm = params[0]
+    n = t.shape[0]
+    n_ev = 0
+    if n == 0:
+        return 0
+    st.work_friction = 0.0
+    st.work_damping = 0.0
+    _store_render(st, 0, out_f, out_phase)
+    if model == 0:
+        # Stuck ticks (the common case) run inline with the stretch in a register; the
+        # kernel runs when a breakaway may happen or the pad slips. Same arithmetic as
+        # pads._stuck_whole_tick.
+        k = prm.stiffness
+        c = prm.damping
+        fast_ok = prm.max_stick_period == 0.0
+        x = st.x
+        xa = x
+        phase = st.phase
+        synced = True
+        for i in range(1, n):
+            Vi = V[i]
+            h = t[i] - t[i - 1]
+            if fast_ok and phase == 0.0:
+                xe = x + Vi * h
+                fa = k * x + c * Vi
+                fe = k * xe + c * Vi
+                thr = mus[i] * N[i]
+                if abs(fa) < thr and abs(fe) < thr:
+                    xa = x
+                    x = xe
+                    out_f[i] = fe
+                    out_phase[i] = 0
+                    synced = False
+                    continue
+            if not synced:
+                st.x = x
+            n_ev = pads.exact_tick(st, prm, t[i - 1], h, Vi, N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
+            _store_render(st, i, out_f, out_phase)
+            x = st.x
+            phase = st.phase
+            synced = True
+        if not synced:
+            st.x = x
+            st.v = V[n - 1]
+            st.f = out_f[n - 1]
+            Vi = V[n - 1]
+            h = t[n - 1] - t[n - 2]
+            fa = k * xa + c * Vi
+            st.work_friction = fa * Vi * h + 0.5 * k * Vi * Vi * h * h
+            st.work_damping = c * Vi * Vi * h
+            st.n_events = 0
+        return n_ev
+    if model == 1:
+        # Stuck ticks (the common case) run inline with the stretch in a register; the
+        # kernel runs when a breakaway may happen or the pad slips. Same arithmetic as
+        # pads._stuck_whole_tick.
+        k = prm.stiffness
+        c = prm.damping
+        fast_ok = prm.max_stick_period == 0.0
+        x = st.x
+        phase = st.phase
+        synced = True
+        for i in range(1, n):
+            Vi = V[i]
+            h = t[i] - t[i - 1]
+            if fast_ok and phase == 0.0:
+                xe = x + Vi * h
+                fa = k * x + c * Vi
+                fe = k * xe + c * Vi
+                thr = mus[i] * N[i]
+                if abs(fa) < thr and abs(fe) < thr:
+                    x = xe
+                    out_f[i] = fe
+                    out_phase[i] = 0
+                    synced = False
+                    continue
+            if not synced:
+                st.x = x
+            n_ev = pads.jump_tick(st, prm, t[i - 1], h, Vi, N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
+            _store_render(st, i, out_f, out_phase)
+            x = st.x
+            phase = st.phase
+            synced = True
+        if not synced:
+            st.x = x
+            st.v = V[n - 1]
+            st.f = out_f[n - 1]
+            st.work_friction = 0.0
+            st.work_damping = 0.0
+            st.n_events = 0
+        return n_ev
+    if model == 2:
+        for i in range(1, n):
+            n_ev = pads.karnopp_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
+            _store_render(st, i, out_f, out_phase)
+        return n_ev
+    if model == 3:
+        for i in range(1, n):
+            n_ev = pads.stribeck_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
+            _store_render(st, i, out_f, out_phase)
+        return n_ev
+    if model == 4:
+        for i in range(1, n):
+            n_ev = pads.euler_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
+            _store_render(st, i, out_f, out_phase)
+        return n_ev
+    if model == 5:
+        for i in range(1, n):
+            n_ev = pads.rk4_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
+            _store_render(st, i, out_f, out_phase)
+        return n_ev
+    if model == 6:
+        for i in range(1, n):
+            n_ev = pads.tanh_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
+            _store_render(st, i, out_f, out_phase)
+        return n_ev
+    return n_ev

@@ -60,10 +60,10 @@ from ..errors import InputError, ModelError
 from ..table import FrictionTable
 from .bursts import carrier_at, envelope_at, finished_events, forget_events, new_burst_state, render_bursts, synth
 from .cursor import MAX_POSITION_M, CursorPath
-from .dispatch import model_tick
-from .layouts import NSLOT, ONLINE, OUTPUTS, SLOTS, Slot
+from .dispatch import model_tick, render_ticks
+from .layouts import NSLOT, ONLINE, OUTPUTS, PAD_STATE, SLOTS, Slot
 from .lookup import _packed_index, axis_cell_at, bilinear, corners, sample_all
-from .models import PadModel, check_dispatch, divergence_message, run_kernel
+from .models import PadModel, check_dispatch, divergence_message
 from .result import RenderResult
 # the settings' home is .settings (numba-free, shared with the C engine); these names stay importable from here
 from .settings import (audio_length, constant_normal_force, derive_config, device_for_table,  # noqa: F401
@@ -76,7 +76,7 @@ _RING = 4096
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "1190bbc0a3c20f6bcb9205ab2cc7605cc05d221adc3dedf0bd47be84d09565ab"
+KERNEL_SOURCES_SHA256 = "f3102e9b4f2c7d4559af8f9b3de429d592d0d6d4ce1ba3399c07d13ba5a3abd8"
 
 
 @njit(cache=True, inline="always")
@@ -609,23 +609,48 @@ class Renderer:
             raise InputError(f"`cursor` must be a CursorPath (got {type(cursor).__name__})")
         cp = cursor if cursor.tick_rate == self.tick_rate else cursor.resample(self.tick_rate)
         audio_length(cp.duration, self.audio_rate)     # refuse an impossible stream before the work
-        # every per-tick array of the run in one block: the inputs, the kernel's six outputs, skin stretch and
-        # the copies of t, x, y. Fewer, larger allocations are reused by the allocator from run to run
-        # instead of being returned to the system and faulted in again (most of a short render's cost).
+        # every per-tick array of the run in one block: the inputs, the friction force, skin stretch and the
+        # copies of t, x, y. Fewer, larger allocations are reused by the allocator from run to run instead of
+        # being returned to the system and faulted in again (most of a short render's cost).
         k = len(INPUT_ROWS)
-        block = np.empty((k + 10, cp.t.size))
-        V, vx, vy, N, mus, muk, gain, lat_x, lat_y, target = self._inputs(cp, block[:k], block[k + 6:])
-        S, f, st, _, _, _, _, et, ea = run_kernel(self.model, cp.t, V, N, mus, muk, gain, out=block[k:k + 6])
-        if S["diverged"] != 0:
-            raise ModelError(divergence_message(self.model, self.tick_rate, float(S["diverged_at"])))
-        ss, t, x, y = block[k + 6:]
+        n = cp.t.size
+        block = np.empty((k + 5, n))
+        V, vx, vy, N, mus, muk, gain, lat_x, lat_y, target = self._inputs(cp, block[:k], block[k + 1:])
+        f = block[k]
+        phase = np.empty(n, np.int8)
+        et, ea = self._run_model(cp.t, V, N, mus, muk, gain, f, phase)
+        ss, t, x, y = block[k + 1:]
         skin_stretch_of(target, f, mus, N, ss)
         t[:], x[:], y[:] = cp.t, cp.x, cp.y
         b = self.device.burst
         audio, clipped = render_bursts(et, ea, cp.t[0], cp.duration, self.audio_rate, b.carrier_hz, b.rise_s,
                                        b.decay_s, self.burst_policy)
-        return RenderResult(t, x, y, vx, vy, N, f, st.astype(np.int8), lat_x, lat_y, ss, et, ea, audio,
+        return RenderResult(t, x, y, vx, vy, N, f, phase, lat_x, lat_y, ss, et, ea, audio,
                             self.audio_rate, clipped, self.model.name, self.tick_rate, self.burst_policy, mus)
+
+    def _run_model(self, t, V, N, mus, muk, gain, f, phase):
+        """The model over one path's inputs, keeping what the render returns: friction force into ``f``,
+        phase into ``phase`` (int8), and the events (times, amplitudes). The values of
+        :func:`~.models.run_kernel` (``dispatch.render_ticks`` runs the same arithmetic and only stores
+        less); raises :class:`ModelError` as :meth:`render` documents."""
+        model = self.model
+        n = t.shape[0]
+        cap = n // 8 + 1024          # grown and re-run if a path has more events
+        while True:
+            S = np.frombuffer(bytearray(model._fresh_state_bytes), PAD_STATE)
+            ev = np.empty((2, cap))
+            n_ev = render_ticks(model.model_id, S, model.param_block, t, V, N, mus, muk, gain, f, phase, ev[0], ev[1])
+            if n_ev <= cap:
+                break
+            cap = n_ev + 64
+        st = S[0]
+        if st["truncated"] > 0:
+            raise ModelError(f"model '{model.name}' reached its cap on phase changes in one tick "
+                             f"({int(st['truncated'])} ticks cut); inputs are outside the model's range")
+        if st["diverged"] != 0:
+            raise ModelError(divergence_message(model, self.tick_rate, float(st["diverged_at"])))
+        ev = ev[:, :n_ev].copy()
+        return ev[0], ev[1]
 
     # ------------------------------------------------------------------ online
     def _build_online(self):
