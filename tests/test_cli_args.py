@@ -215,3 +215,21 @@ def test_no_option_name_has_two_meanings():
     assert {"compile", "preview", "heightmap", "studio"} <= set(seen["--size"]) and "--extent" not in seen
     assert "play" not in seen["--trace"] and "--force" not in seen and "play" not in seen["--format"]
     assert "device emulate" not in seen["--timeout"] and "device emulate" in seen["--stop-after"]
+
+
+@pytest.mark.parametrize("env, expected", [
+    ({}, "1"),                                   # unset: one BLAS thread
+    ({"OPENBLAS_NUM_THREADS": "4"}, "4"),        # the user's choice is kept
+    ({"OMP_NUM_THREADS": "2"}, "None"),          # a general thread setting is left to BLAS
+])
+def test_the_command_line_asks_blas_for_one_thread_unless_the_user_chose(env, expected):
+    import os
+    import subprocess
+    import sys
+    base = {k: v for k, v in os.environ.items()
+            if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}
+    code = ("import os, sys; from shapedisplay_cli.main import main; main(['--version']); "
+            "import numpy; print(os.environ.get('OPENBLAS_NUM_THREADS'), 'numpy' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], env={**base, **env}, capture_output=True, text=True,
+                         check=True).stdout.split()
+    assert out[-2:] == [expected, "True"]
