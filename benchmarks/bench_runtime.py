@@ -14,8 +14,10 @@ table lookup (the renderer's bilinear lookup on the packed table, written
 out in the loop) and one comparison per tick, over the same cursor path and
 table: the least any renderer must do per tick. A calibration line prints
 the bare ``jump`` tick loop against it. Its ratio is measured in rounds that alternate
-floor and render (best of several calls each), and printed as min / median
-/ max over the rounds. Both are timed on this thread's CPU clock: on a
+floor and render (best of several calls each); each round's render is
+compared with the fastest floor round of the run (a floor slowed by a busy
+neighbour would otherwise raise the ratio), printed as min / median / max
+over the rounds. Both are timed on this thread's CPU clock: on a
 loaded machine a 10 ms render is preempted far more often than a 2 ms floor
 loop, which wall time would count against the render.
 
@@ -107,7 +109,9 @@ def render_against_floor(table, dev, rate, spec, model="jump", rounds=5, policy=
         tr = best_of(lambda: r.render(stroke), 7, time.thread_time)
         fl.append(n / tf / 1e6)
         rr.append(n / tr / 1e6)
-        ratio.append(tf / tr * 100)
+    # Each round's render against the fastest floor round: a floor slowed by a busy neighbour would
+    # otherwise raise that round's ratio (the floor is the same loop every round).
+    ratio = [ticks_per_s / max(fl) * 100 for ticks_per_s in rr]
     med = sorted(ratio)[len(ratio) // 2]
     label = model if policy == "retrigger" else f"{model}/{policy}"
     print(f"{label:8s} full render @{rate / 1000:g} kHz ({n} ticks, {int(stroke.duration * r.audio_rate) + 1} "
