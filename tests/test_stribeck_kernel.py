@@ -116,6 +116,20 @@ _LOADS = st.one_of(st.just(0.0), st.floats(0.01, 3.0))
 _CONTACTORS = st.sampled_from([(0.0, 0.0), (9.0, 1.25e-3), (3.0, 1.25e-3)])
 
 
+def _assert_finite_and_within_the_curve(run, hz, amp):
+    """Finite outputs, phases 0/1, increasing event times, no truncated tick, friction within the curve."""
+    (st_, f, phase, x, v, _, _, et, ea), Vt, Nt = run
+    assert np.all(np.isfinite(f)) and np.all(np.isfinite(x)) and np.all(np.isfinite(v))
+    assert set(np.unique(phase)) <= {0.0, 1.0}
+    assert np.all(np.diff(et) > 0) and np.all(np.isfinite(ea)) and np.all(ea >= 0)
+    assert st_["truncated"] == 0
+    # friction never exceeds the curve's largest value: mu_s W in stick, W mu(|vr|) <= mu_s W + b |vr| in slip
+    vr = np.abs(v) + np.abs(Vt) + amp * 2 * math.pi * hz
+    assert np.all(np.abs(f) <= 2.1 * Nt + 1.9 * vr + 1e-9)
+    stuck = phase == 0.0
+    assert np.all(np.abs(f[stuck]) <= 2.1 * Nt[stuck] * (1 + 1e-9) + 1e-12)
+
+
 @settings(max_examples=25, deadline=None)
 @given(st.lists(st.tuples(st.floats(-0.3, 0.3), st.floats(0.0, 3.0)), min_size=3, max_size=12), _CONTACTORS)
 @example([(0.0, 0.0), (0.25, 1.0), (0.0, 5.960464477539063e-08)], (0.0, 0.0))   # drop too steep for Taylor steps
@@ -125,15 +139,7 @@ def test_outputs_finite_and_bounded(segments, contactor):
     hz, amp = contactor
     V = np.repeat([s[0] for s in segments], 20)
     N = np.repeat([s[1] for s in segments], 20)
-    (st_, f, phase, x, v, _, _, et, ea), Vt, Nt = _run(V, N, 1000.0, 1, hz, amp)
-    assert np.all(np.isfinite(f)) and np.all(np.isfinite(x)) and np.all(np.isfinite(v))
-    assert set(np.unique(phase)) <= {0.0, 1.0}
-    assert np.all(np.diff(et) > 0) and np.all(np.isfinite(ea)) and np.all(ea >= 0)
-    assert st_["truncated"] == 0
-    vr = np.abs(v) + np.abs(Vt) + amp * 2 * math.pi * hz
-    assert np.all(np.abs(f) <= 2.1 * Nt + 1.9 * vr + 1e-9)
-    stuck = phase == 0.0
-    assert np.all(np.abs(f[stuck]) <= 2.1 * Nt[stuck] * (1 + 1e-9) + 1e-12)
+    _assert_finite_and_within_the_curve(_run(V, N, 1000.0, 1, hz, amp), hz, amp)
 
 
 @settings(max_examples=25, deadline=None)
@@ -144,16 +150,8 @@ def test_outputs_bounded_and_events_independent_of_tick_cuts(segments, contactor
     V = np.repeat([s[0] for s in segments], 20)
     N = np.repeat([s[1] for s in segments], 20)
     runs = [_run(V, N, 1000.0, split, hz, amp) for split in (1, 3)]
-    for (st_, f, phase, x, v, _, _, et, ea), Vt, Nt in runs:
-        assert np.all(np.isfinite(f)) and np.all(np.isfinite(x)) and np.all(np.isfinite(v))
-        assert set(np.unique(phase)) <= {0.0, 1.0}
-        assert np.all(np.diff(et) > 0) and np.all(np.isfinite(ea)) and np.all(ea >= 0)
-        assert st_["truncated"] == 0
-        # friction never exceeds the curve's largest value: mu_s W in stick, W mu(|vr|) <= mu_s W + b |vr| in slip
-        vr = np.abs(v) + np.abs(Vt) + amp * 2 * math.pi * hz
-        assert np.all(np.abs(f) <= 2.1 * Nt + 1.9 * vr + 1e-9)
-        stuck = phase == 0.0
-        assert np.all(np.abs(f[stuck]) <= 2.1 * Nt[stuck] * (1 + 1e-9) + 1e-12)
+    for run in runs:
+        _assert_finite_and_within_the_curve(run, hz, amp)
     et1, et3 = runs[0][0][-2], runs[1][0][-2]
     assert et1.size == et3.size
     if et1.size:
