@@ -2,7 +2,8 @@
 
 ``make generate`` (``python -m shapedisplay.runtime.codegen``) writes
 
-* ``runtime/dispatch.py`` — :func:`model_tick` and :func:`run_ticks`, one
+* ``runtime/dispatch.py`` — :func:`model_tick`, :func:`run_ticks` (and
+  :func:`run_block`, its one-call form for ``run_kernel``), one
   branch per model of :data:`~.models.MODELS` (numba cannot cache a
   function that picks a kernel from a table of functions, so the branches
   are written out);
@@ -140,6 +141,7 @@ written out by :mod:`.codegen`.
 """
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 from . import pads
@@ -192,6 +194,29 @@ def run_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_state, o
     st.work_damping = 0.0
     _store(st, 0, {_OUTS})
 {branches}    return n_ev
+
+
+@njit(cache=True)
+def run_block(model, init, params, t, V, N, mus, muk, gain, block, cap):
+    """:func:`run_ticks` as :func:`~.models.run_kernel` calls it, in one call from Python.
+
+    ``init`` is the initial one-element PAD_STATE array (not changed: each run starts from a copy),
+    ``block`` the float64 ``(6, n)`` per-tick outputs (rows: friction, phase, x, v, work of friction,
+    work of damping), ``cap`` the first size of the event buffer (grown and the run repeated from
+    ``init`` when a path has more events). Returns ``(state, events, truncated)``: the final
+    one-element state array, the ``(2, n_events)`` event times and amplitudes, and the state's
+    ``truncated`` count (read here: a field of a record costs far more from Python). Fewer arguments to convert and two
+    objects back instead of seventeen arguments and a state built in Python: on a path of a few
+    hundred ticks the call itself costs about as much as the tick loop.
+    """
+    while True:
+        state = init.copy()
+        ev = np.empty((2, cap))
+        n_ev = run_ticks(model, state, params, t, V, N, mus, muk, gain, block[0], block[1], block[2], block[3],
+                         block[4], block[5], ev[0], ev[1])
+        if n_ev <= cap:
+            return state, ev[:, :n_ev].copy(), state[0].truncated
+        cap = n_ev + 64
 
 
 @njit(cache=True)

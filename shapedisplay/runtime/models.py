@@ -457,30 +457,19 @@ def run_kernel(model: PadModel, t, V, N, mus, muk, gain, state=None, out=None):
     the tick loop at ~100 M ticks/s, fresh memory is most of the cost).
     """
     # Short paths (a few hundred ticks) cost about as much in this Python wrapper as in the compiled
-    # loop: one allocation for the six outputs, one for both event rows, a cached initial state.
-    check_dispatch()
-    n = t.shape[0]
-    cap = n // 8 + 1024          # grown and re-run if a path has more events
-    # the state is made from its bytes (numpy copies a structured array field by field, and a view of
-    # copied bytes as PAD_STATE costs three times a fresh array over a bytearray)
-    S0 = model._fresh_state_bytes if state is None else np.array(state, dtype=PAD_STATE).reshape(1).tobytes()
-    block = np.empty((6, n)) if out is None else out
-    out_f, out_s, out_x, out_v, out_wf, out_wd = block
-    run_ticks = _RUN_TICKS[0] if _RUN_TICKS else _run_ticks()
-    while True:
-        S = np.frombuffer(bytearray(S0), PAD_STATE)
-        ev = np.empty((2, cap))
-        n_ev = run_ticks(model.model_id, S, model.param_block, t, V, N, mus, muk, gain,
-                         out_f, out_s, out_x, out_v, out_wf, out_wd, ev[0], ev[1])
-        if n_ev <= cap:
-            break
-        cap = n_ev + 64
-    st = S[0]
-    if S["truncated"][0] > 0:
+    # loop: one generated call (dispatch.run_block) takes the output block whole, copies the cached
+    # initial state and grows the event buffer itself; it returns the state and the events. The
+    # registry check runs once, when run_block is first looked up.
+    init = model._fresh_state if state is None else np.array(state, dtype=PAD_STATE).reshape(1)
+    block = np.empty((6, t.shape[0])) if out is None else out
+    run_block = _RUN_BLOCK[0] if _RUN_BLOCK else _run_block()
+    S, ev, truncated = run_block(model.model_id, init, model.param_block, t, V, N, mus, muk, gain, block,
+                                 t.shape[0] // 8 + 1024)
+    if truncated > 0:
         raise ModelError(f"model '{model.name}' reached its cap on phase changes in one tick "
-                         f"({int(st['truncated'])} ticks cut); inputs are outside the model's range")
-    ev = ev[:, :n_ev].copy()
-    return st, out_f, out_s, out_x, out_v, out_wf, out_wd, ev[0], ev[1]
+                         f"({truncated} ticks cut); inputs are outside the model's range")
+    out_f, out_s, out_x, out_v, out_wf, out_wd = block
+    return S[0], out_f, out_s, out_x, out_v, out_wf, out_wd, ev[0], ev[1]
 
 
 def _dispatch():
@@ -489,13 +478,14 @@ def _dispatch():
     return dispatch
 
 
-#: dispatch.run_ticks once imported (an import statement per run_kernel call costs ~0.7 us)
-_RUN_TICKS: list = []
+#: dispatch.run_block once imported (an import statement per run_kernel call costs ~0.7 us)
+_RUN_BLOCK: list = []
 
 
-def _run_ticks():
-    _RUN_TICKS.append(_dispatch().run_ticks)
-    return _RUN_TICKS[0]
+def _run_block():
+    check_dispatch()
+    _RUN_BLOCK.append(_dispatch().run_block)
+    return _RUN_BLOCK[0]
 
 
 def _as_ticks(value, n, field):

@@ -76,7 +76,7 @@ _RING = 4096
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "f3102e9b4f2c7d4559af8f9b3de429d592d0d6d4ce1ba3399c07d13ba5a3abd8"
+KERNEL_SOURCES_SHA256 = "a3d20b7ba2de72d44cbd301e8dc2343a8d6612bb52fd691ebbc08e8e659cc1aa"
 
 
 @njit(cache=True, inline="always")
