@@ -483,3 +483,42 @@ def test_render_ticks_equals_run_ticks_state_events_and_rows(model):
         assert n1 == n2 and ev1.tobytes() == ev2.tobytes()
         assert f.tobytes() == rows[0].tobytes() and ph.tobytes() == rows[1].astype(np.int8).tobytes()
         assert S1.tobytes() == S2.tobytes(), [(k, S1[k], S2[k]) for k in S1.dtype.names if S1[k] != S2[k]]
+
+
+@pytest.mark.parametrize("model", ["exact", "jump", "karnopp", "stribeck", "euler", "rk4", "tanh"])
+def test_run_block_equals_run_ticks_and_grows_its_event_buffer(model):
+    """dispatch.run_block (the one call run_kernel makes) against dispatch.run_ticks on the same inputs: the same
+    rows, events and final state bit for bit, from a fresh state and from a state reached mid-run; started with
+    an event buffer of one slot it grows it, runs again from the initial state and gives the same answer;
+    the initial state it is given is left as it was. run_kernel returns exactly these arrays."""
+    from shapedisplay.runtime.dispatch import run_block, run_ticks
+    from shapedisplay.runtime.models import get_model, run_kernel
+    dev = load_device(None)
+    m = get_model(model, dev)
+    n = 4000
+    t = np.arange(n) / 20_000.0
+    V = 0.04 * np.sin(np.arange(n) / 300.0)
+    N = 1.0 + 0.5 * np.random.default_rng(5).random(n)
+    mus, muk, gain = np.full(n, dev.friction.mu_s), np.full(n, dev.friction.mu_k), np.ones(n)
+    half = n // 2
+    S_mid = m.new_state()
+    run_ticks(m.model_id, S_mid, m.param_block, t[:half], V[:half], N[:half], mus[:half], muk[:half],
+              gain[:half], *np.empty((6, half)), *np.empty((2, n)))
+    for init in (m.new_state(), S_mid):      # (euler has diverged by mid-run: no events after it)
+        before = init.tobytes()
+        S1 = init.copy()
+        rows = np.empty((6, n))
+        ev = np.zeros((2, n))
+        n1 = run_ticks(m.model_id, S1, m.param_block, t, V, N, mus, muk, gain, *rows, ev[0], ev[1])
+        assert n1 > 1 or init is S_mid          # more events than the first buffer of one slot holds
+        for cap in (1, n1, n + 1024):
+            block = np.empty((6, n))
+            S2, ev2, truncated = run_block(m.model_id, init, m.param_block, t, V, N, mus, muk, gain, block, cap)
+            assert init.tobytes() == before
+            assert S2.tobytes() == S1.tobytes() and truncated == S1[0]["truncated"] == 0
+            assert ev2.shape == (2, n1) and ev2.tobytes() == ev[:, :n1].tobytes()
+            assert block.tobytes() == rows.tobytes()
+        got = run_kernel(m, t, V, N, mus, muk, gain, state=init[0])
+        assert got[0].tobytes() == S1[0].tobytes()
+        assert all(a.tobytes() == b.tobytes() for a, b in zip(got[1:7], rows))
+        assert got[7].tobytes() == ev[0, :n1].tobytes() and got[8].tobytes() == ev[1, :n1].tobytes()
