@@ -224,7 +224,8 @@ def _store_render(st, i, out_f, out_phase):
 
 
 @njit(cache=True)
-def render_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_phase, ev_t, ev_a):
+def render_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_phase,
+                 ev_t, ev_a):
     """:func:`run_ticks` for the offline render, which keeps only the friction force and the phase:
     ``out_f`` float64 and ``out_phase`` int8 (the phase converted as numpy's ``astype`` does), shape
     (n,). The same model arithmetic, state and events as :func:`run_ticks`; the other four rows are not

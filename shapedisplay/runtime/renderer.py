@@ -76,7 +76,7 @@ _RING = 4096
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "a3d20b7ba2de72d44cbd301e8dc2343a8d6612bb52fd691ebbc08e8e659cc1aa"
+KERNEL_SOURCES_SHA256 = "75dff4e8252416fe7c8be56a4be6fccc041a42297d8e6031ac68689928aadf06"
 
 
 @njit(cache=True, inline="always")
