@@ -15,8 +15,10 @@ report's own functions, ``--runs`` times. Each run gives, per case, the
 speed-up at equal error at the least favourable error level (see
 ``shapedisplay.reports.accuracy.equal_error``) for the model alone and for
 the full render, and the bound: scipy's cost over the least work a tick
-renderer must do (per tick and per 48 kHz audio sample), timed in the same
-run. Printed: min/median/max over the runs.
+renderer must do (per tick and per 48 kHz audio sample; for the model alone,
+at least the least work of ``run_kernel``'s six input and six output rows at
+the path's length), timed in the same run. Printed: min/median/max over the
+runs.
 
 Part 2 plays a flat table with the ``stribeck`` model on the Konyo pad (the
 bundled ``handheld-stick`` profile: m = 1e-6 kg, k = 2 N/mm) over a grid of
@@ -61,8 +63,8 @@ def part_scipy(runs, quick, only, models=()):
             ref = refs[case.name]
             results = [A.run_setting(case, s, device, ref, runs_renderer=1, runs_peer=1) for s in A.settings(case, quick)
                        if not models or s["family"] == "scipy" or s["model"] in models]
-            eq = {kind: A.equal_error(results, cost, ft, fa if kind == "render" else 0.0)
-                  for kind, cost in A.COSTS.items()}
+            eq = {"model": A.equal_error(results, A.COSTS["model"], ft, interface=A.interface_floor(case.duration)),
+                  "render": A.equal_error(results, A.COSTS["render"], ft, fa)}
             per_case.setdefault(case.name, []).append(eq)
             print(f"run {r + 1}/{runs} {case.name}: {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
     print(f"floors (min/median/max over {runs} runs): per tick {mmm([f[0] for f in floors])} s, "

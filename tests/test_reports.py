@@ -128,6 +128,9 @@ def test_accuracy_speedup_is_measured_ratio(accuracy_report):
                 # the ratio is the one of the two recorded timings
                 assert v["speedup"] == pytest.approx(peer["cpu_s_per_sim_s"] / ren[cost], rel=1e-12)
                 assert v["bound"] == pytest.approx(peer["cpu_s_per_sim_s"] / v["floor_cpu_s_per_sim_s"], rel=1e-12)
+                # the floor is at least the per-tick floor at the level's slowest tick rate (the model's: at
+                # least its interface's, which reads and writes six rows per tick)
+                assert v["floor_cpu_s_per_sim_s"] >= v["floor_tick_rate"] * fl["tick_s"] * (1 - 1e-12)
                 assert ren[cost] > 0
             n += 1
     assert n >= 6
@@ -445,5 +448,18 @@ def test_equal_error_speedup_on_known_settings():
     # a floor so costly that no renderer could reach the target at the worst level
     qb = equal_error(res, "cpu_s_per_sim_s", 1e-6, 1e-6)
     assert qb["target_bounded"] and qb["worst"]["bound"] < 1000
+    # the model's own interface as its floor where it costs more than the per-tick floor: asked at the
+    # slowest tick rate that reached each level, never below the per-tick floor
+    asked = []
+
+    def interface(rate):
+        asked.append(rate)
+        return 0.05 if rate == 10000.0 else 1e-12
+    qi = equal_error(res, "model_cpu_s_per_sim_s", 1e-9, interface=interface)
+    lv = {v["period_rel_max"]: v for v in qi["levels"]}
+    assert set(asked) == {1000.0, 10000.0}
+    assert lv[1e-3]["floor_cpu_s_per_sim_s"] == 0.05 and lv[1e-3]["bound"] == pytest.approx(10.0 / 0.05)
+    assert lv[5e-3]["floor_cpu_s_per_sim_s"] == pytest.approx(1000 * 1e-9)
+    assert [v["speedup"] for v in qi["levels"]] == [v["speedup"] for v in qm["levels"]]
     # nothing comparable
     assert equal_error([res[0], res[2]], "cpu_s_per_sim_s", 1e-9) is None

@@ -216,6 +216,45 @@ def floor_costs(n=1 << 20, runs=3):
     return bt / n, ba / (n - n % period.size)
 
 
+_INTERFACE_LOOP = None
+
+
+def interface_floor(n, runs=3, min_batch_s=0.02):
+    """Least work of the model's interface over ``n`` ticks, timed now: CPU s per call.
+
+    ``run_kernel`` takes six per-tick input rows (t, V, N, mu_s, mu_k, gain)
+    and returns six per-tick rows (friction, phase, x, v, the work done by
+    friction and the energy the damper dissipated). The floor is one compiled call that reads the six
+    input rows and writes six output rows, each output one multiply of an
+    input (the loop vectorises), over ``n`` ticks: the call itself included,
+    min of ``runs`` runs of at least ``min_batch_s`` each, after a warm-up.
+    Measured at the path's own length (a short path's rows stay in cache:
+    the least cost). A model that returns those rows cannot
+    cost less than this, whatever its physics.
+    """
+    global _INTERFACE_LOOP
+    n = int(n)
+    if _INTERFACE_LOOP is None:
+        from numba import njit
+
+        @njit(cache=True)
+        def interface(t, V, N, mus, muk, gain, out, h):
+            for i in range(t.shape[0]):
+                out[0, i] = V[i] * h
+                out[1, i] = N[i] * h
+                out[2, i] = mus[i] * h
+                out[3, i] = muk[i] * h
+                out[4, i] = gain[i] * h
+                out[5, i] = t[i] * h
+
+        _INTERFACE_LOOP = interface
+    interface = _INTERFACE_LOOP
+    rows = [np.full(n, 0.5 + k) for k in range(6)]
+    out = np.empty((6, n))
+    per_call, _ = cpu_per_call(lambda: interface(*rows, out, 1e-3), runs=runs, min_batch_s=min_batch_s)
+    return min(per_call)
+
+
 def tick_percentiles(samples_ns):
     """p50 and p99 of per-tick times (ns array) in seconds."""
     a = np.asarray(samples_ns, dtype=np.float64) * 1e-9
