@@ -523,3 +523,36 @@ def test_online_step_holds_absurd_positions_and_counts_them(table, model):
     assert r.held_positions == 4
     r.reset()
     assert r.held_positions == 0
+
+
+_CONTACTOR_TOML = (ROOT / "shapedisplay" / "data" / "devices" / "lateral-contactor.toml").read_text()
+
+
+@pytest.mark.parametrize("value, shown", [("0.0", "0.0"), ("0.5", "0.5"), ('"fast"', "fast"), ("-1e-6", "-1e-06"),
+                                          ("nan", "nan")])
+def test_stribeck_tolerance_out_of_range_is_refused(tmp_path, compiled, capsys, value, shown):
+    """``[stribeck] tolerance`` of a profile: exit 2, one line naming the key, the range and the value; no output."""
+    dev = tmp_path / "dev.toml"
+    dev.write_text(_CONTACTOR_TOML.replace("[stribeck]\n", f"[stribeck]\ntolerance = {value}\n"))
+    before = _snapshot(tmp_path)
+    code, out, err = run(["play", compiled, "--stroke", "0:5mm @ 50mm/s", "--device", dev, "--model", "stribeck",
+                          "-o", tmp_path / "o.wav"], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "stribeck" in err and "tolerance" in err and shown in err, err
+    assert _snapshot(tmp_path) == before
+
+
+def test_stribeck_tolerance_option_and_profile_key(tmp_path, compiled, capsys):
+    from shapedisplay.devices import load_device
+    from shapedisplay.runtime.models import get_model
+    dev = tmp_path / "dev.toml"
+    dev.write_text(_CONTACTOR_TOML.replace("[stribeck]\n", "[stribeck]\ntolerance = 1e-5\n"))
+    assert get_model("stribeck", load_device(dev)).pack()["stribeck_tol"] == 1e-5
+    assert get_model("stribeck", load_device(dev), tolerance=1e-7).pack()["stribeck_tol"] == 1e-7
+    assert get_model("stribeck", load_device("lateral-contactor")).pack()["stribeck_tol"] == 1e-13
+    with pytest.raises(InputError, match=r"`tolerance` must be a number from 1e-14 to 0.001 \(got 0\)"):
+        get_model("stribeck", load_device(dev), tolerance=0)
+    code, out, err = run(["play", compiled, "--stroke", "0:5mm @ 50mm/s", "--device", dev, "--model", "stribeck",
+                          "-o", tmp_path / "o.wav"], capsys)
+    assert code == 0, err
+    assert (tmp_path / "o.wav").stat().st_size > 44

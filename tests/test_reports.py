@@ -88,6 +88,20 @@ def test_accuracy_exact_event_time_error(accuracy_report):
         assert cc["max_abs_s"] < 1e-6
 
 
+def test_accuracy_stribeck_runs_at_several_tolerances(accuracy_report):
+    """The ``stribeck`` settings span its slip tolerances; the looser ones stay within a bound that scales with them."""
+    from shapedisplay.reports.accuracy import STRIBECK_TOLERANCES_QUICK
+    _, rep = accuracy_report
+    case = next(c for c in rep["cases"] if c["name"] == "stribeck_contactor")
+    runs = [s for s in case["settings"] if s["family"] == "renderer"]
+    assert {s["tolerance"] for s in runs} == set(STRIBECK_TOLERANCES_QUICK)
+    interval = case["reference"]["mean_interval_s"]
+    for s in runs:
+        assert s["status"] == "ok" and s["missing"] == 0 and s["spurious"] == 0, s["label"]
+        tol = s["tolerance"] or 1e-13
+        assert s["event_max_s"] <= max(10 * tol * interval, 1e-9), (s["label"], s["event_max_s"])
+
+
 def test_accuracy_belt_closed_form(accuracy_report):
     _, rep = accuracy_report
     belt = next(c for c in rep["cases"] if c["name"] == "belt_coulomb")

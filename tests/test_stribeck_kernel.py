@@ -1,12 +1,14 @@
-"""The ``stribeck`` model's plain curve: Taylor slip steps, closed-form stick, re-stick on the step's polynomial.
+"""The ``stribeck`` model's plain curve: closed-form stick; slip by Taylor steps (default tolerance) or by
+exponential Rosenbrock steps (looser tolerances), re-stick on the zero of the relative speed.
 
 Checked against independent answers: a tight ``solve_ivp`` Radau run with
-event functions (no closed form exists for the Stribeck slip), and the
-closed form of the linear curve (``a = 0``: ``mu = mu_s + b |vr| / W``, an
-oscillator in slip; with ``b < 0`` the negative slope self-excites it, as the
-Stribeck drop does). Property tests: finite and bounded outputs,
-stick friction within the static limit, and event times that do not depend
-on how the ticks cut the stroke.
+event functions (no closed form exists for the Stribeck slip; the error bound
+scales with the slip tolerance), and the closed form of the linear curve
+(``a = 0``: ``mu = mu_s + b |vr| / W``, an oscillator in slip; with ``b < 0``
+the negative slope self-excites it, as the Stribeck drop does; exact for
+every tolerance). Property tests: finite and bounded outputs, stick friction
+within the static limit, and event times that do not depend on how the ticks
+cut the stroke (within the tolerance).
 """
 from __future__ import annotations
 
@@ -85,22 +87,47 @@ def _viscous_belt_events(m, k, b, mus, W, V, n):
     return np.array(out)
 
 
-def test_linear_curve_matches_its_closed_form():
+@pytest.mark.parametrize("hz,amp,v,duration", [(9.0, 1.25e-3, 0.1, 0.25), (0.0, 0.0, 0.04, 0.12)])
+def test_exponential_steps_match_tight_radau_within_their_tolerance(hz, amp, v, duration):
+    """Looser tolerances (exponential Rosenbrock slip steps): event errors bounded by, and shrinking with, the tolerance."""
+    ref = stribeck_ivp("Radau", 1e-11, m=1e-4, k=1e3, c=1.0, mu_s=2.1, mu_k=1.4, a=55.0, b=1.9, W=1.0, V=v, amp=amp,
+                       omega=2 * math.pi * hz, t_end=duration)
+    assert ref.status == "ok" and ref.event_time.size >= 2
+    scale = float(np.mean(np.diff(ref.event_time)))
+    worst = {}
+    for tol in (1e-7, 1e-5, 1e-4):
+        for rate in (1000, 10_000):
+            r = simulate_pad("stribeck", V=v, N=1.0, pad=IMAIZUMI_PAD, friction=IMAIZUMI_FRICTION, tick_rate=rate,
+                             duration=duration, contactor_hz=hz, contactor_amplitude_m=amp, tolerance=tol)
+            assert r.event_time.size == ref.event_time.size
+            err = float(np.max(np.abs(r.event_time - ref.event_time)))
+            # measured: ~0.15 tol s on the contactor case (mean interval 55 ms); bound 10 tol intervals
+            assert err <= 10 * tol * scale, (tol, rate, err)
+            assert np.allclose(r.event_amplitude, ref.event_amplitude, rtol=100 * tol, atol=0)
+            worst[tol] = max(worst.get(tol, 0.0), err)
+    if hz:
+        # the contactor case's slip is nonlinear enough that the error follows the tolerance
+        assert worst[1e-7] < worst[1e-5] < worst[1e-4]
+
+
+@pytest.mark.parametrize("tol", [None, 1e-6, 1e-3])
+def test_linear_curve_matches_its_closed_form(tol):
+    """Exact for every tolerance: an exponential step solves the linear curve's slip in closed form."""
     dev = DeviceProfile(pad=PadParams(1.0, 1.0, 0.0), friction=FrictionParams(1.0, 0.5),
                         extra={"stribeck": {"a": 0.0, "b": -0.1}}, velocity_range=(1e-6, 2.0))
     expect = _viscous_belt_events(1.0, 1.0, -0.1, 1.0, 1.0, 0.2, 4)
     for rate in (100, 1000):
-        r = simulate_pad(get_model("stribeck", dev), V=0.2, N=1.0, pad=dev.pad, friction=dev.friction,
+        r = simulate_pad(get_model("stribeck", dev, tolerance=tol), V=0.2, N=1.0, pad=dev.pad, friction=dev.friction,
                          tick_rate=rate, duration=expect[-1] + 0.5)
         assert r.event_time.size == expect.size
         assert np.max(np.abs(r.event_time - expect)) < 1e-9
         assert np.allclose(r.event_amplitude, dev.burst.gain * 1.0, rtol=1e-12)
 
 
-def _run(V, N, rate, split, hz, amp):
+def _run(V, N, rate, split, hz, amp, tol=None):
     """run_kernel on inputs held per tick of ``1 / rate`` s, each tick cut into ``split`` ticks; plus (V, N) per tick."""
     model = get_model("stribeck", DeviceProfile(pad=IMAIZUMI_PAD, friction=IMAIZUMI_FRICTION),
-                      contactor_hz=hz, contactor_amplitude_m=amp)
+                      contactor_hz=hz, contactor_amplitude_m=amp, tolerance=tol)
     n = V.size * split + 1
     t = np.arange(n) / (rate * split)
     ones = np.ones(n)
@@ -158,3 +185,35 @@ def test_outputs_bounded_and_events_independent_of_tick_cuts(segments, contactor
         # each step's error is below 1e-13 of the pad's scales; a light load (W / a of 0.2 mm/s at 10 mN)
         # takes thousands of short steps, whose errors add up to ~1e-9 s
         assert np.max(np.abs(et1 - et3)) < 1e-8
+
+
+_TOLERANCES = st.sampled_from([1e-6, 1e-4])
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.tuples(st.floats(-0.3, 0.3), st.floats(0.0, 3.0)), min_size=3, max_size=12), _CONTACTORS,
+       _TOLERANCES)
+@example([(0.0, 0.0), (0.25, 1.0), (0.0, 5.960464477539063e-08)], (0.0, 0.0), 1e-4)   # drop too steep for any step
+@example([(0.0, 0.0), (0.25, 1.0), (-0.25, 2.225073858507e-311)], (9.0, 1.25e-3), 1e-6)   # subnormal load
+def test_exponential_steps_finite_and_bounded(segments, contactor, tol):
+    """Exponential slip steps, inputs held for 20 ms each, any load down to subnormal ones: finite, within the curve."""
+    hz, amp = contactor
+    V = np.repeat([s[0] for s in segments], 20)
+    N = np.repeat([s[1] for s in segments], 20)
+    _assert_finite_and_within_the_curve(_run(V, N, 1000.0, 1, hz, amp, tol), hz, amp)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.tuples(st.floats(-0.3, 0.3), _LOADS), min_size=3, max_size=12), _CONTACTORS, _TOLERANCES)
+def test_exponential_steps_events_independent_of_tick_cuts(segments, contactor, tol):
+    """Ticks of 1 ms, cut in three, give the same events within a bound that scales with the tolerance."""
+    hz, amp = contactor
+    V = np.repeat([s[0] for s in segments], 20)
+    N = np.repeat([s[1] for s in segments], 20)
+    runs = [_run(V, N, 1000.0, split, hz, amp, tol) for split in (1, 3)]
+    for run in runs:
+        _assert_finite_and_within_the_curve(run, hz, amp)
+    et1, et3 = runs[0][0][-2], runs[1][0][-2]
+    assert et1.size == et3.size
+    if et1.size:
+        assert np.max(np.abs(et1 - et3)) < 0.1 * tol

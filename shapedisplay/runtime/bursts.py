@@ -76,7 +76,7 @@ from .layouts import BURST_POLICIES, BURST_STATE, Policy, record
 from .settings import MAX_AUDIO_SAMPLES, audio_length, policy_id  # noqa: F401 (their home is .settings)
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to layouts.py (Policy).
-KERNEL_SOURCES_SHA256 = "688484c836f5e3ff294b9593f2e5e7f7aa81836432e3b7411d7df8cf367b6f38"
+KERNEL_SOURCES_SHA256 = "32fc22d6759e818b7735ea7f130a07e68a9d82796c00af8459b40f8acfb3f4ab"
 #: Carrier re-anchored with sin/cos every this many samples (rotation in between).
 CARRIER_BLOCK = 64
 

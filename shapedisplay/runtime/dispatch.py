@@ -23,7 +23,7 @@ REGISTRY = (
     ('tanh', 'tanh_tick', None),
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py.
-KERNEL_SOURCES_SHA256 = "1c0fa1fbe3da66b0aad8542ddd19027460d64662e66c0d55aa32efeda9beea0c"
+KERNEL_SOURCES_SHA256 = "19a2c5e9b93123eb44fb2175822aea3627ff837f8356a24a3b265c3d8805be7a"
 
 
 @njit(cache=True)

@@ -96,6 +96,7 @@ PAD_PARAMS = _layout("PAD_PARAMS", [
     ("stribeck_p", f8, "pre-maximum slope p"),
     ("stribeck_d", f8, "pre-maximum width d"),
     ("stribeck_variant", i8, "0 Stribeck curve, 1 with pre-maximum static region"),
+    ("stribeck_tol", f8, "Stribeck slip: local error allowed per step, relative to the pad's scales"),
     ("contactor_amplitude", f8, "lateral contactor amplitude, m"),
     ("contactor_omega", f8, "lateral contactor angular frequency, rad/s"),
     ("tanh_eps", f8, "tanh regularisation width (breakaway slip speed), m/s"),

@@ -209,6 +209,24 @@ class KarnoppModel(PadModel):
 
 #: Shortest slip substep the Stribeck integrator resolves, s (a pad needing less is refused).
 MIN_SUBSTEP_S = 1e-9
+#: Local error allowed per Stribeck slip step, relative to the pad's scales (stretch ``mu_s W / k``, speed
+#: ``|V| + A omega + mu_s W / sqrt(k m)``): the default, and the range ``[stribeck] tolerance`` or the
+#: ``tolerance`` option may set. From ``pads.STRIBECK_EXP_MIN_TOL`` up the slip runs by exponential
+#: Rosenbrock steps, below it by Taylor steps.
+STRIBECK_TOLERANCE = 1e-13
+STRIBECK_TOLERANCE_RANGE = (1e-14, 1e-3)
+
+
+def _check_tolerance(tol, name: str) -> float:
+    """The Stribeck slip tolerance as a float, or an error naming ``name``, the range and the value."""
+    lo, hi = STRIBECK_TOLERANCE_RANGE
+    try:
+        ok = isinstance(tol, (int, float)) and not isinstance(tol, bool) and lo <= tol <= hi
+    except TypeError:
+        ok = False
+    if not ok:
+        raise InputError(f"{name} must be a number from {lo:g} to {hi:g} (got {tol!r})")
+    return float(tol)
 
 
 class StribeckModel(PadModel):
@@ -225,12 +243,17 @@ class StribeckModel(PadModel):
     variant : {"stribeck", "premax"}
     contactor_hz, contactor_amplitude_m : float, optional
         Override the contactor stimulus.
+    tolerance : float, optional
+        Plain curve: the local error allowed per slip step, relative to the
+        pad's scales (default :data:`STRIBECK_TOLERANCE`, 1e-13, or the
+        profile's ``[stribeck] tolerance``; from 1e-14 to 1e-3). Tolerances
+        from 1e-9 up run the slip by exponential Rosenbrock steps (the pad's
+        fast modes in closed form, steps as long as the accuracy allows),
+        tighter ones by Taylor steps of adaptive order.
     substep_s : float, optional
-        Largest integration step, s. Plain curve: the slip runs by Taylor
-        steps of adaptive order and length (truncation error per step below
-        ``pads.STRIBECK_TOL`` of the pad's scales; on the negative slope the
-        self-excitation shortens them by itself); default no limit beyond the
-        tick. Pre-maximum variant: fixed exponential substeps (default 2 us),
+        Largest integration step, s. Plain curve: the slip steps are as long
+        as the tolerance allows (on the negative slope the self-excitation
+        shortens them by itself); default no limit beyond the tick. Pre-maximum variant: fixed exponential substeps (default 2 us),
         further limited to ``0.5 m / |c + W dmu/dv|`` where the negative
         friction slope self-excites the pad (``W dmu/dv < -c``): 1.4 us on the
         Imaizumi pad (m = 1e-4 kg), 55 ns on the 1e-6 kg Konyo pad. The model
@@ -242,9 +265,12 @@ class StribeckModel(PadModel):
     kernel = Kernel("stribeck_tick")
 
     def __init__(self, device=None, variant="stribeck", contactor_hz=None, contactor_amplitude_m=None,
-                 substep_s=None):
+                 substep_s=None, tolerance=None):
         if variant not in ("stribeck", "premax"):
             raise unknown_key("stribeck variant", variant, ("stribeck", "premax"))
+        if tolerance is not None:
+            _check_tolerance(tolerance, "`tolerance`")
+        self._tol_opt = tolerance
         self.variant = variant
         self._chz = contactor_hz
         self._camp = contactor_amplitude_m
@@ -267,6 +293,11 @@ class StribeckModel(PadModel):
         P["stribeck_p"] = _extra_q(d, "stribeck", "p", "1", 400.0, True)
         P["stribeck_d"] = _extra_q(d, "stribeck", "d", "1", 0.005, True)
         P["stribeck_variant"] = 1 if pre else 0
+        tol = self._tol_opt
+        if tol is None:
+            tol = _check_tolerance(_extra_q(d, "stribeck", "tolerance", "1", STRIBECK_TOLERANCE, True),
+                                   "stribeck `tolerance`")
+        P["stribeck_tol"] = tol
         hz = self._chz if self._chz is not None else _extra_q(d, "contactor", "frequency", "Hz", 0.0)
         amp = self._camp if self._camp is not None else _extra_q(d, "contactor", "amplitude", "m", 0.0)
         if not (hz >= 0 and amp >= 0 and math.isfinite(hz) and math.isfinite(amp)):

@@ -845,9 +845,6 @@ def _contactor(prm, t):
 # ---------------------------------------------------------------- plain Stribeck curve: Taylor slip steps
 #: Highest order of the Taylor slip step (coefficients kept per step; the step picks its order below it).
 STRIBECK_MAX_ORDER = 14
-#: Local error allowed per Taylor slip step, relative to the pad's scales (stretch ``mu_s W / k``, speed
-#: ``|V| + A omega + mu_s W / sqrt(k m)``).
-STRIBECK_TOL = 1e-13
 _STRIBECK_SAMPLES = 4    # sign checks of the relative speed per step (a touch inside one step is seen)
 #: Taylor steps per slip call before the linearised fallback takes over (a load so light that the curve's
 #: drop needs steps far shorter than the pad's time scales; bounded work per tick instead of the step cap)
@@ -866,7 +863,7 @@ def _stribeck_series(prm, W, V, mus, muk, sr, t, u, z, hcap, co):
     differentiation (``E = exp(g)``: ``j E_j = sum_i i g_i E_(j-i)``; the
     contactor's ``A omega cos(omega t)`` in closed form). ``p`` is the order
     used, ``h`` the step (at most ``hcap``) whose last terms stay below
-    :data:`STRIBECK_TOL` of the pad's scales: the truncation error of the
+    ``prm.stribeck_tol`` of the pad's scales: the truncation error of the
     step and of its dense output (the polynomial itself) anywhere inside it.
     """
     m = prm.mass
@@ -884,7 +881,7 @@ def _stribeck_series(prm, W, V, mus, muk, sr, t, u, z, hcap, co):
         S = math.sin(om * t)
     us = 1.0 / (mus * W / k + abs(u) + 1e-300)
     zs = 1.0 / (abs(V) + A * om + mus * W / math.sqrt(k * m) + abs(z) + 1e-300)
-    tol = STRIBECK_TOL
+    tol = prm.stribeck_tol
     pmax = STRIBECK_MAX_ORDER
     co[0, 0] = u
     co[1, 0] = z
@@ -1120,6 +1117,41 @@ def _stribeck_stick(prm, V, thr, ua, ta, te):
 
 
 @njit(cache=True, error_model="numpy")
+def _stribeck_lin_step(prm, u, z, sr, V, W, mus, muk, t, te):
+    """One linearised exponential slip step (the fallback where no accurate step resolves the curve's drop).
+
+    The friction is linearised about the start and the oscillator solved in
+    closed form over at most ``prm.substep`` (and half the self-excitation's
+    time constant): bounded and finite, not tolerance-exact. Returns
+    ``(u, z, sr, stuck, t)``; a zero of the relative speed at the end
+    re-sticks (needed friction within ``mu_s W``) or reverses the slip.
+    """
+    m = prm.mass
+    k = prm.stiffness
+    c = prm.damping
+    A = prm.contactor_amplitude
+    om = prm.contactor_omega
+    vr0 = (z - (A * om * math.cos(om * t) if A != 0.0 else 0.0)) + V
+    muW, dmuW = _plain_friction(max(sr * vr0, 0.0), W, mus, muk, prm.stribeck_a, prm.stribeck_b)
+    ceff = c + dmuW
+    hs = min(te - t, prm.substep)
+    if ceff < 0.0:
+        hs = min(hs, 0.5 * m / (-ceff))
+    dxcm = A * om * math.cos(om * (t + 0.5 * hs)) if A != 0.0 else 0.0
+    ueq = (-sr * muW - dmuW * (V - dxcm - vr0)) / k
+    y1, z = osc(m, ceff, k, u - ueq, z, hs)
+    u = y1 + ueq
+    t = t + hs if t + hs < te else te
+    dxc = A * om * math.cos(om * t) if A != 0.0 else 0.0
+    if sr * (z + V - dxc) < 0.0:
+        ddxc = -A * om * om * math.sin(om * t) if A != 0.0 else 0.0
+        if abs(m * ddxc + c * (dxc - V) + k * u) <= mus * W:
+            return u, dxc - V, sr, True, t
+        sr = -sr
+    return u, z, sr, False, t
+
+
+@njit(cache=True, error_model="numpy")
 def _stribeck_taylor_slip(prm, u, z, sr, V, W, mus, muk, t, te):
     """Slip of the plain Stribeck curve from ``t`` to at most ``te`` by Taylor steps.
 
@@ -1143,23 +1175,9 @@ def _stribeck_taylor_slip(prm, u, z, sr, V, W, mus, muk, t, te):
             # the series cannot follow the friction curve here (its exponential varies on a time scale far
             # below the pad's: absurd speeds, micronewton loads): a linearised exponential step keeps the
             # state bounded
-            vr0 = co[2, 0]
-            muW, dmuW = _plain_friction(max(sr * vr0, 0.0), W, mus, muk, prm.stribeck_a, prm.stribeck_b)
-            ceff = c + dmuW
-            hs = min(te - t, prm.substep)
-            if ceff < 0.0:
-                hs = min(hs, 0.5 * m / (-ceff))
-            dxcm = A * om * math.cos(om * (t + 0.5 * hs)) if A != 0.0 else 0.0
-            ueq = (-sr * muW - dmuW * (V - dxcm - vr0)) / k
-            y1, z = osc(m, ceff, k, u - ueq, z, hs)
-            u = y1 + ueq
-            t = t + hs if t + hs < te else te
-            dxc = A * om * math.cos(om * t) if A != 0.0 else 0.0
-            if sr * (z + V - dxc) < 0.0:
-                ddxc = -A * om * om * math.sin(om * t) if A != 0.0 else 0.0
-                if abs(m * ddxc + c * (dxc - V) + k * u) <= mus * W:
-                    return u, dxc - V, sr, True, t
-                sr = -sr
+            u, z, sr, stuck, t = _stribeck_lin_step(prm, u, z, sr, V, W, mus, muk, t, te)
+            if stuck:
+                return u, z, sr, True, t
             continue
         # first sign change of sr * vr over the step
         lo = 0.0
@@ -1203,6 +1221,274 @@ def _stribeck_taylor_slip(prm, u, z, sr, V, W, mus, muk, t, te):
     return u, z, sr, False, t
 
 
+# ---------------------------------------------------------------- plain Stribeck curve: exponential slip steps
+#: Tolerances from this one up run the slip by exponential Rosenbrock steps (:func:`_stribeck_exp_slip`);
+#: tighter ones by Taylor steps (high order pays off there).
+STRIBECK_EXP_MIN_TOL = 1e-7
+
+
+@njit(cache=True, inline="always")
+def _cos_sin(x):
+    """``(cos x, sin x)``; a short series for the small angles of one slip step (error below 1e-19)."""
+    if abs(x) < 0.1:
+        x2 = x * x
+        c = 1.0 - x2 * (0.5 - x2 * (1.0 / 24 - x2 * (1.0 / 720 - x2 * (1.0 / 40320 - x2 * (1.0 / 3628800)))))
+        s = x * (1.0 - x2 * (1.0 / 6 - x2 * (1.0 / 120 - x2 * (1.0 / 5040 - x2 * (1.0 / 362880 - x2 * (1.0 / 39916800))))))
+        return c, s
+    return math.cos(x), math.sin(x)
+
+
+@njit(cache=True, inline="always")
+def _lin_propagator(m, ce, k, h):
+    """Propagator of ``m u'' + ce u' + k u = 0`` over ``h``: ``(p11, p12, p21, p22)`` with ``[u, u'](h) = P [u, u'](0)``.
+
+    Any sign of ``ce`` (a negative one is the self-excitation of the
+    Stribeck drop); real roots through ``expm1`` (exact to the critically
+    damped limit), complex ones through their damped rotation.
+    """
+    sig = 0.5 * ce / m
+    wn2 = k / m
+    disc = sig * sig - wn2
+    if disc >= 0.0:
+        sq = math.sqrt(disc)
+        if sig >= 0.0:
+            r2 = -sig - sq
+            r1 = wn2 / r2
+        else:
+            r1 = -sig + sq
+            r2 = wn2 / r1
+        e2 = math.exp(r2 * h)
+        x = (r1 - r2) * h
+        d = e2 * h * (math.expm1(x) / x if x > 1e-300 else 1.0)
+        return e2 - r2 * d, d, -wn2 * d, e2 + r1 * d
+    wd = math.sqrt(-disc)
+    e = math.exp(-sig * h)
+    cs = math.cos(wd * h)
+    d = e * math.sin(wd * h) / wd
+    return e * cs + sig * d, d, -wn2 * d, e * cs - sig * d
+
+
+@njit(cache=True, error_model="numpy")
+def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te):
+    """Slip of the plain Stribeck curve from ``t`` to at most ``te`` by exponential Rosenbrock steps.
+
+    Each step linearises the friction about the step's start in the relative
+    speed (the contactor's motion included) and solves the linear oscillator
+    with its constant and sinusoidal forcing in closed form (the pad's fast
+    modes, decaying or self-excited, are exact in it); the remainder of the
+    friction curve, taken as growing with the square of time from its value
+    at the step's end, gives the third-order correction, whose size is the
+    step's error estimate (an exponential Rosenbrock pair of orders 2 and 3).
+    Steps are as long as that error stays below ``prm.stribeck_tol`` of the
+    pad's scales (a tick at a time in steady sliding). A step that carries the
+    relative speed through zero is shortened to land on the zero (secant
+    iterations on the step length), where the re-stick rule applies.
+
+    Returns ``(u, z, sr, stuck, t, F)`` with the friction force ``F`` at ``t``.
+    """
+    m = prm.mass
+    k = prm.stiffness
+    c = prm.damping
+    a = prm.stribeck_a
+    b = prm.stribeck_b
+    A = prm.contactor_amplitude
+    om = prm.contactor_omega
+    tol = prm.stribeck_tol
+    dmu = mus - muk
+    if not W > 0.0:
+        b = 0.0           # a lifted finger: no friction at all (the viscous term included)
+    aw = a / W if W > 0.0 else math.inf
+    mw2 = k - m * om * om
+    wn = math.sqrt(k / m)
+    ik = 1.0 / k
+    hmin = 1e-6 * math.sqrt(m / k)
+    usc0 = mus * W / k
+    zsc0 = abs(V) + A * om + mus * W / math.sqrt(k * m)
+    C0 = math.cos(om * t) if A != 0.0 else 1.0
+    S0 = math.sin(om * t) if A != 0.0 else 0.0
+    h = min(te - t, prm.substep)
+    # friction curve at the start: W (mu_k + dmu E) with E = exp(-a sr vr / W)
+    vr0 = z + V - A * om * C0
+    E0 = math.exp(-aw * max(sr * vr0, 0.0)) if W > 0.0 else 0.0
+    # the bracket [lo, hi] of step lengths around a zero of the relative speed (hi < 0: none yet), with sr vr
+    # at its ends; vtol: how close to zero a landing must come
+    lo = 0.0
+    hi = -1.0
+    side = 0
+    vlo = sr * vr0
+    vhi = 0.0
+    vtol = 1e-3 * tol * zsc0
+    h_prev = 0.0      # the last accepted step and its error (step-size prediction)
+    err_prev = 0.0
+    for it in range(MAX_EVENTS_PER_TICK):
+        if t >= te:
+            break
+        # linearisation: F(vr) ~ F0 + G (vr - vr0), G = W dmu a E0 / W - b
+        F0 = -sr * W * (muk + dmu * E0) - b * vr0
+        G = a * dmu * E0 - b
+        ce = c - G
+        if ce < 0.0:
+            # a self-excited step: growth up to e^20 (the error estimate decides the rest; no overflow)
+            sig = -0.5 * ce / m
+            rgrow = sig + math.sqrt(sig * sig + k / m)
+            if h * rgrow > 3.0:
+                h = 3.0 / rgrow
+        if not (h >= hmin) and h < te - t:
+            # the curve's drop is steeper than any step resolves (a micronewton load): linearised steps
+            u, z, sr, stuck, t = _stribeck_lin_step(prm, u, z, sr, V, W, mus, muk, t, te)
+            if A != 0.0:
+                C0 = math.cos(om * t)
+                S0 = math.sin(om * t)
+            if stuck:
+                return u, z, sr, True, t, 0.0
+            vr0 = z + V - A * om * C0
+            E0 = math.exp(-aw * max(sr * vr0, 0.0)) if W > 0.0 else 0.0
+            h = min(te - t, prm.substep)
+            lo = 0.0
+            hi = -1.0
+            side = 0
+            vlo = sr * vr0
+            continue
+        # m u'' + ce u' + k u = f0 - G A om cos(om s) (+ the remainder below), s = t + tau
+        f0 = F0 - G * (vr0 - V)
+        up0 = f0 * ik
+        X = 0.0
+        Y = 0.0
+        if A != 0.0:
+            Fc = -G * A * om / (mw2 * mw2 + ce * ce * om * om)
+            X = Fc * mw2
+            Y = Fc * ce * om
+        ch, sh = _cos_sin(om * h)
+        C1 = C0 * ch - S0 * sh
+        S1 = S0 * ch + C0 * sh
+        p11, p12, p21, p22 = _lin_propagator(m, ce, k, h)
+        uh = u - up0 - (X * C0 + Y * S0)
+        zh = z - om * (Y * C0 - X * S0)
+        u1 = p11 * uh + p12 * zh + up0 + X * C1 + Y * S1
+        z1 = p21 * uh + p22 * zh + om * (Y * C1 - X * S1)
+        vr1 = z1 + V - A * om * C1
+        # the friction curve's remainder at the end: -sr W dmu E0 (e^x - 1 - x), x = -a sr (vr1 - vr0) / W
+        x = -aw * sr * (vr1 - vr0) if W > 0.0 else 0.0
+        ex = math.expm1(x)
+        R1 = -sr * W * dmu * E0 * (ex - x) if E0 > 0.0 else 0.0
+        # its response, as a forcing R1 (tau / h)^2 from rest
+        if (abs(ce) / m + wn) * h > 0.25:
+            al = R1 * ik / (h * h)
+            be = -2.0 * ce * al * ik
+            ga = -(2.0 * m * al + ce * be) * ik
+            du = al * h * h + be * h + ga - p11 * ga - p12 * be
+            dz = 2.0 * al * h + be - p21 * ga - p22 * be
+        else:
+            # a step short against the pad's time scales: the closed form above would cancel (its particular
+            # solution grows as 1 / h^2); the response's Taylor series, a_n = u_n h^n, instead
+            sg = ce * h / m
+            wh = wn * wn * h * h
+            a0 = 0.0
+            a1 = R1 * h * h / (12.0 * m)       # a_4
+            du = a1
+            dz = 4.0 * a1
+            for n in range(5, 40):
+                a2 = -(sg * (n - 1) * a1 + wh * a0) / (n * (n - 1))
+                du += a2
+                dz += n * a2
+                a0 = a1
+                a1 = a2
+                if abs(a2) * n <= 1e-17 * abs(dz):
+                    break
+            dz /= h
+        err = max(abs(du) / (usc0 + abs(u)), abs(dz) / (zsc0 + abs(z)))
+        if not (err <= tol):
+            # too long (or overflowed): shorten by the third-order rule
+            if err > 0.0 and math.isfinite(err):
+                h *= max(0.1, 0.8 * (tol / err) ** (1.0 / 3.0))
+            else:
+                h *= 0.1
+            hi = -1.0
+            lo = 0.0
+            side = 0
+            vlo = sr * vr0
+            continue
+        u1 += du
+        z1 += dz
+        vr1 = z1 + V - A * om * C1
+        q1 = sr * vr1
+        landed = False
+        if q1 <= 0.0:
+            # through zero: land on it (Illinois-modified regula falsi on the step length)
+            if -q1 <= vtol or h - lo <= 1e-15 * (1.0 + abs(t)):
+                landed = True
+            else:
+                if side == 1:
+                    vlo *= 0.5
+                side = 1
+                hi = h
+                vhi = q1
+                h = lo + vlo * (hi - lo) / (vlo - vhi)
+                if not (lo < h < hi):
+                    h = 0.5 * (lo + hi)
+                continue
+        elif hi > 0.0:
+            # a trial short of the zero found before
+            if q1 <= vtol or hi - h <= 1e-15 * (1.0 + abs(t)):
+                landed = True
+            else:
+                if side == -1:
+                    vhi *= 0.5
+                side = -1
+                lo = h
+                vlo = q1
+                h = lo + vlo * (hi - lo) / (vlo - vhi)
+                if not (lo < h < hi):
+                    h = 0.5 * (lo + hi)
+                continue
+        # accept the step
+        t_new = t + h if t + h < te else te
+        u = u1
+        z = z1
+        C0 = C1
+        S0 = S1
+        t = t_new
+        if landed:
+            # on the zero of the relative speed: re-stick if the needed friction is admissible
+            dxc = A * om * C0
+            ddxc = -A * om * om * S0
+            Fst = m * ddxc + c * (dxc - V) + k * u
+            if abs(Fst) <= mus * W:
+                return u, dxc - V, sr, True, t, -Fst
+            srn = -1.0 if Fst > 0.0 else 1.0
+            sr = srn
+            vr0 = 0.0
+            E0 = 1.0 if W > 0.0 else 0.0
+            z = dxc - V
+        else:
+            # the curve at the corrected end: E0 e^x e^d, d = -a sr dz / W (small: a short series)
+            d = -aw * sr * dz if W > 0.0 else 0.0
+            vr0 = vr1
+            E0 = E0 * (1.0 + ex) * (1.0 + d * (1.0 + d * (0.5 + d * (1.0 / 6.0 + d * (1.0 / 24.0))))) if W > 0.0 else 0.0
+        lo = 0.0
+        hi = -1.0
+        side = 0
+        vlo = sr * vr0
+        if t >= te:
+            break
+        # next step: the third-order rule with Gustafsson's prediction (an error growing from step to step, as
+        # in the collapse to re-stick, shortens the next one before it fails), at most twice as long
+        if err <= tol * 1e-3:
+            grow = 2.0
+        else:
+            grow = 0.8 * (tol / err) ** (1.0 / 3.0)
+            if err_prev > 0.0:
+                gus = grow * (h / h_prev) * (err_prev / err) ** (1.0 / 3.0)
+                if gus < grow:
+                    grow = gus
+            grow = min(2.0, max(0.2, grow))
+        h_prev = h
+        err_prev = err
+        h = min(h * grow, te - t, prm.substep)
+    F = -sr * W * (muk + dmu * E0) - b * (z + V - A * om * C0)
+    return u, z, sr, False, t, F
+
+
 @njit(cache=True, error_model="numpy")
 def _stribeck_plain_tick(st, prm, t0, h, V, W, mus, muk, B, ev_t, ev_a, n_ev):
     """The plain Stribeck curve over one tick: stick in closed form, slip by Taylor steps (see stribeck_tick)."""
@@ -1231,7 +1517,11 @@ def _stribeck_plain_tick(st, prm, t0, h, V, W, mus, muk, B, ev_t, ev_a, n_ev):
             sr = -1.0 if F > 0.0 else 1.0
             phase = 1.0
             continue
-        u, z, sr, stuck, t = _stribeck_taylor_slip(prm, u, z, sr, V, W, mus, muk, t, te)
+        if prm.stribeck_tol >= STRIBECK_EXP_MIN_TOL:
+            u, z, sr, stuck, t, F = _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te)
+        else:
+            u, z, sr, stuck, t = _stribeck_taylor_slip(prm, u, z, sr, V, W, mus, muk, t, te)
+            F = math.nan
         if stuck:
             phase = 0.0
             continue
@@ -1240,7 +1530,7 @@ def _stribeck_plain_tick(st, prm, t0, h, V, W, mus, muk, B, ev_t, ev_a, n_ev):
         break
     else:
         st.truncated += 1
-    if phase == 1.0:
+    if phase == 1.0 and not F == F:
         dxc = A * om * math.cos(om * te) if A != 0.0 else 0.0
         muW, _ = _plain_friction(abs(z + V - dxc), W, mus, muk, prm.stribeck_a, prm.stribeck_b)
         F = -sr * muW
@@ -1311,14 +1601,15 @@ def stribeck_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
     Plain Stribeck curve (``prm.stribeck_variant == 0``): stick in closed
     form (the pad moves with the contactor, u' = x_c' - V; breakaway when the
     needed friction ``m x_c'' + c u' + k u`` exceeds ``mu_s W``, located to
-    ~1e-16 s). Slip by Taylor series steps of adaptive order and length
-    (:func:`_stribeck_series`: each step's truncation error below
-    :data:`STRIBECK_TOL` of the pad's scales, steps at most ``prm.substep``
-    long); the re-stick is the zero of the relative velocity on the step's
-    polynomial (dense output as accurate as the step), taken when the needed
-    friction is within ``mu_s W``. A step cut at the end of a tick restarts
-    from its own polynomial, so event times depend on the tick rate only
-    within that tolerance.
+    ~1e-16 s). Slip by steps whose local error stays below
+    ``prm.stribeck_tol`` of the pad's scales, at most ``prm.substep`` long:
+    from :data:`STRIBECK_EXP_MIN_TOL` up exponential Rosenbrock steps
+    (:func:`_stribeck_exp_slip`; the re-stick is a step landed on the zero of
+    the relative velocity), below it Taylor series steps of adaptive order and
+    length (:func:`_stribeck_series`; the re-stick is the zero on the step's
+    polynomial). Either way the re-stick is taken when the needed friction is
+    within ``mu_s W``; a step cut at the end of a tick restarts from there,
+    so event times depend on the tick rate only within the tolerance.
 
     Pre-maximum variant (1): friction is continuous through zero, no
     set-valued stick: exponential Rosenbrock substeps of at most

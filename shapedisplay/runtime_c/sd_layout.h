@@ -113,6 +113,7 @@ typedef struct {
     sd_real stribeck_p;             /* pre-maximum slope p */
     sd_real stribeck_d;             /* pre-maximum width d */
     int64_t stribeck_variant;       /* 0 Stribeck curve, 1 with pre-maximum static region */
+    sd_real stribeck_tol;           /* Stribeck slip: local error allowed per step, relative to the pad's scales */
     sd_real contactor_amplitude;    /* lateral contactor amplitude, m */
     sd_real contactor_omega;        /* lateral contactor angular frequency, rad/s */
     sd_real tanh_eps;               /* tanh regularisation width (breakaway slip speed), m/s */
@@ -131,6 +132,7 @@ typedef struct {
     X(F64, stribeck_p) \
     X(F64, stribeck_d) \
     X(I64, stribeck_variant) \
+    X(F64, stribeck_tol) \
     X(F64, contactor_amplitude) \
     X(F64, contactor_omega) \
     X(F64, tanh_eps)
