@@ -175,11 +175,12 @@ def test_renderer_drive_on_the_published_pad_every_policy(V):
 
 
 @settings(max_examples=60, deadline=None)
-@given(n=st.sampled_from([1, 2, 63, 64, 65, 255, 256, 257, 320, 321, 511, 512, 513, 577, 1000, 4099]),
+@given(n=st.sampled_from([1, 2, 63, 64, 65, 255, 256, 257, 320, 321, 511, 512, 513, 577, 1000, 1024, 1025,
+                          1088, 1089, 1090, 2113, 4099]),
        rate=st.sampled_from([8000.0, 44100.0, 48000.0, 96000.0]), policy=st.sampled_from(sorted(BURST_POLICIES)),
        seed=st.integers(0, 2 ** 32 - 1), gain=st.sampled_from([0.3, 2.5]))
 def test_whole_stream_synthesis_is_the_sample_by_sample_one_bit_for_bit(n, rate, policy, seed, gain):
-    """render_bursts' two-pass synthesis (the envelope piece by piece, then eight carrier blocks side by side)
+    """render_bursts' two-pass synthesis (the envelope piece by piece, then sixteen carrier blocks side by side)
     writes exactly what synth writes sample by sample, for every policy: audio, clipped count and the final
     burst state."""
     from shapedisplay.runtime.bursts import policy_id, synth, synth_stream
@@ -194,6 +195,23 @@ def test_whole_stream_synthesis_is_the_sample_by_sample_one_bit_for_bit(n, rate,
     ca = synth(sa, et, ea, ne, t0, rate, 0, n, 300.0, 0.005, 0.03, pid, a)
     cb = synth_stream(sb, et, ea, ne, t0, rate, n, 300.0, 0.005, 0.03, pid, b)
     assert ca == cb and a.tobytes() == b.tobytes() and sa.tobytes() == sb.tobytes()
+
+
+@pytest.mark.parametrize("carrier, rate", [(300.0, 48000.0), (250.0, 44100.0), (1000.5, 96000.0), (37.0, 8000.0)])
+def test_whole_stream_carrier_groups_equal_the_sample_by_sample_rotation(carrier, rate):
+    """The carrier of the whole-stream synthesis (blocks rotated two to a vector, sixteen side by side, then
+    the last blocks one by one) is the sample-by-sample rotation bit for bit over a long stream, at other
+    carrier frequencies and rates too; an envelope above 1 makes it limit samples."""
+    from shapedisplay.runtime.bursts import policy_id, synth, synth_stream
+    n = 70_001
+    et = np.array([0.001, 0.4, 0.41, 0.9, 2.0])
+    ea = np.array([0.7, 1.6, 0.2, 1.1, 5.0])
+    pid = policy_id("retrigger")
+    a, b = np.zeros(n), np.empty(n)
+    sa, sb = new_burst_state(carrier, rate)[0], new_burst_state(carrier, rate)[0]
+    ca = synth(sa, et, ea, et.size, 0.0, rate, 0, n, carrier, 0.005, 0.03, pid, a)
+    cb = synth_stream(sb, et, ea, et.size, 0.0, rate, n, carrier, 0.005, 0.03, pid, b)
+    assert ca == cb and ca > 0 and a.tobytes() == b.tobytes() and sa.tobytes() == sb.tobytes()
 
 
 @pytest.mark.parametrize("policy", sorted(BURST_POLICIES))

@@ -76,7 +76,7 @@ _RING = 4096
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "83b5ea07c2b0c1872777b25b157fbaa0ecb0f324919214707a91e50852e4174e"
+KERNEL_SOURCES_SHA256 = "70182268fe5650ede37681025e1325d9df186ee9e0338fc5f7ebf6aaab2cd95b"
 
 
 @njit(cache=True, inline="always")
