@@ -345,12 +345,15 @@ _ALL_SLOTS = ("normal_force", "grad_x", "grad_y", "lateral_x", "lateral_y", "ski
     ("jump", ("normal_force", "friction_scale", "kinetic_force"), 12, 0.0),
     ("jump", _ALL_SLOTS, 12, 0.0), ("exact", ("normal_force", "lateral_y", "burst_gain"), 12, 0.0),
     ("jump", ("normal_force", "lateral_x", "skin_stretch"), 1, 0.0), ("jump", ("lateral_x",), 1, 0.0),
-    ("jump", ("normal_force", "grad_x"), 1, 0.3), ("jump", ("normal_force", "grad_x"), 1, 0.0)])
+    ("jump", ("normal_force", "grad_x"), 1, 0.3), ("jump", ("normal_force", "grad_x"), 1, 0.0),
+    ("jump", ("normal_force",), -1, 0.0), ("jump", ("lateral_y",), -1, 0.0), ("jump", ("burst_gain", "grad_x"), -1, 0.0),
+    ("jump", ("skin_stretch", "grad_y"), -1, 0.0)])
 def test_fused_lookup_equals_table_sample_and_prepare_inputs_bit_for_bit(model, names, rows, kmu):
     """The offline render's lookup gives the inputs of FrictionTable.sample + prepare_inputs exactly, on sparse
     blocks with a background, cursor outside too: in one pass (tables whose friction coefficients vary: slope
     term, friction_scale, kinetic_force) and in passes over whole rows (every other table, 2-D and one-row,
-    normal_force missing, negative N and gain clamped; ``rows < 0``: a dense table of ``-rows`` rows, one block)."""
+    normal_force missing, negative N and gain clamped; ``rows < 0``: a dense table of ``-rows`` rows, one block;
+    a dense one-row table with one channel for the per-tick rows takes a loop of its own)."""
     from shapedisplay.runtime.layouts import NSLOT, SLOTS
     from shapedisplay.runtime.renderer import INPUT_ROWS, prepare_inputs
     rng = np.random.default_rng(7)
@@ -359,7 +362,8 @@ def test_fused_lookup_equals_table_sample_and_prepare_inputs_bit_for_bit(model, 
         rows = -rows
         dense = {n: rng.uniform(-0.3, 2.0, (rows, cols)) for n in names}
         t = FrictionTable.from_dense(Grid(rows, cols, 1e-3, 1e-3, 0.5e-3, 0.2e-3), dense,
-                                     {n: choose_quantization(v, "uint16") for n, v in dense.items()}, {})
+                                     {n: choose_quantization(v, "uint16") for n, v in dense.items()},
+                                     {"mapping": {"slope_friction_gain": kmu, "n_base": 1.5}})
         assert len(t.blocks) == 1
     else:
         patch = {n: rng.uniform(-0.3, 2.0, (min(5, rows), 7)) for n in names}

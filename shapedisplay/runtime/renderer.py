@@ -239,6 +239,11 @@ def _motion(t, x, y, grid, two_d, out):
             fy[i] = (0.5 * (y1[i] + y0[i]) - grid.y0) / grid.dy
 
 
+#: Row of :func:`lookup_inputs`' block that each stored channel's slot fills (-1: none).
+_CHANNEL_ROW = np.full(NSLOT, -1, np.int64)
+_CHANNEL_ROW[[Slot.NORMAL_FORCE, Slot.BURST_GAIN, Slot.LATERAL_X, Slot.LATERAL_Y, Slot.SKIN_STRETCH]] = 3, 6, 7, 8, 9
+
+
 @njit(cache=True, error_model="numpy")
 def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, scratch):
     """:func:`lookup_inputs` for a table whose ``mu_s``, ``mu_k`` are the device's: motion, cells, channels,
@@ -255,6 +260,7 @@ def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, s
     i01 = scratch[1]
     i10 = scratch[2]
     i11 = scratch[3]
+    single = False
     if bg.shape[0] > 0:
         cols = grid.cols
         rows = grid.rows
@@ -263,7 +269,30 @@ def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, s
         whole = (blocks.shape[0] == 1 and blocks[0, 0] == 0 and blocks[0, 1] == 0 and blocks[0, 2] == rows
                  and blocks[0, 3] == cols)
         off = blocks[0, 4] if whole else 0
-        if whole and not two_d:
+        nstored = 0
+        one = Slot.NORMAL_FORCE
+        for sl in (Slot.NORMAL_FORCE, Slot.BURST_GAIN, Slot.LATERAL_X, Slot.LATERAL_Y, Slot.SKIN_STRETCH):
+            if slot_channel[sl] >= 0:
+                nstored += 1
+                one = sl
+        if whole and not two_d and nstored == 1:
+            # a dense one-row table with one channel for these rows (a profile along x): its cell and value in
+            # one loop, without the index and weight rows
+            single = True
+            row = _CHANNEL_ROW[one]
+            clamp = one == Slot.NORMAL_FORCE or one == Slot.BURST_GAIN
+            d = data[slot_channel[one]]
+            dst = out[row]
+            if clamp:
+                for i in range(n):
+                    c0, c1, tx = axis_cell_at(fx[i], cols)
+                    v = d[off + c0] * (1 - tx) + d[off + c1] * tx
+                    dst[i] = 0.0 if v < 0.0 else v
+            else:
+                for i in range(n):
+                    c0, c1, tx = axis_cell_at(fx[i], cols)
+                    dst[i] = d[off + c0] * (1 - tx) + d[off + c1] * tx
+        elif whole and not two_d:
             for i in range(n):
                 c0, c1, tx = axis_cell_at(fx[i], cols)
                 fx[i] = tx
@@ -293,36 +322,44 @@ def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, s
                 else:
                     i00[i] = _packed_index(blocks, 0, c0, last)
                     i01[i] = _packed_index(blocks, 0, c1, last)
-    # each stored channel into its row (N, gain, lateral x/y, skin target); a missing one gets its default
-    for s, row, default in ((Slot.NORMAL_FORCE, 3, cfg.normal_force_constant), (Slot.BURST_GAIN, 6, 1.0),
-                            (Slot.LATERAL_X, 7, 0.0), (Slot.LATERAL_Y, 8, 0.0),
-                            (Slot.SKIN_STRETCH, 9, cfg.skin_target)):
+    # each stored channel into its row (N, gain, lateral x/y, skin target); a missing one gets its default. N and
+    # the gain are clamped at 0 in the same loop (the derivation of _derive with fs = 1 and no slope term).
+    for s, row, default, clamp in ((Slot.NORMAL_FORCE, 3, cfg.normal_force_constant, True),
+                                   (Slot.BURST_GAIN, 6, 1.0, True), (Slot.LATERAL_X, 7, 0.0, False),
+                                   (Slot.LATERAL_Y, 8, 0.0, False), (Slot.SKIN_STRETCH, 9, cfg.skin_target, False)):
         ch = slot_channel[s]
         dst = out[row]
         if ch < 0:
-            dst[:] = default
+            dst[:] = 0.0 if clamp and default < 0.0 else default
+            continue
+        if single:
             continue
         d = data[ch]
-        if two_d:
+        if two_d and clamp:
+            for i in range(n):
+                tx = fx[i]
+                ty = fy[i]
+                top = d[i00[i]] * (1 - tx) + d[i01[i]] * tx
+                bot = d[i10[i]] * (1 - tx) + d[i11[i]] * tx
+                v = top * (1 - ty) + bot * ty
+                dst[i] = 0.0 if v < 0.0 else v
+        elif two_d:
             for i in range(n):
                 tx = fx[i]
                 ty = fy[i]
                 top = d[i00[i]] * (1 - tx) + d[i01[i]] * tx
                 bot = d[i10[i]] * (1 - tx) + d[i11[i]] * tx
                 dst[i] = top * (1 - ty) + bot * ty
+        elif clamp:
+            for i in range(n):
+                tx = fx[i]
+                v = d[i00[i]] * (1 - tx) + d[i01[i]] * tx
+                dst[i] = 0.0 if v < 0.0 else v
         else:
             for i in range(n):
                 tx = fx[i]
                 dst[i] = d[i00[i]] * (1 - tx) + d[i01[i]] * tx
-    # the derivation (_derive with fs = 1 and no slope term): N and the gain at least 0, constant mu_s, mu_k
-    N = out[3]
-    gain = out[6]
-    for i in range(n):
-        v = N[i]
-        N[i] = 0.0 if v < 0.0 else v
-    for i in range(n):
-        v = gain[i]
-        gain[i] = 0.0 if v < 0.0 else v
+    # constant mu_s, mu_k
     mus = cfg.mu_s * 1.0
     muk = cfg.mu_k * 1.0
     if muk > mus:
