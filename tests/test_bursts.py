@@ -214,6 +214,21 @@ def test_whole_stream_carrier_groups_equal_the_sample_by_sample_rotation(carrier
     assert ca == cb and ca > 0 and a.tobytes() == b.tobytes() and sa.tobytes() == sb.tobytes()
 
 
+@pytest.mark.parametrize("carrier, rate", [(300.0, 48000.0), (1000.5, 96000.0)])
+def test_kept_carrier_anchors_give_the_same_stream(carrier, rate):
+    """A stream synthesised with the carrier's anchors handed in (fewer blocks than the stream, exactly its
+    blocks, more; as a renderer keeps them) is the stream that computes them, bit for bit."""
+    from shapedisplay.runtime.bursts import CARRIER_BLOCK, carrier_anchors
+    dur = 0.9
+    et = np.array([0.001, 0.2, 0.5, 0.52, 0.8])
+    ea = np.array([0.7, 1.6, 0.2, 1.1, 0.9])
+    ref, c0 = render_bursts(et, ea, 0.0, dur, rate, carrier)
+    blocks = -(-ref.size // CARRIER_BLOCK)
+    for nb in (0, 1, 15, 16, 17, 40, blocks - 1, blocks, blocks + 9):
+        got, c1 = render_bursts(et, ea, 0.0, dur, rate, carrier, anchors=carrier_anchors(carrier, rate, nb))
+        assert c1 == c0 > 0 and got.tobytes() == ref.tobytes(), nb
+
+
 @pytest.mark.parametrize("policy", sorted(BURST_POLICIES))
 def test_whole_stream_synthesis_with_events_on_sample_times_and_repeated(policy):
     """Events exactly at sample times (an event sounds from the next sample) and several at one time: the

@@ -561,7 +561,21 @@ def _rotate_blocks(typingctx, anchors, cd, sd, car, blk):
 
 
 @njit(cache=True, error_model="numpy")
-def _apply_carrier(BS, rate, carrier, n, out):
+def carrier_anchors(carrier, rate, nblocks):
+    """The carrier's anchors of the first ``nblocks`` blocks: ``(cos, sin)`` of its phase at samples
+    ``0, CARRIER_BLOCK, 2 CARRIER_BLOCK, ...`` (the values :func:`synth` computes there), interleaved in one
+    row of ``2 nblocks`` (the form :func:`_rotate_blocks` reads)."""
+    w = 2.0 * math.pi * carrier
+    out = np.empty(2 * nblocks)
+    for b in range(nblocks):
+        th = w * ((b * CARRIER_BLOCK) / rate)
+        out[2 * b] = math.cos(th)
+        out[2 * b + 1] = math.sin(th)
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def _apply_carrier(BS, rate, carrier, n, out, known):
     """Multiply ``out[:n]`` (envelope samples from sample 0) by the carrier in place; count limited samples.
 
     The same carrier samples as :func:`synth` (anchors at multiples of
@@ -571,7 +585,10 @@ def _apply_carrier(BS, rate, carrier, n, out):
     independent, so their recurrences fill the floating-point pipeline that
     one recurrence leaves mostly waiting; the product with the envelope and
     the limiting then run as one loop without branches, which the compiler
-    vectorises.
+    vectorises. ``known`` holds the anchors of the first blocks
+    (:func:`carrier_anchors`, any number of them; the others are computed
+    here): a renderer keeps them from stream to stream, since they depend
+    only on the carrier and the rate.
     """
     w = 2.0 * math.pi * carrier
     cd = BS.rc
@@ -583,13 +600,17 @@ def _apply_carrier(BS, rate, carrier, n, out):
     car = np.empty(grp * blk)
     anchors = np.empty(2 * grp)
     b = 0
+    nknown = known.shape[0] // 2
     while b + grp < nb:                   # groups of whole blocks; the last block is left to the tail
         j0 = b * blk
-        for g in range(grp):
-            th = w * ((j0 + g * blk) / rate)
-            anchors[2 * g] = math.cos(th)
-            anchors[2 * g + 1] = math.sin(th)
-        _rotate_blocks(anchors, cd, sd, car, blk)
+        if b + grp <= nknown:
+            _rotate_blocks(known[2 * b:2 * (b + grp)], cd, sd, car, blk)
+        else:
+            for g in range(grp):
+                th = w * ((j0 + g * blk) / rate)
+                anchors[2 * g] = math.cos(th)
+                anchors[2 * g + 1] = math.sin(th)
+            _rotate_blocks(anchors, cd, sd, car, blk)
         v = out[j0:j0 + grp * blk]
         for m in range(v.shape[0]):
             x = v[m] * car[m]
@@ -601,9 +622,13 @@ def _apply_carrier(BS, rate, carrier, n, out):
     sr = BS.cs
     for j in range(b * blk, n):
         if j % blk == 0:
-            th = w * (j / rate)
-            cr = math.cos(th)
-            sr = math.sin(th)
+            if j // blk < nknown:
+                cr = known[2 * (j // blk)]
+                sr = known[2 * (j // blk) + 1]
+            else:
+                th = w * (j / rate)
+                cr = math.cos(th)
+                sr = math.sin(th)
         else:
             cr, sr = cr * cd - sr * sd, sr * cd + cr * sd
         v, c = _clip1(out[j] * sr)
@@ -617,19 +642,23 @@ def _apply_carrier(BS, rate, carrier, n, out):
 
 
 @njit(cache=True)
-def synth_stream(BS, ev_t, ev_a, n_ev, t_origin, rate, n, carrier, rise, decay, policy, out):
+def synth_stream(BS, ev_t, ev_a, n_ev, t_origin, rate, n, carrier, rise, decay, policy, out, anchors=None):
     """A whole stream at once: samples ``0 .. n-1`` into ``out[:n]`` from a fresh ``BS``.
 
     Bit for bit what :func:`synth` writes for ``j0 = 0, j1 = n`` (the tests
     check it), in two passes: the envelope, then the carrier
-    (:func:`_apply_carrier`). Returns the number of samples limited to [-1, 1].
+    (:func:`_apply_carrier`; ``anchors``: the carrier's first anchors from
+    :func:`carrier_anchors`, optional). Returns the number of samples
+    limited to [-1, 1].
     """
     _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy, out)
-    return _apply_carrier(BS, rate, carrier, n, out)
+    if anchors is None:
+        return _apply_carrier(BS, rate, carrier, n, out, np.empty(0))
+    return _apply_carrier(BS, rate, carrier, n, out, anchors)
 
 
 def render_bursts(event_time, event_amplitude, t_start, duration, rate, carrier_hz=300.0,
-                  rise_s=0.005, decay_s=0.030, policy="retrigger"):
+                  rise_s=0.005, decay_s=0.030, policy="retrigger", anchors=None):
     """Offline burst audio for sorted events.
 
     Parameters
@@ -641,6 +670,10 @@ def render_bursts(event_time, event_amplitude, t_start, duration, rate, carrier_
         ``floor(duration * rate + 1e-9) + 1`` samples.
     rate : float
         Audio sample rate, Hz.
+    anchors : ndarray, optional
+        :func:`carrier_anchors` of this carrier and rate for any number of
+        first blocks (the samples do not change; those anchors are not
+        computed again).
 
     Returns
     -------
@@ -653,7 +686,8 @@ def render_bursts(event_time, event_amplitude, t_start, duration, rate, carrier_
     et = np.ascontiguousarray(event_time, dtype=np.float64)
     ea = np.ascontiguousarray(event_amplitude, dtype=np.float64)
     clipped = synth_stream(new_burst_state(carrier_hz, rate)[0], et, ea, et.shape[0], float(t_start), float(rate), n,
-                           float(carrier_hz), float(rise_s), float(decay_s), pid, out)
+                           float(carrier_hz), float(rise_s), float(decay_s), pid, out,
+                           np.empty(0) if anchors is None else anchors)
     return out, int(clipped)
 
 

@@ -58,7 +58,8 @@ from numba import njit
 
 from ..errors import InputError, ModelError
 from ..table import FrictionTable
-from .bursts import carrier_at, envelope_at, finished_events, forget_events, new_burst_state, render_bursts, synth
+from .bursts import (CARRIER_BLOCK, carrier_anchors, carrier_at, envelope_at, finished_events, forget_events,
+                     new_burst_state, render_bursts, synth)
 from .cursor import MAX_POSITION_M, CursorPath
 from .dispatch import model_tick, render_ticks
 from .layouts import NSLOT, ONLINE, OUTPUTS, PAD_STATE, SLOTS, Slot
@@ -73,10 +74,13 @@ from .settings import (audio_length, constant_normal_force, derive_config, devic
 OUT_NAMES = OUTPUTS.names
 
 _RING = 4096
+#: Carrier anchors a renderer keeps from render to render (blocks of CARRIER_BLOCK samples: about 5.8 minutes of
+#: audio at 48 kHz, 4 MiB); a longer stream computes the anchors past them as it goes.
+_KEPT_ANCHOR_BLOCKS = 1 << 18
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "70182268fe5650ede37681025e1325d9df186ee9e0338fc5f7ebf6aaab2cd95b"
+KERNEL_SOURCES_SHA256 = "84b2c26d3a404b5e32cd4f8827671035eebf769b9fa2fc7555e2a809fd7454c8"
 
 
 @njit(cache=True, inline="always")
@@ -607,6 +611,7 @@ class Renderer:
         self._config = cfg.config
         self.config = self._config[0]
         self._slot_channel = slot_channels(self.present)
+        self._anchors = np.empty(0)
         self._build_online()
         self.reset()
         # warm the compiled step on a scratch copy (compilation never happens in the real-time loop)
@@ -645,7 +650,7 @@ class Renderer:
         if not isinstance(cursor, CursorPath):
             raise InputError(f"`cursor` must be a CursorPath (got {type(cursor).__name__})")
         cp = cursor if cursor.tick_rate == self.tick_rate else cursor.resample(self.tick_rate)
-        audio_length(cp.duration, self.audio_rate)     # refuse an impossible stream before the work
+        n_audio = audio_length(cp.duration, self.audio_rate)     # refuse an impossible stream before the work
         # every per-tick array of the run in one block: the inputs, the friction force, skin stretch and the
         # copies of t, x, y. Fewer, larger allocations are reused by the allocator from run to run instead of
         # being returned to the system and faulted in again (most of a short render's cost).
@@ -661,9 +666,18 @@ class Renderer:
         t[:], x[:], y[:] = cp.t, cp.x, cp.y
         b = self.device.burst
         audio, clipped = render_bursts(et, ea, cp.t[0], cp.duration, self.audio_rate, b.carrier_hz, b.rise_s,
-                                       b.decay_s, self.burst_policy)
+                                       b.decay_s, self.burst_policy, self._carrier_anchors(n_audio))
         return RenderResult(t, x, y, vx, vy, N, f, phase, lat_x, lat_y, ss, et, ea, audio,
                             self.audio_rate, clipped, self.model.name, self.tick_rate, self.burst_policy, mus)
+
+    def _carrier_anchors(self, n_audio):
+        """The carrier's anchors (:func:`.bursts.carrier_anchors`) for a stream of ``n_audio`` samples, kept from
+        render to render: they depend only on the carrier and the audio rate, and their sin/cos pairs cost
+        about a fifth of the burst audio. Up to :data:`_KEPT_ANCHOR_BLOCKS` blocks are kept."""
+        nb = min(-(-n_audio // CARRIER_BLOCK), _KEPT_ANCHOR_BLOCKS)
+        if self._anchors.shape[0] < 2 * nb:
+            self._anchors = carrier_anchors(float(self.device.burst.carrier_hz), float(self.audio_rate), nb)
+        return self._anchors
 
     def _run_model(self, t, V, N, mus, muk, gain, f, phase):
         """The model over one path's inputs, keeping what the render returns: friction force into ``f``,
