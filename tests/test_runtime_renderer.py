@@ -374,25 +374,29 @@ def test_fused_lookup_equals_table_sample_and_prepare_inputs_bit_for_bit(model, 
                                        {"mapping": {"slope_friction_gain": kmu, "n_base": 1.5}})
         assert len(t.blocks) == 2
     n = 2500
-    cp = CursorPath(np.arange(n) / 10_000.0, rng.uniform(-0.005, 0.03, n), rng.uniform(-0.005, 0.02, n),
-                    10_000.0, "random")
     r = Renderer(t, device=quiet_device(), model=model, tick_rate=10_000)
-    got = dict(zip(INPUT_ROWS, r._inputs(cp)))
-    xm, ym = cp.x.copy(), cp.y.copy()
-    xm[1:] = 0.5 * (cp.x[1:] + cp.x[:-1])
-    ym[1:] = 0.5 * (cp.y[1:] + cp.y[:-1])
-    vals = np.zeros((NSLOT, n))
-    for i, name in enumerate(SLOTS):
-        if name in t.channels:
-            vals[i] = t.sample(name, xm, ym)
-    arrs = np.empty((7, n))
-    prepare_inputs(cp.t, cp.x, cp.y, vals, r._config, r._slot_channel, *arrs)
-    for name, want in zip(("V", "vx", "vy", "normal_force", "mu_s", "mu_k", "gain"), arrs):
-        assert got[name].tobytes() == want.tobytes(), name
-    for name, slot in (("lateral_x", "lateral_x"), ("lateral_y", "lateral_y"), ("skin_target", "skin_stretch")):
-        assert got[name].tobytes() == vals[SLOTS.index(slot)].tobytes(), name
-    res = r.render(cp)
-    assert res.lateral_x.tobytes() == got["lateral_x"].tobytes() and res.event_time.size > 0
+    # a random path, and one along x (one y for every tick, which takes a path of its own) that stops and turns
+    along = np.cumsum(rng.choice([-2e-5, 0.0, 3e-5], n))
+    for cp in (CursorPath(np.arange(n) / 10_000.0, rng.uniform(-0.005, 0.03, n), rng.uniform(-0.005, 0.02, n),
+                          10_000.0, "random"),
+               CursorPath(np.arange(n) / 10_000.0, 0.01 + along, np.full(n, 0.0041), 10_000.0, "along x")):
+        got = dict(zip(INPUT_ROWS, r._inputs(cp)))
+        xm, ym = cp.x.copy(), cp.y.copy()
+        xm[1:] = 0.5 * (cp.x[1:] + cp.x[:-1])
+        ym[1:] = 0.5 * (cp.y[1:] + cp.y[:-1])
+        vals = np.zeros((NSLOT, n))
+        for i, name in enumerate(SLOTS):
+            if name in t.channels:
+                vals[i] = t.sample(name, xm, ym)
+        arrs = np.empty((7, n))
+        prepare_inputs(cp.t, cp.x, cp.y, vals, r._config, r._slot_channel, *arrs)
+        for name, want in zip(("V", "vx", "vy", "normal_force", "mu_s", "mu_k", "gain"), arrs):
+            assert got[name].tobytes() == want.tobytes(), name
+        for name, slot in (("lateral_x", "lateral_x"), ("lateral_y", "lateral_y"), ("skin_target", "skin_stretch")):
+            assert got[name].tobytes() == vals[SLOTS.index(slot)].tobytes(), name
+        res = r.render(cp)
+        assert res.lateral_x.tobytes() == got["lateral_x"].tobytes() and res.event_time.size > 0
+        assert cp.source != "along x" or ((got["V"] < 0).any() and (got["V"] == 0).any() and (got["V"] > 0).any())
 
 
 def _render_with_run_kernel(r, cp):

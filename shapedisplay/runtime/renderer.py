@@ -204,16 +204,31 @@ def _motion(t, x, y, grid, two_d, out):
     y0 = y[:-1]
     vx1 = vx[1:]
     vy1 = vy[1:]
+    # a path along x (every y the same finite number): vy is (y - y) / h = +0 and uy = +0 / |v| = +0 (unused
+    # where the speed is 0), so neither is divided out, and |v| = sqrt(vx vx + 0) is sqrt(vx vx)
+    along_x = n > 0 and math.isfinite(y[0])
     for i in range(n - 1):
-        h = t1[i] - t0[i]
-        vx1[i] = (x1[i] - x0[i]) / h
-        vy1[i] = (y1[i] - y0[i]) / h
-    # the unit vector of the motion (rows 4, 5; unused where the speed is 0)
-    for i in range(n):
-        s = math.sqrt(vx[i] * vx[i] + vy[i] * vy[i])
-        sp[i] = s
-        ux[i] = vx[i] / s
-        uy[i] = vy[i] / s
+        along_x &= y1[i] == y[0]
+    if along_x:
+        for i in range(n - 1):
+            vx1[i] = (x1[i] - x0[i]) / (t1[i] - t0[i])
+        vy[:] = 0.0
+        for i in range(n):
+            s = math.sqrt(vx[i] * vx[i])
+            sp[i] = s
+            ux[i] = vx[i] / s
+        uy[:] = 0.0
+    else:
+        for i in range(n - 1):
+            h = t1[i] - t0[i]
+            vx1[i] = (x1[i] - x0[i]) / h
+            vy1[i] = (y1[i] - y0[i]) / h
+        # the unit vector of the motion (rows 4, 5; unused where the speed is 0)
+        for i in range(n):
+            s = math.sqrt(vx[i] * vx[i] + vy[i] * vy[i])
+            sp[i] = s
+            ux[i] = vx[i] / s
+            uy[i] = vy[i] / s
     # the pad axis follows the motion: one short pass in order (each tick's sign depends on the last axis)
     ax = 1.0
     ay = 0.0
