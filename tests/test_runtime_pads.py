@@ -407,3 +407,76 @@ def test_tanh_bounded_for_random_pads(logm, logk, zeta, N, V, mus, ratio):
                      friction=FrictionParams(mus, mus * ratio), tick_rate=1000, duration=0.02)
     assert np.all(np.isfinite(r.friction_force)) and np.all(np.isfinite(r.x))
     assert np.all(np.abs(r.friction_force) <= mus * N * (1 + 1e-6) + 1e-15)
+
+
+def _restick_located(m, c, k, s, xb, V, muk, N):
+    """jump_restick deciding the peak condition by locating the velocity peak (no shortcut)."""
+    sig = 0.5 * c / m
+    wn2 = k / m
+    disc = sig * sig - wn2
+    if disc >= -1e-10 * wn2:
+        return math.inf, xb
+    wd = math.sqrt(-disc)
+    xeq = s * muk * N / k
+    y0 = xb - xeq
+    tp = math.pi / wd
+    e = math.exp(-sig * tp)
+    yp = -e * y0
+    vp = -e * V
+    ap = -2.0 * sig * vp - wn2 * yp
+    if s * ap <= 0.0:
+        return math.inf, xb
+    tz1 = pads._next_acc_zero(m, c, k, y0, V, 0.0)
+    if tz1 == math.inf:
+        return math.inf, xb
+    _, vpk = pads.osc(m, c, k, y0, V, tz1 + math.pi / wd)
+    if s * (vpk - V) < 0.0:
+        return math.inf, xb
+    dt = (V - vp) / ap
+    if abs(dt) * wd > 0.5 * math.pi:
+        return math.inf, xb
+    return tp + dt, xeq + yp + vp * dt + 0.5 * ap * dt * dt
+
+
+_pad_m = st.floats(1e-7, 1e-2)
+_pad_k = st.floats(1.0, 1e6)
+_zeta = st.one_of(st.floats(0.0, 1.0), st.sampled_from([0.0, 1e-6, 0.5, 0.99, 0.999999, 1.0]))
+
+
+@settings(max_examples=400, deadline=None)
+@given(m=_pad_m, k=_pad_k, zeta=_zeta, s=st.sampled_from([-1.0, 1.0]),
+       xb_f=st.floats(-3.0, 3.0), V=st.one_of(st.floats(-2.0, 2.0), st.sampled_from([0.0, 1e-12, -1e-9, 0.02])),
+       muk=st.floats(0.0, 1.5), N=st.floats(0.0, 10.0))
+def test_jump_restick_shortcut_decides_as_locating_the_peak(m, k, zeta, s, xb_f, V, muk, N):
+    """The closed-form bound on the velocity peak (pads._restick_peak_reaches) gives jump_restick's
+    outcome bit for bit as locating the peak does, and whenever it decides, it decides the same."""
+    c = 2.0 * zeta * math.sqrt(k * m)
+    xb = xb_f * N / k
+    got = pads.jump_restick(m, c, k, s, xb, V, muk, N)
+    want = _restick_located(m, c, k, s, xb, V, muk, N)
+    assert np.float64(got[0]).tobytes() == np.float64(want[0]).tobytes()
+    assert np.float64(got[1]).tobytes() == np.float64(want[1]).tobytes()
+    sig = 0.5 * c / m
+    wn2 = k / m
+    disc = sig * sig - wn2
+    if disc < -1e-10 * wn2:
+        wd = math.sqrt(-disc)
+        y0 = xb - s * muk * N / k
+        ok = pads._restick_peak_reaches(sig, wn2, wd, math.exp(-sig * (math.pi / wd)), s, y0, V)
+        if ok != 0:
+            tz1 = pads._next_acc_zero(m, c, k, y0, V, 0.0)
+            _, vpk = pads.osc(m, c, k, y0, V, tz1 + math.pi / wd)
+            assert (ok > 0) == (s * (vpk - V) >= 0.0)
+
+
+def test_jump_restick_shortcut_decides_the_konyo_slips():
+    """On the published pad the bound decides every slip of a stroke (no peak to locate)."""
+    m, k, c = 1e-6, 2000.0, 0.01
+    sig, wn2 = 0.5 * c / m, k / m
+    wd = math.sqrt(wn2 - sig * sig)
+    e = math.exp(-sig * (math.pi / wd))
+    N, mus, muk = 2.0, 0.5, 0.3
+    for V in (1e-4, 0.02, 0.05, 0.1, 0.3, -0.02):
+        s = 1.0 if V > 0 else -1.0
+        y0 = (s * mus * N - c * V) / k - s * muk * N / k
+        assert pads._restick_peak_reaches(sig, wn2, wd, e, s, y0, V) == 1

@@ -23,7 +23,7 @@ REGISTRY = (
     ('tanh', 'tanh_tick', None),
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py.
-KERNEL_SOURCES_SHA256 = "19a2c5e9b93123eb44fb2175822aea3627ff837f8356a24a3b265c3d8805be7a"
+KERNEL_SOURCES_SHA256 = "4750d99d8063b3447d46a224198e0f3540e44118c9191fc093471ea0d5b53fa7"
 
 
 @njit(cache=True)

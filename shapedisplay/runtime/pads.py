@@ -612,6 +612,36 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
 
 # ================================================================ jump model
 @njit(cache=True)
+def _restick_peak_reaches(sig, wn2, wd, e, s, y0, V):
+    """Decide ``s (v_pk - V) >= 0`` of :func:`jump_restick` without locating the peak, where that is certain.
+
+    The free slip from ``(y0, V)`` (under-damped) has ``v(t) = exp(-sig t) (V cos wd t - B sin wd t)``,
+    ``B = (wn2 y0 + sig V) / wd``; at every acceleration zero ``|v| = D exp(-sig t)`` with
+    ``D = sqrt(V^2 + B^2) wd / wn`` (there ``tan(wd t + phi) = -sig / wd``), and half a period later
+    ``v`` is ``-e`` times its value (``e = exp(-sig pi / wd)``). The first zero ``tz1`` lies in
+    ``(0, pi / wd]``, so ``|v(tz1)| >= D e`` and ``|v_pk| = e |v(tz1)| >= D e^2``. Up to ``tz1`` the
+    acceleration keeps the sign of ``a0``, so ``v(tz1) - V`` has that sign, and so has ``v(tz1)``
+    once ``|v(tz1)| > |V|``; then ``v_pk`` has the sign of ``-a0``. Returns 1 (the peak reaches ``V``)
+    or -1 (it does not) when ``|v_pk|`` exceeds ``|V|`` by a relative margin of 1e-6 (far above the
+    rounding of either computation), the start lies at least ~1e-3 rad of phase from an
+    acceleration zero and ``D e^2`` is not below 1e-3 of the velocity amplitude; 0 otherwise (the
+    caller then locates the peak as before). Decides exactly as locating it does.
+    """
+    a0 = -2.0 * sig * V - wn2 * y0
+    j0 = -2.0 * sig * a0 - wn2 * V
+    bb = (j0 + sig * a0) / wd
+    if not (a0 * a0 > 1e-6 * (a0 * a0 + bb * bb)):
+        return 0
+    B = (wn2 * y0 + sig * V) / wd
+    R2 = V * V + B * B
+    e4 = (e * e) * (e * e)
+    lo2 = R2 * (wd * wd / wn2) * e4 * (1.0 - 1e-9)
+    if not (lo2 > 1e-6 * R2 and lo2 * (1.0 - 1e-6) > V * V):
+        return 0
+    return 1 if s * a0 < 0.0 else -1
+
+
+@njit(cache=True)
 def jump_restick(m, c, k, s, xb, V, muk, N):
     """Closed-form slip outcome of the quasi-static jump model.
 
@@ -640,12 +670,16 @@ def jump_restick(m, c, k, s, xb, V, muk, N):
     if s * ap <= 0.0:
         return np.inf, xb
     # re-stick exists only if the velocity peak after the first minimum reaches V
-    tz1 = _next_acc_zero(m, c, k, y0, V, 0.0)
-    if tz1 == np.inf:
+    ok = _restick_peak_reaches(sig, wn2, wd, e, s, y0, V)
+    if ok < 0:
         return np.inf, xb
-    _, vpk = osc(m, c, k, y0, V, tz1 + math.pi / wd)
-    if s * (vpk - V) < 0.0:
-        return np.inf, xb
+    if ok == 0:
+        tz1 = _next_acc_zero(m, c, k, y0, V, 0.0)
+        if tz1 == np.inf:
+            return np.inf, xb
+        _, vpk = osc(m, c, k, y0, V, tz1 + math.pi / wd)
+        if s * (vpk - V) < 0.0:
+            return np.inf, xb
     dt = (V - vp) / ap
     if abs(dt) * wd > 0.5 * math.pi:
         return np.inf, xb
