@@ -320,7 +320,8 @@ def test_renderer_source_names_the_kernels_it_compiles_in():
     """online_step is cached by numba keyed on renderer.py alone; renderer.py must change with its kernels.
 
     Every module whose cached kernels call into other files carries the sha256 of those files
-    (written by `make generate`); pads.py reaches online_step through dispatch.py.
+    (written by `make generate`); pads.py reaches online_step through dispatch.py, and dispatch.py views
+    float64 arguments as the layouts of layouts.py.
     """
     import hashlib
     import importlib
@@ -329,7 +330,7 @@ def test_renderer_source_names_the_kernels_it_compiles_in():
     from shapedisplay.runtime import codegen, renderer
     here = Path(renderer.__file__).parent
     assert set(codegen.KERNEL_DEPENDENCIES["renderer.py"]) >= {"dispatch.py", "lookup.py", "bursts.py"}
-    assert codegen.KERNEL_DEPENDENCIES["dispatch.py"] == ("pads.py",)
+    assert codegen.KERNEL_DEPENDENCIES["dispatch.py"] == ("pads.py", "layouts.py")
     for name, deps in codegen.KERNEL_DEPENDENCIES.items():
         mod = importlib.import_module(f"shapedisplay.runtime.{name[:-3]}")
         blob = b"".join((here / n).read_bytes() for n in deps)
@@ -493,14 +494,45 @@ def test_render_ticks_equals_run_ticks_state_events_and_rows(model):
         assert S1.tobytes() == S2.tobytes(), [(k, S1[k], S2[k]) for k in S1.dtype.names if S1[k] != S2[k]]
 
 
+def _run_ticks_reference(m, init, t, V, N, mus, muk, gain):
+    """dispatch.run_ticks from a copy of ``init`` with room for every event: (state, rows, events)."""
+    from shapedisplay.runtime.dispatch import run_ticks
+    n = t.size
+    S = init.copy()
+    rows = np.empty((6, n))
+    ev = np.zeros((2, 64 * n + 64))
+    n_ev = run_ticks(m.model_id, S, m.param_block, t, V, N, mus, muk, gain, *rows, ev[0], ev[1])
+    assert n_ev <= ev.shape[1]
+    return S, rows, ev[:, :n_ev]
+
+
+def _assert_run_kernel_equals(m, init, args):
+    """run_kernel (default block, and a caller's ``out``) gives run_ticks' rows, events and state bit for bit."""
+    from shapedisplay.runtime.models import run_kernel
+    S, rows, ev = _run_ticks_reference(m, init, *args)
+    before = init.tobytes()
+    for out in (None, np.empty((6, args[0].size))):
+        got = run_kernel(m, *args, state=init[0], out=out)
+        assert init.tobytes() == before
+        assert got[0].tobytes() == S[0].tobytes(), [(k, got[0][k], S[0][k]) for k in S.dtype.names]
+        assert all(a.shape == b.shape and a.tobytes() == b.tobytes() for a, b in zip(got[1:7], rows))
+        assert got[7].tobytes() == ev[0].tobytes() and got[8].tobytes() == ev[1].tobytes()
+        assert out is None or np.shares_memory(got[1], out)
+    return ev.shape[1]
+
+
 @pytest.mark.parametrize("model", ["exact", "jump", "karnopp", "stribeck", "euler", "rk4", "tanh"])
 def test_run_block_equals_run_ticks_and_grows_its_event_buffer(model):
-    """dispatch.run_block (the one call run_kernel makes) against dispatch.run_ticks on the same inputs: the same
-    rows, events and final state bit for bit, from a fresh state and from a state reached mid-run; started with
-    an event buffer of one slot it grows it, runs again from the initial state and gives the same answer;
-    the initial state it is given is left as it was. run_kernel returns exactly these arrays."""
-    from shapedisplay.runtime.dispatch import run_block, run_ticks
-    from shapedisplay.runtime.models import get_model, run_kernel
+    """dispatch.run_block (the one call run_kernel makes: rows, events and final state written into one
+    block) and dispatch.run_block_grow (the paths that block cannot hold) against dispatch.run_ticks on the
+    same inputs: the same rows, events and final state bit for bit, from a fresh state and from a state
+    reached mid-run; run_block_grow started with an event buffer of one slot grows it, runs again from the
+    initial state and gives the same answer; the initial state is left as it was. run_kernel returns exactly
+    these arrays, also on the paths run_block does not take: fewer ticks than the state has words, more
+    events than ticks, a caller's output block."""
+    from shapedisplay.runtime.dispatch import STATE_WORDS, run_block, run_block_grow, run_ticks
+    from shapedisplay.runtime.layouts import PAD_STATE
+    from shapedisplay.runtime.models import get_model
     dev = load_device(None)
     m = get_model(model, dev)
     n = 4000
@@ -512,21 +544,32 @@ def test_run_block_equals_run_ticks_and_grows_its_event_buffer(model):
     S_mid = m.new_state()
     run_ticks(m.model_id, S_mid, m.param_block, t[:half], V[:half], N[:half], mus[:half], muk[:half],
               gain[:half], *np.empty((6, half)), *np.empty((2, n)))
+    prm = m.param_block.view(np.float64)
     for init in (m.new_state(), S_mid):      # (euler has diverged by mid-run: no events after it)
         before = init.tobytes()
-        S1 = init.copy()
-        rows = np.empty((6, n))
-        ev = np.zeros((2, n))
-        n1 = run_ticks(m.model_id, S1, m.param_block, t, V, N, mus, muk, gain, *rows, ev[0], ev[1])
+        S1, rows, ev = _run_ticks_reference(m, init, t, V, N, mus, muk, gain)
+        n1 = ev.shape[1]
         assert n1 > 1 or init is S_mid          # more events than the first buffer of one slot holds
+        block = np.full((9, n), np.nan)
+        n_ev, truncated = run_block(m.model_id, init.view(np.float64), prm, t, V, N, mus, muk, gain, block)
+        assert init.tobytes() == before
+        assert n_ev == n1 and truncated == S1[0]["truncated"] == 0
+        assert block[:6].tobytes() == rows.tobytes() and block[6:8, :n1].tobytes() == ev.tobytes()
+        assert block[8, :STATE_WORDS].view(PAD_STATE).tobytes() == S1.tobytes()
         for cap in (1, n1, n + 1024):
             block = np.empty((6, n))
-            S2, ev2, truncated = run_block(m.model_id, init, m.param_block, t, V, N, mus, muk, gain, block, cap)
+            S2, ev2, truncated = run_block_grow(m.model_id, init.view(np.float64), prm, t, V, N, mus, muk, gain,
+                                                block, cap)
             assert init.tobytes() == before
             assert S2.tobytes() == S1.tobytes() and truncated == S1[0]["truncated"] == 0
-            assert ev2.shape == (2, n1) and ev2.tobytes() == ev[:, :n1].tobytes()
+            assert ev2.shape == (2, n1) and ev2.tobytes() == ev.tobytes()
             assert block.tobytes() == rows.tobytes()
-        got = run_kernel(m, t, V, N, mus, muk, gain, state=init[0])
-        assert got[0].tobytes() == S1[0].tobytes()
-        assert all(a.tobytes() == b.tobytes() for a, b in zip(got[1:7], rows))
-        assert got[7].tobytes() == ev[0, :n1].tobytes() and got[8].tobytes() == ev[1, :n1].tobytes()
+        _assert_run_kernel_equals(m, init, (t, V, N, mus, muk, gain))
+        short = STATE_WORDS - 1
+        _assert_run_kernel_equals(m, init, (t[:short], V[:short], N[:short], mus[:short], muk[:short], gain[:short]))
+    # a slow tick rate and a light touch: many slips per tick, more events than ticks (exact, jump)
+    n = 40
+    t = np.arange(n) / 100.0
+    many = _assert_run_kernel_equals(m, m.new_state(), (t, np.full(n, 0.05), np.full(n, 0.02), mus[:n], muk[:n],
+                                                        gain[:n]))
+    assert many > n or model not in ("exact", "jump")

@@ -11,6 +11,7 @@ import numpy as np
 from numba import njit
 
 from . import pads
+from .layouts import PAD_PARAMS, PAD_STATE
 
 #: (model name, kernel in pads, stick fast path) per model id; models.get_model checks it against MODELS.
 REGISTRY = (
@@ -22,8 +23,9 @@ REGISTRY = (
     ('rk4', 'rk4_tick', None),
     ('tanh', 'tanh_tick', None),
 )
-#: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py.
-KERNEL_SOURCES_SHA256 = "4750d99d8063b3447d46a224198e0f3540e44118c9191fc093471ea0d5b53fa7"
+#: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
+#: or to the layouts run_block views its arguments as.
+KERNEL_SOURCES_SHA256 = "e707123a8010e8a4a1d60e6e69bf0626f7e4d47d4631cf360e31a653a591858b"
 
 
 @njit(cache=True)
@@ -194,23 +196,48 @@ def run_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_state, o
     return n_ev
 
 
-@njit(cache=True)
-def run_block(model, init, params, t, V, N, mus, muk, gain, block, cap):
-    """:func:`run_ticks` as :func:`~.models.run_kernel` calls it, in one call from Python.
+#: Float64 words of a PAD_STATE (run_block keeps the final state in row 8 of its block).
+STATE_WORDS = PAD_STATE.itemsize // 8
 
-    ``init`` is the initial one-element PAD_STATE array (not changed: each run starts from a copy),
-    ``block`` the float64 ``(6, n)`` per-tick outputs (rows: friction, phase, x, v, work of friction,
-    work of damping), ``cap`` the first size of the event buffer (grown and the run repeated from
-    ``init`` when a path has more events). Returns ``(state, events, truncated)``: the final
-    one-element state array, the ``(2, n_events)`` event times and amplitudes, and the state's
-    ``truncated`` count (read here: a field of a record costs far more from Python). Fewer arguments to convert and two
-    objects back instead of seventeen arguments and a state built in Python: on a path of a few
-    hundred ticks the call itself costs about as much as the tick loop.
+
+@njit(cache=True)
+def run_block(model, init, params, t, V, N, mus, muk, gain, block):
+    """:func:`run_ticks` as :func:`~.models.run_kernel` calls it, in one call from Python, everything
+    written into one float64 block.
+
+    ``init`` is the initial PAD_STATE and ``params`` the PAD_PARAMS, each as the float64 view of a
+    one-element array (not changed; numba checks a plain float64 array's type in a fraction of the
+    time it takes for a structured one). ``block`` is float64 ``(9, n)`` with ``n >= STATE_WORDS``:
+    rows 0-5 get the per-tick outputs (friction, phase, x, v, work of friction, work of damping),
+    rows 6 and 7 the event times and amplitudes (room for ``n`` events), row 8 starts with the final
+    state. Returns ``(n_events, truncated)``, the state's ``truncated`` count (read here: a field of
+    a record costs far more from Python); with more than ``n`` events only the first ``n`` are
+    stored (:func:`run_block_grow` then runs the path again). Two integers back: numba turns each
+    array it returns into a Python object (about 0.4 us each), and on a path of a few hundred ticks
+    the call itself costs about as much as the tick loop.
     """
+    prm = params.view(PAD_PARAMS)
+    srow = block[8]
+    srow[:STATE_WORDS] = init
+    state = srow[:STATE_WORDS].view(PAD_STATE)
+    n_ev = run_ticks(model, state, prm, t, V, N, mus, muk, gain, block[0], block[1], block[2], block[3],
+                     block[4], block[5], block[6], block[7])
+    return n_ev, state[0].truncated
+
+
+@njit(cache=True)
+def run_block_grow(model, init, params, t, V, N, mus, muk, gain, block, cap):
+    """:func:`run_block` for the paths it cannot hold: ``block`` float64 ``(6, n)`` (the per-tick
+    outputs only), ``cap`` the first size of the event buffer (grown and the run repeated from
+    ``init`` when a path has more events). Returns ``(state, events, truncated)``: the final
+    one-element PAD_STATE array, the ``(2, n_events)`` event times and amplitudes and the state's
+    ``truncated`` count.
+    """
+    prm = params.view(PAD_PARAMS)
     while True:
-        state = init.copy()
+        state = init.copy().view(PAD_STATE)
         ev = np.empty((2, cap))
-        n_ev = run_ticks(model, state, params, t, V, N, mus, muk, gain, block[0], block[1], block[2], block[3],
+        n_ev = run_ticks(model, state, prm, t, V, N, mus, muk, gain, block[0], block[1], block[2], block[3],
                          block[4], block[5], ev[0], ev[1])
         if n_ev <= cap:
             return state, ev[:, :n_ev].copy(), state[0].truncated

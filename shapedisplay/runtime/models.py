@@ -92,6 +92,9 @@ class PadModel:
         #: numba unboxes an array far faster than a bare record) and its record view.
         self.param_block = np.array([self.pack()], dtype=PAD_PARAMS)
         self.params = self.param_block[0]
+        #: The same bytes as float64 (what :func:`run_kernel` passes: numba checks the type of a plain
+        #: float64 array faster than that of a structured one).
+        self._param_f8 = self.param_block.view(np.float64)
 
     @functools.cached_property
     def _fresh_state(self) -> np.ndarray:
@@ -100,11 +103,16 @@ class PadModel:
         return self.new_state()
 
     @functools.cached_property
+    def _fresh_state_f8(self) -> np.ndarray:
+        """The float64 view of :attr:`_fresh_state` (what :func:`run_kernel` passes)."""
+        return self._fresh_state.view(np.float64)
+
+    @functools.cached_property
     def _fresh_state_bytes(self) -> bytes:
         """The bytes of :attr:`_fresh_state` (what :func:`run_kernel` starts each run from)."""
         return self._fresh_state.tobytes()
 
-    @property
+    @functools.cached_property
     def model_id(self) -> int:
         """Position in :data:`MODELS` (the kernel number of :mod:`.dispatch` and of ``SD_MODEL_*`` in C)."""
         return MODEL_IDS[self.name]
@@ -483,25 +491,43 @@ def run_kernel(model: PadModel, t, V, N, mus, muk, gain, state=None, out=None):
     ``out`` (optional) is a float64 ``(6, n)`` array with C-contiguous rows to write the per-tick
     outputs into (a caller keeping all its per-tick arrays in one block passes rows of it).
     Returns ``(state, friction, phase, x, v, wf, wd, ev_t, ev_a)``, ``state`` the final record. The six
-    per-tick arrays are the rows of one ``(6, n)`` block (one large
-    allocation faults its pages in far faster than six separate ones; with
-    the tick loop at ~100 M ticks/s, fresh memory is most of the cost).
+    per-tick arrays are rows of one block (one large allocation faults its pages in far faster than
+    six separate ones; with the tick loop at ~100 M ticks/s, fresh memory is most of the cost); the
+    events and the state usually live in the same block (``(9, n)``: rows 6 and 7, row 8), ``out``
+    or a path with more events than ticks gives them arrays of their own.
     """
     # Short paths (a few hundred ticks) cost about as much in this Python wrapper as in the compiled
-    # loop: one generated call (dispatch.run_block) takes the output block whole, copies the cached
-    # initial state and grows the event buffer itself; it returns the state and the events. The
-    # registry check runs once, when run_block is first looked up.
-    init = model._fresh_state if state is None else np.array(state, dtype=PAD_STATE).reshape(1)
+    # loop: one generated call (dispatch.run_block) writes the per-tick rows, the events and the final
+    # state into one block and returns two integers (numba turns every array it returns into a Python
+    # object); the state and the events are read from the block. dispatch.run_block_grow takes the paths
+    # that do not fit (a caller's ``out``, more events than ticks, fewer ticks than the state has words).
+    # The registry check runs once, when the dispatch module is first used.
+    init = model._fresh_state_f8 if state is None else np.array(state, dtype=PAD_STATE).reshape(1).view(np.float64)
     n = t.shape[0]
-    block = np.empty((6, n)) if out is None else out
-    run_block = _RUN_BLOCK[0] if _RUN_BLOCK else _run_block()
-    S, ev, truncated = run_block(model.model_id, init, model.param_block, t, V, N, mus, muk, gain, block,
-                                 n // 8 + 1024)
+    D = _DISPATCH[0] if _DISPATCH else _checked_dispatch()
+    if out is None and n >= D.STATE_WORDS:
+        block = np.empty((9, n))
+        n_ev, truncated = D.run_block(model.model_id, init, model._param_f8, t, V, N, mus, muk, gain, block)
+        if truncated > 0:
+            raise _cap_error(model, truncated)
+        if n_ev <= n:
+            # rows taken by index: numpy makes six views by index in about 60 % of the time of unpacking
+            # the block; a state record read with frombuffer costs a fraction of a view to PAD_STATE
+            return (np.frombuffer(block, PAD_STATE, 1, 64 * n)[0], block[0], block[1], block[2], block[3],
+                    block[4], block[5], block[6, :n_ev], block[7, :n_ev])
+        block = block[:6]
+    else:
+        block = np.empty((6, n)) if out is None else out
+    S, ev, truncated = D.run_block_grow(model.model_id, init, model._param_f8, t, V, N, mus, muk, gain, block,
+                                        n // 8 + 1024)
     if truncated > 0:
-        raise ModelError(f"model '{model.name}' reached its cap on phase changes in one tick "
-                         f"({truncated} ticks cut); inputs are outside the model's range")
-    # rows taken by index: numpy makes six views by index in about 60 % of the time of unpacking the block
+        raise _cap_error(model, truncated)
     return S[0], block[0], block[1], block[2], block[3], block[4], block[5], ev[0], ev[1]
+
+
+def _cap_error(model, truncated):
+    return ModelError(f"model '{model.name}' reached its cap on phase changes in one tick "
+                      f"({truncated} ticks cut); inputs are outside the model's range")
 
 
 def _dispatch():
@@ -510,14 +536,14 @@ def _dispatch():
     return dispatch
 
 
-#: dispatch.run_block once imported (an import statement per run_kernel call costs ~0.7 us)
-_RUN_BLOCK: list = []
+#: The dispatch module once imported and checked (an import statement per run_kernel call costs ~0.7 us)
+_DISPATCH: list = []
 
 
-def _run_block():
+def _checked_dispatch():
     check_dispatch()
-    _RUN_BLOCK.append(_dispatch().run_block)
-    return _RUN_BLOCK[0]
+    _DISPATCH.append(_dispatch())
+    return _DISPATCH[0]
 
 
 def _as_ticks(value, n, field):

@@ -76,7 +76,7 @@ _RING = 4096
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "83cc0d93343b265f117a337e8913defb0fcb44ccab8a8332de19c9c13d297ee6"
+KERNEL_SOURCES_SHA256 = "3bc480ce6fef86e4c9e4d7d6d83bb478389b86594012095e059094df72b9d9ca"
 
 
 @njit(cache=True, inline="always")
