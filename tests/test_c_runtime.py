@@ -143,6 +143,46 @@ def test_restick_closed_form_matches_python(sd_vectors, tmp_path):
     assert np.diff(cet)[0] == pytest.approx(period, rel=1e-3)
 
 
+def test_restick_outcome_bit_exact_on_random_pads(tmp_path):
+    """sd_jump_restick against pads.jump_restick on random pads, stretches and speeds (under- to
+    over-damped, both slip directions): the same slip time and re-stick stretch bit for bit, whether the
+    closed-form bound on the velocity peak decides or the peak is located."""
+    import ctypes
+
+    from shapedisplay.runtime import pads
+    lib_path = tmp_path / "libsd.so"
+    cmd = [_cc(), *CFLAGS, "-shared", "-fPIC", "-I", str(CDIR), *[str(CDIR / n) for n in LIB], "-lm",
+           "-o", str(lib_path)]
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    lib = ctypes.CDLL(str(lib_path))
+    d = ctypes.c_double
+    lib.sd_jump_restick.argtypes = [d] * 8 + [ctypes.POINTER(d), ctypes.POINTER(d)]
+    rng = np.random.default_rng(18)
+    decided = located = 0
+    for _ in range(3000):
+        m, k = 10 ** rng.uniform(-7, -2), 10 ** rng.uniform(0, 6)
+        zeta = rng.choice([rng.uniform(0, 1.2), rng.uniform(0, 1) ** 4])
+        c = 2 * zeta * math.sqrt(k * m)
+        s = rng.choice([-1.0, 1.0])
+        N, muk = rng.uniform(0, 10), rng.uniform(0, 1.5)
+        xb = rng.uniform(-3, 3) * N / k
+        V = rng.choice([rng.uniform(-2, 2), 10 ** rng.uniform(-6, 1)])
+        ts, xr = d(), d()
+        lib.sd_jump_restick(m, c, k, s, xb, V, muk, N, ctypes.byref(ts), ctypes.byref(xr))
+        want = pads.jump_restick(m, c, k, s, xb, V, muk, N)
+        assert np.float64(ts.value).tobytes() == np.float64(want[0]).tobytes()
+        assert np.float64(xr.value).tobytes() == np.float64(want[1]).tobytes()
+        sig, wn2 = 0.5 * c / m, k / m
+        if sig * sig - wn2 < -1e-10 * wn2:
+            wd = math.sqrt(wn2 - sig * sig)
+            ok = pads._restick_peak_reaches(sig, wn2, wd, math.exp(-sig * (math.pi / wd)), s,
+                                            xb - s * muk * N / k, V)
+            decided += ok != 0
+            located += ok == 0
+    assert decided > 300 and located > 300       # both branches of the outcome are exercised
+
+
 # ------------------------------------------------------------------ renderer vectors
 # Input:  sd_config_t (the bytes of Renderer.config, a layouts.RENDER_CONFIG record); table:
 #         sd_grid_t (a layouts.GRID record), i64 n_blocks,
