@@ -477,3 +477,31 @@ def test_equal_error_speedup_on_known_settings():
     assert [v["speedup"] for v in qi["levels"]] == [v["speedup"] for v in qm["levels"]]
     # nothing comparable
     assert equal_error([res[0], res[2]], "cpu_s_per_sim_s", 1e-9) is None
+
+
+def test_cpu_per_call_reads_the_clock_a_few_times_per_run(monkeypatch):
+    """cpu_per_call on a fake CPU clock: each call of fn costs 2 us, each clock read 0.5 us (a system
+    call). The per-call figure is the call's cost plus at most a few percent of clock reads, with
+    the clock read a few dozen times per run, and a run stops soon after min_batch_s."""
+    clock = {"t": 0.0, "reads": 0, "calls": 0}
+
+    def process_time():
+        clock["reads"] += 1
+        clock["t"] += 0.5e-6
+        return clock["t"]
+
+    def fn():
+        clock["calls"] += 1
+        clock["t"] += 2e-6
+        return clock["calls"]
+
+    monkeypatch.setattr(common.time, "process_time", process_time)
+    runs, last = common.cpu_per_call(fn, runs=3, min_batch_s=0.02)
+    assert len(runs) == 3 and last == clock["calls"]
+    assert all(2e-6 <= r <= 2e-6 * 1.01 for r in runs), runs
+    assert clock["reads"] <= 3 * 40                        # ~10000 calls per run, not one read per call
+    assert clock["calls"] <= 1 + 3 * 0.02 * 1.1 / 2e-6      # the warm-up call and at most ~10 % past each run
+    # a slow call (a scipy solve) is still timed over at least min_batch_s
+    clock.update(t=0.0, reads=0, calls=0)
+    runs, _ = common.cpu_per_call(lambda: clock.update(t=clock["t"] + 7e-3), runs=1, min_batch_s=0.02)
+    assert runs[0] == pytest.approx(7e-3, rel=0.05)
