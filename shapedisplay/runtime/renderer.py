@@ -58,7 +58,8 @@ from numba import njit
 
 from ..errors import InputError, ModelError
 from ..table import FrictionTable
-from .bursts import carrier_at, envelope_at, finished_events, forget_events, new_burst_state, render_bursts, synth
+from .bursts import (CARRIER_BLOCK, carrier_anchors, carrier_at, envelope_at, finished_events, forget_events,
+                     new_burst_state, render_bursts, synth)
 from .cursor import MAX_POSITION_M, CursorPath
 from .dispatch import model_tick, render_ticks
 from .layouts import NSLOT, ONLINE, OUTPUTS, PAD_STATE, SLOTS, Slot
@@ -73,6 +74,9 @@ from .settings import (audio_length, constant_normal_force, derive_config, devic
 OUT_NAMES = OUTPUTS.names
 
 _RING = 4096
+#: Carrier anchors a renderer keeps from render to render (blocks of CARRIER_BLOCK samples: about 5.8 minutes of
+#: audio at 48 kHz, 4 MiB); a longer stream computes the anchors past them as it goes.
+_KEPT_ANCHOR_BLOCKS = 1 << 18
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
@@ -200,16 +204,31 @@ def _motion(t, x, y, grid, two_d, out):
     y0 = y[:-1]
     vx1 = vx[1:]
     vy1 = vy[1:]
+    # a path along x (every y the same finite number): vy is (y - y) / h = +0 and uy = +0 / |v| = +0 (unused
+    # where the speed is 0), so neither is divided out, and |v| = sqrt(vx vx + 0) is sqrt(vx vx)
+    along_x = n > 0 and math.isfinite(y[0])
     for i in range(n - 1):
-        h = t1[i] - t0[i]
-        vx1[i] = (x1[i] - x0[i]) / h
-        vy1[i] = (y1[i] - y0[i]) / h
-    # the unit vector of the motion (rows 4, 5; unused where the speed is 0)
-    for i in range(n):
-        s = math.sqrt(vx[i] * vx[i] + vy[i] * vy[i])
-        sp[i] = s
-        ux[i] = vx[i] / s
-        uy[i] = vy[i] / s
+        along_x &= y1[i] == y[0]
+    if along_x:
+        for i in range(n - 1):
+            vx1[i] = (x1[i] - x0[i]) / (t1[i] - t0[i])
+        vy[:] = 0.0
+        for i in range(n):
+            s = math.sqrt(vx[i] * vx[i])
+            sp[i] = s
+            ux[i] = vx[i] / s
+        uy[:] = 0.0
+    else:
+        for i in range(n - 1):
+            h = t1[i] - t0[i]
+            vx1[i] = (x1[i] - x0[i]) / h
+            vy1[i] = (y1[i] - y0[i]) / h
+        # the unit vector of the motion (rows 4, 5; unused where the speed is 0)
+        for i in range(n):
+            s = math.sqrt(vx[i] * vx[i] + vy[i] * vy[i])
+            sp[i] = s
+            ux[i] = vx[i] / s
+            uy[i] = vy[i] / s
     # the pad axis follows the motion: one short pass in order (each tick's sign depends on the last axis)
     ax = 1.0
     ay = 0.0
@@ -239,6 +258,11 @@ def _motion(t, x, y, grid, two_d, out):
             fy[i] = (0.5 * (y1[i] + y0[i]) - grid.y0) / grid.dy
 
 
+#: Row of :func:`lookup_inputs`' block that each stored channel's slot fills (-1: none).
+_CHANNEL_ROW = np.full(NSLOT, -1, np.int64)
+_CHANNEL_ROW[[Slot.NORMAL_FORCE, Slot.BURST_GAIN, Slot.LATERAL_X, Slot.LATERAL_Y, Slot.SKIN_STRETCH]] = 3, 6, 7, 8, 9
+
+
 @njit(cache=True, error_model="numpy")
 def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, scratch):
     """:func:`lookup_inputs` for a table whose ``mu_s``, ``mu_k`` are the device's: motion, cells, channels,
@@ -255,6 +279,7 @@ def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, s
     i01 = scratch[1]
     i10 = scratch[2]
     i11 = scratch[3]
+    single = False
     if bg.shape[0] > 0:
         cols = grid.cols
         rows = grid.rows
@@ -263,7 +288,30 @@ def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, s
         whole = (blocks.shape[0] == 1 and blocks[0, 0] == 0 and blocks[0, 1] == 0 and blocks[0, 2] == rows
                  and blocks[0, 3] == cols)
         off = blocks[0, 4] if whole else 0
-        if whole and not two_d:
+        nstored = 0
+        one = Slot.NORMAL_FORCE
+        for sl in (Slot.NORMAL_FORCE, Slot.BURST_GAIN, Slot.LATERAL_X, Slot.LATERAL_Y, Slot.SKIN_STRETCH):
+            if slot_channel[sl] >= 0:
+                nstored += 1
+                one = sl
+        if whole and not two_d and nstored == 1:
+            # a dense one-row table with one channel for these rows (a profile along x): its cell and value in
+            # one loop, without the index and weight rows
+            single = True
+            row = _CHANNEL_ROW[one]
+            clamp = one == Slot.NORMAL_FORCE or one == Slot.BURST_GAIN
+            d = data[slot_channel[one]]
+            dst = out[row]
+            if clamp:
+                for i in range(n):
+                    c0, c1, tx = axis_cell_at(fx[i], cols)
+                    v = d[off + c0] * (1 - tx) + d[off + c1] * tx
+                    dst[i] = 0.0 if v < 0.0 else v
+            else:
+                for i in range(n):
+                    c0, c1, tx = axis_cell_at(fx[i], cols)
+                    dst[i] = d[off + c0] * (1 - tx) + d[off + c1] * tx
+        elif whole and not two_d:
             for i in range(n):
                 c0, c1, tx = axis_cell_at(fx[i], cols)
                 fx[i] = tx
@@ -293,36 +341,44 @@ def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, s
                 else:
                     i00[i] = _packed_index(blocks, 0, c0, last)
                     i01[i] = _packed_index(blocks, 0, c1, last)
-    # each stored channel into its row (N, gain, lateral x/y, skin target); a missing one gets its default
-    for s, row, default in ((Slot.NORMAL_FORCE, 3, cfg.normal_force_constant), (Slot.BURST_GAIN, 6, 1.0),
-                            (Slot.LATERAL_X, 7, 0.0), (Slot.LATERAL_Y, 8, 0.0),
-                            (Slot.SKIN_STRETCH, 9, cfg.skin_target)):
+    # each stored channel into its row (N, gain, lateral x/y, skin target); a missing one gets its default. N and
+    # the gain are clamped at 0 in the same loop (the derivation of _derive with fs = 1 and no slope term).
+    for s, row, default, clamp in ((Slot.NORMAL_FORCE, 3, cfg.normal_force_constant, True),
+                                   (Slot.BURST_GAIN, 6, 1.0, True), (Slot.LATERAL_X, 7, 0.0, False),
+                                   (Slot.LATERAL_Y, 8, 0.0, False), (Slot.SKIN_STRETCH, 9, cfg.skin_target, False)):
         ch = slot_channel[s]
         dst = out[row]
         if ch < 0:
-            dst[:] = default
+            dst[:] = 0.0 if clamp and default < 0.0 else default
+            continue
+        if single:
             continue
         d = data[ch]
-        if two_d:
+        if two_d and clamp:
+            for i in range(n):
+                tx = fx[i]
+                ty = fy[i]
+                top = d[i00[i]] * (1 - tx) + d[i01[i]] * tx
+                bot = d[i10[i]] * (1 - tx) + d[i11[i]] * tx
+                v = top * (1 - ty) + bot * ty
+                dst[i] = 0.0 if v < 0.0 else v
+        elif two_d:
             for i in range(n):
                 tx = fx[i]
                 ty = fy[i]
                 top = d[i00[i]] * (1 - tx) + d[i01[i]] * tx
                 bot = d[i10[i]] * (1 - tx) + d[i11[i]] * tx
                 dst[i] = top * (1 - ty) + bot * ty
+        elif clamp:
+            for i in range(n):
+                tx = fx[i]
+                v = d[i00[i]] * (1 - tx) + d[i01[i]] * tx
+                dst[i] = 0.0 if v < 0.0 else v
         else:
             for i in range(n):
                 tx = fx[i]
                 dst[i] = d[i00[i]] * (1 - tx) + d[i01[i]] * tx
-    # the derivation (_derive with fs = 1 and no slope term): N and the gain at least 0, constant mu_s, mu_k
-    N = out[3]
-    gain = out[6]
-    for i in range(n):
-        v = N[i]
-        N[i] = 0.0 if v < 0.0 else v
-    for i in range(n):
-        v = gain[i]
-        gain[i] = 0.0 if v < 0.0 else v
+    # constant mu_s, mu_k
     mus = cfg.mu_s * 1.0
     muk = cfg.mu_k * 1.0
     if muk > mus:
@@ -570,6 +626,7 @@ class Renderer:
         self._config = cfg.config
         self.config = self._config[0]
         self._slot_channel = slot_channels(self.present)
+        self._anchors = np.empty(0)
         self._build_online()
         self.reset()
         # warm the compiled step on a scratch copy (compilation never happens in the real-time loop)
@@ -608,7 +665,7 @@ class Renderer:
         if not isinstance(cursor, CursorPath):
             raise InputError(f"`cursor` must be a CursorPath (got {type(cursor).__name__})")
         cp = cursor if cursor.tick_rate == self.tick_rate else cursor.resample(self.tick_rate)
-        audio_length(cp.duration, self.audio_rate)     # refuse an impossible stream before the work
+        n_audio = audio_length(cp.duration, self.audio_rate)     # refuse an impossible stream before the work
         # every per-tick array of the run in one block: the inputs, the friction force, skin stretch and the
         # copies of t, x, y. Fewer, larger allocations are reused by the allocator from run to run instead of
         # being returned to the system and faulted in again (most of a short render's cost).
@@ -624,9 +681,18 @@ class Renderer:
         t[:], x[:], y[:] = cp.t, cp.x, cp.y
         b = self.device.burst
         audio, clipped = render_bursts(et, ea, cp.t[0], cp.duration, self.audio_rate, b.carrier_hz, b.rise_s,
-                                       b.decay_s, self.burst_policy)
+                                       b.decay_s, self.burst_policy, self._carrier_anchors(n_audio))
         return RenderResult(t, x, y, vx, vy, N, f, phase, lat_x, lat_y, ss, et, ea, audio,
                             self.audio_rate, clipped, self.model.name, self.tick_rate, self.burst_policy, mus)
+
+    def _carrier_anchors(self, n_audio):
+        """The carrier's anchors (:func:`.bursts.carrier_anchors`) for a stream of ``n_audio`` samples, kept from
+        render to render: they depend only on the carrier and the audio rate, and their sin/cos pairs cost
+        about a fifth of the burst audio. Up to :data:`_KEPT_ANCHOR_BLOCKS` blocks are kept."""
+        nb = min(-(-n_audio // CARRIER_BLOCK), _KEPT_ANCHOR_BLOCKS)
+        if self._anchors.shape[0] < 2 * nb:
+            self._anchors = carrier_anchors(float(self.device.burst.carrier_hz), float(self.audio_rate), nb)
+        return self._anchors
 
     def _run_model(self, t, V, N, mus, muk, gain, f, phase):
         """The model over one path's inputs, keeping what the render returns: friction force into ``f``,
