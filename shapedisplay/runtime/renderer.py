@@ -182,6 +182,11 @@ def lookup_inputs(t, x, y, blocks, data, bg, grid, config, slot_channel, out, sc
         _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, scratch)
 
 
+#: Magnitudes whose squares are normal numbers (with margin; see :func:`_motion`).
+_SQUARE_LO = 2.0 ** -500
+_SQUARE_HI = 2.0 ** 500
+
+
 @njit(cache=True, error_model="numpy")
 def _motion(t, x, y, grid, two_d, out):
     """Rows 0-2 of :func:`lookup_inputs` (``V``, ``vx``, ``vy``) and each tick's midpoint in table samples
@@ -205,7 +210,8 @@ def _motion(t, x, y, grid, two_d, out):
     vx1 = vx[1:]
     vy1 = vy[1:]
     # a path along x (every y the same finite number): vy is (y - y) / h = +0 and uy = +0 / |v| = +0 (unused
-    # where the speed is 0), so neither is divided out, and |v| = sqrt(vx vx + 0) is sqrt(vx vx)
+    # where the speed is 0), so neither is divided out, and |v| = sqrt(vx vx + 0) is sqrt(vx vx) (the unit
+    # vector's x is unused where the speed is 0 too)
     along_x = n > 0 and math.isfinite(y[0])
     for i in range(n - 1):
         along_x &= y1[i] == y[0]
@@ -213,11 +219,22 @@ def _motion(t, x, y, grid, two_d, out):
         for i in range(n - 1):
             vx1[i] = (x1[i] - x0[i]) / (t1[i] - t0[i])
         vy[:] = 0.0
-        for i in range(n):
-            s = math.sqrt(vx[i] * vx[i])
-            sp[i] = s
-            ux[i] = vx[i] / s
         uy[:] = 0.0
+        # sqrt(vx vx) is |vx| where vx vx is a normal number (in binary floating point the rounded square root
+        # of a rounded square is the magnitude), and then vx / |vx| is +-1: checked to hold on every tick first
+        in_range = True
+        for i in range(n):
+            a = abs(vx[i])
+            in_range &= (a == 0.0) | ((a >= _SQUARE_LO) & (a <= _SQUARE_HI))
+        if in_range:
+            for i in range(n):
+                sp[i] = abs(vx[i])
+                ux[i] = math.copysign(1.0, vx[i])
+        else:
+            for i in range(n):
+                s = math.sqrt(vx[i] * vx[i])
+                sp[i] = s
+                ux[i] = vx[i] / s
     else:
         for i in range(n - 1):
             h = t1[i] - t0[i]
