@@ -412,6 +412,24 @@ def test_square_root_of_a_square_is_the_magnitude(m, e, sign):
     assert np.sqrt(np.array([x]) * x)[0] == abs(x)
 
 
+@pytest.mark.parametrize("target", [0.0, -0.0, 2.5e-4, -1e-3])
+def test_skin_stretch_of_one_target_equals_the_row_form(target):
+    """skin_stretch_uniform (one target on every tick; no division for a zero one) gives skin_stretch_of's values
+    bit for bit: signed zeros from a zero target, NaN and infinite forces, limits of zero, negative and NaN."""
+    from shapedisplay.runtime.renderer import skin_stretch_of, skin_stretch_uniform
+    rng = np.random.default_rng(3)
+    n = 4000
+    f = rng.normal(0.0, 1.0, n)
+    f[:6] = [0.0, -0.0, np.nan, np.inf, -np.inf, 1e-320]
+    mus = rng.uniform(-0.2, 1.0, n)
+    N = rng.uniform(0.0, 2.0, n)
+    N[6:9] = [0.0, np.nan, np.inf]
+    want, got = np.empty(n), np.empty(n)
+    skin_stretch_of(np.full(n, target), f, mus, N, want)
+    skin_stretch_uniform(target, f, mus, N, got)
+    assert got.tobytes() == want.tobytes()
+
+
 def _render_with_run_kernel(r, cp):
     """What Renderer.render computes, with the model run by run_kernel (all six per-tick rows) instead of the
     render's own tick loop: the reference it must equal bit for bit."""

@@ -458,6 +458,23 @@ def skin_stretch_of(target, f, mus, N, out):
         out[i] = target[i] * f[i] / lim if lim > 0.0 else 0.0
 
 
+@njit(cache=True, error_model="numpy")
+def skin_stretch_uniform(target, f, mus, N, out):
+    """:func:`skin_stretch_of` for one ``target`` (float) on every tick, the same values.
+
+    A zero target (a table without a ``skin_stretch`` channel on a profile without a skin-stretch
+    target) needs no division: ``target * f`` is a signed zero (or NaN), which dividing by a positive
+    ``mus * N`` leaves as it is."""
+    if target == 0.0:
+        for i in range(f.shape[0]):
+            lim = mus[i] * N[i]
+            out[i] = target * f[i] if lim > 0.0 else 0.0
+    else:
+        for i in range(f.shape[0]):
+            lim = mus[i] * N[i]
+            out[i] = target * f[i] / lim if lim > 0.0 else 0.0
+
+
 def friction_limits(channels: dict, mu_s: float, mu_k: float) -> tuple[np.ndarray, np.ndarray]:
     """Breakaway and kinetic force of each sample with the cursor at rest, as every tick derives them.
 
@@ -694,7 +711,10 @@ class Renderer:
         phase = np.empty(n, np.int8)
         et, ea = self._run_model(cp.t, V, N, mus, muk, gain, f, phase)
         ss, t, x, y = block[k + 1:]
-        skin_stretch_of(target, f, mus, N, ss)
+        if self._slot_channel[Slot.SKIN_STRETCH] >= 0:
+            skin_stretch_of(target, f, mus, N, ss)
+        else:                              # every tick's target is the profile's (the row holds it)
+            skin_stretch_uniform(float(self.config["skin_target"]), f, mus, N, ss)
         t[:], x[:], y[:] = cp.t, cp.x, cp.y
         b = self.device.burst
         audio, clipped = render_bursts(et, ea, cp.t[0], cp.duration, self.audio_rate, b.carrier_hz, b.rise_s,
