@@ -25,7 +25,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "e707123a8010e8a4a1d60e6e69bf0626f7e4d47d4631cf360e31a653a591858b"
+KERNEL_SOURCES_SHA256 = "5656ecc0a62112466d1935eb1ad4ce9adf1a412c4f47afaf7f9bcb39a4e36bf7"
 
 
 @njit(cache=True)

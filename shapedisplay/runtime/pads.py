@@ -1273,6 +1273,16 @@ def _cos_sin(x):
 
 
 @njit(cache=True, inline="always")
+def _expm1_minus_x(x):
+    """``e^x - 1 - x``: its series below |x| = 0.25 (error below 1e-16 of the value; quicker than expm1), else expm1."""
+    if abs(x) < 0.25:
+        return x * x * (0.5 + x * (1.0 / 6 + x * (1.0 / 24 + x * (1.0 / 120 + x * (1.0 / 720 + x * (
+            1.0 / 5040 + x * (1.0 / 40320 + x * (1.0 / 362880 + x * (1.0 / 3628800 + x * (1.0 / 39916800 + x * (
+                1.0 / 479001600)))))))))))
+    return math.expm1(x) - x
+
+
+@njit(cache=True, inline="always")
 def _lin_propagator(m, ce, k, h):
     """Propagator of ``m u'' + ce u' + k u = 0`` over ``h``: ``(p11, p12, p21, p22)`` with ``[u, u'](h) = P [u, u'](0)``.
 
@@ -1293,7 +1303,10 @@ def _lin_propagator(m, ce, k, h):
             r2 = wn2 / r1
         e2 = math.exp(r2 * h)
         x = (r1 - r2) * h
-        d = e2 * h * (math.expm1(x) / x if x > 1e-300 else 1.0)
+        if x > 0.5:
+            d = (math.exp(r1 * h) - e2) / (r1 - r2)    # no cancellation to speak of; exp is quicker than expm1
+        else:
+            d = e2 * h * (math.expm1(x) / x if x > 1e-300 else 1.0)
         return e2 - r2 * d, d, -wn2 * d, e2 + r1 * d
     wd = math.sqrt(-disc)
     e = math.exp(-sig * h)
@@ -1303,7 +1316,7 @@ def _lin_propagator(m, ce, k, h):
 
 
 @njit(cache=True, error_model="numpy")
-def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te):
+def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0):
     """Slip of the plain Stribeck curve from ``t`` to at most ``te`` by exponential Rosenbrock steps.
 
     Each step linearises the friction about the step's start in the relative
@@ -1318,7 +1331,9 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te):
     relative speed through zero is shortened to land on the zero (secant
     iterations on the step length), where the re-stick rule applies.
 
-    Returns ``(u, z, sr, stuck, t, F)`` with the friction force ``F`` at ``t``.
+    ``(C0, S0)`` is ``(cos, sin)(omega t)`` of the contactor (``(1, 0)`` for a
+    still one). Returns ``(u, z, sr, stuck, t, F)`` with the friction force
+    ``F`` at ``t``.
     """
     m = prm.mass
     k = prm.stiffness
@@ -1338,8 +1353,6 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te):
     hmin = 1e-6 * math.sqrt(m / k)
     usc0 = mus * W / k
     zsc0 = abs(V) + A * om + mus * W / math.sqrt(k * m)
-    C0 = math.cos(om * t) if A != 0.0 else 1.0
-    S0 = math.sin(om * t) if A != 0.0 else 0.0
     h = min(te - t, prm.substep)
     # friction curve at the start: W (mu_k + dmu E) with E = exp(-a sr vr / W)
     vr0 = z + V - A * om * C0
@@ -1351,9 +1364,10 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te):
     side = 0
     vlo = sr * vr0
     vhi = 0.0
-    vtol = 1e-3 * tol * zsc0
+    vtol = 1e-2 * tol * zsc0
     h_prev = 0.0      # the last accepted step and its error (step-size prediction)
     err_prev = 0.0
+    touch_checked = False   # a touch inside a step looked for from this start point already
     for it in range(MAX_EVENTS_PER_TICK):
         if t >= te:
             break
@@ -1382,6 +1396,7 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te):
             hi = -1.0
             side = 0
             vlo = sr * vr0
+            touch_checked = False
             continue
         # m u'' + ce u' + k u = f0 - G A om cos(om s) (+ the remainder below), s = t + tau
         f0 = F0 - G * (vr0 - V)
@@ -1392,21 +1407,55 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te):
             Fc = -G * A * om / (mw2 * mw2 + ce * ce * om * om)
             X = Fc * mw2
             Y = Fc * ce * om
-        ch, sh = _cos_sin(om * h)
-        C1 = C0 * ch - S0 * sh
-        S1 = S0 * ch + C0 * sh
-        p11, p12, p21, p22 = _lin_propagator(m, ce, k, h)
+        # the linear solution at the quarters of the step (its propagator over h / 4, applied four times; the
+        # contactor rotated by a quarter of the angle): the sign of sr vr at the first three finds a crossing
+        # of zero inside the step even where the end is past a second one
+        ch, sh = _cos_sin(0.25 * om * h)
+        q11, q12, q21, q22 = _lin_propagator(m, ce, k, 0.25 * h)
         uh = u - up0 - (X * C0 + Y * S0)
         zh = z - om * (Y * C0 - X * S0)
-        u1 = p11 * uh + p12 * zh + up0 + X * C1 + Y * S1
-        z1 = p21 * uh + p22 * zh + om * (Y * C1 - X * S1)
+        C1 = C0
+        S1 = S0
+        qprev = sr * vr0
+        cross = 0
+        for j in range(4):
+            uh, zh = q11 * uh + q12 * zh, q21 * uh + q22 * zh
+            C1, S1 = C1 * ch - S1 * sh, S1 * ch + C1 * sh
+            if j < 3 and cross == 0 and hi < 0.0:
+                qj = sr * (zh + om * (Y * C1 - X * S1) + V - A * om * C1)
+                if qj <= 0.0:
+                    cross = j + 1
+                    vhi = qj
+                    vlo = qprev
+                qprev = qj
+        u1 = uh + up0 + X * C1 + Y * S1
+        z1 = zh + om * (Y * C1 - X * S1)
         vr1 = z1 + V - A * om * C1
+        if cross > 0:
+            # through zero inside the step: land on the crossing between the quarters around it
+            lo = 0.25 * h * (cross - 1)
+            hi = 0.25 * h * cross
+            side = 0
+            h = lo + vlo * (hi - lo) / (vlo - vhi)
+            if not (lo < h < hi):
+                h = 0.5 * (lo + hi)
+            continue
         # the friction curve's remainder at the end: -sr W dmu E0 (e^x - 1 - x), x = -a sr (vr1 - vr0) / W
         x = -aw * sr * (vr1 - vr0) if W > 0.0 else 0.0
-        ex = math.expm1(x)
-        R1 = -sr * W * dmu * E0 * (ex - x) if E0 > 0.0 else 0.0
+        exx = _expm1_minus_x(x)
+        ex = exx + x
+        R1 = -sr * W * dmu * E0 * exx if E0 > 0.0 else 0.0
         # its response, as a forcing R1 (tau / h)^2 from rest
         if (abs(ce) / m + wn) * h > 0.25:
+            # the full step's propagator: the quarter's squared twice
+            r11 = q11 * q11 + q12 * q21
+            r12 = q11 * q12 + q12 * q22
+            r21 = q21 * q11 + q22 * q21
+            r22 = q21 * q12 + q22 * q22
+            p11 = r11 * r11 + r12 * r21
+            p12 = r11 * r12 + r12 * r22
+            p21 = r21 * r11 + r22 * r21
+            p22 = r21 * r12 + r22 * r22
             al = R1 * ik / (h * h)
             be = -2.0 * ce * al * ik
             ga = -(2.0 * m * al + ce * be) * ik
@@ -1447,6 +1496,30 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te):
         vr1 = z1 + V - A * om * C1
         q1 = sr * vr1
         landed = False
+        if q1 > 0.0 and hi < 0.0 and not touch_checked:
+            # a touch of zero inside the step (sr vr falling, then rising again): the cubic through the ends'
+            # values and rates; if its minimum lies below zero, end the step there once, where a crossing, if
+            # real, is then found and landed on
+            m0 = h * sr * ((F0 - c * z - k * u) / m + A * om * om * S0)
+            if m0 < 0.0:
+                F1 = -sr * W * (muk + dmu * E0 * (1.0 + ex)) - b * vr1
+                m1 = h * sr * ((F1 - c * z1 - k * u1) / m + A * om * om * S1)
+                if m1 > 0.0:
+                    q0 = sr * vr0
+                    qa = 6.0 * (q0 - q1) + 3.0 * (m0 + m1)
+                    qb = 6.0 * (q1 - q0) - 4.0 * m0 - 2.0 * m1
+                    # the root of qa s^2 + qb s + m0 in (0, 1) (one: the rate changes sign there)
+                    dq = math.sqrt(max(qb * qb - 4.0 * qa * m0, 0.0))
+                    sm = -2.0 * m0 / (qb + dq) if qb >= 0.0 else (dq - qb) / (2.0 * qa) if qa != 0.0 else -m0 / qb
+                    if 0.0 < sm < 1.0:
+                        s2 = sm * sm
+                        s3 = s2 * sm
+                        pm = (q0 * (2.0 * s3 - 3.0 * s2 + 1.0) + m0 * (s3 - 2.0 * s2 + sm) + q1 * (3.0 * s2 - 2.0 * s3)
+                              + m1 * (s3 - s2))
+                        if pm < 0.0:
+                            touch_checked = True
+                            h *= sm
+                            continue
         if q1 <= 0.0:
             # through zero: land on it (Illinois-modified regula falsi on the step length)
             if -q1 <= vtol or h - lo <= 1e-15 * (1.0 + abs(t)):
@@ -1503,12 +1576,14 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te):
         hi = -1.0
         side = 0
         vlo = sr * vr0
+        touch_checked = False
         if t >= te:
             break
         # next step: the third-order rule with Gustafsson's prediction (an error growing from step to step, as
-        # in the collapse to re-stick, shortens the next one before it fails), at most twice as long
-        if err <= tol * 1e-3:
-            grow = 2.0
+        # in the collapse to re-stick, shortens the next one before it fails), at most twice as long (four times
+        # after a step far within the tolerance)
+        if err <= tol * 1.5e-3:
+            grow = 4.0
         else:
             grow = 0.8 * (tol / err) ** (1.0 / 3.0)
             if err_prev > 0.0:
@@ -1533,9 +1608,17 @@ def _stribeck_plain_tick(st, prm, t0, h, V, W, mus, muk, B, ev_t, ev_a, n_ev):
     z = st.v
     phase = st.phase
     sr = -st.s if st.s != 0.0 else 1.0
+    # the contactor's phase (cos, sin) at time tcs, handed to the exponential slip steps
+    Ct = 1.0
+    St = 0.0
+    tcs = -math.inf
     if phase != 0.0:
         # a new finger speed at the tick start can reverse the relative velocity: friction follows it
-        vr = z + V - (A * om * math.cos(om * t0) if A != 0.0 else 0.0)
+        if A != 0.0:
+            Ct = math.cos(om * t0)
+            St = math.sin(om * t0)
+        tcs = t0
+        vr = z + V - A * om * Ct
         if vr != 0.0:
             sr = 1.0 if vr > 0.0 else -1.0
     t = t0
@@ -1552,7 +1635,10 @@ def _stribeck_plain_tick(st, prm, t0, h, V, W, mus, muk, B, ev_t, ev_a, n_ev):
             phase = 1.0
             continue
         if prm.stribeck_tol >= STRIBECK_EXP_MIN_TOL:
-            u, z, sr, stuck, t, F = _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te)
+            if tcs != t and A != 0.0:
+                Ct = math.cos(om * t)
+                St = math.sin(om * t)
+            u, z, sr, stuck, t, F = _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, Ct, St)
         else:
             u, z, sr, stuck, t = _stribeck_taylor_slip(prm, u, z, sr, V, W, mus, muk, t, te)
             F = math.nan
