@@ -78,7 +78,7 @@ from .layouts import BURST_POLICIES, BURST_STATE, Policy, record
 from .settings import MAX_AUDIO_SAMPLES, audio_length, policy_id  # noqa: F401 (their home is .settings)
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to layouts.py (Policy).
-KERNEL_SOURCES_SHA256 = "32fc22d6759e818b7735ea7f130a07e68a9d82796c00af8459b40f8acfb3f4ab"
+KERNEL_SOURCES_SHA256 = "c8ebcb58a7f4cc675552cd886ab2eaec54b674a78504a29a46ab5818b6c22919"
 #: Carrier re-anchored with sin/cos every this many samples (rotation in between).
 CARRIER_BLOCK = 64
 

@@ -25,7 +25,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "5656ecc0a62112466d1935eb1ad4ce9adf1a412c4f47afaf7f9bcb39a4e36bf7"
+KERNEL_SOURCES_SHA256 = "bb0813beed589d41dc6636c7acc079e5bda39d0d6f72e61fa9ab6f9a4a913ce4"
 
 
 @njit(cache=True)

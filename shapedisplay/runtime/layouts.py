@@ -80,6 +80,7 @@ PAD_STATE = _layout("PAD_STATE", [
     ("memo_n", f8, "memo input: normal force, N"),
     ("memo_slip_time", f8, "memo output: slip time, s"),
     ("memo_x_restick", f8, "memo output: spring stretch at re-stick (exact: from the slip equilibrium), m"),
+    ("slip_step", f8, "next slip step the last one proposed, s (stribeck exponential steps; 0 = none)"),
 ])
 
 PAD_PARAMS = _layout("PAD_PARAMS", [

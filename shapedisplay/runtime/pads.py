@@ -1316,7 +1316,7 @@ def _lin_propagator(m, ce, k, h):
 
 
 @njit(cache=True, error_model="numpy")
-def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0):
+def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
     """Slip of the plain Stribeck curve from ``t`` to at most ``te`` by exponential Rosenbrock steps.
 
     Each step linearises the friction about the step's start in the relative
@@ -1332,8 +1332,9 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0):
     iterations on the step length), where the re-stick rule applies.
 
     ``(C0, S0)`` is ``(cos, sin)(omega t)`` of the contactor (``(1, 0)`` for a
-    still one). Returns ``(u, z, sr, stuck, t, F)`` with the friction force
-    ``F`` at ``t``.
+    still one), ``h0`` the first step to try (the one the last call proposed;
+    0: the rest of the tick). Returns ``(u, z, sr, stuck, t, F, hn)`` with the
+    friction force ``F`` at ``t`` and the next step ``hn`` proposed.
     """
     m = prm.mass
     k = prm.stiffness
@@ -1354,6 +1355,11 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0):
     usc0 = mus * W / k
     zsc0 = abs(V) + A * om + mus * W / math.sqrt(k * m)
     h = min(te - t, prm.substep)
+    h_want = h            # the step the error control asks for (h is it cut to the tick's end or a cap)
+    if h0 > 0.0:
+        h_want = min(h0, prm.substep)
+        h = min(h, h_want)
+    hn = 0.0
     # friction curve at the start: W (mu_k + dmu E) with E = exp(-a sr vr / W)
     vr0 = z + V - A * om * C0
     E0 = math.exp(-aw * max(sr * vr0, 0.0)) if W > 0.0 else 0.0
@@ -1388,10 +1394,11 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0):
                 C0 = math.cos(om * t)
                 S0 = math.sin(om * t)
             if stuck:
-                return u, z, sr, True, t, 0.0
+                return u, z, sr, True, t, 0.0, 0.0
             vr0 = z + V - A * om * C0
             E0 = math.exp(-aw * max(sr * vr0, 0.0)) if W > 0.0 else 0.0
             h = min(te - t, prm.substep)
+            h_want = h
             lo = 0.0
             hi = -1.0
             side = 0
@@ -1486,6 +1493,7 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0):
                 h *= max(0.1, 0.8 * (tol / err) ** (1.0 / 3.0))
             else:
                 h *= 0.1
+            h_want = h
             hi = -1.0
             lo = 0.0
             side = 0
@@ -1561,7 +1569,7 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0):
             ddxc = -A * om * om * S0
             Fst = m * ddxc + c * (dxc - V) + k * u
             if abs(Fst) <= mus * W:
-                return u, dxc - V, sr, True, t, -Fst
+                return u, dxc - V, sr, True, t, -Fst, 0.0
             srn = -1.0 if Fst > 0.0 else 1.0
             sr = srn
             vr0 = 0.0
@@ -1578,6 +1586,8 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0):
         vlo = sr * vr0
         touch_checked = False
         if t >= te:
+            # the next tick starts with the step wanted here (not the rest of the tick this one was cut to)
+            hn = h_want
             break
         # next step: the third-order rule with Gustafsson's prediction (an error growing from step to step, as
         # in the collapse to re-stick, shortens the next one before it fails), at most twice as long (four times
@@ -1593,9 +1603,10 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0):
             grow = min(2.0, max(0.2, grow))
         h_prev = h
         err_prev = err
-        h = min(h * grow, te - t, prm.substep)
+        h_want = min(h * grow, prm.substep)
+        h = min(h_want, te - t)
     F = -sr * W * (muk + dmu * E0) - b * (z + V - A * om * C0)
-    return u, z, sr, False, t, F
+    return u, z, sr, False, t, F, hn
 
 
 @njit(cache=True, error_model="numpy")
@@ -1638,7 +1649,9 @@ def _stribeck_plain_tick(st, prm, t0, h, V, W, mus, muk, B, ev_t, ev_a, n_ev):
             if tcs != t and A != 0.0:
                 Ct = math.cos(om * t)
                 St = math.sin(om * t)
-            u, z, sr, stuck, t, F = _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, Ct, St)
+            u, z, sr, stuck, t, F, hn = _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, Ct, St,
+                                                           st.slip_step if t == t0 else 0.0)
+            st.slip_step = hn
         else:
             u, z, sr, stuck, t = _stribeck_taylor_slip(prm, u, z, sr, V, W, mus, muk, t, te)
             F = math.nan

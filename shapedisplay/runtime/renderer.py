@@ -80,7 +80,7 @@ _KEPT_ANCHOR_BLOCKS = 1 << 18
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "6d1726e9cc3cce4143e2bcd9c9fd2e22567f9a55ef9c8671c2191917be5f822e"
+KERNEL_SOURCES_SHA256 = "22003ee302a7134b11e878e5ad42ba3fb3b434816e4be7c9fca494f1c4feaa76"
 
 
 @njit(cache=True, inline="always")

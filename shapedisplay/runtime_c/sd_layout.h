@@ -73,6 +73,7 @@ typedef struct {
     sd_real memo_n;                 /* memo input: normal force, N */
     sd_real memo_slip_time;         /* memo output: slip time, s */
     sd_real memo_x_restick;         /* memo output: spring stretch at re-stick (exact: from the slip equilibrium), m */
+    sd_real slip_step;              /* next slip step the last one proposed, s (stribeck exponential steps; 0 = none) */
 } sd_pad_state_t;
 #define SD_FIELDS_PAD_STATE(X) \
     X(F64, phase) \
@@ -96,7 +97,8 @@ typedef struct {
     X(F64, memo_muk) \
     X(F64, memo_n) \
     X(F64, memo_slip_time) \
-    X(F64, memo_x_restick)
+    X(F64, memo_x_restick) \
+    X(F64, slip_step)
 
 /* PAD_PARAMS */
 typedef struct {
