@@ -56,7 +56,7 @@ def page(tmp_path_factory):
         errors = []
         pg.on("pageerror", lambda e: errors.append(str(e)))
         pg.goto(studio.url)
-        pg.wait_for_function("window.studio && studio.swaps.length > 0 && studio.swaps[0].t_view !== null",
+        pg.wait_for_function("window.studio && studio.shownGeneration !== null",
                              timeout=30000)
         pg.studio, pg.js_errors = studio, errors
         yield pg
@@ -219,7 +219,7 @@ def test_editing_the_scene_file_updates_the_view(page):
     before = page.evaluate("studio.readout(0.015, 0.128).normal_force")
     try:
         scene.write_text(good.replace("level = 3 ", "level = 5 "))
-        page.wait_for_function(f"studio.tableGeneration > {gen} && studio.swaps[studio.swaps.length - 1].t_view",
+        page.wait_for_function(f"studio.shownGeneration > {gen}",
                                timeout=20000)
         after = page.evaluate("studio.readout(0.015, 0.128).normal_force")
         assert after > before + 0.5                     # app-1 is higher now
@@ -227,7 +227,7 @@ def test_editing_the_scene_file_updates_the_view(page):
         assert after == pytest.approx(float(table_of(page).sample("normal_force", 0.015, 0.128)), rel=1e-12)
     finally:
         scene.write_text(good)
-        page.wait_for_function(f"studio.tableGeneration > {gen + 1}", timeout=20000)
+        page.wait_for_function(f"studio.shownGeneration > {gen + 1}", timeout=20000)
 
 
 def test_bad_scene_shows_its_error_at_its_line(page):
@@ -294,10 +294,10 @@ def test_saving_in_the_page_editor_writes_the_scene_and_recompiles(page):
     try:
         page.fill("#text", good.replace('force = "3.5 N"', 'force = "2.5 N"'))
         page.keyboard.press("Control+s")
-        page.wait_for_function(f"studio.tableGeneration > {gen} && studio.swaps[studio.swaps.length - 1].t_view",
+        page.wait_for_function(f"studio.shownGeneration > {gen}",
                                timeout=20000)
         assert 'force = "2.5 N"' in scene.read_text()
         assert page.evaluate("studio.readout(0.023, 0.036).normal_force") == pytest.approx(2.5, abs=0.03)
     finally:
         scene.write_text(good)
-        page.wait_for_function(f"studio.tableGeneration > {gen + 1}", timeout=20000)
+        page.wait_for_function(f"studio.shownGeneration > {gen + 1}", timeout=20000)

@@ -16,6 +16,7 @@ const studio = window.studio = {
   state: null, module: null, hover: null, layout: null, payload: null, tableGeneration: null,
   ctx: null, node: null, lastStroke: null, lastPointer: [], swaps: [], pending: null, dirty: false,
   errorLine: null, readoutValues: {}, hoverPos: null,
+  shownGeneration: null,       // the table generation of the last state shown whole (view, editor text, error)
 };
 
 // ------------------------------------------------------------------ server
@@ -131,6 +132,7 @@ async function showState(st) {
     if (!studio.dirty && text !== $("text").value) { $("text").value = text; gutter(); }
   }
   markErrorLine();
+  studio.shownGeneration = studio.tableGeneration;
 }
 
 async function swapTable(st) {
