@@ -368,6 +368,37 @@ def test_port_disappearing_mid_upload(link, emu, image):
     link.close()
 
 
+def test_two_closers_at_once_close_each_pty_end_once(monkeypatch):
+    """The device vanishing in its own thread while its owner closes it: each descriptor is closed once
+    (a second close would hit whatever file the process opened next under that number)."""
+    from shapedisplay.link import emulator as emulator_module
+    closed = []
+    real_close = os.close
+
+    def slow_close(fd):
+        closed.append(fd)
+        time.sleep(0.02)               # widen the window in which a second closer could read the same fd
+        real_close(fd)
+
+    e = DeviceEmulator(EmulatorConfig(renderer=False), engine_factory=ProbeEngine)
+    e.start()
+    ends = (e._master, e._slave)
+    monkeypatch.setattr(emulator_module.os, "close", slow_close)
+    go = threading.Barrier(2)
+
+    def closer():
+        go.wait()
+        e.close()
+
+    threads = [threading.Thread(target=closer) for _ in range(2)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join(30)
+    assert sorted(closed) == sorted(ends)
+    assert e._master is None and e._slave is None
+
+
 def test_device_without_renderer_plays_actuator_streams_only(image):
     e = DeviceEmulator(EmulatorConfig(renderer=False), engine_factory=ProbeEngine)
     e.start()

@@ -301,14 +301,19 @@ class DeviceEmulator:
         self._stop_render()
         for th in (self._io_thread, self._tx_thread):
             if th is not None and th is not threading.current_thread():
-                th.join(2.0)
-        for fd in (self._master, self._slave):
+                th.join(10.0)
+        # Take the descriptors under the write lock and clear them before closing: two closers at once
+        # (the device vanishing in its own thread while its owner closes it) close each pty end once.
+        # A second close of a number the process has since reused would close someone else's file.
+        with self._wlock:
+            fds = (self._master, self._slave)
+            self._master = self._slave = None
+        for fd in fds:
             if fd is not None:
                 try:
                     os.close(fd)
                 except OSError:
                     pass
-        self._master = self._slave = None
 
     def vanish(self) -> None:
         """Test hook: the port disappears (USB unplugged) while the host may be using it."""
