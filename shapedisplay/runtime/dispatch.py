@@ -25,7 +25,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "bb0813beed589d41dc6636c7acc079e5bda39d0d6f72e61fa9ab6f9a4a913ce4"
+KERNEL_SOURCES_SHA256 = "8cbe349e909edf3f3f9ce05117e6be8ee02df13d5b6fe31f88bc9c0e927b55f6"
 
 
 @njit(cache=True)

@@ -362,7 +362,9 @@ def slip_search(m, c, k, y0, v0, V, s, rem, tmin):
             continue
         if wb < 0.0:
             if ta == 0.0:
-                wa = _w(m, c, k, y0, v0, V, s, ta)
+                # under-damped: osc at t = 0 returns (y0, v0) exactly (exp, cos give 1, sin 0), so w(0) is
+                # -s (v0 - V) bit for bit without the call
+                wa = -s * (v0 - V) if under else _w(m, c, k, y0, v0, V, s, ta)
             tr, yr, vr = _polish(m, c, k, y0, v0, V, s, ta, tb, wa, wb)
             if interior and wb >= -tol:
                 return 2, tr, yr, vr

@@ -80,7 +80,7 @@ _KEPT_ANCHOR_BLOCKS = 1 << 18
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "22003ee302a7134b11e878e5ad42ba3fb3b434816e4be7c9fca494f1c4feaa76"
+KERNEL_SOURCES_SHA256 = "9f47b3863013047167477d23d125c1570a79be06a8693f9d3c217dc7ce36a7bb"
 
 
 @njit(cache=True, inline="always")

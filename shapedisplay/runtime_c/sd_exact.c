@@ -149,7 +149,8 @@ static int slip_search(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_
     sd_real nmax = SD_R(8.0) + rem * P->phase_rate * SD_R(0.5);
     long n_it = 0, n_cap = nmax < SD_R(SD_MAX_EVENTS_PER_TICK) ? (long)nmax : SD_MAX_EVENTS_PER_TICK;
     sd_real tol = SD_R(SD_TOL_GRAZE) * (SD_FABS(V) + SD_FABS(v0)) + SD_R(SD_TINY);
-    sd_real sig = P->sig, wn2 = P->wn2, disc = P->disc, ta = SD_R(0.0);
+    sd_real sig = P->sig, wn2 = P->wn2, disc = P->disc, ta = SD_R(0.0), wa = SD_R(0.0);
+    int under = disc < -SD_R(1e-10) * wn2;
     /* the relative velocity already past zero by more than rounding (the surface velocity changed at a
      * tick boundary): a crossing at once */
     if (-s * (v0 - V) < -tol) {
@@ -158,7 +159,7 @@ static int slip_search(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_
         *v_out = v0;
         return 1;
     }
-    if (sig >= SD_R(0.0) && disc < -SD_R(1e-10) * wn2) {
+    if (sig >= SD_R(0.0) && under) {
         sd_real wd = P->wd, bv = (wn2 * y0 + sig * v0) / wd, amp = SD_SQRT(v0 * v0 + bv * bv);
         if (s * V - amp > SD_R(2.0) * tol) {
             *t_out = rem;
@@ -182,10 +183,14 @@ static int slip_search(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_
         graze = interior && wb >= -tol && wb <= tol;
         if (graze && tb < tmin) {
             ta = tb;
+            wa = wb;
             continue;
         }
         if (wb < SD_R(0.0)) {
-            *t_out = polish(P, y0, v0, V, s, ta, tb, wrel(P, y0, v0, V, s, ta), wb, y_out, v_out);
+            /* w at the bracket's start: the last bracket's end, or w(0) -- under-damped, osc at t = 0
+             * returns (y0, v0) exactly (exp, cos give 1, sin 0), so without the call */
+            if (ta == SD_R(0.0)) wa = under ? -s * (v0 - V) : wrel(P, y0, v0, V, s, ta);
+            *t_out = polish(P, y0, v0, V, s, ta, tb, wa, wb, y_out, v_out);
             if (interior && wb >= -tol) return 2;
             return 1;
         }
@@ -204,6 +209,7 @@ static int slip_search(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_
             return 0;
         }
         ta = tb;
+        wa = wb;
     }
 }
 
