@@ -499,7 +499,8 @@ def test_render_tick_loop_equals_run_kernel_bit_for_bit(model, names, rows, kmu,
 def test_render_ticks_equals_run_ticks_state_events_and_rows(model):
     """dispatch.render_ticks against dispatch.run_ticks on the same inputs (stick, slip, reversals; 20 kHz so the
     explicit baselines stay stable): the same friction rows, the phase as astype(int8), the same events and the
-    same final state field by field, the work terms of a last tick taken on the stuck fast path included."""
+    same final state field by field, the work terms of a last tick taken on the stuck fast path included; and the
+    same again with mu_s, mu_k (and a constant gain) given as one-element rows, one value for every tick."""
     from shapedisplay.runtime.dispatch import render_ticks, run_ticks
     from shapedisplay.runtime.models import get_model
     dev = load_device(None)
@@ -511,17 +512,21 @@ def test_render_ticks_equals_run_ticks_state_events_and_rows(model):
         N = 1.0 + 0.5 * rng.random(n)
         mus = np.full(n, dev.friction.mu_s)
         muk = np.full(n, dev.friction.mu_k)
-        gain = np.ones(n)
-        S1, S2 = m.new_state(), m.new_state()
-        rows = np.empty((6, n))
-        ev1, ev2 = np.zeros((2, n)), np.zeros((2, n))
-        n1 = run_ticks(m.model_id, S1, m.param_block, t, V, N, mus, muk, gain, *rows, ev1[0], ev1[1])
-        f = np.empty(n)
-        ph = np.empty(n, np.int8)
-        n2 = render_ticks(m.model_id, S2, m.param_block, t, V, N, mus, muk, gain, f, ph, ev2[0], ev2[1])
-        assert n1 == n2 and ev1.tobytes() == ev2.tobytes()
-        assert f.tobytes() == rows[0].tobytes() and ph.tobytes() == rows[1].astype(np.int8).tobytes()
-        assert S1.tobytes() == S2.tobytes(), [(k, S1[k], S2[k]) for k in S1.dtype.names if S1[k] != S2[k]]
+        for gain in (np.ones(n), 0.5 + rng.random(n)):
+            S1 = m.new_state()
+            rows = np.empty((6, n))
+            ev1 = np.zeros((2, n))
+            n1 = run_ticks(m.model_id, S1, m.param_block, t, V, N, mus, muk, gain, *rows, ev1[0], ev1[1])
+            one = (gain[:1] if (gain == 1.0).all() else gain)
+            for args in ((mus, muk, gain), (mus[:1], muk[:1], one)):
+                S2 = m.new_state()
+                ev2 = np.zeros((2, n))
+                f = np.empty(n)
+                ph = np.empty(n, np.int8)
+                n2 = render_ticks(m.model_id, S2, m.param_block, t, V, N, *args, f, ph, ev2[0], ev2[1])
+                assert n1 == n2 and ev1.tobytes() == ev2.tobytes()
+                assert f.tobytes() == rows[0].tobytes() and ph.tobytes() == rows[1].astype(np.int8).tobytes()
+                assert S1.tobytes() == S2.tobytes(), [(k, S1[k], S2[k]) for k in S1.dtype.names if S1[k] != S2[k]]
 
 
 def _run_ticks_reference(m, init, t, V, N, mus, muk, gain):

@@ -42,6 +42,8 @@ _HASH_LINE = re.compile(r'^KERNEL_SOURCES_SHA256 = "[0-9a-f]*"$', re.M)
 _OUTS = ("out_f, out_state, out_x, out_v, out_wf, out_wd")
 _RENDER_OUTS = "out_f, out_phase"
 _ARGS = "prm, t[i - 1], {h}, {V}, N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev"
+# render_ticks: mus, muk and gain may hold one value for every tick (shape (1,)): index i & 0 = 0
+_RENDER_ARGS = "prm, t[i - 1], {h}, {V}, N[i], mus[i & ms], muk[i & mk], gain[i & mg], ev_t, ev_a, n_ev"
 
 
 def _stick_fast_branch(mid: int, kernel: str, with_work: bool, render: bool = False) -> str:
@@ -59,6 +61,7 @@ def _stick_fast_branch(mid: int, kernel: str, with_work: bool, render: bool = Fa
              "            st.work_damping = 0.0\n")
         outs, store = _RENDER_OUTS, "_store_render"
         start = "xa = x\n        " if with_work else ""
+        args, mus_i = _RENDER_ARGS, "mus[i & ms]"
     else:
         work = ("out_wf[i] = fa * Vi * h + 0.5 * k * Vi * Vi * h * h\n"
                 "                    out_wd[i] = c * Vi * Vi * h") if with_work else \
@@ -74,6 +77,7 @@ def _stick_fast_branch(mid: int, kernel: str, with_work: bool, render: bool = Fa
                      "            st.work_damping = out_wd[n - 1]\n")
         outs, store = _OUTS, "_store"
         start = ""
+        args, mus_i = _ARGS, "mus[i]"
     return f'''    if model == {mid}:
         # Stuck ticks (the common case) run inline with the stretch in a register; the
         # kernel runs when a breakaway may happen or the pad slips. Same arithmetic as
@@ -91,7 +95,7 @@ def _stick_fast_branch(mid: int, kernel: str, with_work: bool, render: bool = Fa
                 xe = x + Vi * h
                 fa = k * x + c * Vi
                 fe = k * xe + c * Vi
-                thr = mus[i] * N[i]
+                thr = {mus_i} * N[i]
                 if abs(fa) < thr and abs(fe) < thr:
                     {keep}x = xe
                     {stores}
@@ -99,7 +103,7 @@ def _stick_fast_branch(mid: int, kernel: str, with_work: bool, render: bool = Fa
                     continue
             if not synced:
                 st.x = x
-            n_ev = pads.{kernel}(st, {_ARGS.format(h="h", V="Vi")})
+            n_ev = pads.{kernel}(st, {args.format(h="h", V="Vi")})
             {store}(st, i, {outs})
             x = st.x
             phase = st.phase
@@ -114,18 +118,19 @@ def _stick_fast_branch(mid: int, kernel: str, with_work: bool, render: bool = Fa
 
 
 def _plain_branch(mid: int, kernel: str, render: bool = False) -> str:
-    store, outs = ("_store_render", _RENDER_OUTS) if render else ("_store", _OUTS)
+    store, outs, args = ("_store_render", _RENDER_OUTS, _RENDER_ARGS) if render else ("_store", _OUTS, _ARGS)
     return f'''    if model == {mid}:
         for i in range(1, n):
-            n_ev = pads.{kernel}(st, {_ARGS.format(h="t[i] - t[i - 1]", V="V[i]")})
+            n_ev = pads.{kernel}(st, {args.format(h="t[i] - t[i - 1]", V="V[i]")})
             {store}(st, i, {outs})
         return n_ev
 '''
 
 
-def _tick_loop(name: str, outs: str, store: str, doc: str, branches: str) -> str:
+def _tick_loop(name: str, outs: str, store: str, doc: str, branches: str, masks: str = "") -> str:
     """Text of one generated tick loop over every model (``run_ticks``, ``render_ticks``): the same
-    prologue, tick 0 stored with ``store``, then each model's branch."""
+    prologue, tick 0 stored with ``store``, then each model's branch (``masks``: lines after the
+    prologue)."""
     return f'''@njit(cache=True)
 def {name}(model, state, params, t, V, N, mus, muk, gain, {outs},
 {" " * (len(name) + 5)}ev_t, ev_a):
@@ -138,7 +143,7 @@ def {name}(model, state, params, t, V, N, mus, muk, gain, {outs},
     st.work_friction = 0.0
     st.work_damping = 0.0
     {store}(st, 0, {outs})
-{branches}    return n_ev
+{masks}{branches}    return n_ev
 '''
 
 
@@ -159,9 +164,15 @@ _RUN_TICKS_DOC = '''    """Offline fast path: advance model number ``model`` ove
 _RENDER_TICKS_DOC = '''    """:func:`run_ticks` for the offline render, which keeps only the friction force and the phase:
     ``out_f`` float64 and ``out_phase`` int8 (the phase converted as numpy's ``astype`` does), shape
     (n,). The same model arithmetic, state and events as :func:`run_ticks`; the other four rows are not
-    written (less memory traffic per tick).
+    written (less memory traffic per tick). Each of ``mus``, ``muk`` and ``gain`` has shape (n,) or (1,),
+    one value for every tick (not written out per tick, nor read per tick).
     """
 '''
+
+_RENDER_MASKS = """    ms = -1 if mus.shape[0] == n else 0
+    mk = -1 if muk.shape[0] == n else 0
+    mg = -1 if gain.shape[0] == n else 0
+"""
 
 
 def dispatch_source(registry) -> str:
@@ -175,7 +186,8 @@ def dispatch_source(registry) -> str:
     render_branches = "".join(_stick_fast_branch(i, k, f == "with_work", True) if f else _plain_branch(i, k, True)
                               for i, (_, k, f) in enumerate(registry))
     run_ticks = _tick_loop("run_ticks", _OUTS, "_store", _RUN_TICKS_DOC, branches)
-    render_ticks = _tick_loop("render_ticks", _RENDER_OUTS, "_store_render", _RENDER_TICKS_DOC, render_branches)
+    render_ticks = _tick_loop("render_ticks", _RENDER_OUTS, "_store_render", _RENDER_TICKS_DOC, render_branches,
+                              _RENDER_MASKS)
     return f'''"""Kernel dispatch by model id. GENERATED by `make generate` from runtime.models.MODELS: do not edit.
 
 A model id is the position of the model in ``MODELS`` (``SD_MODEL_*`` in

@@ -256,7 +256,8 @@ def render_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_phase
     """:func:`run_ticks` for the offline render, which keeps only the friction force and the phase:
     ``out_f`` float64 and ``out_phase`` int8 (the phase converted as numpy's ``astype`` does), shape
     (n,). The same model arithmetic, state and events as :func:`run_ticks`; the other four rows are not
-    written (less memory traffic per tick).
+    written (less memory traffic per tick). Each of ``mus``, ``muk`` and ``gain`` has shape (n,) or (1,),
+    one value for every tick (not written out per tick, nor read per tick).
     """
     st = state[0]
     prm = params[0]
@@ -267,6 +268,9 @@ def render_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_phase
     st.work_friction = 0.0
     st.work_damping = 0.0
     _store_render(st, 0, out_f, out_phase)
+    ms = -1 if mus.shape[0] == n else 0
+    mk = -1 if muk.shape[0] == n else 0
+    mg = -1 if gain.shape[0] == n else 0
     if model == 0:
         # Stuck ticks (the common case) run inline with the stretch in a register; the
         # kernel runs when a breakaway may happen or the pad slips. Same arithmetic as
@@ -285,7 +289,7 @@ def render_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_phase
                 xe = x + Vi * h
                 fa = k * x + c * Vi
                 fe = k * xe + c * Vi
-                thr = mus[i] * N[i]
+                thr = mus[i & ms] * N[i]
                 if abs(fa) < thr and abs(fe) < thr:
                     xa = x
                     x = xe
@@ -295,7 +299,7 @@ def render_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_phase
                     continue
             if not synced:
                 st.x = x
-            n_ev = pads.exact_tick(st, prm, t[i - 1], h, Vi, N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
+            n_ev = pads.exact_tick(st, prm, t[i - 1], h, Vi, N[i], mus[i & ms], muk[i & mk], gain[i & mg], ev_t, ev_a, n_ev)
             _store_render(st, i, out_f, out_phase)
             x = st.x
             phase = st.phase
@@ -328,7 +332,7 @@ def render_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_phase
                 xe = x + Vi * h
                 fa = k * x + c * Vi
                 fe = k * xe + c * Vi
-                thr = mus[i] * N[i]
+                thr = mus[i & ms] * N[i]
                 if abs(fa) < thr and abs(fe) < thr:
                     x = xe
                     out_f[i] = fe
@@ -337,7 +341,7 @@ def render_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_phase
                     continue
             if not synced:
                 st.x = x
-            n_ev = pads.jump_tick(st, prm, t[i - 1], h, Vi, N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
+            n_ev = pads.jump_tick(st, prm, t[i - 1], h, Vi, N[i], mus[i & ms], muk[i & mk], gain[i & mg], ev_t, ev_a, n_ev)
             _store_render(st, i, out_f, out_phase)
             x = st.x
             phase = st.phase
@@ -352,27 +356,27 @@ def render_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_phase
         return n_ev
     if model == 2:
         for i in range(1, n):
-            n_ev = pads.karnopp_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
+            n_ev = pads.karnopp_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i & ms], muk[i & mk], gain[i & mg], ev_t, ev_a, n_ev)
             _store_render(st, i, out_f, out_phase)
         return n_ev
     if model == 3:
         for i in range(1, n):
-            n_ev = pads.stribeck_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
+            n_ev = pads.stribeck_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i & ms], muk[i & mk], gain[i & mg], ev_t, ev_a, n_ev)
             _store_render(st, i, out_f, out_phase)
         return n_ev
     if model == 4:
         for i in range(1, n):
-            n_ev = pads.euler_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
+            n_ev = pads.euler_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i & ms], muk[i & mk], gain[i & mg], ev_t, ev_a, n_ev)
             _store_render(st, i, out_f, out_phase)
         return n_ev
     if model == 5:
         for i in range(1, n):
-            n_ev = pads.rk4_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
+            n_ev = pads.rk4_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i & ms], muk[i & mk], gain[i & mg], ev_t, ev_a, n_ev)
             _store_render(st, i, out_f, out_phase)
         return n_ev
     if model == 6:
         for i in range(1, n):
-            n_ev = pads.tanh_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
+            n_ev = pads.tanh_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i & ms], muk[i & mk], gain[i & mg], ev_t, ev_a, n_ev)
             _store_render(st, i, out_f, out_phase)
         return n_ev
     return n_ev

@@ -80,7 +80,7 @@ _KEPT_ANCHOR_BLOCKS = 1 << 18
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "9f47b3863013047167477d23d125c1570a79be06a8693f9d3c217dc7ce36a7bb"
+KERNEL_SOURCES_SHA256 = "bf882c012c3b6deb86b929a322de0bef7f615aa7096f3666e942feff90dd2866"
 
 
 @njit(cache=True, inline="always")
@@ -154,7 +154,7 @@ INPUT_ROWS = ("V", "vx", "vy", "normal_force", "mu_s", "mu_k", "gain", "lateral_
 
 
 @njit(cache=True, error_model="numpy")
-def lookup_inputs(t, x, y, blocks, data, bg, grid, config, slot_channel, out, scratch):
+def lookup_inputs(t, x, y, blocks, data, bg, grid, config, slot_channel, out, scratch, copies, every_row):
     """Offline: each tick's table lookup at its motion midpoint, velocities and model inputs.
 
     ``blocks, data, bg, grid``: the packed table (:func:`.lookup.pack_channels`); ``config``: a
@@ -162,6 +162,14 @@ def lookup_inputs(t, x, y, blocks, data, bg, grid, config, slot_channel, out, sc
     :data:`INPUT_ROWS`; ``scratch``: (4, n) int64, overwritten. Per tick the arithmetic of
     :meth:`FrictionTable.sample` (the lookup) and of :func:`prepare_inputs` (the rest), so the values are
     theirs bit for bit; but no (NSLOT, n) array of looked-up values is written and read back.
+    ``copies``: (3, n) float64 that gets copies of ``t, x, y`` in the passes that read them anyway (or
+    (3, 0): no copies).
+
+    Returns True if ``mu_s`` and ``mu_k`` are one value on every tick (the table takes
+    :func:`_lookup_passes`). Then, unless ``every_row``, the rows a render does not return and that hold
+    one value on every tick (``mu_k``; ``gain`` without a ``burst_gain`` channel; ``skin_target``
+    without a ``skin_stretch`` channel) get only their first element: :meth:`Renderer.render` hands
+    :func:`~.dispatch.render_ticks` those one-element rows instead of writing the value once per tick.
 
     A table whose friction coefficients do not vary along the path (no ``friction_scale``,
     ``breakaway_force`` or ``kinetic_force`` channel, no active slope term) takes
@@ -177,9 +185,10 @@ def lookup_inputs(t, x, y, blocks, data, bg, grid, config, slot_channel, out, sc
     varying = (slot_channel[Slot.FRICTION_SCALE] >= 0 or slot_channel[Slot.BREAKAWAY_FORCE] >= 0
                or slot_channel[Slot.KINETIC_FORCE] >= 0 or (cfg.k_mu != 0.0 and slot_channel[Slot.GRAD_X] >= 0))
     if varying:
-        _lookup_fused(t, x, y, blocks, data, bg, grid, config, slot_channel, out)
+        _lookup_fused(t, x, y, blocks, data, bg, grid, config, slot_channel, out, copies)
     else:
-        _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, scratch)
+        _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, scratch, copies, every_row)
+    return not varying
 
 
 #: Magnitudes whose squares are normal numbers (with margin; see :func:`_motion`).
@@ -188,12 +197,24 @@ _SQUARE_HI = 2.0 ** 500
 
 
 @njit(cache=True, error_model="numpy")
-def _motion(t, x, y, grid, two_d, out):
+def _motion(t, x, y, grid, two_d, out, copies):
     """Rows 0-2 of :func:`lookup_inputs` (``V``, ``vx``, ``vy``) and each tick's midpoint in table samples
     (rows 4 and 5, ``(x_mid - x0) / dx`` and the same in y if ``two_d``): what :func:`_axis_speed` and
     :func:`.lookup.corners` compute, in loops over whole rows (loops over views, which the compiler
-    vectorises, divisions and square roots included)."""
+    vectorises, divisions and square roots included). ``copies``: as in :func:`lookup_inputs`, written
+    in the loops that read ``t``, ``x`` and ``y``."""
     n = t.shape[0]
+    copy = copies.shape[1] == n and n > 0
+    if copy:
+        ct = copies[0]
+        cx = copies[1]
+        cy = copies[2]
+        ct[0] = t[0]
+        cx[0] = x[0]
+        cy[0] = y[0]
+        ct1 = ct[1:]
+        cx1 = cx[1:]
+        cy1 = cy[1:]
     sp = out[0]
     vx = out[1]
     vy = out[2]
@@ -213,11 +234,26 @@ def _motion(t, x, y, grid, two_d, out):
     # where the speed is 0), so neither is divided out, and |v| = sqrt(vx vx + 0) is sqrt(vx vx) (the unit
     # vector's x is unused where the speed is 0 too)
     along_x = n > 0 and math.isfinite(y[0])
-    for i in range(n - 1):
-        along_x &= y1[i] == y[0]
-    if along_x:
+    yfirst = y[0] if n > 0 else 0.0
+    if copy:
         for i in range(n - 1):
-            vx1[i] = (x1[i] - x0[i]) / (t1[i] - t0[i])
+            v = y1[i]
+            cy1[i] = v
+            along_x &= v == yfirst
+    else:
+        for i in range(n - 1):
+            along_x &= y1[i] == yfirst
+    if along_x:
+        if copy:
+            for i in range(n - 1):
+                a = t1[i]
+                b = x1[i]
+                ct1[i] = a
+                cx1[i] = b
+                vx1[i] = (b - x0[i]) / (a - t0[i])
+        else:
+            for i in range(n - 1):
+                vx1[i] = (x1[i] - x0[i]) / (t1[i] - t0[i])
         vy[:] = 0.0
         uy[:] = 0.0
         # sqrt(vx vx) is |vx| where vx vx is a normal number (in binary floating point the rounded square root
@@ -236,10 +272,20 @@ def _motion(t, x, y, grid, two_d, out):
                 sp[i] = s
                 ux[i] = vx[i] / s
     else:
-        for i in range(n - 1):
-            h = t1[i] - t0[i]
-            vx1[i] = (x1[i] - x0[i]) / h
-            vy1[i] = (y1[i] - y0[i]) / h
+        if copy:
+            for i in range(n - 1):
+                a = t1[i]
+                b = x1[i]
+                ct1[i] = a
+                cx1[i] = b
+                h = a - t0[i]
+                vx1[i] = (b - x0[i]) / h
+                vy1[i] = (y1[i] - y0[i]) / h
+        else:
+            for i in range(n - 1):
+                h = t1[i] - t0[i]
+                vx1[i] = (x1[i] - x0[i]) / h
+                vy1[i] = (y1[i] - y0[i]) / h
         # the unit vector of the motion (rows 4, 5; unused where the speed is 0)
         for i in range(n):
             s = math.sqrt(vx[i] * vx[i] + vy[i] * vy[i])
@@ -281,13 +327,13 @@ _CHANNEL_ROW[[Slot.NORMAL_FORCE, Slot.BURST_GAIN, Slot.LATERAL_X, Slot.LATERAL_Y
 
 
 @njit(cache=True, error_model="numpy")
-def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, scratch):
+def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, scratch, copies, every_row):
     """:func:`lookup_inputs` for a table whose ``mu_s``, ``mu_k`` are the device's: motion, cells, channels,
     then the derivation of :func:`_derive` row by row."""
     cfg = config[0]
     n = t.shape[0]
     two_d = grid.rows != 1
-    _motion(t, x, y, grid, two_d, out)
+    _motion(t, x, y, grid, two_d, out, copies)
     # the four samples around each midpoint (scratch rows) and their weights (rows 4, 5 in place)
     fx = out[4]
     fy = out[5]
@@ -366,7 +412,10 @@ def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, s
         ch = slot_channel[s]
         dst = out[row]
         if ch < 0:
-            dst[:] = 0.0 if clamp and default < 0.0 else default
+            if every_row or row == 3 or row == 7 or row == 8:
+                dst[:] = 0.0 if clamp and default < 0.0 else default
+            elif n > 0:                     # gain or skin target, one value on every tick: its first element
+                dst[0] = 0.0 if clamp and default < 0.0 else default
             continue
         if single:
             continue
@@ -401,14 +450,18 @@ def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, s
     if muk > mus:
         muk = mus
     out[4, :] = mus
-    out[5, :] = muk
+    if every_row:
+        out[5, :] = muk
+    elif n > 0:
+        out[5, 0] = muk
 
 
 @njit(cache=True, error_model="numpy")
-def _lookup_fused(t, x, y, blocks, data, bg, grid, config, slot_channel, out):
+def _lookup_fused(t, x, y, blocks, data, bg, grid, config, slot_channel, out, copies):
     """:func:`lookup_inputs` in one pass over the ticks (any table)."""
     cfg = config[0]
     n = t.shape[0]
+    copy = copies.shape[1] == n
     nch = bg.shape[0]
     vals = np.zeros(NSLOT)
     skin = slot_channel[Slot.SKIN_STRETCH]
@@ -445,6 +498,10 @@ def _lookup_fused(t, x, y, blocks, data, bg, grid, config, slot_channel, out):
         out[7, i] = vals[Slot.LATERAL_X]
         out[8, i] = vals[Slot.LATERAL_Y]
         out[9, i] = vals[Slot.SKIN_STRETCH] if skin >= 0 else cfg.skin_target
+        if copy:
+            copies[0, i] = t[i]
+            copies[1, i] = x[i]
+            copies[2, i] = y[i]
 
 
 @njit(cache=True, error_model="numpy")
@@ -675,7 +732,7 @@ class Renderer:
             block = np.empty((len(INPUT_ROWS), cp.t.size))
         scratch = (np.empty((4, cp.t.size)) if scratch is None else scratch).view(np.int64)
         lookup_inputs(cp.t, cp.x, cp.y, self._blocks, self._data, self._bg, self._grid, self._config,
-                      self._slot_channel, block, scratch)
+                      self._slot_channel, block, scratch, np.empty((3, 0)), True)
         return block
 
     def model_inputs(self, cursor: CursorPath):
@@ -700,22 +757,31 @@ class Renderer:
             raise InputError(f"`cursor` must be a CursorPath (got {type(cursor).__name__})")
         cp = cursor if cursor.tick_rate == self.tick_rate else cursor.resample(self.tick_rate)
         n_audio = audio_length(cp.duration, self.audio_rate)     # refuse an impossible stream before the work
-        # every per-tick array of the run in one block: the inputs, the friction force, skin stretch and the
-        # copies of t, x, y. Fewer, larger allocations are reused by the allocator from run to run instead of
-        # being returned to the system and faulted in again (most of a short render's cost).
+        # every per-tick array of the run in one block: the inputs, the friction force, skin stretch, the
+        # copies of t, x, y and the lookup's scratch rows (untouched by most tables). Fewer, larger
+        # allocations are reused by the allocator from run to run instead of being returned to the system and
+        # faulted in again (most of a short render's cost).
         k = len(INPUT_ROWS)
         n = cp.t.size
-        block = np.empty((k + 5, n))
-        V, vx, vy, N, mus, muk, gain, lat_x, lat_y, target = self._inputs(cp, block[:k], block[k + 1:])
-        f = block[k]
+        block = np.empty((k + 9, n))
+        ins = block[:k]
+        # the lookup also writes the copies of t, x, y (in the passes that read them) and leaves the rows of
+        # mu_k, gain and skin target with their first element only where one value holds for every tick
+        uniform = lookup_inputs(cp.t, cp.x, cp.y, self._blocks, self._data, self._bg, self._grid, self._config,
+                                self._slot_channel, ins, block[k + 5:].view(np.int64), block[k + 2:k + 5], False)
+        V, vx, vy, N, mus, muk, gain, lat_x, lat_y, target = ins
+        f, ss, t, x, y = block[k:k + 5]
+        if uniform:                      # one value on every tick: the model reads it once
+            mus_m, muk_m = mus[:1], muk[:1]
+            gain_m = gain if self._slot_channel[Slot.BURST_GAIN] >= 0 else gain[:1]
+        else:
+            mus_m, muk_m, gain_m = mus, muk, gain
         phase = np.empty(n, np.int8)
-        et, ea = self._run_model(cp.t, V, N, mus, muk, gain, f, phase)
-        ss, t, x, y = block[k + 1:]
+        et, ea = self._run_model(cp.t, V, N, mus_m, muk_m, gain_m, f, phase)
         if self._slot_channel[Slot.SKIN_STRETCH] >= 0:
             skin_stretch_of(target, f, mus, N, ss)
         else:                              # every tick's target is the profile's (the row holds it)
             skin_stretch_uniform(float(self.config["skin_target"]), f, mus, N, ss)
-        t[:], x[:], y[:] = cp.t, cp.x, cp.y
         b = self.device.burst
         audio, clipped = render_bursts(et, ea, cp.t[0], cp.duration, self.audio_rate, b.carrier_hz, b.rise_s,
                                        b.decay_s, self.burst_policy, self._carrier_anchors(n_audio))
@@ -735,7 +801,8 @@ class Renderer:
         """The model over one path's inputs, keeping what the render returns: friction force into ``f``,
         phase into ``phase`` (int8), and the events (times, amplitudes). The values of
         :func:`~.models.run_kernel` (``dispatch.render_ticks`` runs the same arithmetic and only stores
-        less); raises :class:`ModelError` as :meth:`render` documents."""
+        less); raises :class:`ModelError` as :meth:`render` documents. ``mus, muk, gain``: shape (n,), or
+        (1,) for one value on every tick."""
         model = self.model
         n = t.shape[0]
         cap = n // 8 + 1024          # grown and re-run if a path has more events
