@@ -381,7 +381,10 @@ def test_fused_lookup_equals_table_sample_and_prepare_inputs_bit_for_bit(model, 
     for cp in (CursorPath(np.arange(n) / 10_000.0, rng.uniform(-0.005, 0.03, n), rng.uniform(-0.005, 0.02, n),
                           10_000.0, "random"),
                CursorPath(np.arange(n) / 10_000.0, 0.01 + along, np.full(n, 0.0041), 10_000.0, "along x"),
-               CursorPath(np.arange(n) / 10_000.0, along * 1e-152, np.full(n, 0.0041), 10_000.0, "slow along x")):
+               CursorPath(np.arange(n) / 10_000.0, along * 1e-152, np.full(n, 0.0041), 10_000.0, "slow along x"),
+               # along x through signed zeros: -0 - +0 = -0 gives vx = -0, and V must still be +0
+               CursorPath(np.arange(n) / 10_000.0, rng.choice([0.0, -0.0, 0.0, -0.0, 2e-6, -3e-6], n),
+                          np.full(n, -0.0), 10_000.0, "zeros")):
         got = dict(zip(INPUT_ROWS, r._inputs(cp)))
         xm, ym = cp.x.copy(), cp.y.copy()
         xm[1:] = 0.5 * (cp.x[1:] + cp.x[:-1])
@@ -398,7 +401,9 @@ def test_fused_lookup_equals_table_sample_and_prepare_inputs_bit_for_bit(model, 
             assert got[name].tobytes() == vals[SLOTS.index(slot)].tobytes(), name
         res = r.render(cp)
         assert res.lateral_x.tobytes() == got["lateral_x"].tobytes()
-        assert res.event_time.size > 0 or cp.source == "slow along x"
+        assert res.event_time.size > 0 or cp.source in ("slow along x", "zeros")
+        if cp.source == "zeros":
+            assert (np.signbit(got["vx"]) & (got["vx"] == 0)).any() and not np.signbit(got["V"][got["V"] == 0]).any()
         assert "along x" not in cp.source or ((got["V"] < 0).any() and (got["V"] == 0).any() and (got["V"] > 0).any())
 
 

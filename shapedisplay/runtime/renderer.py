@@ -162,8 +162,7 @@ def lookup_inputs(t, x, y, blocks, data, bg, grid, config, slot_channel, out, sc
     :data:`INPUT_ROWS`; ``scratch``: (4, n) int64, overwritten. Per tick the arithmetic of
     :meth:`FrictionTable.sample` (the lookup) and of :func:`prepare_inputs` (the rest), so the values are
     theirs bit for bit; but no (NSLOT, n) array of looked-up values is written and read back.
-    ``copies``: (3, n) float64 that gets copies of ``t, x, y`` in the passes that read them anyway (or
-    (3, 0): no copies).
+    ``copies``: (3, n) float64 that gets copies of ``t, x, y``, in the passes that read them anyway.
 
     Returns True if ``mu_s`` and ``mu_k`` are one value on every tick (the table takes
     :func:`_lookup_passes`). Then, unless ``every_row``, the rows a render does not return and that hold
@@ -201,25 +200,22 @@ def _motion(t, x, y, grid, two_d, out, copies):
     """Rows 0-2 of :func:`lookup_inputs` (``V``, ``vx``, ``vy``) and each tick's midpoint in table samples
     (rows 4 and 5, ``(x_mid - x0) / dx`` and the same in y if ``two_d``): what :func:`_axis_speed` and
     :func:`.lookup.corners` compute, in loops over whole rows (loops over views, which the compiler
-    vectorises, divisions and square roots included). ``copies``: as in :func:`lookup_inputs`, written
-    in the loops that read ``t``, ``x`` and ``y``."""
+    vectorises, divisions and square roots included). ``copies`` (3, n) gets ``t``, ``x`` and ``y``, written
+    in the loops that read them."""
     n = t.shape[0]
-    copy = copies.shape[1] == n and n > 0
-    if copy:
-        ct = copies[0]
-        cx = copies[1]
-        cy = copies[2]
-        ct[0] = t[0]
-        cx[0] = x[0]
-        cy[0] = y[0]
-        ct1 = ct[1:]
-        cx1 = cx[1:]
-        cy1 = cy[1:]
+    if n == 0:
+        return
     sp = out[0]
     vx = out[1]
     vy = out[2]
     ux = out[4]
     uy = out[5]
+    ct = copies[0]
+    cx = copies[1]
+    cy = copies[2]
+    ct[0] = t[0]
+    cx[0] = x[0]
+    cy[0] = y[0]
     vx[0] = 0.0
     vy[0] = 0.0
     t1 = t[1:]
@@ -230,85 +226,80 @@ def _motion(t, x, y, grid, two_d, out, copies):
     y0 = y[:-1]
     vx1 = vx[1:]
     vy1 = vy[1:]
+    ct1 = ct[1:]
+    cx1 = cx[1:]
+    cy1 = cy[1:]
     # a path along x (every y the same finite number): vy is (y - y) / h = +0 and uy = +0 / |v| = +0 (unused
     # where the speed is 0), so neither is divided out, and |v| = sqrt(vx vx + 0) is sqrt(vx vx) (the unit
     # vector's x is unused where the speed is 0 too)
-    along_x = n > 0 and math.isfinite(y[0])
-    yfirst = y[0] if n > 0 else 0.0
-    if copy:
-        for i in range(n - 1):
-            v = y1[i]
-            cy1[i] = v
-            along_x &= v == yfirst
-    else:
-        for i in range(n - 1):
-            along_x &= y1[i] == yfirst
+    y_first = y[0]
+    along_x = math.isfinite(y_first)
+    for i in range(n - 1):
+        v = y1[i]
+        cy1[i] = v
+        along_x &= v == y_first
+    axis_pass = True
     if along_x:
-        if copy:
-            for i in range(n - 1):
-                a = t1[i]
-                b = x1[i]
-                ct1[i] = a
-                cx1[i] = b
-                vx1[i] = (b - x0[i]) / (a - t0[i])
-        else:
-            for i in range(n - 1):
-                vx1[i] = (x1[i] - x0[i]) / (t1[i] - t0[i])
+        for i in range(n - 1):
+            a = t1[i]
+            b = x1[i]
+            ct1[i] = a
+            cx1[i] = b
+            vx1[i] = (b - x0[i]) / (a - t0[i])
         vy[:] = 0.0
-        uy[:] = 0.0
         # sqrt(vx vx) is |vx| where vx vx is a normal number (in binary floating point the rounded square root
-        # of a rounded square is the magnitude), and then vx / |vx| is +-1: checked to hold on every tick first
+        # of a rounded square is the magnitude), and then vx / |vx| is +-1: checked to hold on every tick first.
+        # Then the unit vector is (+-1, +0), and the pad axis, (1, 0) at the start, stays (1, +-0) from tick to
+        # tick: a tick along it keeps it and gets |vx|, a tick against it (dx ax + dy ay = -1 < 0) gets -|vx|
+        # and the axis -(-1, +0) = (1, -0); so V is vx itself, +0 where vx is a zero (the speed is 0), and
+        # the pass in order is not needed.
         in_range = True
         for i in range(n):
-            a = abs(vx[i])
+            v = vx[i]
+            a = abs(v)
             in_range &= (a == 0.0) | ((a >= _SQUARE_LO) & (a <= _SQUARE_HI))
+            sp[i] = v if v != 0.0 else 0.0
         if in_range:
-            for i in range(n):
-                sp[i] = abs(vx[i])
-                ux[i] = math.copysign(1.0, vx[i])
+            axis_pass = False
         else:
+            uy[:] = 0.0
             for i in range(n):
                 s = math.sqrt(vx[i] * vx[i])
                 sp[i] = s
                 ux[i] = vx[i] / s
     else:
-        if copy:
-            for i in range(n - 1):
-                a = t1[i]
-                b = x1[i]
-                ct1[i] = a
-                cx1[i] = b
-                h = a - t0[i]
-                vx1[i] = (b - x0[i]) / h
-                vy1[i] = (y1[i] - y0[i]) / h
-        else:
-            for i in range(n - 1):
-                h = t1[i] - t0[i]
-                vx1[i] = (x1[i] - x0[i]) / h
-                vy1[i] = (y1[i] - y0[i]) / h
+        for i in range(n - 1):
+            a = t1[i]
+            b = x1[i]
+            ct1[i] = a
+            cx1[i] = b
+            h = a - t0[i]
+            vx1[i] = (b - x0[i]) / h
+            vy1[i] = (y1[i] - y0[i]) / h
         # the unit vector of the motion (rows 4, 5; unused where the speed is 0)
         for i in range(n):
             s = math.sqrt(vx[i] * vx[i] + vy[i] * vy[i])
             sp[i] = s
             ux[i] = vx[i] / s
             uy[i] = vy[i] / s
-    # the pad axis follows the motion: one short pass in order (each tick's sign depends on the last axis)
-    ax = 1.0
-    ay = 0.0
-    for i in range(n):
-        s = sp[i]
-        if s == 0.0:
-            sp[i] = 0.0
-        else:
-            dx = ux[i]
-            dy = uy[i]
-            if dx * ax + dy * ay >= 0.0:
-                ax = dx
-                ay = dy
+    if axis_pass:
+        # the pad axis follows the motion: one short pass in order (each tick's sign depends on the last axis)
+        ax = 1.0
+        ay = 0.0
+        for i in range(n):
+            s = sp[i]
+            if s == 0.0:
+                sp[i] = 0.0
             else:
-                sp[i] = -s
-                ax = -dx
-                ay = -dy
+                dx = ux[i]
+                dy = uy[i]
+                if dx * ax + dy * ay >= 0.0:
+                    ax = dx
+                    ay = dy
+                else:
+                    sp[i] = -s
+                    ax = -dx
+                    ay = -dy
     # the midpoints in table samples
     ux[0] = (x[0] - grid.x0) / grid.dx
     fx = ux[1:]
@@ -461,7 +452,6 @@ def _lookup_fused(t, x, y, blocks, data, bg, grid, config, slot_channel, out, co
     """:func:`lookup_inputs` in one pass over the ticks (any table)."""
     cfg = config[0]
     n = t.shape[0]
-    copy = copies.shape[1] == n
     nch = bg.shape[0]
     vals = np.zeros(NSLOT)
     skin = slot_channel[Slot.SKIN_STRETCH]
@@ -498,10 +488,9 @@ def _lookup_fused(t, x, y, blocks, data, bg, grid, config, slot_channel, out, co
         out[7, i] = vals[Slot.LATERAL_X]
         out[8, i] = vals[Slot.LATERAL_Y]
         out[9, i] = vals[Slot.SKIN_STRETCH] if skin >= 0 else cfg.skin_target
-        if copy:
-            copies[0, i] = t[i]
-            copies[1, i] = x[i]
-            copies[2, i] = y[i]
+        copies[0, i] = t[i]
+        copies[1, i] = x[i]
+        copies[2, i] = y[i]
 
 
 @njit(cache=True, error_model="numpy")
@@ -732,7 +721,7 @@ class Renderer:
             block = np.empty((len(INPUT_ROWS), cp.t.size))
         scratch = (np.empty((4, cp.t.size)) if scratch is None else scratch).view(np.int64)
         lookup_inputs(cp.t, cp.x, cp.y, self._blocks, self._data, self._bg, self._grid, self._config,
-                      self._slot_channel, block, scratch, np.empty((3, 0)), True)
+                      self._slot_channel, block, scratch, np.empty((3, cp.t.size)), True)
         return block
 
     def model_inputs(self, cursor: CursorPath):
