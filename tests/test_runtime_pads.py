@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import assume, given, settings, strategies as st
 from scipy.integrate import solve_ivp
 
 from shapedisplay.devices import FrictionParams, PadParams
@@ -480,3 +480,136 @@ def test_jump_restick_shortcut_decides_the_konyo_slips():
         s = 1.0 if V > 0 else -1.0
         y0 = (s * mus * N - c * V) / k - s * muk * N / k
         assert pads._restick_peak_reaches(sig, wn2, wd, e, s, y0, V) == 1
+
+
+# ---------------------------------------------------------------- exact model: the re-stick fast paths
+def _longdouble_restick(m, c, k, y0, v0, V, t):
+    """An independent re-stick root: Newton's method on the closed-form under-damped velocity in numpy's
+    long double (80-bit on x86-64), from ``t``. Returns ``(t, y, v)`` rounded to double."""
+    L = np.longdouble
+    m, c, k, y0, v0, V, t = (L(q) for q in (m, c, k, y0, v0, V, t))
+    sig = c / (2 * m)
+    wn2 = k / m
+    wd = np.sqrt(wn2 - sig * sig)
+    B = (wn2 * y0 + sig * v0) / wd
+
+    def state(t):
+        e, cs, sn = np.exp(-sig * t), np.cos(wd * t), np.sin(wd * t)
+        return e * (y0 * cs + (v0 + sig * y0) / wd * sn), e * (v0 * cs - B * sn)
+    for _ in range(12):
+        y, v = state(t)
+        t = t - (v - V) / (-(c * v + k * y) / m)
+    y, v = state(t)
+    return float(t), float(y), float(v)
+
+
+def _check_against_walk(fast, walk, m, c, k, y0, v0, V):
+    """The fast path's outcome against the bracket walk (slip_search) and the long-double root."""
+    assert fast[0] == walk[0]
+    if fast[0] != 1 or walk[1] == 0.0:
+        # no crossing in the span (both give the state at its end by one osc call), or the relative
+        # velocity already past zero at the start (both give the start)
+        assert fast == walk
+        return
+    t, y, v = fast[1:]
+    wn = math.sqrt(k / m)
+    vamp = math.hypot(v0, wn * y0) + abs(V)
+    a = abs(c * v + k * y) / m
+    # the walk polishes to its own tolerance, 1e-16 s + 1e-15 t
+    tol_t = 2.0 * (1e-16 + 1e-15 * walk[1])
+    assert abs(t - walk[1]) <= tol_t
+    assert abs(y - walk[2]) <= abs(v) * tol_t + 1e-14 * vamp / wn
+    assert abs(v - walk[3]) <= a * tol_t + 1e-14 * vamp
+    if fast != walk and np.finfo(np.longdouble).eps < 1e-18:
+        # where it did not hand over to the walk, the fast path ends within rounding of the root: a few
+        # ulps of t (or of v over the slope there)
+        tt, yt, vt = _longdouble_restick(m, c, k, y0, v0, V, t)
+        slack = 8 * np.spacing(vamp) / a
+        assert abs(t - tt) <= 8 * np.spacing(tt) + slack
+        assert abs(y - yt) <= 16 * np.spacing(vamp / wn) + abs(v) * slack
+        assert abs(v - vt) <= 4 * np.spacing(vamp)
+
+
+def _fresh_slip(logm, logk, zeta, N, mus, ratio, V):
+    m, k = 10.0 ** logm, 10.0 ** logk
+    c = zeta * 2 * math.sqrt(k * m)
+    s = 1.0 if V > 0 else -1.0
+    x = (s * mus * N - c * V) / k          # the breakaway stretch
+    return m, c, k, x - s * mus * ratio * N / k, s
+
+
+@settings(max_examples=300, deadline=None)
+@given(logm=st.floats(-7, -4), logk=st.floats(1, 5), zeta=st.floats(0, 0.6), N=st.floats(0.01, 10),
+       mus=st.floats(0.1, 1.5), ratio=st.floats(0.2, 1.0), V=st.floats(-1, 1).filter(lambda v: abs(v) > 1e-5),
+       rem=st.floats(0.0, 2.5))
+def test_fresh_slip_search_gives_the_bracket_walks_outcome(logm, logk, zeta, N, mus, ratio, V, rem):
+    m, c, k, y0, s = _fresh_slip(logm, logk, zeta, N, mus, ratio, V)
+    rem *= math.pi / math.sqrt(k / m - (0.5 * c / m) ** 2)
+    fast = pads.fresh_slip_search(m, c, k, y0, V, s, rem)
+    walk = pads.slip_search(m, c, k, y0, V, V, s, rem, 0.0)
+    _check_against_walk(fast, walk, m, c, k, y0, V, V)
+
+
+@settings(max_examples=300, deadline=None)
+@given(logm=st.floats(-7, -4), logk=st.floats(1, 5), zeta=st.floats(0, 0.6), N=st.floats(0.01, 10),
+       mus=st.floats(0.1, 1.5), ratio=st.floats(0.2, 1.0), V=st.floats(-1, 1).filter(lambda v: abs(v) > 1e-5),
+       elapsed=st.floats(0.0, 1.3), shift=st.floats(-0.1, 0.1), rem=st.floats(0.0, 2.0))
+def test_continued_slip_search_gives_the_bracket_walks_outcome(logm, logk, zeta, N, mus, ratio, V, elapsed, shift,
+                                                             rem):
+    """A slip under way at a tick's start: a fresh slip advanced by ``elapsed`` half periods, its equilibrium
+    moved by ``shift`` of the stretch (the normal force changed at the tick boundary)."""
+    m, c, k, y0, s = _fresh_slip(logm, logk, zeta, N, mus, ratio, V)
+    tp = math.pi / math.sqrt(k / m - (0.5 * c / m) ** 2)
+    yb, vb = pads.osc(m, c, k, y0, V, elapsed * tp)
+    yb += shift * abs(y0)
+    fast = pads.continued_slip_search(m, c, k, yb, vb, V, s, rem * tp)
+    walk = pads.slip_search(m, c, k, yb, vb, V, s, rem * tp, 0.0)
+    _check_against_walk(fast, walk, m, c, k, yb, vb, V)
+
+
+def test_konyo_slips_take_the_fast_paths(monkeypatch):
+    """The default pad's fresh and continued slips over a range of loads and speeds settle in the fast paths
+    (no bracket walk) with the outcome the walk gives."""
+    m, k, c = KONYO.mass, KONYO.stiffness, KONYO.damping
+    walk = pads.slip_search
+    tp = math.pi / math.sqrt(k / m - (0.5 * c / m) ** 2)
+    cases = []
+    for N in (0.3, 0.5, 1.0, 2.5, 6.0):
+        for V in (-0.2, -0.05, 0.01, 0.05, 0.2):
+            s = 1.0 if V > 0 else -1.0
+            y0 = (s * 0.5 * N - c * V) / k - s * 0.3 * N / k
+            for rem in (0.3 * tp, 1.5 * tp, 3.0 * tp):
+                cases.append(("fresh", (m, c, k, y0, V, s, rem), (m, c, k, y0, V, V, s, rem, 0.0)))
+            for el in (0.2, 0.7, 1.0):
+                yb, vb = pads.osc(m, c, k, y0, V, el * tp)
+                yb *= 1.001
+                cases.append(("continued", (m, c, k, yb, vb, V, s, 2.0 * tp), (m, c, k, yb, vb, V, s, 2.0 * tp, 0.0)))
+    expected = [walk(*w) for _, _, w in cases]
+
+    def no_walk(*args):
+        raise AssertionError("fell back to the bracket walk")
+    monkeypatch.setattr(pads, "slip_search", no_walk)
+    for (kind, args, wargs), w in zip(cases, expected):
+        fn = pads.fresh_slip_search if kind == "fresh" else pads.continued_slip_search
+        _check_against_walk(fn.py_func(*args), w, *wargs[:5], wargs[5])
+
+
+@settings(max_examples=100, deadline=None)
+@given(logm=st.floats(-7, -4), logk=st.floats(1, 5), zeta=st.floats(1e-4, 0.95), y0=st.floats(-1e-3, 1e-3),
+       v0=st.floats(-1, 1), wt=st.floats(1e-5, 30.0))
+def test_damping_work_equals_the_integrated_damper_power(logm, logk, zeta, y0, v0, wt):
+    """osc_damping_work (closed form) against composite Gauss-Legendre quadrature of c v(t)^2 over osc."""
+    m, k = 10.0 ** logm, 10.0 ** logk
+    c = zeta * 2 * math.sqrt(k * m)
+    t = wt / math.sqrt(k / m)
+    n = 400
+    g, w = np.polynomial.legendre.leggauss(8)
+    edges = np.linspace(0.0, t, n + 1)
+    acc = 0.0
+    for a, b in zip(edges[:-1], edges[1:]):
+        for gi, wi in zip(g, w):
+            _, v = pads.osc(m, c, k, y0, v0, 0.5 * (a + b) + 0.5 * (b - a) * gi)
+            acc += wi * 0.5 * (b - a) * c * v * v
+    energy = 0.5 * m * v0 * v0 + 0.5 * k * y0 * y0
+    assume(energy > 1e-250)
+    assert abs(pads.osc_damping_work(m, c, k, y0, v0, t) - acc) <= 1e-12 * energy + 1e-12 * acc

@@ -25,7 +25,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "8cbe349e909edf3f3f9ce05117e6be8ee02df13d5b6fe31f88bc9c0e927b55f6"
+KERNEL_SOURCES_SHA256 = "3ed72a94341b555b86d699fdac3df424bad0a0d53de3d09b368fc8671f6c8b4e"
 
 
 @njit(cache=True)

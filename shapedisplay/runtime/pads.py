@@ -123,13 +123,23 @@ def osc_damping_work(m, c, k, y0, v0, t):
     disc = sig * sig - wn2
     if disc < -1e-10 * wn2:
         wd = math.sqrt(-disc)
-        # v = Re(Z e^{lam t}), lam = -sig + i wd, Z = v0 + i (wn2 y0 + sig v0)/wd
-        lam = complex(-sig, wd)
-        Z = complex(v0, (wn2 * y0 + sig * v0) / wd)
-        absz2 = Z.real * Z.real + Z.imag * Z.imag
-        part1 = 0.5 * absz2 * (-math.expm1(-2.0 * sig * t)) / (2.0 * sig)
-        z2 = Z * Z
-        part2 = 0.5 * (z2 * (np.exp(2.0 * lam * t) - 1.0) / (2.0 * lam)).real
+        # v = Re(Z e^{lam t}), lam = -sig + i wd, Z = zr + i zi = v0 + i (wn2 y0 + sig v0)/wd:
+        # c v^2 = c (|Z|^2 e^{-2 sig t} + Re(Z^2 e^{2 lam t})) / 2, integrated in closed form; in real
+        # arithmetic, with e^{2 lam t} - 1 = (em cos 2 wd t - 2 sin^2 wd t) + i (1 + em) sin 2 wd t,
+        # em = expm1(-2 sig t), exact to rounding also for short spans
+        zr = v0
+        zi = (wn2 * y0 + sig * v0) / wd
+        em = math.expm1(-2.0 * sig * t)
+        sn = math.sin(wd * t)
+        cs = math.cos(wd * t)
+        s2 = 2.0 * sn * sn
+        er = em * (1.0 - s2) - s2
+        ei = (1.0 + em) * (2.0 * sn * cs)
+        z2r = zr * zr - zi * zi
+        z2i = 2.0 * zr * zi
+        part1 = 0.5 * (zr * zr + zi * zi) * (-em) / (2.0 * sig)
+        # Re(Z^2 (e^{2 lam t} - 1) / (2 lam)), |lam|^2 = wn2
+        part2 = 0.5 * (-sig * (z2r * er - z2i * ei) + wd * (z2r * ei + z2i * er)) / (2.0 * wn2)
         return c * (part1 + part2)
     if disc > 1e-10 * wn2:
         sq = math.sqrt(disc)
@@ -379,6 +389,199 @@ def slip_search(m, c, k, y0, v0, V, s, rem, tmin):
         wa = wb
 
 
+@njit(cache=True)
+def _restick_end(m, c, k, t, y, v, a, d):
+    """End a re-stick root search at the oscillator state ``(y, v)``, acceleration ``a``, at ``t``, where the
+    Newton step towards ``v = V`` is ``d`` (s), if the rest of the root and the state there follow from
+    the Taylor expansion about ``t`` to rounding.
+
+    The derivatives ``y3 .. y6`` follow from ``y'' = -(c y' + k y) / m``; the root offset is the series
+    reversion of ``v(t + x) = V`` to fourth order, ``x = d - A d^2 + (2 A^2 - B) d^3 + (5 A B - 5 A^3 - C)
+    d^4`` (``A = y3 / 2a``, ``B = y4 / 6a``, ``C = y5 / 24a``), whose first omitted term, bounded by
+    ``(14 A^4 + 21 A^2 |B| + 6 |A C| + 3 B^2 + |y6 / 120a|) |d|^5``, must be below 2.5e-17 of the root
+    time (a tenth of its last bit); the state is the Taylor polynomial of order 5 (velocity 4), whose
+    remainder is below 1e-17 of the amplitude for ``omega_n |d| <= 1e-3``. Returns ``(ok, t + x, y, v)``;
+    ``ok`` False (and the inputs) if the step is too long for that.
+    """
+    wn2 = k / m
+    if not (wn2 * d * d <= 1e-6):
+        return False, t, y, v
+    c_m = c / m
+    d3 = -(c_m * a + wn2 * v)
+    d4 = -(c_m * d3 + wn2 * a)
+    d5 = -(c_m * d4 + wn2 * d3)
+    d6 = -(c_m * d5 + wn2 * d4)
+    ia = 1.0 / a
+    A = 0.5 * d3 * ia
+    B = (1.0 / 6.0) * d4 * ia
+    C = (1.0 / 24.0) * d5 * ia
+    E = (1.0 / 120.0) * d6 * ia
+    A2 = A * A
+    d2 = d * d
+    nxt = (14.0 * A2 * A2 + 21.0 * A2 * abs(B) + 6.0 * abs(A * C) + 3.0 * B * B + abs(E)) * (d2 * d2 * abs(d))
+    if not (nxt <= 2.5e-17 * abs(t + d)):
+        return False, t, y, v
+    x = d * (1.0 + d * (-A + d * ((2.0 * A2 - B) + d * (5.0 * A * B - 5.0 * A2 * A - C))))
+    x2 = 0.5 * x
+    x3 = (1.0 / 3.0) * x
+    x4 = 0.25 * x
+    x5 = 0.2 * x
+    yr = y + x * (v + x2 * (a + x3 * (d3 + x4 * (d4 + x5 * d5))))
+    vr = v + x * (a + x2 * (d3 + x3 * (d4 + x4 * d5)))
+    return True, t + x, yr, vr
+
+
+@njit(cache=True)
+def _restick_newton(m, c, k, y0, v0, V, s, lo, hi, t, y, v, rem):
+    """The root of ``w = -s (v - V)`` in ``(lo, hi)``, where w falls monotonically through 0, by Newton's
+    method from ``t`` with the oscillator state ``(y, v)`` there (further states by :func:`osc` from
+    ``(y0, v0)``) until :func:`_restick_end` ends it; with the outcome against the span ``rem``:
+    ``(kind, t, y, v)`` as :func:`slip_search` (1 crossing at ``t < rem``; 0 none within ``rem``, the
+    state at ``rem``). Kind -1 if a step left the interval, the root did not settle in 8 evaluations
+    or the evaluation at ``rem`` is within rounding of the root (the caller then walks the brackets)."""
+    for _ in range(8):
+        a = -(c * v + k * y) / m
+        if not (s * a > 0.0):
+            break
+        d = (V - v) / a
+        if not (lo < t + d < hi):
+            break
+        ok, tr, yr, vr = _restick_end(m, c, k, t, y, v, a, d)
+        if ok:
+            # the root inside (lo, hi) with w' < 0 there, as on the way to it
+            if not (lo < tr < hi and s * (c * vr + k * yr) < 0.0):
+                break
+            if tr < rem:
+                return 1, tr, yr, vr
+            y, v = osc(m, c, k, y0, v0, rem)
+            if s * (v - V) < 0.0:
+                return 0, rem, y, v
+            break
+        t = t + d
+        y, v = osc(m, c, k, y0, v0, t)
+    return -1, 0.0, 0.0, 0.0
+
+
+@njit(cache=True)
+def fresh_slip_search(m, c, k, y0, V, s, rem):
+    """:func:`slip_search` of a fresh slip (it starts with the pad at the surface speed, ``v0 = V``, no
+    touch to skip): the same outcome, found from half a damped period on.
+
+    An under-damped free oscillator is, half a damped period ``tp = pi / omega_d`` later, ``-e`` times
+    its state (``e = exp(-sig tp)``): the slip is at ``(-e y0, -e V)`` at ``tp`` without an evaluation.
+    The relative velocity ``w = -s (v - V)`` starts at 0 rising (``w'(0) = -s a0 > 0``) and is
+    ``s V (1 + e) > 0`` at ``tp`` with ``w'(tp) = -e w'(0) < 0``: with acceleration zeros ``tp``
+    apart, (0, tp) holds exactly one (the peak of w), so w > 0 on (0, tp]; a root ``t*`` in
+    ``(tp, 2 tp)`` with ``w' < 0`` there, as at tp, is the first crossing (no acceleration zero
+    between). Newton's method from tp (:func:`_restick_newton`) finds it. The crossing is certain and
+    not a touch when the trough of w, at most ``s V - D e^2`` (``D`` the velocity amplitude times
+    ``omega_d / omega_n``, :func:`_restick_peak_reaches`), is below ``-2 tol``. Anything else --
+    not under-damped, ``s V <= 0``, no rise, a start within ~1e-3 rad of phase of an acceleration
+    zero, a shallow trough, no settled root, a root within rounding of the span's end -- goes to
+    :func:`slip_search`. Outcomes agree with it to rounding (tests/test_runtime_pads.py).
+    """
+    sig = 0.5 * c / m
+    wn2 = k / m
+    disc = sig * sig - wn2
+    tol = 1e-12 * (abs(V) + abs(V)) + 1e-300
+    sv = s * V
+    if not (disc < -1e-10 * wn2 and sig >= 0.0 and sv > 2.0 * tol):
+        return slip_search(m, c, k, y0, V, V, s, rem, 0.0)
+    wd = math.sqrt(-disc)
+    a0 = -2.0 * sig * V - wn2 * y0
+    j0 = -2.0 * sig * a0 - wn2 * V
+    bb = (j0 + sig * a0) / wd
+    B = (wn2 * y0 + sig * V) / wd
+    R2 = V * V + B * B
+    tp = math.pi / wd
+    e = math.exp(-sig * tp)
+    e4 = (e * e) * (e * e)
+    lo2 = R2 * (wd * wd / wn2) * e4 * (1.0 - 1e-9)
+    sv2 = sv + 2.0 * tol
+    if not (s * a0 < 0.0 and a0 * a0 > 1e-6 * (a0 * a0 + bb * bb) and lo2 > sv2 * sv2 * (1.0 + 1e-6)):
+        return slip_search(m, c, k, y0, V, V, s, rem, 0.0)
+    if rem <= tp:
+        # w > 0 on (0, rem]: no crossing in this span (as the evaluation at rem confirms)
+        y, v = osc(m, c, k, y0, V, rem)
+        if s * (v - V) < 0.0:
+            return 0, rem, y, v
+        return slip_search(m, c, k, y0, V, V, s, rem, 0.0)
+    kind, tr, yr, vr = _restick_newton(m, c, k, y0, V, V, s, tp, tp + tp, tp, -e * y0, -e * V, rem)
+    if kind < 0:
+        return slip_search(m, c, k, y0, V, V, s, rem, 0.0)
+    return kind, tr, yr, vr
+
+
+@njit(cache=True)
+def continued_slip_search(m, c, k, y0, v0, V, s, rem):
+    """:func:`slip_search` of a slip under way (``w(0) = -s (v0 - V)`` above the round-off tolerance, no
+    touch to skip): the same outcome without walking the brackets.
+
+    Under-damped: the acceleration zeros are ``tz1 + n tp`` (``tp = pi / omega_d``, ``tz1`` from
+    :func:`_acc_zero_phase`), and there ``|v| = D exp(-sig t)`` (``D`` as in
+    :func:`_restick_peak_reaches`), ``v`` having the sign the acceleration had before (that of
+    ``a0`` up to ``tz1``) and ``-e`` times its value half a period later. If w falls from the start
+    (``s a0 > 0``), its first trough is at ``tz1``; if it rises, ``tz1`` is its peak and ``tz1 + tp``
+    the trough. A trough below ``-2 tol`` by a margin far above the rounding of these values holds the
+    first crossing, the only root between the trough and the start or peak before it, where w falls
+    monotonically. The first guess inverts the half cosine through the peak and the trough (for a fall
+    from the start, the peak tp before the trough), ``t = t_pk + acos(1 - 2 r) / omega_d`` with
+    ``r = w_pk / (w_pk - w_tr)``; :func:`_restick_newton` finds the root. Anything else (not
+    under-damped, w(0) within the tolerance, a start within ~1e-3 rad of an acceleration zero, a
+    shallow trough, no settled root, a root within rounding of the span's end) goes to
+    :func:`slip_search`. Outcomes agree with it to rounding (tests/test_runtime_pads.py).
+    """
+    sig = 0.5 * c / m
+    wn2 = k / m
+    disc = sig * sig - wn2
+    tol = 1e-12 * (abs(V) + abs(v0)) + 1e-300
+    if not (disc < -1e-10 * wn2 and sig >= 0.0 and -s * (v0 - V) > tol):
+        return slip_search(m, c, k, y0, v0, V, s, rem, 0.0)
+    wd = math.sqrt(-disc)
+    a0 = -2.0 * sig * v0 - wn2 * y0
+    j0 = -2.0 * sig * a0 - wn2 * v0
+    bb = (j0 + sig * a0) / wd
+    if not (a0 * a0 > 1e-6 * (a0 * a0 + bb * bb)):
+        return slip_search(m, c, k, y0, v0, V, s, rem, 0.0)
+    tz1 = _acc_zero_phase(sig, wn2, wd, y0, v0) / wd
+    tp = math.pi / wd
+    e = math.exp(-sig * tp)
+    B = (wn2 * y0 + sig * v0) / wd
+    D = math.sqrt((v0 * v0 + B * B) * (wd * wd / wn2))
+    v1 = D * math.exp(-sig * tz1)
+    if a0 < 0.0:
+        v1 = -v1
+    if s * a0 > 0.0:
+        # w falls from the start to its trough at tz1 (its peak was tp before)
+        lo = 0.0
+        t_pk = tz1 - tp
+        w_pk = -s * (-v1 / e - V)
+        t_tr = tz1
+        w_tr = -s * (v1 - V)
+    else:
+        # w rises to its peak at tz1, then falls to the trough half a period later
+        lo = tz1
+        t_pk = tz1
+        w_pk = -s * (v1 - V)
+        t_tr = tz1 + tp
+        w_tr = -s * (-e * v1 - V)
+        if rem <= tz1:
+            y, v = osc(m, c, k, y0, v0, rem)
+            if s * (v - V) < 0.0:
+                return 0, rem, y, v
+            return slip_search(m, c, k, y0, v0, V, s, rem, 0.0)
+    if not (w_tr < -2.0 * tol - 1e-9 * D and w_pk > 0.0):
+        return slip_search(m, c, k, y0, v0, V, s, rem, 0.0)
+    t = t_pk + math.acos(1.0 - 2.0 * (w_pk / (w_pk - w_tr))) / wd
+    if not (lo < t < t_tr):
+        t = 0.5 * (lo + t_tr)
+    y, v = osc(m, c, k, y0, v0, t)
+    kind, tr, yr, vr = _restick_newton(m, c, k, y0, v0, V, s, lo, t_tr, t, y, v, rem)
+    if kind < 0:
+        return slip_search(m, c, k, y0, v0, V, s, rem, 0.0)
+    return kind, tr, yr, vr
+
+
 # ================================================================ exact model
 @njit(cache=True)
 def _record(ev_t, ev_a, n_ev, t, a):
@@ -559,6 +762,10 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
             tr = st.memo_slip_time
             y1 = st.memo_x_restick
             v1 = V             # a crossing: the pad sticks or goes on from the surface speed
+        elif fresh:
+            kind, tr, y1, v1 = fresh_slip_search(m, c, k, y0, V, s, rem)
+        elif tmin == 0.0 and mus * N > 0.0:
+            kind, tr, y1, v1 = continued_slip_search(m, c, k, y0, v, V, s, rem)
         elif mus * N > 0.0:
             kind, tr, y1, v1 = slip_search(m, c, k, y0, v, V, s, rem, tmin)
         else:

@@ -80,7 +80,7 @@ _KEPT_ANCHOR_BLOCKS = 1 << 18
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "bf882c012c3b6deb86b929a322de0bef7f615aa7096f3666e942feff90dd2866"
+KERNEL_SOURCES_SHA256 = "d2d5c6049bc65dd0e0033e9ebbca59a4a8797e6ae401393a8d228cb17731f04b"
 
 
 @njit(cache=True, inline="always")

@@ -213,6 +213,178 @@ static int slip_search(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_
     }
 }
 
+/* End a re-stick root search at the state (y, v), acceleration a, at t, where the Newton step towards
+ * v = V is d, if the rest of the root and the state there follow from the Taylor expansion about t to
+ * rounding: the series reversion of v(t + x) = V to fourth order (its first omitted term below
+ * SD_TOL_ROOT of the root time) and the Taylor polynomial of order 5 of the state (omega_n |d| <= 1e-3).
+ * Returns 1 with the root and the state there, 0 if the step is too long (pads._restick_end). */
+static int restick_end(const sd_pad_t *P, sd_real t, sd_real y, sd_real v, sd_real a, sd_real d,
+                       sd_real *t_out, sd_real *y_out, sd_real *v_out)
+{
+    sd_real wn2 = P->wn2, c_m, d3, d4, d5, d6, ia, A, B, C, E, A2, d2, nxt, x, x2, x3, x4, x5;
+    if (!(wn2 * d * d <= SD_R(1e-6))) return 0;
+    c_m = P->p.damping / P->p.mass;
+    d3 = -(c_m * a + wn2 * v);
+    d4 = -(c_m * d3 + wn2 * a);
+    d5 = -(c_m * d4 + wn2 * d3);
+    d6 = -(c_m * d5 + wn2 * d4);
+    ia = SD_R(1.0) / a;
+    A = SD_R(0.5) * d3 * ia;
+    B = (SD_R(1.0) / SD_R(6.0)) * d4 * ia;
+    C = (SD_R(1.0) / SD_R(24.0)) * d5 * ia;
+    E = (SD_R(1.0) / SD_R(120.0)) * d6 * ia;
+    A2 = A * A;
+    d2 = d * d;
+    nxt = (SD_R(14.0) * A2 * A2 + SD_R(21.0) * A2 * SD_FABS(B) + SD_R(6.0) * SD_FABS(A * C) + SD_R(3.0) * B * B
+           + SD_FABS(E)) * (d2 * d2 * SD_FABS(d));
+    if (!(nxt <= SD_TOL_ROOT * SD_FABS(t + d))) return 0;
+    x = d * (SD_R(1.0) + d * (-A + d * ((SD_R(2.0) * A2 - B) + d * (SD_R(5.0) * A * B - SD_R(5.0) * A2 * A - C))));
+    x2 = SD_R(0.5) * x;
+    x3 = (SD_R(1.0) / SD_R(3.0)) * x;
+    x4 = SD_R(0.25) * x;
+    x5 = SD_R(0.2) * x;
+    *y_out = y + x * (v + x2 * (a + x3 * (d3 + x4 * (d4 + x5 * d5))));
+    *v_out = v + x * (a + x2 * (d3 + x3 * (d4 + x4 * d5)));
+    *t_out = t + x;
+    return 1;
+}
+
+/* The root of w = -s (v - V) in (lo, hi), where w falls monotonically through 0, by Newton's method from
+ * t with the state (y, v) there until restick_end ends it; with the outcome against the span rem: kind 1
+ * (crossing before rem), 0 (none within rem: the state at rem) or -1 (no settled root, or the evaluation
+ * at rem within rounding of it: the caller walks the brackets) (pads._restick_newton). */
+static int restick_newton(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_real s, sd_real lo, sd_real hi,
+                          sd_real t, sd_real y, sd_real v, sd_real rem, sd_real *t_out, sd_real *y_out, sd_real *v_out)
+{
+    sd_real c = P->p.damping, k = P->p.stiffness;
+    int it;
+    for (it = 0; it < 8; it++) {
+        sd_real a = acc(P, y, v), d, tn, tr, yr, vr;
+        if (!(s * a > SD_R(0.0))) break;
+        d = (V - v) / a;
+        tn = t + d;
+        if (!(lo < tn && tn < hi)) break;
+        if (restick_end(P, t, y, v, a, d, &tr, &yr, &vr)) {
+            /* the root inside (lo, hi) with w' < 0 there, as on the way to it */
+            if (!(lo < tr && tr < hi && s * (c * vr + k * yr) < SD_R(0.0))) break;
+            if (tr < rem) {
+                *t_out = tr;
+                *y_out = yr;
+                *v_out = vr;
+                return 1;
+            }
+            osc(P, y0, v0, rem, &y, &v);
+            if (s * (v - V) < SD_R(0.0)) {
+                *t_out = rem;
+                *y_out = y;
+                *v_out = v;
+                return 0;
+            }
+            break;
+        }
+        t = tn;
+        osc(P, y0, v0, t, &y, &v);
+    }
+    return -1;
+}
+
+/* slip_search of a fresh slip (v0 = V, no touch to skip), from half a damped period on, where the state
+ * is -e_tp times the start: a certain crossing in (tp, 2 tp) found by Newton's method from tp; anything
+ * else goes to slip_search (pads.fresh_slip_search, which gives the reasons). */
+static int fresh_slip_search(const sd_pad_t *P, sd_real y0, sd_real V, sd_real s, sd_real rem, sd_real *t_out,
+                             sd_real *y_out, sd_real *v_out)
+{
+    sd_real sig = P->sig, wn2 = P->wn2, wd, a0, j0, bb, B, R2, tp, e, e4, lo2, sv2, y, v;
+    sd_real tol = SD_R(SD_TOL_GRAZE) * (SD_FABS(V) + SD_FABS(V)) + SD_R(SD_TINY), sv = s * V;
+    int kind;
+    if (!(P->under && sig >= SD_R(0.0) && sv > SD_R(2.0) * tol)) return slip_search(P, y0, V, V, s, rem, SD_R(0.0), t_out, y_out, v_out);
+    wd = P->wd;
+    a0 = -SD_R(2.0) * sig * V - wn2 * y0;
+    j0 = -SD_R(2.0) * sig * a0 - wn2 * V;
+    bb = (j0 + sig * a0) / wd;
+    B = (wn2 * y0 + sig * V) / wd;
+    R2 = V * V + B * B;
+    tp = P->tp;
+    e = P->e_tp;
+    e4 = (e * e) * (e * e);
+    lo2 = R2 * (wd * wd / wn2) * e4 * (SD_R(1.0) - SD_R(1e-9));
+    sv2 = sv + SD_R(2.0) * tol;
+    if (!(s * a0 < SD_R(0.0) && a0 * a0 > SD_R(1e-6) * (a0 * a0 + bb * bb) && lo2 > sv2 * sv2 * (SD_R(1.0) + SD_R(1e-6))))
+        return slip_search(P, y0, V, V, s, rem, SD_R(0.0), t_out, y_out, v_out);
+    if (rem <= tp) {
+        /* w > 0 on (0, rem]: no crossing in this span (as the evaluation at rem confirms) */
+        osc(P, y0, V, rem, &y, &v);
+        if (s * (v - V) < SD_R(0.0)) {
+            *t_out = rem;
+            *y_out = y;
+            *v_out = v;
+            return 0;
+        }
+        return slip_search(P, y0, V, V, s, rem, SD_R(0.0), t_out, y_out, v_out);
+    }
+    kind = restick_newton(P, y0, V, V, s, tp, tp + tp, tp, -e * y0, -e * V, rem, t_out, y_out, v_out);
+    if (kind < 0) return slip_search(P, y0, V, V, s, rem, SD_R(0.0), t_out, y_out, v_out);
+    return kind;
+}
+
+/* slip_search of a slip under way (w(0) above the tolerance, no touch to skip): the first trough of w from
+ * the closed-form |v| at the acceleration zeros, a first guess from the half cosine through the peak and
+ * the trough, Newton's method; anything else goes to slip_search (pads.continued_slip_search). */
+static int continued_slip_search(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_real s, sd_real rem,
+                                 sd_real *t_out, sd_real *y_out, sd_real *v_out)
+{
+    sd_real sig = P->sig, wn2 = P->wn2, wd, a0, j0, bb, tz1, tp, e, B, D, v1, lo, t_pk, w_pk, t_tr, w_tr, t, y, v;
+    sd_real tol = SD_R(SD_TOL_GRAZE) * (SD_FABS(V) + SD_FABS(v0)) + SD_R(SD_TINY);
+    int kind;
+    if (!(P->under && sig >= SD_R(0.0) && -s * (v0 - V) > tol))
+        return slip_search(P, y0, v0, V, s, rem, SD_R(0.0), t_out, y_out, v_out);
+    wd = P->wd;
+    a0 = -SD_R(2.0) * sig * v0 - wn2 * y0;
+    j0 = -SD_R(2.0) * sig * a0 - wn2 * v0;
+    bb = (j0 + sig * a0) / wd;
+    if (!(a0 * a0 > SD_R(1e-6) * (a0 * a0 + bb * bb))) return slip_search(P, y0, v0, V, s, rem, SD_R(0.0), t_out, y_out, v_out);
+    tz1 = acc_zero_phase_under(P, y0, v0) / wd;
+    tp = P->tp;
+    e = P->e_tp;
+    B = (wn2 * y0 + sig * v0) / wd;
+    D = SD_SQRT((v0 * v0 + B * B) * (wd * wd / wn2));
+    v1 = D * SD_EXP(-sig * tz1);
+    if (a0 < SD_R(0.0)) v1 = -v1;
+    if (s * a0 > SD_R(0.0)) {
+        /* w falls from the start to its trough at tz1 (its peak was tp before) */
+        lo = SD_R(0.0);
+        t_pk = tz1 - tp;
+        w_pk = -s * (-v1 / e - V);
+        t_tr = tz1;
+        w_tr = -s * (v1 - V);
+    } else {
+        /* w rises to its peak at tz1, then falls to the trough half a period later */
+        lo = tz1;
+        t_pk = tz1;
+        w_pk = -s * (v1 - V);
+        t_tr = tz1 + tp;
+        w_tr = -s * (-e * v1 - V);
+        if (rem <= tz1) {
+            osc(P, y0, v0, rem, &y, &v);
+            if (s * (v - V) < SD_R(0.0)) {
+                *t_out = rem;
+                *y_out = y;
+                *v_out = v;
+                return 0;
+            }
+            return slip_search(P, y0, v0, V, s, rem, SD_R(0.0), t_out, y_out, v_out);
+        }
+    }
+    if (!(w_tr < -SD_R(2.0) * tol - SD_R(1e-9) * D && w_pk > SD_R(0.0)))
+        return slip_search(P, y0, v0, V, s, rem, SD_R(0.0), t_out, y_out, v_out);
+    t = t_pk + SD_ACOS(SD_R(1.0) - SD_R(2.0) * (w_pk / (w_pk - w_tr))) / wd;
+    if (!(lo < t && t < t_tr)) t = SD_R(0.5) * (lo + t_tr);
+    osc(P, y0, v0, t, &y, &v);
+    kind = restick_newton(P, y0, v0, V, s, lo, t_tr, t, y, v, rem, t_out, y_out, v_out);
+    if (kind < 0) return slip_search(P, y0, v0, V, s, rem, SD_R(0.0), t_out, y_out, v_out);
+    return kind;
+}
+
 int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
                   sd_real mus, sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev)
 {
@@ -288,7 +460,12 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, s
         xeq = F / k;
         y0 = x - xeq;
         if (mus * N > SD_R(0.0)) {
-            kind = slip_search(P, y0, v, V, s, rem, tmin, &tr, &y1, &v1);
+            if (tmin == SD_R(0.0) && v == V)
+                kind = fresh_slip_search(P, y0, V, s, rem, &tr, &y1, &v1);
+            else if (tmin == SD_R(0.0))
+                kind = continued_slip_search(P, y0, v, V, s, rem, &tr, &y1, &v1);
+            else
+                kind = slip_search(P, y0, v, V, s, rem, tmin, &tr, &y1, &v1);
         } else {
             kind = 0;            /* no static friction: nothing to stick to */
             tr = rem;

@@ -28,6 +28,7 @@
 #define SD_SIN sinf
 #define SD_COS cosf
 #define SD_ATAN2 atan2f
+#define SD_ACOS acosf
 #define SD_FMOD fmodf
 #define SD_FLOOR floorf
 #define SD_CEIL ceilf
@@ -43,6 +44,7 @@
 #define SD_TOL_PHASE SD_R(1e-6)       /* an acceleration zero this close to a period boundary, rad */
 #define SD_POLISH_ABS SD_R(1e-12)     /* Newton stopping rule of the re-stick polish: |step| <= abs + rel t */
 #define SD_POLISH_REL (4.0f * FLT_EPSILON)
+#define SD_TOL_ROOT SD_R(1.25e-8)      /* series end of a re-stick root: omitted term / root time (0.1 ulp) */
 #else
 #define SD_SQRT sqrt
 #define SD_EXP exp
@@ -50,6 +52,7 @@
 #define SD_SIN sin
 #define SD_COS cos
 #define SD_ATAN2 atan2
+#define SD_ACOS acos
 #define SD_FMOD fmod
 #define SD_FLOOR floor
 #define SD_CEIL ceil
@@ -65,6 +68,7 @@
 #define SD_TOL_PHASE 1e-9
 #define SD_POLISH_ABS 1e-16
 #define SD_POLISH_REL 1e-15
+#define SD_TOL_ROOT 2.5e-17
 #endif
 
 #endif

@@ -41,21 +41,30 @@ static inline void osc_under(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real 
     *v = e * (v0 * cs - (wn2 * y0 + sig * v0) / wd * sn);
 }
 
-/* First time > after (>= 0) where the under-damped free oscillator's acceleration is zero. */
-static inline sd_real next_acc_zero_under(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real after)
+/* The phase th1 (rad, in (0, pi]) of the under-damped free oscillator's first acceleration zero after
+ * t = 0, the zeros being at (th1 + n pi) / wd; -1 if the acceleration is 0 (pads._acc_zero_phase). */
+static inline sd_real acc_zero_phase_under(const sd_pad_t *P, sd_real y0, sd_real v0)
 {
     sd_real sig = P->sig, wn2 = P->wn2;
     sd_real a0 = -SD_R(2.0) * sig * v0 - wn2 * y0;
     sd_real j0 = -SD_R(2.0) * sig * a0 - wn2 * v0;
-    sd_real wd = P->wd, bb = (j0 + sig * a0) / wd, phi, th1, tz;
-    int q;
-    if (a0 == SD_R(0.0) && bb == SD_R(0.0)) return INFINITY;
+    sd_real wd = P->wd, bb = (j0 + sig * a0) / wd, phi, th1;
+    if (a0 == SD_R(0.0) && bb == SD_R(0.0)) return -SD_R(1.0);
     phi = SD_ATAN2(bb, a0);
     th1 = py_mod(phi + SD_R(0.5) * SD_PI, SD_PI);
     if (th1 < SD_R(SD_TOL_PHASE) || th1 > SD_PI - SD_R(SD_TOL_PHASE)) {
         th1 = th1 > SD_R(1.0) ? SD_PI : th1 + SD_PI;
         if (th1 < SD_PI) th1 = SD_PI;
     }
+    return th1;
+}
+
+/* First time > after (>= 0) where the under-damped free oscillator's acceleration is zero. */
+static inline sd_real next_acc_zero_under(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real after)
+{
+    sd_real wd = P->wd, th1 = acc_zero_phase_under(P, y0, v0), tz;
+    int q;
+    if (th1 < SD_R(0.0)) return INFINITY;
     tz = th1 / wd;
     if (tz <= after) {            /* never with after = 0: th1 >= 1e-9 */
         sd_real nper = SD_FLOOR((after - tz) * wd / SD_PI) + SD_R(1.0);
