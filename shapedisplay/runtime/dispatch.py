@@ -25,7 +25,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "3ed72a94341b555b86d699fdac3df424bad0a0d53de3d09b368fc8671f6c8b4e"
+KERNEL_SOURCES_SHA256 = "e12ff13099bf847de4e9822d9827b93d848bc47164789482b0bc22d96e7b1ab8"
 
 
 @njit(cache=True)

@@ -46,7 +46,10 @@ The relative velocity ``w(t) = -s (x'(t) - V)`` is monotone between the zeros
 of ``x''`` (closed-form times spaced ``pi / omega_d``), so each interval is
 bracketed exactly and the re-stick time polished by safeguarded Newton to
 ~1e-15 s; this catches double crossings and near-tangent touches inside one
-tick. Any number of events may occur per tick; phases run across tick
+tick. Fresh slips and slips under way at a tick's start usually skip that walk
+(:func:`fresh_slip_search`, :func:`continued_slip_search`: the first crossing
+located from closed-form extrema, Newton's method and a series end), handing
+every case they cannot prove to it. Any number of events may occur per tick; phases run across tick
 boundaries without being cut, so event times do not depend on the tick rate.
 """
 from __future__ import annotations

@@ -80,7 +80,7 @@ _KEPT_ANCHOR_BLOCKS = 1 << 18
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "d2d5c6049bc65dd0e0033e9ebbca59a4a8797e6ae401393a8d228cb17731f04b"
+KERNEL_SOURCES_SHA256 = "b318cb242a9df544ace9536317e646b3c6e5ce678b4fe475b210f86789ba5f9f"
 
 
 @njit(cache=True, inline="always")
