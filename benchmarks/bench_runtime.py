@@ -7,9 +7,9 @@ Run: ``.venv/bin/python benchmarks/bench_runtime.py``. Targets (issue 3):
 * ``Renderer.step()`` from Python: median <= 5 us per tick;
 * the full offline render (``Renderer.render``: table lookups, model, 48 kHz
   burst audio, every output array) >= 25 % of the ticks per second of the
-  floor loop at 10 kHz. A renderer keeps its carrier's anchors from render to
-  render; the ``jump/first`` line renders as a renderer's first render does
-  (anchors computed), for comparison.
+  floor loop at 10 kHz. A renderer keeps its carrier's anchors and the audio
+  sample times from render to render; the ``jump/first`` line renders as a
+  renderer's first render does (both computed), for comparison.
 
 The floor loop (:func:`floor_loop`) is a compiled loop that does one
 table lookup (the renderer's bilinear lookup on the packed table, written
@@ -100,8 +100,9 @@ def spread(values, fmt="{:.1f}") -> str:
 def render_against_floor(table, dev, rate, spec, model="jump", rounds=5, policy="retrigger", first=False) -> float:
     """Print full-render and floor-loop ticks/s (min / median / max over rounds); return the median ratio.
 
-    ``first``: every render as a renderer's first one (the carrier anchors it keeps from render to render,
-    which depend only on the carrier and the audio rate, dropped before each render and computed again).
+    ``first``: every render as a renderer's first one (the carrier anchors and audio sample times it keeps
+    from render to render, which depend only on the carrier and the audio rate, dropped before each render
+    and computed again).
     """
     stroke = parse_stroke(spec, rate)
     r = Renderer(table, device=dev, model=model, tick_rate=rate, burst_policy=policy)
@@ -114,6 +115,7 @@ def render_against_floor(table, dev, rate, spec, model="jump", rounds=5, policy=
     def render():
         if first:
             r._anchors = np.empty(0)
+            r._times = np.empty(0)
         r.render(stroke)
     for _ in range(rounds):
         tf = best_of(lambda: floor_loop(blocks, data, grid, stroke.x, 1.0), 7, time.thread_time)

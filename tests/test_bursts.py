@@ -245,3 +245,32 @@ def test_whole_stream_synthesis_with_events_on_sample_times_and_repeated(policy)
     cb = synth_stream(sb, et, ea, et.size, t0, rate, n, 300.0, 0.005, 0.03, pid, b)
     assert ca == cb and a.tobytes() == b.tobytes() and sa.tobytes() == sb.tobytes()
     assert np.abs(b).max() > 0.1
+
+
+@pytest.mark.parametrize("policy", sorted(BURST_POLICIES))
+@pytest.mark.parametrize("rate", [48000.0, 44100.0, 7919.0])
+def test_kept_sample_times_give_the_same_stream(policy, rate):
+    """A stream from t = 0 (+0 or -0) that reads kept sample times (sample_times of a stream from 0, as long as
+    the stream or longer, as a renderer keeps them) is the stream that computes them, bit for bit, and equals
+    synth sample by sample; times too short for the stream, or a stream that does not start at 0, compute
+    their own."""
+    from shapedisplay.runtime.bursts import policy_id, sample_times, synth
+    dur = 0.4
+    et = np.array([0.0, 0.001, 0.05, 0.0502, 0.0502, 0.2, 0.39, 0.4])
+    ea = np.array([0.7, 1.6, 0.2, 1.1, 0.4, 0.9, 1.3, 0.5])
+    ref, c0 = render_bursts(et, ea, 0.0, dur, rate, policy=policy)
+    n = ref.size
+    a = np.zeros(n)
+    ca = synth(new_burst_state(300.0, rate)[0], et, ea, et.size, 0.0, rate, 0, n, 300.0, 0.005, 0.03,
+               policy_id(policy), a)
+    assert ca == c0 and a.tobytes() == ref.tobytes()
+    for m in (n, n + 1, 3 * n, n - 1, 10):
+        times = np.empty(m)
+        sample_times(0.0, rate, times)
+        assert times.tobytes() == (0.0 + np.arange(m) / rate).tobytes()
+        for t0 in (0.0, -0.0):
+            got, c1 = render_bursts(et, ea, t0, dur, rate, policy=policy, times=times)
+            assert c1 == c0 and got.tobytes() == ref.tobytes(), (m, t0)
+        shifted, _ = render_bursts(et + 0.01, ea, 0.01, dur, rate, policy=policy)
+        got, _ = render_bursts(et + 0.01, ea, 0.01, dur, rate, policy=policy, times=times)
+        assert got.tobytes() == shifted.tobytes()

@@ -373,10 +373,26 @@ def _index_near(t, t_origin, rate):
 
 
 @njit(cache=True, error_model="numpy")
-def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy, out):
+def sample_times(t_origin, rate, out):
+    """``out[j] = t_origin + j / rate``, the sample times of a stream (bit for bit: the division by the rate
+    is a multiply-add with the same bits, :mod:`.exactdiv`, where its conditions hold; a loop the compiler
+    vectorises). A :class:`~.renderer.Renderer` keeps those of ``t_origin = 0`` from render to render."""
+    if divisor_ok(rate):
+        yr = 1.0 / rate
+        for j in range(out.shape[0]):
+            out[j] = t_origin + div_fixed(float(j), rate, yr)
+    else:
+        for j in range(out.shape[0]):
+            out[j] = t_origin + j / rate
+
+
+@njit(cache=True, error_model="numpy")
+def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy, out, times):
     """``out[j] = E(t_origin + j / rate)`` for ``j < n``: what :func:`envelope_at` gives sample by sample.
 
-    The sample times first (a loop the compiler vectorises); then, run by run, the transitions before a
+    The sample times first (:func:`sample_times` into ``out``; for a stream that starts at ``t_origin = 0``
+    they are read from ``times`` instead if it holds at least ``n``, the times of a stream from 0 kept from
+    an earlier call: ``0 + s`` is ``s``); then, run by run, the transitions before a
     sample are applied and the samples up to the next transition take the values of one piece of the
     envelope: for ``retrigger``/``max`` the rise, the decay and the silence of one segment, for ``add``
     the two running polynomials. Each piece is a loop without branches, which the compiler vectorises
@@ -384,24 +400,23 @@ def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy,
     :func:`_segment` and :func:`_sums`, so bit for bit the same. The pieces' bounds come from the same
     comparisons, searched from the index the event time gives.
     """
-    # the divisions by the rate, rise and decay are multiply-adds with the same bits (.exactdiv) where its
+    # the divisions by the rise and decay are multiply-adds with the same bits (.exactdiv) where its
     # conditions hold: on the divisors here, on each piece's dividends (monotone along it) at its two ends
-    yr = 1.0 / rate
     yrise = 1.0 / rise
     ydecay = 1.0 / decay
     fast = divisor_ok(rate) and divisor_ok(rise) and divisor_ok(decay)
-    if fast:
-        for j in range(n):
-            out[j] = t_origin + div_fixed(float(j), rate, yr)
+    if t_origin == 0.0 and times.shape[0] >= n:
+        ts = times
     else:
-        for j in range(n):
-            out[j] = t_origin + j / rate
+        sample_times(t_origin, rate, out[:n])
+        ts = out
     if policy == Policy.ADD:
         j = 0
         while j < n:
-            nxt = _add_advance(BS, ev_t, ev_a, n_ev, out[j], rise, decay)
-            k = _first_after(out, j + 1, n, _index_near(nxt, t_origin, rate), nxt)
+            nxt = _add_advance(BS, ev_t, ev_a, n_ev, ts[j], rise, decay)
+            k = _first_after(ts, j + 1, n, _index_near(nxt, t_origin, rate), nxt)
             v = out[j:k]
+            w = ts[j:k]
             if BS.i_out == BS.i_in:
                 v[:] = 0.0
             else:
@@ -411,18 +426,18 @@ def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy,
                 q0 = BS.q0
                 q1 = BS.q1
                 q2 = BS.q2
-                d0 = v[0] - tref
-                d1 = v[v.shape[0] - 1] - tref
+                d0 = w[0] - tref
+                d1 = w[w.shape[0] - 1] - tref
                 if fast and span_ok(d0, d1) and span_ok(ra * d0 - rat, ra * d1 - rat):
                     for m in range(v.shape[0]):
-                        dt = v[m] - tref
+                        dt = w[m] - tref
                         e = div_fixed(ra * dt - rat, rise, yrise)
                         x = div_fixed(dt, decay, ydecay)
                         e += q0 - 2.0 * q1 * x + q2 * x * x
                         v[m] = e if e > 0.0 else 0.0
                 else:
                     for m in range(v.shape[0]):
-                        dt = v[m] - tref
+                        dt = w[m] - tref
                         e = (ra * dt - rat) / rise
                         x = dt / decay
                         e += q0 - 2.0 * q1 * x + q2 * x * x
@@ -436,7 +451,7 @@ def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy,
     a = BS.a
     j = 0
     while j < n:
-        t = out[j]
+        t = ts[j]
         while i_in < n_ev and ev_t[i_in] < t:
             tn = ev_t[i_in]
             an = ev_a[i_in]
@@ -449,27 +464,29 @@ def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy,
         k = n
         if i_in < n_ev:
             tn = ev_t[i_in]
-            k = _first_after(out, j + 1, n, _index_near(tn, t_origin, rate), tn)
+            k = _first_after(ts, j + 1, n, _index_near(tn, t_origin, rate), tn)
         # samples j .. k-1 play segment (te, e0, a): rise until tau >= rise, decay until u >= decay, then 0
-        m1 = _first_not_below(out, j, k, _index_near(te + rise, t_origin, rate), te, rise)
+        m1 = _first_not_below(ts, j, k, _index_near(te + rise, t_origin, rate), te, rise)
         v = out[j:m1]                    # (loops over views: the compiler vectorises them, not range(j, m1))
-        if v.shape[0] > 0 and fast and span_ok(v[0] - te, v[v.shape[0] - 1] - te):
+        w = ts[j:m1]
+        if v.shape[0] > 0 and fast and span_ok(w[0] - te, w[w.shape[0] - 1] - te):
             for m in range(v.shape[0]):
-                v[m] = e0 + (a - e0) * div_fixed(v[m] - te, rise, yrise)
+                v[m] = e0 + (a - e0) * div_fixed(w[m] - te, rise, yrise)
         else:
             for m in range(v.shape[0]):
-                v[m] = e0 + (a - e0) * ((v[m] - te) / rise)
+                v[m] = e0 + (a - e0) * ((w[m] - te) / rise)
         m2 = m1
         if m1 < k:
-            m2 = _first_not_below2(out, m1, k, _index_near(te + rise + decay, t_origin, rate), te, rise, decay)
+            m2 = _first_not_below2(ts, m1, k, _index_near(te + rise + decay, t_origin, rate), te, rise, decay)
             v = out[m1:m2]
-            if v.shape[0] > 0 and fast and span_ok((v[0] - te) - rise, (v[v.shape[0] - 1] - te) - rise):
+            w = ts[m1:m2]
+            if v.shape[0] > 0 and fast and span_ok((w[0] - te) - rise, (w[w.shape[0] - 1] - te) - rise):
                 for m in range(v.shape[0]):
-                    r = 1.0 - div_fixed((v[m] - te) - rise, decay, ydecay)
+                    r = 1.0 - div_fixed((w[m] - te) - rise, decay, ydecay)
                     v[m] = a * r * r
             else:
                 for m in range(v.shape[0]):
-                    r = 1.0 - ((v[m] - te) - rise) / decay
+                    r = 1.0 - ((w[m] - te) - rise) / decay
                     v[m] = a * r * r
         out[m2:k] = 0.0
         j = k
@@ -642,23 +659,29 @@ def _apply_carrier(BS, rate, carrier, n, out, known):
 
 
 @njit(cache=True)
-def synth_stream(BS, ev_t, ev_a, n_ev, t_origin, rate, n, carrier, rise, decay, policy, out, anchors=None):
+def synth_stream(BS, ev_t, ev_a, n_ev, t_origin, rate, n, carrier, rise, decay, policy, out, anchors=None,
+                 times=None):
     """A whole stream at once: samples ``0 .. n-1`` into ``out[:n]`` from a fresh ``BS``.
 
     Bit for bit what :func:`synth` writes for ``j0 = 0, j1 = n`` (the tests
     check it), in two passes: the envelope, then the carrier
     (:func:`_apply_carrier`; ``anchors``: the carrier's first anchors from
-    :func:`carrier_anchors`, optional). Returns the number of samples
-    limited to [-1, 1].
+    :func:`carrier_anchors`, optional). ``times``: optional,
+    :func:`sample_times` of a stream from 0 at this rate, read instead of
+    computed when ``t_origin`` is 0 and it holds at least ``n``. Returns the
+    number of samples limited to [-1, 1].
     """
-    _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy, out)
+    if times is None:
+        _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy, out, np.empty(0))
+    else:
+        _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy, out, times)
     if anchors is None:
         return _apply_carrier(BS, rate, carrier, n, out, np.empty(0))
     return _apply_carrier(BS, rate, carrier, n, out, anchors)
 
 
 def render_bursts(event_time, event_amplitude, t_start, duration, rate, carrier_hz=300.0,
-                  rise_s=0.005, decay_s=0.030, policy="retrigger", anchors=None):
+                  rise_s=0.005, decay_s=0.030, policy="retrigger", anchors=None, times=None):
     """Offline burst audio for sorted events.
 
     Parameters
@@ -674,6 +697,10 @@ def render_bursts(event_time, event_amplitude, t_start, duration, rate, carrier_
         :func:`carrier_anchors` of this carrier and rate for any number of
         first blocks (the samples do not change; those anchors are not
         computed again).
+    times : ndarray, optional
+        :func:`sample_times` ``(0.0, rate, m)`` for any ``m``: read instead
+        of computed when ``t_start`` is 0 and ``m`` covers the stream (the
+        samples do not change).
 
     Returns
     -------
@@ -687,7 +714,7 @@ def render_bursts(event_time, event_amplitude, t_start, duration, rate, carrier_
     ea = np.ascontiguousarray(event_amplitude, dtype=np.float64)
     clipped = synth_stream(new_burst_state(carrier_hz, rate)[0], et, ea, et.shape[0], float(t_start), float(rate), n,
                            float(carrier_hz), float(rise_s), float(decay_s), pid, out,
-                           np.empty(0) if anchors is None else anchors)
+                           np.empty(0) if anchors is None else anchors, np.empty(0) if times is None else times)
     return out, int(clipped)
 
 

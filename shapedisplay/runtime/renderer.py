@@ -59,7 +59,7 @@ from numba import njit
 from ..errors import InputError, ModelError
 from ..table import FrictionTable
 from .bursts import (CARRIER_BLOCK, carrier_anchors, carrier_at, envelope_at, finished_events, forget_events,
-                     new_burst_state, render_bursts, synth)
+                     new_burst_state, render_bursts, sample_times, synth)
 from .cursor import MAX_POSITION_M, CursorPath
 from .dispatch import model_tick, render_ticks
 from .layouts import NSLOT, ONLINE, OUTPUTS, PAD_STATE, SLOTS, Slot
@@ -77,10 +77,13 @@ _RING = 4096
 #: Carrier anchors a renderer keeps from render to render (blocks of CARRIER_BLOCK samples: about 5.8 minutes of
 #: audio at 48 kHz, 4 MiB); a longer stream computes the anchors past them as it goes.
 _KEPT_ANCHOR_BLOCKS = 1 << 18
+#: Audio sample times a renderer keeps from render to render for paths that start at t = 0 (8 MiB: about 21.8 s
+#: of audio at 48 kHz); a longer stream computes its times.
+_KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "b318cb242a9df544ace9536317e646b3c6e5ce678b4fe475b210f86789ba5f9f"
+KERNEL_SOURCES_SHA256 = "68b3a293e717e8baf69484e2bac20598a603dc0e0584356a054ff2b151f4a831"
 
 
 @njit(cache=True, inline="always")
@@ -707,6 +710,7 @@ class Renderer:
         self.config = self._config[0]
         self._slot_channel = slot_channels(self.present)
         self._anchors = np.empty(0)
+        self._times = np.empty(0)
         self._build_online()
         self.reset()
         # warm the compiled step on a scratch copy (compilation never happens in the real-time loop)
@@ -773,7 +777,8 @@ class Renderer:
             skin_stretch_uniform(float(self.config["skin_target"]), f, mus, N, ss)
         b = self.device.burst
         audio, clipped = render_bursts(et, ea, cp.t[0], cp.duration, self.audio_rate, b.carrier_hz, b.rise_s,
-                                       b.decay_s, self.burst_policy, self._carrier_anchors(n_audio))
+                                       b.decay_s, self.burst_policy, self._carrier_anchors(n_audio),
+                                       self._sample_times(n_audio) if cp.t[0] == 0.0 else None)
         return RenderResult(t, x, y, vx, vy, N, f, phase, lat_x, lat_y, ss, et, ea, audio,
                             self.audio_rate, clipped, self.model.name, self.tick_rate, self.burst_policy, mus)
 
@@ -785,6 +790,18 @@ class Renderer:
         if self._anchors.shape[0] < 2 * nb:
             self._anchors = carrier_anchors(float(self.device.burst.carrier_hz), float(self.audio_rate), nb)
         return self._anchors
+
+    def _sample_times(self, n_audio):
+        """The audio sample times of a stream from t = 0 (:func:`.bursts.sample_times`), kept from render to
+        render for streams of up to :data:`_KEPT_TIME_SAMPLES` samples: the envelope reads them instead of
+        writing them first (empty for a longer stream, whose times are computed as it is rendered)."""
+        if n_audio > _KEPT_TIME_SAMPLES:
+            return np.empty(0)
+        if self._times.shape[0] < n_audio:
+            times = np.empty(n_audio)
+            sample_times(0.0, float(self.audio_rate), times)
+            self._times = times
+        return self._times
 
     def _run_model(self, t, V, N, mus, muk, gain, f, phase):
         """The model over one path's inputs, keeping what the render returns: friction force into ``f``,
