@@ -25,7 +25,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "e12ff13099bf847de4e9822d9827b93d848bc47164789482b0bc22d96e7b1ab8"
+KERNEL_SOURCES_SHA256 = "1ccbdf2147d67b4f84535c5ad5764c8dd6f3dcba5facc19362f3a98ff35273fb"
 
 
 @njit(cache=True)

@@ -117,6 +117,19 @@ def osc(m, c, k, y0, v0, t):
 
 
 @njit(cache=True)
+def _osc_u(sig, wn2, wd, y0, v0, t):
+    """:func:`osc` of an under-damped pad from its constants (``sig = 0.5 c / m``, ``wn2 = k / m``,
+    ``wd = sqrt(wn2 - sig^2)``, computed by the expressions :func:`osc` uses): the same operations, the
+    same bits, without recomputing them at every call."""
+    e = math.exp(-sig * t)
+    cs = math.cos(wd * t)
+    sn = math.sin(wd * t)
+    y = e * (y0 * cs + (v0 + sig * y0) / wd * sn)
+    v = e * (v0 * cs - (wn2 * y0 + sig * v0) / wd * sn)
+    return y, v
+
+
+@njit(cache=True)
 def osc_damping_work(m, c, k, y0, v0, t):
     """Energy dissipated by the damper, integral of ``c v^2`` over [0, t], J."""
     if c == 0.0 or t <= 0.0:
@@ -125,25 +138,7 @@ def osc_damping_work(m, c, k, y0, v0, t):
     wn2 = k / m
     disc = sig * sig - wn2
     if disc < -1e-10 * wn2:
-        wd = math.sqrt(-disc)
-        # v = Re(Z e^{lam t}), lam = -sig + i wd, Z = zr + i zi = v0 + i (wn2 y0 + sig v0)/wd:
-        # c v^2 = c (|Z|^2 e^{-2 sig t} + Re(Z^2 e^{2 lam t})) / 2, integrated in closed form; in real
-        # arithmetic, with e^{2 lam t} - 1 = (em cos 2 wd t - 2 sin^2 wd t) + i (1 + em) sin 2 wd t,
-        # em = expm1(-2 sig t), exact to rounding also for short spans
-        zr = v0
-        zi = (wn2 * y0 + sig * v0) / wd
-        em = math.expm1(-2.0 * sig * t)
-        sn = math.sin(wd * t)
-        cs = math.cos(wd * t)
-        s2 = 2.0 * sn * sn
-        er = em * (1.0 - s2) - s2
-        ei = (1.0 + em) * (2.0 * sn * cs)
-        z2r = zr * zr - zi * zi
-        z2i = 2.0 * zr * zi
-        part1 = 0.5 * (zr * zr + zi * zi) * (-em) / (2.0 * sig)
-        # Re(Z^2 (e^{2 lam t} - 1) / (2 lam)), |lam|^2 = wn2
-        part2 = 0.5 * (-sig * (z2r * er - z2i * ei) + wd * (z2r * ei + z2i * er)) / (2.0 * wn2)
-        return c * (part1 + part2)
+        return _damping_work_u(c, sig, wn2, math.sqrt(-disc), y0, v0, t)
     if disc > 1e-10 * wn2:
         sq = math.sqrt(disc)
         r2 = -sig - sq
@@ -171,6 +166,30 @@ def osc_damping_work(m, c, k, y0, v0, t):
 
 
 @njit(cache=True)
+def _damping_work_u(c, sig, wn2, wd, y0, v0, t):
+    """The under-damped branch of :func:`osc_damping_work` from the pad's constants (as :func:`_osc_u`);
+    ``c > 0``, ``t > 0``."""
+    # v = Re(Z e^{lam t}), lam = -sig + i wd, Z = zr + i zi = v0 + i (wn2 y0 + sig v0)/wd:
+    # c v^2 = c (|Z|^2 e^{-2 sig t} + Re(Z^2 e^{2 lam t})) / 2, integrated in closed form; in real
+    # arithmetic, with e^{2 lam t} - 1 = (em cos 2 wd t - 2 sin^2 wd t) + i (1 + em) sin 2 wd t,
+    # em = expm1(-2 sig t), exact to rounding also for short spans
+    zr = v0
+    zi = (wn2 * y0 + sig * v0) / wd
+    em = math.expm1(-2.0 * sig * t)
+    sn = math.sin(wd * t)
+    cs = math.cos(wd * t)
+    s2 = 2.0 * sn * sn
+    er = em * (1.0 - s2) - s2
+    ei = (1.0 + em) * (2.0 * sn * cs)
+    z2r = zr * zr - zi * zi
+    z2i = 2.0 * zr * zi
+    part1 = 0.5 * (zr * zr + zi * zi) * (-em) / (2.0 * sig)
+    # Re(Z^2 (e^{2 lam t} - 1) / (2 lam)), |lam|^2 = wn2
+    part2 = 0.5 * (-sig * (z2r * er - z2i * ei) + wd * (z2r * ei + z2i * er)) / (2.0 * wn2)
+    return c * (part1 + part2)
+
+
+@njit(cache=True)
 def _acc(m, c, k, y, v):
     return -(c * v + k * y) / m
 
@@ -186,7 +205,13 @@ def _acc_zero_phase(sig, wn2, wd, y0, v0):
         return -1.0
     # a(t) ~ a0 cos(th) + bb sin(th) = R cos(th - phi); zeros at th = phi + pi/2 + n pi
     phi = math.atan2(bb, a0)
-    th1 = (phi + 0.5 * math.pi) % math.pi
+    # (phi + pi/2) mod pi (Python's %, the same bits: phi + pi/2 lies in (-pi/2, 3 pi/2], where fmod
+    # returns x - pi exactly or x, and % then adds pi to a negative x)
+    th1 = phi + 0.5 * math.pi
+    if th1 >= math.pi:
+        th1 -= math.pi
+    elif th1 < 0.0:
+        th1 += math.pi
     if th1 < 1e-9 or th1 > math.pi - 1e-9:
         # the zero at t = 0 is the start point itself
         th1 = math.pi if th1 > 1.0 else th1 + math.pi
@@ -435,10 +460,10 @@ def _restick_end(m, c, k, t, y, v, a, d):
 
 
 @njit(cache=True)
-def _restick_newton(m, c, k, y0, v0, V, s, lo, hi, t, y, v, rem):
+def _restick_newton(m, c, k, sig, wn2, wd, y0, v0, V, s, lo, hi, t, y, v, rem):
     """The root of ``w = -s (v - V)`` in ``(lo, hi)``, where w falls monotonically through 0, by Newton's
-    method from ``t`` with the oscillator state ``(y, v)`` there (further states by :func:`osc` from
-    ``(y0, v0)``) until :func:`_restick_end` ends it; with the outcome against the span ``rem``:
+    method from ``t`` with the oscillator state ``(y, v)`` there (further states by :func:`_osc_u` from
+    ``(y0, v0)``; ``sig, wn2, wd`` the under-damped pad's constants) until :func:`_restick_end` ends it; with the outcome against the span ``rem``:
     ``(kind, t, y, v)`` as :func:`slip_search` (1 crossing at ``t < rem``; 0 none within ``rem``, the
     state at ``rem``). Kind -1 if a step left the interval, the root did not settle in 8 evaluations
     or the evaluation at ``rem`` is within rounding of the root (the caller then walks the brackets)."""
@@ -456,12 +481,12 @@ def _restick_newton(m, c, k, y0, v0, V, s, lo, hi, t, y, v, rem):
                 break
             if tr < rem:
                 return 1, tr, yr, vr
-            y, v = osc(m, c, k, y0, v0, rem)
+            y, v = _osc_u(sig, wn2, wd, y0, v0, rem)
             if s * (v - V) < 0.0:
                 return 0, rem, y, v
             break
         t = t + d
-        y, v = osc(m, c, k, y0, v0, t)
+        y, v = _osc_u(sig, wn2, wd, y0, v0, t)
     return -1, 0.0, 0.0, 0.0
 
 
@@ -486,18 +511,26 @@ def fresh_slip_search(m, c, k, y0, V, s, rem):
     sig = 0.5 * c / m
     wn2 = k / m
     disc = sig * sig - wn2
-    tol = 1e-12 * (abs(V) + abs(V)) + 1e-300
-    sv = s * V
-    if not (disc < -1e-10 * wn2 and sig >= 0.0 and sv > 2.0 * tol):
+    if not (disc < -1e-10 * wn2 and sig >= 0.0):
         return slip_search(m, c, k, y0, V, V, s, rem, 0.0)
     wd = math.sqrt(-disc)
+    tp = math.pi / wd
+    return _fresh_slip_u(m, c, k, sig, wn2, wd, tp, math.exp(-sig * tp), y0, V, s, rem)
+
+
+@njit(cache=True)
+def _fresh_slip_u(m, c, k, sig, wn2, wd, tp, e, y0, V, s, rem):
+    """:func:`fresh_slip_search` of an under-damped pad with ``sig >= 0``, from its constants (``tp = pi / wd``,
+    ``e = exp(-sig tp)``, by the same expressions)."""
+    tol = 1e-12 * (abs(V) + abs(V)) + 1e-300
+    sv = s * V
+    if not (sv > 2.0 * tol):
+        return slip_search(m, c, k, y0, V, V, s, rem, 0.0)
     a0 = -2.0 * sig * V - wn2 * y0
     j0 = -2.0 * sig * a0 - wn2 * V
     bb = (j0 + sig * a0) / wd
     B = (wn2 * y0 + sig * V) / wd
     R2 = V * V + B * B
-    tp = math.pi / wd
-    e = math.exp(-sig * tp)
     e4 = (e * e) * (e * e)
     lo2 = R2 * (wd * wd / wn2) * e4 * (1.0 - 1e-9)
     sv2 = sv + 2.0 * tol
@@ -505,11 +538,11 @@ def fresh_slip_search(m, c, k, y0, V, s, rem):
         return slip_search(m, c, k, y0, V, V, s, rem, 0.0)
     if rem <= tp:
         # w > 0 on (0, rem]: no crossing in this span (as the evaluation at rem confirms)
-        y, v = osc(m, c, k, y0, V, rem)
+        y, v = _osc_u(sig, wn2, wd, y0, V, rem)
         if s * (v - V) < 0.0:
             return 0, rem, y, v
         return slip_search(m, c, k, y0, V, V, s, rem, 0.0)
-    kind, tr, yr, vr = _restick_newton(m, c, k, y0, V, V, s, tp, tp + tp, tp, -e * y0, -e * V, rem)
+    kind, tr, yr, vr = _restick_newton(m, c, k, sig, wn2, wd, y0, V, V, s, tp, tp + tp, tp, -e * y0, -e * V, rem)
     if kind < 0:
         return slip_search(m, c, k, y0, V, V, s, rem, 0.0)
     return kind, tr, yr, vr
@@ -537,18 +570,26 @@ def continued_slip_search(m, c, k, y0, v0, V, s, rem):
     sig = 0.5 * c / m
     wn2 = k / m
     disc = sig * sig - wn2
-    tol = 1e-12 * (abs(V) + abs(v0)) + 1e-300
-    if not (disc < -1e-10 * wn2 and sig >= 0.0 and -s * (v0 - V) > tol):
+    if not (disc < -1e-10 * wn2 and sig >= 0.0):
         return slip_search(m, c, k, y0, v0, V, s, rem, 0.0)
     wd = math.sqrt(-disc)
+    tp = math.pi / wd
+    return _continued_slip_u(m, c, k, sig, wn2, wd, tp, math.exp(-sig * tp), y0, v0, V, s, rem)
+
+
+@njit(cache=True)
+def _continued_slip_u(m, c, k, sig, wn2, wd, tp, e, y0, v0, V, s, rem):
+    """:func:`continued_slip_search` of an under-damped pad with ``sig >= 0``, from its constants (as
+    :func:`_fresh_slip_u`)."""
+    tol = 1e-12 * (abs(V) + abs(v0)) + 1e-300
+    if not (-s * (v0 - V) > tol):
+        return slip_search(m, c, k, y0, v0, V, s, rem, 0.0)
     a0 = -2.0 * sig * v0 - wn2 * y0
     j0 = -2.0 * sig * a0 - wn2 * v0
     bb = (j0 + sig * a0) / wd
     if not (a0 * a0 > 1e-6 * (a0 * a0 + bb * bb)):
         return slip_search(m, c, k, y0, v0, V, s, rem, 0.0)
     tz1 = _acc_zero_phase(sig, wn2, wd, y0, v0) / wd
-    tp = math.pi / wd
-    e = math.exp(-sig * tp)
     B = (wn2 * y0 + sig * v0) / wd
     D = math.sqrt((v0 * v0 + B * B) * (wd * wd / wn2))
     v1 = D * math.exp(-sig * tz1)
@@ -569,7 +610,7 @@ def continued_slip_search(m, c, k, y0, v0, V, s, rem):
         t_tr = tz1 + tp
         w_tr = -s * (-e * v1 - V)
         if rem <= tz1:
-            y, v = osc(m, c, k, y0, v0, rem)
+            y, v = _osc_u(sig, wn2, wd, y0, v0, rem)
             if s * (v - V) < 0.0:
                 return 0, rem, y, v
             return slip_search(m, c, k, y0, v0, V, s, rem, 0.0)
@@ -578,8 +619,8 @@ def continued_slip_search(m, c, k, y0, v0, V, s, rem):
     t = t_pk + math.acos(1.0 - 2.0 * (w_pk / (w_pk - w_tr))) / wd
     if not (lo < t < t_tr):
         t = 0.5 * (lo + t_tr)
-    y, v = osc(m, c, k, y0, v0, t)
-    kind, tr, yr, vr = _restick_newton(m, c, k, y0, v0, V, s, lo, t_tr, t, y, v, rem)
+    y, v = _osc_u(sig, wn2, wd, y0, v0, t)
+    kind, tr, yr, vr = _restick_newton(m, c, k, sig, wn2, wd, y0, v0, V, s, lo, t_tr, t, y, v, rem)
     if kind < 0:
         return slip_search(m, c, k, y0, v0, V, s, rem, 0.0)
     return kind, tr, yr, vr
@@ -710,15 +751,22 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
     t = 0.0
     nev0 = n_ev
     it = 0
-    it_cap = phase_cap(m, c, k, h)
     tmin = 0.0
-    # under-damped pad: a slip's re-stick search visits acceleration zeros pi / omega_d apart, so its
-    # outcome does not depend on the time left in the tick once that exceeds the re-stick time plus
-    # one such interval (memo_span); beyond it a repeated slip start reuses the stored outcome
+    # the pad's constants, by the expressions osc, phase_cap and osc_damping_work use (same bits)
     sig = 0.5 * c / m
     wn2 = k / m
     disc = sig * sig - wn2
-    memo_span = math.pi / math.sqrt(-disc) * (1.0 + 1e-6) if disc < -1e-10 * wn2 else np.inf
+    under = disc < -1e-10 * wn2
+    wd = math.sqrt(-disc) if under else 0.0
+    n_cap = PHASES_BASE + h * (4.0 * (wd if under else math.sqrt(wn2)) / math.pi)
+    it_cap = int(n_cap) if n_cap < MAX_EVENTS_PER_TICK else MAX_EVENTS_PER_TICK
+    # under-damped pad: a slip's re-stick search visits acceleration zeros pi / omega_d apart, so its
+    # outcome does not depend on the time left in the tick once that exceeds the re-stick time plus
+    # one such interval (memo_span); beyond it a repeated slip start reuses the stored outcome
+    memo_span = math.pi / wd * (1.0 + 1e-6) if under else np.inf
+    fast = under and sig >= 0.0     # the re-stick fast paths apply (their constants: half a period, its decay)
+    tp = math.pi / wd if fast else 0.0
+    e_tp = math.exp(-sig * tp) if fast else 0.0
     while t < h:
         it += 1
         if it > it_cap:
@@ -765,10 +813,10 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
             tr = st.memo_slip_time
             y1 = st.memo_x_restick
             v1 = V             # a crossing: the pad sticks or goes on from the surface speed
-        elif fresh:
-            kind, tr, y1, v1 = fresh_slip_search(m, c, k, y0, V, s, rem)
-        elif tmin == 0.0 and mus * N > 0.0:
-            kind, tr, y1, v1 = continued_slip_search(m, c, k, y0, v, V, s, rem)
+        elif fresh and fast:
+            kind, tr, y1, v1 = _fresh_slip_u(m, c, k, sig, wn2, wd, tp, e_tp, y0, V, s, rem)
+        elif tmin == 0.0 and fast and mus * N > 0.0:
+            kind, tr, y1, v1 = _continued_slip_u(m, c, k, sig, wn2, wd, tp, e_tp, y0, v, V, s, rem)
         elif mus * N > 0.0:
             kind, tr, y1, v1 = slip_search(m, c, k, y0, v, V, s, rem, tmin)
         else:
@@ -785,7 +833,10 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
                 st.memo_n = N
                 st.memo_slip_time = tr
                 st.memo_x_restick = y1
-        wdmp += osc_damping_work(m, c, k, y0, v, tr)
+        if under and c != 0.0 and tr > 0.0:
+            wdmp += _damping_work_u(c, sig, wn2, wd, y0, v, tr)
+        else:
+            wdmp += osc_damping_work(m, c, k, y0, v, tr)
         wf += F * (y1 - y0)
         x = y1 + xeq
         v = v1
