@@ -386,6 +386,52 @@ def sample_times(t_origin, rate, out):
             out[j] = t_origin + j / rate
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _fill_rise(ts, out, te, e0, a, rise, yrise, fast):
+    """The rise of a segment at the sample times ``ts`` into ``out`` (one shape; ``ts`` may be ``out`` itself,
+    then a loop in place, which the compiler vectorises without a check for overlapping arrays)."""
+    if out.shape[0] > 0 and fast and span_ok(ts[0] - te, ts[ts.shape[0] - 1] - te):
+        for m in range(out.shape[0]):
+            out[m] = e0 + (a - e0) * div_fixed(ts[m] - te, rise, yrise)
+    else:
+        for m in range(out.shape[0]):
+            out[m] = e0 + (a - e0) * ((ts[m] - te) / rise)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _fill_decay(ts, out, te, a, rise, decay, ydecay, fast):
+    """The decay of a segment, as :func:`_fill_rise`."""
+    if out.shape[0] > 0 and fast and span_ok((ts[0] - te) - rise, (ts[ts.shape[0] - 1] - te) - rise):
+        for m in range(out.shape[0]):
+            r = 1.0 - div_fixed((ts[m] - te) - rise, decay, ydecay)
+            out[m] = a * r * r
+    else:
+        for m in range(out.shape[0]):
+            r = 1.0 - ((ts[m] - te) - rise) / decay
+            out[m] = a * r * r
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _fill_sums(ts, out, tref, ra, rat, q0, q1, q2, rise, decay, yrise, ydecay, fast):
+    """The running sums of ``add`` between two transitions, as :func:`_fill_rise`."""
+    d0 = ts[0] - tref
+    d1 = ts[ts.shape[0] - 1] - tref
+    if fast and span_ok(d0, d1) and span_ok(ra * d0 - rat, ra * d1 - rat):
+        for m in range(out.shape[0]):
+            dt = ts[m] - tref
+            e = div_fixed(ra * dt - rat, rise, yrise)
+            x = div_fixed(dt, decay, ydecay)
+            e += q0 - 2.0 * q1 * x + q2 * x * x
+            out[m] = e if e > 0.0 else 0.0
+    else:
+        for m in range(out.shape[0]):
+            dt = ts[m] - tref
+            e = (ra * dt - rat) / rise
+            x = dt / decay
+            e += q0 - 2.0 * q1 * x + q2 * x * x
+            out[m] = e if e > 0.0 else 0.0
+
+
 @njit(cache=True, error_model="numpy")
 def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy, out, times):
     """``out[j] = E(t_origin + j / rate)`` for ``j < n``: what :func:`envelope_at` gives sample by sample.
@@ -405,7 +451,8 @@ def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy,
     yrise = 1.0 / rise
     ydecay = 1.0 / decay
     fast = divisor_ok(rate) and divisor_ok(rise) and divisor_ok(decay)
-    if t_origin == 0.0 and times.shape[0] >= n:
+    kept = t_origin == 0.0 and times.shape[0] >= n
+    if kept:
         ts = times
     else:
         sample_times(t_origin, rate, out[:n])
@@ -416,32 +463,13 @@ def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy,
             nxt = _add_advance(BS, ev_t, ev_a, n_ev, ts[j], rise, decay)
             k = _first_after(ts, j + 1, n, _index_near(nxt, t_origin, rate), nxt)
             v = out[j:k]
-            w = ts[j:k]
             if BS.i_out == BS.i_in:
                 v[:] = 0.0
+            elif kept:
+                _fill_sums(times[j:k], v, BS.tref, BS.ra, BS.rat, BS.q0, BS.q1, BS.q2, rise, decay, yrise, ydecay,
+                           fast)
             else:
-                tref = BS.tref
-                ra = BS.ra
-                rat = BS.rat
-                q0 = BS.q0
-                q1 = BS.q1
-                q2 = BS.q2
-                d0 = w[0] - tref
-                d1 = w[w.shape[0] - 1] - tref
-                if fast and span_ok(d0, d1) and span_ok(ra * d0 - rat, ra * d1 - rat):
-                    for m in range(v.shape[0]):
-                        dt = w[m] - tref
-                        e = div_fixed(ra * dt - rat, rise, yrise)
-                        x = div_fixed(dt, decay, ydecay)
-                        e += q0 - 2.0 * q1 * x + q2 * x * x
-                        v[m] = e if e > 0.0 else 0.0
-                else:
-                    for m in range(v.shape[0]):
-                        dt = w[m] - tref
-                        e = (ra * dt - rat) / rise
-                        x = dt / decay
-                        e += q0 - 2.0 * q1 * x + q2 * x * x
-                        v[m] = e if e > 0.0 else 0.0
+                _fill_sums(v, v, BS.tref, BS.ra, BS.rat, BS.q0, BS.q1, BS.q2, rise, decay, yrise, ydecay, fast)
             j = k
         return
     retrigger = policy == Policy.RETRIGGER
@@ -468,26 +496,18 @@ def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy,
         # samples j .. k-1 play segment (te, e0, a): rise until tau >= rise, decay until u >= decay, then 0
         m1 = _first_not_below(ts, j, k, _index_near(te + rise, t_origin, rate), te, rise)
         v = out[j:m1]                    # (loops over views: the compiler vectorises them, not range(j, m1))
-        w = ts[j:m1]
-        if v.shape[0] > 0 and fast and span_ok(w[0] - te, w[w.shape[0] - 1] - te):
-            for m in range(v.shape[0]):
-                v[m] = e0 + (a - e0) * div_fixed(w[m] - te, rise, yrise)
+        if kept:
+            _fill_rise(times[j:m1], v, te, e0, a, rise, yrise, fast)
         else:
-            for m in range(v.shape[0]):
-                v[m] = e0 + (a - e0) * ((w[m] - te) / rise)
+            _fill_rise(v, v, te, e0, a, rise, yrise, fast)
         m2 = m1
         if m1 < k:
             m2 = _first_not_below2(ts, m1, k, _index_near(te + rise + decay, t_origin, rate), te, rise, decay)
             v = out[m1:m2]
-            w = ts[m1:m2]
-            if v.shape[0] > 0 and fast and span_ok((w[0] - te) - rise, (w[w.shape[0] - 1] - te) - rise):
-                for m in range(v.shape[0]):
-                    r = 1.0 - div_fixed((w[m] - te) - rise, decay, ydecay)
-                    v[m] = a * r * r
+            if kept:
+                _fill_decay(times[m1:m2], v, te, a, rise, decay, ydecay, fast)
             else:
-                for m in range(v.shape[0]):
-                    r = 1.0 - ((w[m] - te) - rise) / decay
-                    v[m] = a * r * r
+                _fill_decay(v, v, te, a, rise, decay, ydecay, fast)
         out[m2:k] = 0.0
         j = k
     BS.i_in = i_in

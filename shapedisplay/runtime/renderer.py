@@ -83,7 +83,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "d9cf44e2e67112de1da224f23974265998fde5989c2fbf93e498b665c7e01e88"
+KERNEL_SOURCES_SHA256 = "35086dc38c9affd6047a47ba3321d268a46cbc8e7b6eb27214a4a9f7b14a8415"
 
 
 @njit(cache=True, inline="always")
