@@ -25,7 +25,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "1ccbdf2147d67b4f84535c5ad5764c8dd6f3dcba5facc19362f3a98ff35273fb"
+KERNEL_SOURCES_SHA256 = "68e09448f366b7f491aa34393266298d9a4027151b216a822061c9b678fc8911"
 
 
 @njit(cache=True)

@@ -562,7 +562,9 @@ def continued_slip_search(m, c, k, y0, v0, V, s, rem):
     first crossing, the only root between the trough and the start or peak before it, where w falls
     monotonically. The first guess inverts the half cosine through the peak and the trough (for a fall
     from the start, the peak tp before the trough), ``t = t_pk + acos(1 - 2 r) / omega_d`` with
-    ``r = w_pk / (w_pk - w_tr)``; :func:`_restick_newton` finds the root. Anything else (not
+    ``r = w_pk / (w_pk - w_tr)``, then takes two Newton steps on the damped shape between them (its
+    cosine and sine known from the half cosine's, turned by short series: no oscillator evaluation);
+    :func:`_restick_newton` finds the root, usually from one evaluation. Anything else (not
     under-damped, w(0) within the tolerance, a start within ~1e-3 rad of an acceleration zero, a
     shallow trough, no settled root, a root within rounding of the span's end) goes to
     :func:`slip_search`. Outcomes agree with it to rounding (tests/test_runtime_pads.py).
@@ -616,7 +618,33 @@ def _continued_slip_u(m, c, k, sig, wn2, wd, tp, e, y0, v0, V, s, rem):
             return slip_search(m, c, k, y0, v0, V, s, rem, 0.0)
     if not (w_tr < -2.0 * tol - 1e-9 * D and w_pk > 0.0):
         return slip_search(m, c, k, y0, v0, V, s, rem, 0.0)
-    t = t_pk + math.acos(1.0 - 2.0 * (w_pk / (w_pk - w_tr))) / wd
+    # the half cosine's root, then two Newton steps on the damped shape between the peak and the trough,
+    # v(t_pk + u) = v_pk exp(-sig u) (cos wd u + (sig / wd) sin wd u), v' = -v_pk exp(-sig u) (wn2 / wd) sin wd u:
+    # the first from the half cosine's cos and sin, the second from them turned by wd du (short series)
+    r = w_pk / (w_pk - w_tr)
+    cu = 1.0 - 2.0 * r
+    su = 2.0 * math.sqrt(r * (1.0 - r))
+    u = math.acos(cu) / wd
+    v_pk = V - s * w_pk
+    q = sig / wd
+    g = wn2 / wd
+    eu = math.exp(-sig * u)
+    fp = v_pk * eu * g * su
+    if fp != 0.0:
+        du = (v_pk * eu * (cu + q * su) - V) / fp
+        x = wd * du
+        if abs(x) < 0.3:
+            x2 = x * x
+            cx = 1.0 - x2 * (0.5 - x2 * (1.0 / 24.0 - x2 * (1.0 / 720.0)))
+            sx = x * (1.0 - x2 * (1.0 / 6.0 - x2 * (1.0 / 120.0 - x2 * (1.0 / 5040.0))))
+            c1 = cu * cx - su * sx
+            s1 = su * cx + cu * sx
+            e1 = eu * (1.0 - sig * du * (1.0 - 0.5 * sig * du))
+            fp1 = v_pk * e1 * g * s1
+            if fp1 != 0.0:
+                du += (v_pk * e1 * (c1 + q * s1) - V) / fp1
+        u += du
+    t = t_pk + u
     if not (lo < t < t_tr):
         t = 0.5 * (lo + t_tr)
     y, v = _osc_u(sig, wn2, wd, y0, v0, t)

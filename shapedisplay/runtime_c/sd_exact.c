@@ -329,7 +329,8 @@ static int fresh_slip_search(const sd_pad_t *P, sd_real y0, sd_real V, sd_real s
 
 /* slip_search of a slip under way (w(0) above the tolerance, no touch to skip): the first trough of w from
  * the closed-form |v| at the acceleration zeros, a first guess from the half cosine through the peak and
- * the trough, Newton's method; anything else goes to slip_search (pads.continued_slip_search). */
+ * the trough refined on the damped shape, Newton's method; anything else goes to slip_search
+ * (pads.continued_slip_search). */
 static int continued_slip_search(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_real s, sd_real rem,
                                  sd_real *t_out, sd_real *y_out, sd_real *v_out)
 {
@@ -377,7 +378,27 @@ static int continued_slip_search(const sd_pad_t *P, sd_real y0, sd_real v0, sd_r
     }
     if (!(w_tr < -SD_R(2.0) * tol - SD_R(1e-9) * D && w_pk > SD_R(0.0)))
         return slip_search(P, y0, v0, V, s, rem, SD_R(0.0), t_out, y_out, v_out);
-    t = t_pk + SD_ACOS(SD_R(1.0) - SD_R(2.0) * (w_pk / (w_pk - w_tr))) / wd;
+    /* the half cosine's root, then two Newton steps on the damped shape between the peak and the trough
+     * (pads._continued_slip_u) */
+    {
+        sd_real r = w_pk / (w_pk - w_tr), cu = SD_R(1.0) - SD_R(2.0) * r, su = SD_R(2.0) * SD_SQRT(r * (SD_R(1.0) - r));
+        sd_real u = SD_ACOS(cu) / wd, v_pk = V - s * w_pk, q = sig / wd, g = wn2 / wd, eu = SD_EXP(-sig * u);
+        sd_real fp = v_pk * eu * g * su;
+        if (fp != SD_R(0.0)) {
+            sd_real du = (v_pk * eu * (cu + q * su) - V) / fp, x = wd * du;
+            if (SD_FABS(x) < SD_R(0.3)) {
+                sd_real x2 = x * x;
+                sd_real cx = SD_R(1.0) - x2 * (SD_R(0.5) - x2 * (SD_R(1.0) / SD_R(24.0) - x2 * (SD_R(1.0) / SD_R(720.0))));
+                sd_real sx = x * (SD_R(1.0) - x2 * (SD_R(1.0) / SD_R(6.0) - x2 * (SD_R(1.0) / SD_R(120.0) - x2 * (SD_R(1.0) / SD_R(5040.0)))));
+                sd_real c1 = cu * cx - su * sx, s1 = su * cx + cu * sx;
+                sd_real e1 = eu * (SD_R(1.0) - sig * du * (SD_R(1.0) - SD_R(0.5) * sig * du));
+                sd_real fp1 = v_pk * e1 * g * s1;
+                if (fp1 != SD_R(0.0)) du += (v_pk * e1 * (c1 + q * s1) - V) / fp1;
+            }
+            u += du;
+        }
+        t = t_pk + u;
+    }
     if (!(lo < t && t < t_tr)) t = SD_R(0.5) * (lo + t_tr);
     osc(P, y0, v0, t, &y, &v);
     kind = restick_newton(P, y0, v0, V, s, lo, t_tr, t, y, v, rem, t_out, y_out, v_out);
