@@ -25,7 +25,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "68e09448f366b7f491aa34393266298d9a4027151b216a822061c9b678fc8911"
+KERNEL_SOURCES_SHA256 = "fe9e5b9ecf22a1d1058e93899d1f9914807e12882d712d9a2107751098c27018"
 
 
 @njit(cache=True)

@@ -508,14 +508,24 @@ def fresh_slip_search(m, c, k, y0, V, s, rem):
     zero, a shallow trough, no settled root, a root within rounding of the span's end -- goes to
     :func:`slip_search`. Outcomes agree with it to rounding (tests/test_runtime_pads.py).
     """
+    fast, sig, wn2, wd, tp, e = _fast_path_constants(m, c, k)
+    if not fast:
+        return slip_search(m, c, k, y0, V, V, s, rem, 0.0)
+    return _fresh_slip_u(m, c, k, sig, wn2, wd, tp, e, y0, V, s, rem)
+
+
+@njit(cache=True)
+def _fast_path_constants(m, c, k):
+    """``(fast, sig, wn2, wd, tp, e)``: whether the re-stick fast paths apply (an under-damped pad with
+    ``sig >= 0``) and their constants (``tp = pi / wd``, ``e = exp(-sig tp)``; 0 where they do not)."""
     sig = 0.5 * c / m
     wn2 = k / m
     disc = sig * sig - wn2
     if not (disc < -1e-10 * wn2 and sig >= 0.0):
-        return slip_search(m, c, k, y0, V, V, s, rem, 0.0)
+        return False, sig, wn2, 0.0, 0.0, 0.0
     wd = math.sqrt(-disc)
     tp = math.pi / wd
-    return _fresh_slip_u(m, c, k, sig, wn2, wd, tp, math.exp(-sig * tp), y0, V, s, rem)
+    return True, sig, wn2, wd, tp, math.exp(-sig * tp)
 
 
 @njit(cache=True)
@@ -569,14 +579,10 @@ def continued_slip_search(m, c, k, y0, v0, V, s, rem):
     shallow trough, no settled root, a root within rounding of the span's end) goes to
     :func:`slip_search`. Outcomes agree with it to rounding (tests/test_runtime_pads.py).
     """
-    sig = 0.5 * c / m
-    wn2 = k / m
-    disc = sig * sig - wn2
-    if not (disc < -1e-10 * wn2 and sig >= 0.0):
+    fast, sig, wn2, wd, tp, e = _fast_path_constants(m, c, k)
+    if not fast:
         return slip_search(m, c, k, y0, v0, V, s, rem, 0.0)
-    wd = math.sqrt(-disc)
-    tp = math.pi / wd
-    return _continued_slip_u(m, c, k, sig, wn2, wd, tp, math.exp(-sig * tp), y0, v0, V, s, rem)
+    return _continued_slip_u(m, c, k, sig, wn2, wd, tp, e, y0, v0, V, s, rem)
 
 
 @njit(cache=True)

@@ -83,7 +83,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "9682dda9ee59319487434bba6b29032e06f6e86b894b8c910541f93db9d9d373"
+KERNEL_SOURCES_SHA256 = "69e643a217f185f5be643f178e4bf58adea9fd192630436ef9f3bfbcfb1829c4"
 
 
 @njit(cache=True, inline="always")
