@@ -25,7 +25,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "fe9e5b9ecf22a1d1058e93899d1f9914807e12882d712d9a2107751098c27018"
+KERNEL_SOURCES_SHA256 = "88c403f9f5555089c97b7c41887e99c7a9f549f0ef0fcca385093464d6b0f823"
 
 
 @njit(cache=True)

@@ -89,13 +89,7 @@ def osc(m, c, k, y0, v0, t):
     wn2 = k / m
     disc = sig * sig - wn2
     if disc < -1e-10 * wn2:
-        wd = math.sqrt(-disc)
-        e = math.exp(-sig * t)
-        cs = math.cos(wd * t)
-        sn = math.sin(wd * t)
-        y = e * (y0 * cs + (v0 + sig * y0) / wd * sn)
-        v = e * (v0 * cs - (wn2 * y0 + sig * v0) / wd * sn)
-        return y, v
+        return _osc_u(sig, wn2, math.sqrt(-disc), y0, v0, t)
     if disc > 1e-10 * wn2:
         sq = math.sqrt(disc)
         if sig >= 0.0:
@@ -119,8 +113,8 @@ def osc(m, c, k, y0, v0, t):
 @njit(cache=True)
 def _osc_u(sig, wn2, wd, y0, v0, t):
     """:func:`osc` of an under-damped pad from its constants (``sig = 0.5 c / m``, ``wn2 = k / m``,
-    ``wd = sqrt(wn2 - sig^2)``, computed by the expressions :func:`osc` uses): the same operations, the
-    same bits, without recomputing them at every call."""
+    ``wd = sqrt(wn2 - sig^2)``, computed by the expressions :func:`osc` uses): its under-damped branch,
+    for callers that keep the constants instead of recomputing them at every call."""
     e = math.exp(-sig * t)
     cs = math.cos(wd * t)
     sn = math.sin(wd * t)
