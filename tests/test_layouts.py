@@ -124,13 +124,21 @@ def test_model_ids_are_registry_positions_and_dispatch_follows_the_registry():
 
 def test_a_new_registry_line_gets_its_own_branches():
     """Adding a model needs no hand-written branch: the dispatch source is generated from the registry."""
-    extra = registry_entries() + (("mine", "mine_tick", None),)
+    extra = registry_entries() + (("mine", "mine_tick", None, None),)
     src = codegen.dispatch_source(extra)
     i = len(extra) - 1
     assert src.count("pads.mine_tick(") == 3                      # model_tick, run_ticks and render_ticks
     assert f"    if model == {i}:\n        return pads.mine_tick(" in src
-    fast = registry_entries() + (("mine", "mine_tick", "with_work"),)
+    fast = registry_entries() + (("mine", "mine_tick", "with_work", None),)
     assert codegen.dispatch_source(fast).count("st.x = x\n            n_ev = pads.mine_tick(") == 2
+    # a prepared form: its constants once per loop, the kernel form in both loops (work terms on the render's
+    # last tick only), the plain kernel for one tick
+    prep = registry_entries() + (("mine", "mine_tick", "with_work", ("mine_constants", "mine_prepared")),)
+    src = codegen.dispatch_source(prep)
+    assert src.count("pc = pads.mine_constants(prm)\n") == 2                   # run_ticks, render_ticks
+    assert src.count("st, prm, t[i - 1], h, Vi, N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev, pc, True)") == 2  # exact's, mine's
+    assert src.count("gain[i & mg], ev_t, ev_a, n_ev, pc, i == n - 1)") == 2            # exact's, mine's
+    assert src.count("pads.mine_tick(") == 1
 
 
 def test_policy_and_slot_numbers_used_by_kernels():

@@ -6,11 +6,13 @@ import math
 import numpy as np
 import pytest
 from hypothesis import assume, given, settings, strategies as st
+from numba import njit
 from scipy.integrate import solve_ivp
 
 from shapedisplay.devices import FrictionParams, PadParams
 from shapedisplay.errors import InputError, ModelError
 from shapedisplay.runtime import pads
+from shapedisplay.runtime.layouts import PAD_PARAMS, PAD_STATE
 from shapedisplay.runtime.models import MODELS, JumpModel, simulate_pad
 
 KONYO = PadParams(1.0e-6, 2000.0, 0.01)
@@ -613,3 +615,61 @@ def test_damping_work_equals_the_integrated_damper_power(logm, logk, zeta, y0, v
     energy = 0.5 * m * v0 * v0 + 0.5 * k * y0 * y0
     assume(energy > 1e-250)
     assert abs(pads.osc_damping_work(m, c, k, y0, v0, t) - acc) <= 1e-12 * energy + 1e-12 * acc
+
+
+@njit(cache=False)
+def _exact_tick_by_tick(form, init, params, t, V, N, mus, muk, rows, ev):
+    """States after every tick (rows of float64 words) through ``exact_tick`` (``form`` 0) or
+    ``exact_tick_prepared`` with the work terms (1) or without (2)."""
+    prm = params.view(PAD_PARAMS)[0]
+    pc = pads.exact_constants(prm)
+    rows[0, :] = init
+    n_ev = 0
+    for i in range(1, t.shape[0]):
+        rows[i, :] = rows[i - 1, :]
+        st = rows[i].view(PAD_STATE)[0]
+        h = t[i] - t[i - 1]
+        if form == 0:
+            n_ev = pads.exact_tick(st, prm, t[i - 1], h, V[i], N[i], mus[i], muk[i], 1.0, ev[0], ev[1], n_ev)
+        else:
+            n_ev = pads.exact_tick_prepared(st, prm, t[i - 1], h, V[i], N[i], mus[i], muk[i], 1.0, ev[0], ev[1],
+                                            n_ev, pc, form == 1)
+    return n_ev
+
+
+@settings(max_examples=60, deadline=None)
+@given(logm=st.floats(-7, -4), logk=st.floats(1, 5), zeta=st.sampled_from([0.0, 1e-3, 0.05, 0.3, 0.999, 1.0, 3.0]),
+       msp=st.sampled_from([0.0, 2e-3]), seed=st.integers(0, 2 ** 32 - 1))
+def test_exact_tick_prepared_is_exact_tick_and_without_work_leaves_only_the_work_terms(logm, logk, zeta, msp, seed):
+    """The offline loops' form of the exact tick (the pad's constants once per run) gives every state field and
+    event of exact_tick bit for bit; without the work terms (the render's form) it leaves only those two
+    fields as they were. Random pads (under-, critically, over-damped, undamped), loads, speeds with
+    reversals and stops, tick lengths, with and without a maximum stick period."""
+    m, k = 10.0 ** logm, 10.0 ** logk
+    c = zeta * 2 * math.sqrt(k * m)
+    rng = np.random.default_rng(seed)
+    n = 400
+    t = np.cumsum(rng.choice([1e-5, 1e-4, 1e-3], n) * rng.uniform(0.5, 1.5, n))
+    V = np.repeat(rng.choice([0.0, 1.0, -1.0], n // 20) * rng.uniform(1e-3, 0.3, n // 20), 20)
+    N = np.repeat(rng.uniform(0.0, 4.0, n // 10), 10)
+    mus = np.full(n, 0.5)
+    muk = np.repeat(rng.uniform(0.1, 0.5, n // 50), 50)
+    params = np.zeros(1, PAD_PARAMS)
+    params[0]["mass"], params[0]["stiffness"], params[0]["damping"] = m, k, c
+    params[0]["burst_gain"], params[0]["max_stick_period"] = 0.25, msp
+    init = pads.new_state()
+    init[0]["work_friction"], init[0]["work_damping"] = 7.0, -7.0      # to be left alone without the work terms
+    init = init.view(np.float64)
+    out = []
+    for form in (0, 1, 2):
+        rows = np.empty((n, init.size))
+        ev = np.zeros((2, 64 * n))
+        n_ev = _exact_tick_by_tick(form, init, params.view(np.float64), t, V, N, mus, muk, rows, ev)
+        out.append((rows.view(PAD_STATE)[:, 0], ev[:, :n_ev]))
+    (ref, ev0), (prep, ev1), (nowork, ev2) = out
+    assert ref.tobytes() == prep.tobytes() and ev0.tobytes() == ev1.tobytes()
+    assert ev0.tobytes() == ev2.tobytes()
+    assert (nowork["work_friction"] == 7.0).all() and (nowork["work_damping"] == -7.0).all()
+    for name in PAD_STATE.names:
+        if name not in ("work_friction", "work_damping"):
+            assert ref[name].tobytes() == nowork[name].tobytes(), name

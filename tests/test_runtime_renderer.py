@@ -504,17 +504,24 @@ def test_render_tick_loop_equals_run_kernel_bit_for_bit(model, names, rows, kmu,
 def test_render_ticks_equals_run_ticks_state_events_and_rows(model):
     """dispatch.render_ticks against dispatch.run_ticks on the same inputs (stick, slip, reversals; 20 kHz so the
     explicit baselines stay stable): the same friction rows, the phase as astype(int8), the same events and the
-    same final state field by field, the work terms of a last tick taken on the stuck fast path included; and the
+    same final state field by field, the work terms of a last tick taken on the stuck fast path included, and of
+    one ending in a slip (the only tick whose work terms the exact model's render form computes); and the
     same again with mu_s, mu_k (and a constant gain) given as one-element rows, one value for every tick."""
     from shapedisplay.runtime.dispatch import render_ticks, run_ticks
     from shapedisplay.runtime.models import get_model
     dev = load_device(None)
     m = get_model(model, dev)
     rng = np.random.default_rng(3)
-    for n, V in ((4000, 0.04 * np.sin(np.arange(4000) / 300.0)), (2000, np.full(2000, 1e-4)),
-                 (3, np.array([0.0, 0.01, 0.02]))):
+    # a path whose last tick ends in a slip: a steady stroke cut after its last slipping tick
+    steady = np.full(1500, 0.05)
+    _, rows0, _ = _run_ticks_reference(m, m.new_state(), np.arange(1500) / 20_000.0, steady, np.full(1500, 1.5),
+                                       np.full(1500, dev.friction.mu_s), np.full(1500, dev.friction.mu_k),
+                                       np.ones(1500))
+    last_slip = int(np.flatnonzero(rows0[1])[-1]) + 1 if rows0[1].any() else 1500
+    for n, V, N in ((4000, 0.04 * np.sin(np.arange(4000) / 300.0), None), (2000, np.full(2000, 1e-4), None),
+                    (3, np.array([0.0, 0.01, 0.02]), None), (last_slip, steady[:last_slip], np.full(last_slip, 1.5))):
         t = np.arange(n) / 20_000.0
-        N = 1.0 + 0.5 * rng.random(n)
+        N = 1.0 + 0.5 * rng.random(n) if N is None else N
         mus = np.full(n, dev.friction.mu_s)
         muk = np.full(n, dev.friction.mu_k)
         for gain in (np.ones(n), 0.5 + rng.random(n)):
@@ -532,6 +539,8 @@ def test_render_ticks_equals_run_ticks_state_events_and_rows(model):
                 assert n1 == n2 and ev1.tobytes() == ev2.tobytes()
                 assert f.tobytes() == rows[0].tobytes() and ph.tobytes() == rows[1].astype(np.int8).tobytes()
                 assert S1.tobytes() == S2.tobytes(), [(k, S1[k], S2[k]) for k in S1.dtype.names if S1[k] != S2[k]]
+            if model == "exact" and n == last_slip:
+                assert rows[1][-1] == 1.0 and rows[5][-1] > 0.0      # ended in a slip, damper work computed
 
 
 def _run_ticks_reference(m, init, t, V, N, mus, muk, gain):

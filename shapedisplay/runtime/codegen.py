@@ -46,7 +46,17 @@ _ARGS = "prm, t[i - 1], {h}, {V}, N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_e
 _RENDER_ARGS = "prm, t[i - 1], {h}, {V}, N[i], mus[i & ms], muk[i & mk], gain[i & mg], ev_t, ev_a, n_ev"
 
 
-def _stick_fast_branch(mid: int, kernel: str, with_work: bool, render: bool = False) -> str:
+def _kernel_call(kernel: str, prepared, args: str, render: bool) -> tuple[str, str]:
+    """``(before the loop, call)``: a tick of the model in a loop, through its prepared form if it has one
+    (its constants once before the loop; the work terms only on the last tick of ``render_ticks``)."""
+    if prepared is None:
+        return "", f"pads.{kernel}(st, {args})"
+    constants, tick = prepared
+    return (f"pc = pads.{constants}(prm)\n        ",
+            f"pads.{tick}(st, {args}, pc, {'i == n - 1' if render else 'True'})")
+
+
+def _stick_fast_branch(mid: int, kernel: str, with_work: bool, render: bool = False, prepared=None) -> str:
     """One model's branch of ``run_ticks`` (``render``: of ``render_ticks``, which stores friction and phase only)."""
     if render:
         stores = ("out_f[i] = fe\n"
@@ -78,6 +88,7 @@ def _stick_fast_branch(mid: int, kernel: str, with_work: bool, render: bool = Fa
         outs, store = _OUTS, "_store"
         start = ""
         args, mus_i = _ARGS, "mus[i]"
+    before, call = _kernel_call(kernel, prepared, args.format(h="h", V="Vi"), render)
     return f'''    if model == {mid}:
         # Stuck ticks (the common case) run inline with the stretch in a register; the
         # kernel runs when a breakaway may happen or the pad slips. Same arithmetic as
@@ -85,7 +96,7 @@ def _stick_fast_branch(mid: int, kernel: str, with_work: bool, render: bool = Fa
         k = prm.stiffness
         c = prm.damping
         fast_ok = prm.max_stick_period == 0.0
-        x = st.x
+        {before}x = st.x
         {start}phase = st.phase
         synced = True
         for i in range(1, n):
@@ -103,7 +114,7 @@ def _stick_fast_branch(mid: int, kernel: str, with_work: bool, render: bool = Fa
                     continue
             if not synced:
                 st.x = x
-            n_ev = pads.{kernel}(st, {args.format(h="h", V="Vi")})
+            n_ev = {call}
             {store}(st, i, {outs})
             x = st.x
             phase = st.phase
@@ -117,11 +128,12 @@ def _stick_fast_branch(mid: int, kernel: str, with_work: bool, render: bool = Fa
 '''
 
 
-def _plain_branch(mid: int, kernel: str, render: bool = False) -> str:
+def _plain_branch(mid: int, kernel: str, render: bool = False, prepared=None) -> str:
     store, outs, args = ("_store_render", _RENDER_OUTS, _RENDER_ARGS) if render else ("_store", _OUTS, _ARGS)
+    before, call = _kernel_call(kernel, prepared, args.format(h="t[i] - t[i - 1]", V="V[i]"), render)
     return f'''    if model == {mid}:
-        for i in range(1, n):
-            n_ev = pads.{kernel}(st, {args.format(h="t[i] - t[i - 1]", V="V[i]")})
+        {before}for i in range(1, n):
+            n_ev = {call}
             {store}(st, i, {outs})
         return n_ev
 '''
@@ -176,15 +188,16 @@ _RENDER_MASKS = """    ms = -1 if mus.shape[0] == n else 0
 
 
 def dispatch_source(registry) -> str:
-    """Text of ``runtime/dispatch.py`` for ``registry`` = ((name, kernel name, stick fast path), ...)."""
-    entries = "".join(f"    ({n!r}, {k!r}, {f!r}),\n" for n, k, f in registry)
+    """Text of ``runtime/dispatch.py`` for ``registry`` = ((name, kernel name, stick fast path, prepared kernel),
+    ...) (:func:`~.models.registry_entries`)."""
+    entries = "".join(f"    ({n!r}, {k!r}, {f!r}, {p!r}),\n" for n, k, f, p in registry)
     ticks = "".join(f"    if model == {i}:\n"
                     f"        return pads.{k}(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev)\n"
-                    for i, (_, k, _) in enumerate(registry))
-    branches = "".join(_stick_fast_branch(i, k, f == "with_work") if f else _plain_branch(i, k)
-                       for i, (_, k, f) in enumerate(registry))
-    render_branches = "".join(_stick_fast_branch(i, k, f == "with_work", True) if f else _plain_branch(i, k, True)
-                              for i, (_, k, f) in enumerate(registry))
+                    for i, (_, k, _, _) in enumerate(registry))
+    branches = "".join(_stick_fast_branch(i, k, f == "with_work", prepared=p) if f else _plain_branch(i, k, prepared=p)
+                       for i, (_, k, f, p) in enumerate(registry))
+    render_branches = "".join(_stick_fast_branch(i, k, f == "with_work", True, p) if f
+                              else _plain_branch(i, k, True, p) for i, (_, k, f, p) in enumerate(registry))
     run_ticks = _tick_loop("run_ticks", _OUTS, "_store", _RUN_TICKS_DOC, branches)
     render_ticks = _tick_loop("render_ticks", _RENDER_OUTS, "_store_render", _RENDER_TICKS_DOC, render_branches,
                               _RENDER_MASKS)
@@ -203,7 +216,8 @@ from numba import njit
 from . import pads
 from .layouts import PAD_PARAMS, PAD_STATE
 
-#: (model name, kernel in pads, stick fast path) per model id; models.get_model checks it against MODELS.
+#: (model name, kernel in pads, stick fast path, prepared kernel) per model id; models.check_dispatch checks it
+#: against MODELS.
 REGISTRY = (
 {entries})
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py

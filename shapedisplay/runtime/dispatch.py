@@ -13,19 +13,20 @@ from numba import njit
 from . import pads
 from .layouts import PAD_PARAMS, PAD_STATE
 
-#: (model name, kernel in pads, stick fast path) per model id; models.get_model checks it against MODELS.
+#: (model name, kernel in pads, stick fast path, prepared kernel) per model id; models.check_dispatch checks it
+#: against MODELS.
 REGISTRY = (
-    ('exact', 'exact_tick', 'with_work'),
-    ('jump', 'jump_tick', 'without_work'),
-    ('karnopp', 'karnopp_tick', None),
-    ('stribeck', 'stribeck_tick', None),
-    ('euler', 'euler_tick', None),
-    ('rk4', 'rk4_tick', None),
-    ('tanh', 'tanh_tick', None),
+    ('exact', 'exact_tick', 'with_work', ('exact_constants', 'exact_tick_prepared')),
+    ('jump', 'jump_tick', 'without_work', None),
+    ('karnopp', 'karnopp_tick', None, None),
+    ('stribeck', 'stribeck_tick', None, None),
+    ('euler', 'euler_tick', None, None),
+    ('rk4', 'rk4_tick', None, None),
+    ('tanh', 'tanh_tick', None, None),
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "88c403f9f5555089c97b7c41887e99c7a9f549f0ef0fcca385093464d6b0f823"
+KERNEL_SOURCES_SHA256 = "0a0a6bbd95f906f1c251059eaa6ef70c0e0b7aceb702092fd16c3df1098fa6ef"
 
 
 @njit(cache=True)
@@ -89,6 +90,7 @@ def run_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_state, o
         k = prm.stiffness
         c = prm.damping
         fast_ok = prm.max_stick_period == 0.0
+        pc = pads.exact_constants(prm)
         x = st.x
         phase = st.phase
         synced = True
@@ -112,7 +114,7 @@ def run_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_state, o
                     continue
             if not synced:
                 st.x = x
-            n_ev = pads.exact_tick(st, prm, t[i - 1], h, Vi, N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
+            n_ev = pads.exact_tick_prepared(st, prm, t[i - 1], h, Vi, N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev, pc, True)
             _store(st, i, out_f, out_state, out_x, out_v, out_wf, out_wd)
             x = st.x
             phase = st.phase
@@ -278,6 +280,7 @@ def render_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_phase
         k = prm.stiffness
         c = prm.damping
         fast_ok = prm.max_stick_period == 0.0
+        pc = pads.exact_constants(prm)
         x = st.x
         xa = x
         phase = st.phase
@@ -299,7 +302,7 @@ def render_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_phase
                     continue
             if not synced:
                 st.x = x
-            n_ev = pads.exact_tick(st, prm, t[i - 1], h, Vi, N[i], mus[i & ms], muk[i & mk], gain[i & mg], ev_t, ev_a, n_ev)
+            n_ev = pads.exact_tick_prepared(st, prm, t[i - 1], h, Vi, N[i], mus[i & ms], muk[i & mk], gain[i & mg], ev_t, ev_a, n_ev, pc, i == n - 1)
             _store_render(st, i, out_f, out_phase)
             x = st.x
             phase = st.phase

@@ -76,6 +76,12 @@ class PadModel:
     #: Stuck ticks run inline in the offline loop (a pad with ``stiffness``/``damping`` whose tick starts
     #: with :func:`pads._stuck_whole_tick`): None, "with_work" or "without_work" (friction/damper work).
     stick_fast_path: str | None = None
+    #: The kernel's form for the offline loops (``run_ticks``, ``render_ticks``), if it has one: the names
+    #: in :mod:`.pads` of ``constants(prm)``, the pad's constants, computed once per run, and of
+    #: ``tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev, constants, work)``, the kernel's
+    #: arithmetic from them (``work`` False: the tick's friction and damper work are not computed; the
+    #: render keeps neither). None: the loops call :attr:`kernel`.
+    prepared_kernel: tuple[str, str] | None = None
     needs: tuple = ()      # N comes from ``normal_force`` or, if not stored, the header's constant
     #: True if the pad mass/stiffness/damping of the device are used.
     uses_pad = True
@@ -145,6 +151,7 @@ class ExactModel(PadModel):
     name = "exact"
     kernel = Kernel("exact_tick")
     stick_fast_path = "with_work"
+    prepared_kernel = ("exact_constants", "exact_tick_prepared")
 
 
 class JumpModel(PadModel):
@@ -407,8 +414,9 @@ MODEL_IDS = {name: i for i, name in enumerate(MODELS)}
 
 
 def registry_entries() -> tuple:
-    """``(name, kernel function name, stick fast path)`` per model in id order: what :mod:`.dispatch` is generated from."""
-    return tuple((name, _kernel_name(cls), cls.stick_fast_path) for name, cls in MODELS.items())
+    """``(name, kernel function name, stick fast path, prepared kernel)`` per model in id order: what
+    :mod:`.dispatch` is generated from."""
+    return tuple((name, _kernel_name(cls), cls.stick_fast_path, cls.prepared_kernel) for name, cls in MODELS.items())
 
 
 def _kernel_name(cls) -> str:

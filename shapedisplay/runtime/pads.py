@@ -761,8 +761,51 @@ def _finish_tick(st, x, phase, s, age, k, c, V, N, muk, nev):
 
 
 @njit(cache=True)
+def exact_constants(prm):
+    """The exact model's constants of the pad ``prm`` (a PAD_PARAMS record), which every tick of it uses:
+    ``(sig, wn2, wd, under, rate, memo_span, fast, tp, e_tp)``.
+
+    ``sig = 0.5 c / m``, ``wn2 = k / m``, ``wd`` the damped frequency (0 unless ``under``, an
+    under-damped pad), ``rate`` the bound on phase changes per second (:func:`phase_rate`),
+    ``memo_span`` the span beyond which a slip's re-stick search no longer depends on the time left
+    (inf unless under-damped), ``fast`` whether the re-stick fast paths apply (``sig >= 0`` too) and
+    their constants ``tp = pi / wd`` and ``e_tp = exp(-sig tp)`` (0 where they do not). Computed by the
+    expressions :func:`osc`, :func:`phase_cap` and :func:`osc_damping_work` use (the same bits), once
+    per tick by :func:`exact_tick` and once per run by the offline loops (:func:`exact_tick_prepared`).
+    """
+    m = prm.mass
+    k = prm.stiffness
+    c = prm.damping
+    sig = 0.5 * c / m
+    wn2 = k / m
+    disc = sig * sig - wn2
+    under = disc < -1e-10 * wn2
+    wd = math.sqrt(-disc) if under else 0.0
+    rate = 4.0 * (wd if under else math.sqrt(wn2)) / math.pi
+    # under-damped pad: a slip's re-stick search visits acceleration zeros pi / omega_d apart, so its
+    # outcome does not depend on the time left in the tick once that exceeds the re-stick time plus
+    # one such interval (memo_span); beyond it a repeated slip start reuses the stored outcome
+    memo_span = math.pi / wd * (1.0 + 1e-6) if under else np.inf
+    fast = under and sig >= 0.0     # the re-stick fast paths apply (their constants: half a period, its decay)
+    tp = math.pi / wd if fast else 0.0
+    e_tp = math.exp(-sig * tp) if fast else 0.0
+    return sig, wn2, wd, under, rate, memo_span, fast, tp, e_tp
+
+
+@njit(cache=True)
 def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
     if _stuck_whole_tick(st, prm, h, V, N, mus, True):
+        return n_ev
+    return exact_tick_prepared(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev, exact_constants(prm), True)
+
+
+@njit(cache=True)
+def exact_tick_prepared(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev, pc, work):
+    """:func:`exact_tick` for a loop over many ticks of one pad: ``pc`` its :func:`exact_constants`,
+    computed once by the caller. With ``work`` False the tick's friction and damper work are not
+    computed (``st.work_friction`` and ``st.work_damping`` are left as they were: an offline render
+    keeps neither); everything else is :func:`exact_tick`'s, bit for bit."""
+    if _stuck_whole_tick(st, prm, h, V, N, mus, work):
         return n_ev
     m = prm.mass
     k = prm.stiffness
@@ -780,21 +823,9 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
     nev0 = n_ev
     it = 0
     tmin = 0.0
-    # the pad's constants, by the expressions osc, phase_cap and osc_damping_work use (same bits)
-    sig = 0.5 * c / m
-    wn2 = k / m
-    disc = sig * sig - wn2
-    under = disc < -1e-10 * wn2
-    wd = math.sqrt(-disc) if under else 0.0
-    n_cap = PHASES_BASE + h * (4.0 * (wd if under else math.sqrt(wn2)) / math.pi)
+    sig, wn2, wd, under, rate, memo_span, fast, tp, e_tp = pc
+    n_cap = PHASES_BASE + h * rate
     it_cap = int(n_cap) if n_cap < MAX_EVENTS_PER_TICK else MAX_EVENTS_PER_TICK
-    # under-damped pad: a slip's re-stick search visits acceleration zeros pi / omega_d apart, so its
-    # outcome does not depend on the time left in the tick once that exceeds the re-stick time plus
-    # one such interval (memo_span); beyond it a repeated slip start reuses the stored outcome
-    memo_span = math.pi / wd * (1.0 + 1e-6) if under else np.inf
-    fast = under and sig >= 0.0     # the re-stick fast paths apply (their constants: half a period, its decay)
-    tp = math.pi / wd if fast else 0.0
-    e_tp = math.exp(-sig * tp) if fast else 0.0
     while t < h:
         it += 1
         if it > it_cap:
@@ -806,8 +837,9 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
             f = k * x + c * V
             dt, brk, forced = _stick_span(f, V, mus * N, k, tmax, age, rem)
             if dt > 0.0:
-                wf += (f * V * dt + 0.5 * k * V * V * dt * dt)
-                wdmp += c * V * V * dt
+                if work:
+                    wf += (f * V * dt + 0.5 * k * V * V * dt * dt)
+                    wdmp += c * V * V * dt
                 x += V * dt
                 if V != 0.0:
                     age += dt
@@ -822,7 +854,8 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
                 # loaded to the limit within this span: the breakaway stretch in closed form (the summed
                 # stick steps differ from it by rounding only), so steady strokes repeat it bit for bit
                 x = (s * mus * N - c * V) / k
-            wf += 0.5 * k * (x * x - x0 * x0)
+            if work:
+                wf += 0.5 * k * (x * x - x0 * x0)
             n_ev = _record(ev_t, ev_a, n_ev, t0 + t, B * abs(k * x))
             phase = 1.0
             age = 0.0
@@ -861,11 +894,12 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
                 st.memo_n = N
                 st.memo_slip_time = tr
                 st.memo_x_restick = y1
-        if under and c != 0.0 and tr > 0.0:
-            wdmp += _damping_work_u(c, sig, wn2, wd, y0, v, tr)
-        else:
-            wdmp += osc_damping_work(m, c, k, y0, v, tr)
-        wf += F * (y1 - y0)
+        if work:
+            if under and c != 0.0 and tr > 0.0:
+                wdmp += _damping_work_u(c, sig, wn2, wd, y0, v, tr)
+            else:
+                wdmp += osc_damping_work(m, c, k, y0, v, tr)
+            wf += F * (y1 - y0)
         x = y1 + xeq
         v = v1
         t += tr
@@ -895,8 +929,9 @@ def exact_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
             # next touch or crossing is at least one extremum (pi / omega_d) away
             tmin = 0.5 * math.pi * math.sqrt(m / k)
     st.v = v
-    st.work_friction = wf
-    st.work_damping = wdmp
+    if work:
+        st.work_friction = wf
+        st.work_damping = wdmp
     _finish_tick(st, x, phase, s, age, k, c, V, N, muk, n_ev - nev0)
     return n_ev
 

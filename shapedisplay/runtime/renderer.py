@@ -83,7 +83,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "ca04ad67097002c3bd1dea77b84d2fbc0dbaa1ccb41d3c8c57e679bf3e15b9b1"
+KERNEL_SOURCES_SHA256 = "e7b4e465116de0935817b9bd886d2d670549f370fc645b3259aa743ad747017b"
 
 
 @njit(cache=True, inline="always")
