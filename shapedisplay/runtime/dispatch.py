@@ -26,7 +26,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "0a0a6bbd95f906f1c251059eaa6ef70c0e0b7aceb702092fd16c3df1098fa6ef"
+KERNEL_SOURCES_SHA256 = "d5c79d9dd6ccdd6fe39c4f5e9cf02688ff8e04e7f5c9d3ad3023cf6437e65268"
 
 
 @njit(cache=True)

@@ -1670,6 +1670,7 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
     A = prm.contactor_amplitude
     om = prm.contactor_omega
     tol = prm.stribeck_tol
+    tol3 = np.cbrt(tol)   # cube roots for the third-order step rule (cbrt: a fraction of pow's cost)
     dmu = mus - muk
     if not W > 0.0:
         b = 0.0           # a lifted finger: no friction at all (the viscous term included)
@@ -1697,8 +1698,8 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
     vlo = sr * vr0
     vhi = 0.0
     vtol = 1e-2 * tol * zsc0
-    h_prev = 0.0      # the last accepted step and its error (step-size prediction)
-    err_prev = 0.0
+    h_prev = 0.0      # the last accepted step and the cube root of its error (step-size prediction)
+    e3_prev = 0.0
     touch_checked = False   # a touch inside a step looked for from this start point already
     for it in range(MAX_EVENTS_PER_TICK):
         if t >= te:
@@ -1816,7 +1817,7 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
         if not (err <= tol):
             # too long (or overflowed): shorten by the third-order rule
             if err > 0.0 and math.isfinite(err):
-                h *= max(0.1, 0.8 * (tol / err) ** (1.0 / 3.0))
+                h *= max(0.1, 0.8 * tol3 / np.cbrt(err))
             else:
                 h *= 0.1
             h_want = h
@@ -1918,17 +1919,18 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
         # next step: the third-order rule with Gustafsson's prediction (an error growing from step to step, as
         # in the collapse to re-stick, shortens the next one before it fails), at most twice as long (four times
         # after a step far within the tolerance)
+        e3 = np.cbrt(err)
         if err <= tol * 1.5e-3:
             grow = 4.0
         else:
-            grow = 0.8 * (tol / err) ** (1.0 / 3.0)
-            if err_prev > 0.0:
-                gus = grow * (h / h_prev) * (err_prev / err) ** (1.0 / 3.0)
+            grow = 0.8 * tol3 / e3
+            if e3_prev > 0.0:
+                gus = grow * (h / h_prev) * (e3_prev / e3)
                 if gus < grow:
                     grow = gus
             grow = min(2.0, max(0.2, grow))
         h_prev = h
-        err_prev = err
+        e3_prev = e3
         h_want = min(h * grow, prm.substep)
         h = min(h_want, te - t)
     F = -sr * W * (muk + dmu * E0) - b * (z + V - A * om * C0)

@@ -83,7 +83,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "e7b4e465116de0935817b9bd886d2d670549f370fc645b3259aa743ad747017b"
+KERNEL_SOURCES_SHA256 = "52facf916bee4f419049dbe1092e6d5d143f8b0eccfd645a0e8e6759dd0bd9de"
 
 
 @njit(cache=True, inline="always")
