@@ -47,7 +47,7 @@ def mmm(values, spec=".3g"):
     return "/".join(format(x, spec) for x in (min(v), statistics.median(v), max(v)))
 
 
-def part_scipy(runs, quick, only, models=()):
+def part_scipy(runs, quick, only, models=(), levels=False):
     cases = [c for c in A.build_cases(quick) if not only or c.name in only]
     per_case = {}
     floors = []
@@ -93,6 +93,28 @@ def part_scipy(runs, quick, only, models=()):
           f"over {runs} runs; 'model' = run_kernel on the renderer's per-tick inputs, 'render' = full "
           "Renderer.render with 48 kHz audio")
     print(common.text_table(hdr, rows))
+    if levels:
+        print_levels(per_case, runs)
+
+
+def print_levels(per_case, runs):
+    """Every error level of the model-alone comparison: scipy's and the renderer's cheapest settings there."""
+    rows = []
+    for name, eqs in per_case.items():
+        by = {}
+        for e in eqs:
+            for lv in (e["model"] or {}).get("levels", ()):
+                by.setdefault(lv["period_rel_max"], []).append(lv)
+        for err, lvs in sorted(by.items()):
+            ren = sorted({v["renderer"] for v in lvs})
+            rows.append([name, format(err, ".2g"), lvs[0]["scipy"], ", ".join(ren),
+                         mmm([v["scipy_cpu_s_per_sim_s"] * 1e3 for v in lvs]),
+                         mmm([v["renderer_cpu_s_per_sim_s"] * 1e6 for v in lvs]),
+                         mmm([v["speedup"] for v in lvs]), len(lvs)])
+    print()
+    print(f"Every error level, model alone (min/median/max over the runs that reached it, of {runs})")
+    print(common.text_table(["case", "error level", "best scipy there", "renderer there", "scipy ms / sim s",
+                             "renderer us / sim s", "speed-up x", "runs"], rows))
 
 
 def part_stribeck(runs):
@@ -145,10 +167,11 @@ def main():
     ap.add_argument("--models", default="", help="comma-separated renderer models to compare (default: all of a case's)")
     ap.add_argument("--skip-scipy", action="store_true")
     ap.add_argument("--skip-stribeck", action="store_true")
+    ap.add_argument("--levels", action="store_true", help="also print every error level of the model-alone comparison")
     a = ap.parse_args()
     only = {x for x in a.cases.split(",") if x}
     if not a.skip_scipy:
-        part_scipy(a.runs, a.quick, only, {x for x in a.models.split(",") if x})
+        part_scipy(a.runs, a.quick, only, {x for x in a.models.split(",") if x}, a.levels)
     if not a.skip_stribeck:
         part_stribeck(a.runs)
 

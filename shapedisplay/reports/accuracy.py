@@ -152,7 +152,7 @@ def build_cases(quick: bool) -> list[Case]:
         "stribeck_contactor", "Stribeck pad on a 9 Hz 1.25 mm contactor, finger at 0.1 m/s, W = 1 N", "stribeck",
         dict(IMAIZUMI), 0.25 if quick else 0.5, (lambda t: 0.1), (lambda t: 1.0), models=("stribeck",),
         tolerances=STRIBECK_TOLERANCES_QUICK if quick else STRIBECK_TOLERANCES,
-        rates=(1000.0,) if quick else (1000.0, 10000.0),
+        rates=(1000.0,) if quick else (100.0, 1000.0, 10000.0),
         contactor={"hz": 9.0, "amplitude_m": 1.25e-3}))
     # block on a moving belt (Coulomb), closed-form stick-slip period
     Vbelt, Nbelt = 0.2, 1.0
