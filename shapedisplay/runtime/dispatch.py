@@ -26,7 +26,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "d5c79d9dd6ccdd6fe39c4f5e9cf02688ff8e04e7f5c9d3ad3023cf6437e65268"
+KERNEL_SOURCES_SHA256 = "823c27487d3fa4304a87c69be1d5e9d18b90c72fb8d3c793b7a5ba5d3cca6b0e"
 
 
 @njit(cache=True)

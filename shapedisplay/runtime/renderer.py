@@ -83,7 +83,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "52facf916bee4f419049dbe1092e6d5d143f8b0eccfd645a0e8e6759dd0bd9de"
+KERNEL_SOURCES_SHA256 = "b5670b9486d161379bbf19b27a3e1ff3da45d90c6d2a88af2ed7eba8a77b02bd"
 
 
 @njit(cache=True, inline="always")
