@@ -622,3 +622,34 @@ def test_run_block_equals_run_ticks_and_grows_its_event_buffer(model):
     many = _assert_run_kernel_equals(m, m.new_state(), (t, np.full(n, 0.05), np.full(n, 0.02), mus[:n], muk[:n],
                                                         gain[:n]))
     assert many > n or model not in ("exact", "jump")
+
+
+def test_rows_of_one_value_are_read_only_views_with_the_values_of_every_row():
+    """The render returns a row that holds one value on every tick (mu_s of a table whose friction does not vary,
+    the lateral rows of a table without them, vy on a path along x) as a read-only view of that value, with
+    the bytes of the row written out (Renderer._inputs with every row); the other rows, and every row of a
+    table whose friction varies, are written out."""
+    from shapedisplay.runtime.renderer import INPUT_ROWS
+    along = parse_stroke("0,0.5 <-> 40,0.5 @ 30 mm/s", 10_000)
+    diag = parse_stroke("0,0 -> 40,1 @ 30 mm/s", 10_000)
+    xs = np.arange(121) * 0.5e-3
+    plain = ramp_table()
+    lateral = make_table({"normal_force": 0.5 + np.clip(100.0 * (xs - 0.02), 0.0, 2.0), "lateral_x": 0.1 * xs})
+    varying = make_table({"normal_force": 1.0 + 0.0 * xs, "friction_scale": 1.0 + 5.0 * xs})
+    for table, cp, views in ((plain, along, {"vy", "mu_s", "lateral_x", "lateral_y"}),
+                             (plain, diag, {"mu_s", "lateral_x", "lateral_y"}),
+                             (lateral, along, {"vy", "mu_s", "lateral_y"}), (varying, along, set())):
+        for model in ("exact", "jump"):
+            r = Renderer(table, device=quiet_device(), model=model, tick_rate=10_000)
+            res = r.render(cp)
+            want = dict(zip(INPUT_ROWS, r._inputs(cp)))
+            for name in ("vx", "vy", "normal_force", "mu_s", "lateral_x", "lateral_y"):
+                got = getattr(res, name)
+                assert got.shape == cp.t.shape and got.tobytes() == want[name].tobytes(), name
+                assert (got.strides == (0,) and not got.flags.writeable) == (name in views), name
+            # the other outputs as the rows written out give them (the model and skin stretch read the one value)
+            ref = Renderer(table, device=quiet_device(), model=model, tick_rate=10_000)
+            t, V, N, mus, muk, gain = ref.model_inputs(cp)
+            from shapedisplay.runtime.models import run_kernel
+            _, f, *_ = run_kernel(ref.model, t, V, N, mus, muk, gain)
+            assert res.friction_force.tobytes() == f.tobytes()

@@ -70,6 +70,17 @@ from .result import RenderResult
 from .settings import (audio_length, constant_normal_force, derive_config, device_for_table,  # noqa: F401
                        mapping_settings, render_settings, slot_channels)
 
+
+def _one_value(row, n):
+    """``row`` as shape (n,): itself if it has n elements, else a read-only view of its one value on
+    every tick (stride 0; no memory written per tick)."""
+    if row.shape[0] == n:
+        return row
+    view = np.ndarray((n,), row.dtype, row, 0, (0,))
+    view.flags.writeable = False
+    return view
+
+
 #: Names of the per-tick outputs of :meth:`Renderer.step` (fields of :data:`~.layouts.OUTPUTS`).
 OUT_NAMES = OUTPUTS.names
 
@@ -167,11 +178,12 @@ def lookup_inputs(t, x, y, blocks, data, bg, grid, config, slot_channel, out, sc
     theirs bit for bit; but no (NSLOT, n) array of looked-up values is written and read back.
     ``copies``: (3, n) float64 that gets copies of ``t, x, y``, in the passes that read them anyway.
 
-    Returns True if ``mu_s`` and ``mu_k`` are one value on every tick (the table takes
-    :func:`_lookup_passes`). Then, unless ``every_row``, the rows a render does not return and that hold
-    one value on every tick (``mu_k``; ``gain`` without a ``burst_gain`` channel; ``skin_target``
-    without a ``skin_stretch`` channel) get only their first element: :meth:`Renderer.render` hands
-    :func:`~.dispatch.render_ticks` those one-element rows instead of writing the value once per tick.
+    Returns a bit mask of the rows that hold one value on every tick (bit ``r`` for row ``r``; 0 unless
+    the table takes :func:`_lookup_passes`, where ``mu_s`` and ``mu_k`` always do): ``mu_s``, ``mu_k``;
+    ``gain``, ``lateral_x``, ``lateral_y``, ``skin_target`` of a table without their channel; ``vy`` on
+    a path along x. Unless ``every_row``, those rows get only their first element:
+    :meth:`Renderer.render` hands :func:`~.dispatch.render_ticks` one-element rows and returns
+    read-only views of the one value instead of writing it once per tick.
 
     A table whose friction coefficients do not vary along the path (no ``friction_scale``,
     ``breakaway_force`` or ``kinetic_force`` channel, no active slope term) takes
@@ -188,9 +200,8 @@ def lookup_inputs(t, x, y, blocks, data, bg, grid, config, slot_channel, out, sc
                or slot_channel[Slot.KINETIC_FORCE] >= 0 or (cfg.k_mu != 0.0 and slot_channel[Slot.GRAD_X] >= 0))
     if varying:
         _lookup_fused(t, x, y, blocks, data, bg, grid, config, slot_channel, out, copies)
-    else:
-        _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, scratch, copies, every_row)
-    return not varying
+        return 0
+    return _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, scratch, copies, every_row)
 
 
 #: Magnitudes whose squares are normal numbers (with margin; see :func:`_motion`).
@@ -199,15 +210,16 @@ _SQUARE_HI = 2.0 ** 500
 
 
 @njit(cache=True, error_model="numpy")
-def _motion(t, x, y, grid, two_d, out, copies):
+def _motion(t, x, y, grid, two_d, out, copies, every_row):
     """Rows 0-2 of :func:`lookup_inputs` (``V``, ``vx``, ``vy``) and each tick's midpoint in table samples
     (rows 4 and 5, ``(x_mid - x0) / dx`` and the same in y if ``two_d``): what :func:`_axis_speed` and
     :func:`.lookup.corners` compute, in loops over whole rows (loops over views, which the compiler
     vectorises, divisions and square roots included). ``copies`` (3, n) gets ``t``, ``x`` and ``y``, written
-    in the loops that read them."""
+    in the loops that read them. Returns True on a path along x, where ``vy`` is +0 on every tick (then
+    written only at its first element unless ``every_row``)."""
     n = t.shape[0]
     if n == 0:
-        return
+        return False
     sp = out[0]
     vx = out[1]
     vy = out[2]
@@ -249,7 +261,8 @@ def _motion(t, x, y, grid, two_d, out, copies):
             ct1[i] = a
             cx1[i] = b
             vx1[i] = (b - x0[i]) / (a - t0[i])
-        vy[:] = 0.0
+        if every_row:
+            vy[:] = 0.0
         # sqrt(vx vx) is |vx| where vx vx is a normal number (in binary floating point the rounded square root
         # of a rounded square is the magnitude), and then vx / |vx| is +-1: checked to hold on every tick first.
         # Then the unit vector is (+-1, +0), and the pad axis, (1, 0) at the start, stays (1, +-0) from tick to
@@ -313,6 +326,7 @@ def _motion(t, x, y, grid, two_d, out, copies):
         fy = uy[1:]
         for i in range(n - 1):
             fy[i] = (0.5 * (y1[i] + y0[i]) - grid.y0) / grid.dy
+    return along_x
 
 
 #: Row of :func:`lookup_inputs`' block that each stored channel's slot fills (-1: none).
@@ -323,11 +337,13 @@ _CHANNEL_ROW[[Slot.NORMAL_FORCE, Slot.BURST_GAIN, Slot.LATERAL_X, Slot.LATERAL_Y
 @njit(cache=True, error_model="numpy")
 def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, scratch, copies, every_row):
     """:func:`lookup_inputs` for a table whose ``mu_s``, ``mu_k`` are the device's: motion, cells, channels,
-    then the derivation of :func:`_derive` row by row."""
+    then the derivation of :func:`_derive` row by row. Returns the mask of rows that hold one value."""
     cfg = config[0]
     n = t.shape[0]
     two_d = grid.rows != 1
-    _motion(t, x, y, grid, two_d, out, copies)
+    ones = (1 << 4) | (1 << 5)
+    if _motion(t, x, y, grid, two_d, out, copies, every_row):
+        ones |= 1 << 2
     # the four samples around each midpoint (scratch rows) and their weights (rows 4, 5 in place)
     fx = out[4]
     fy = out[5]
@@ -406,10 +422,12 @@ def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, s
         ch = slot_channel[s]
         dst = out[row]
         if ch < 0:
-            if every_row or row == 3 or row == 7 or row == 8:
+            if every_row or row == 3:
                 dst[:] = 0.0 if clamp and default < 0.0 else default
-            elif n > 0:                     # gain or skin target, one value on every tick: its first element
+            elif n > 0:                     # one value on every tick: its first element
                 dst[0] = 0.0 if clamp and default < 0.0 else default
+            if row != 3:
+                ones |= 1 << row
             continue
         if single:
             continue
@@ -443,11 +461,13 @@ def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, s
     muk = cfg.mu_k * 1.0
     if muk > mus:
         muk = mus
-    out[4, :] = mus
     if every_row:
+        out[4, :] = mus
         out[5, :] = muk
     elif n > 0:
+        out[4, 0] = mus
         out[5, 0] = muk
+    return ones
 
 
 @njit(cache=True, error_model="numpy")
@@ -498,10 +518,17 @@ def _lookup_fused(t, x, y, blocks, data, bg, grid, config, slot_channel, out, co
 
 @njit(cache=True, error_model="numpy")
 def skin_stretch_of(target, f, mus, N, out):
-    """``out = target * f / (mus * N)`` where ``mus * N > 0``, else 0 (arrays of shape (n,)).
+    """``out = target * f / (mus * N)`` where ``mus * N > 0``, else 0 (arrays of shape (n,); ``mus`` may
+    have shape (1,), one value on every tick).
 
     numpy's error model: the division is only taken where ``mus * N > 0``, so no ZeroDivisionError check
     is needed, and without it the loop vectorises (the same values)."""
+    if mus.shape[0] != f.shape[0]:
+        mu = mus[0]
+        for i in range(f.shape[0]):
+            lim = mu * N[i]
+            out[i] = target[i] * f[i] / lim if lim > 0.0 else 0.0
+        return
     for i in range(f.shape[0]):
         lim = mus[i] * N[i]
         out[i] = target[i] * f[i] / lim if lim > 0.0 else 0.0
@@ -513,14 +540,29 @@ def skin_stretch_uniform(target, f, mus, N, out):
 
     A zero target (a table without a ``skin_stretch`` channel on a profile without a skin-stretch
     target) needs no division: ``target * f`` is a signed zero (or NaN), which dividing by a positive
-    ``mus * N`` leaves as it is."""
-    if target == 0.0:
+    ``mus * N`` leaves as it is. ``mus`` may have shape (1,), one value on every tick."""
+    if mus.shape[0] != f.shape[0]:
+        _skin_uniform_mu(target, f, mus[0], N, out)
+    elif target == 0.0:
         for i in range(f.shape[0]):
             lim = mus[i] * N[i]
             out[i] = target * f[i] if lim > 0.0 else 0.0
     else:
         for i in range(f.shape[0]):
             lim = mus[i] * N[i]
+            out[i] = target * f[i] / lim if lim > 0.0 else 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _skin_uniform_mu(target, f, mu, N, out):
+    """:func:`skin_stretch_uniform` for one ``mu`` (float) on every tick."""
+    if target == 0.0:
+        for i in range(f.shape[0]):
+            lim = mu * N[i]
+            out[i] = target * f[i] if lim > 0.0 else 0.0
+    else:
+        for i in range(f.shape[0]):
+            lim = mu * N[i]
             out[i] = target * f[i] / lim if lim > 0.0 else 0.0
 
 
@@ -758,23 +800,22 @@ class Renderer:
         n = cp.t.size
         block = np.empty((k + 9, n))
         ins = block[:k]
-        # the lookup also writes the copies of t, x, y (in the passes that read them) and leaves the rows of
-        # mu_k, gain and skin target with their first element only where one value holds for every tick
-        uniform = lookup_inputs(cp.t, cp.x, cp.y, self._blocks, self._data, self._bg, self._grid, self._config,
-                                self._slot_channel, ins, block[k + 5:].view(np.int64), block[k + 2:k + 5], False)
-        V, vx, vy, N, mus, muk, gain, lat_x, lat_y, target = ins
+        # the lookup also writes the copies of t, x, y (in the passes that read them) and leaves each row that
+        # holds one value on every tick with its first element only (bit r of `ones` for row r)
+        ones = lookup_inputs(cp.t, cp.x, cp.y, self._blocks, self._data, self._bg, self._grid, self._config,
+                             self._slot_channel, ins, block[k + 5:].view(np.int64), block[k + 2:k + 5], False)
         f, ss, t, x, y = block[k:k + 5]
-        if uniform:                      # one value on every tick: the model reads it once
-            mus_m, muk_m = mus[:1], muk[:1]
-            gain_m = gain if self._slot_channel[Slot.BURST_GAIN] >= 0 else gain[:1]
-        else:
-            mus_m, muk_m, gain_m = mus, muk, gain
+        # one-element rows for the model and the skin stretch (they read the value once), read-only views of
+        # the value on every tick for the result
+        rows = [ins[r, :1] if ones >> r & 1 and n > 0 else ins[r] for r in range(k)]
+        V, vx, vy, N, mus, muk, gain, lat_x, lat_y, target = rows
         phase = np.empty(n, np.int8)
-        et, ea = self._run_model(cp.t, V, N, mus_m, muk_m, gain_m, f, phase)
+        et, ea = self._run_model(cp.t, V, N, mus, muk, gain, f, phase)
         if self._slot_channel[Slot.SKIN_STRETCH] >= 0:
             skin_stretch_of(target, f, mus, N, ss)
-        else:                              # every tick's target is the profile's (the row holds it)
+        else:                              # every tick's target is the profile's
             skin_stretch_uniform(float(self.config["skin_target"]), f, mus, N, ss)
+        vy, mus, lat_x, lat_y = (_one_value(a, n) for a in (vy, mus, lat_x, lat_y))
         b = self.device.burst
         audio, clipped = render_bursts(et, ea, cp.t[0], cp.duration, self.audio_rate, b.carrier_hz, b.rise_s,
                                        b.decay_s, self.burst_policy, self._carrier_anchors(n_audio),

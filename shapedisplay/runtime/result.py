@@ -21,6 +21,11 @@ class RenderResult:
     clipped : int, audio samples limited to full scale
     model : str; ``tick_rate`` : Hz; ``burst_policy`` : str
     mu_s : (n,), the static friction coefficient of each tick (None when the C runtime played the path)
+
+    A row that holds one value on every tick (``mu_s`` where the friction coefficients do not vary along
+    the path, ``lateral_x``/``lateral_y`` of a table without them, ``vy`` on a path along x) may be a
+    read-only view of that value (stride 0) rather than n stored copies: read it as any array; copy it
+    (``np.array(result.vy)``) to write into it.
     """
 
     t: np.ndarray
