@@ -673,3 +673,18 @@ def test_exact_tick_prepared_is_exact_tick_and_without_work_leaves_only_the_work
     for name in PAD_STATE.names:
         if name not in ("work_friction", "work_damping"):
             assert ref[name].tobytes() == nowork[name].tobytes(), name
+
+
+def test_damping_so_small_that_sigma_underflows_gives_finite_work():
+    """A pad with c > 0 whose 0.5 c / m underflows to 0: the damping work takes the limit (no division by 0),
+    finite and below c times the integral of the largest v^2."""
+    m, k = 1e-2, 10.0
+    c = 5e-324
+    assert 0.5 * c / m == 0.0 and c > 0.0
+    r = simulate_pad("exact", V=1.0, N=0.0, pad=PadParams(m, k, c), friction=FrictionParams(1.0, 0.0),
+                     tick_rate=1000, duration=0.02)
+    assert np.all(np.isfinite(r.friction_force))
+    y0, v0, t = 1e-3, 0.2, 0.3
+    w = pads.osc_damping_work(m, c, k, y0, v0, t)
+    vmax2 = v0 * v0 + k / m * y0 * y0
+    assert 0.0 <= w <= c * vmax2 * t

@@ -26,7 +26,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "823c27487d3fa4304a87c69be1d5e9d18b90c72fb8d3c793b7a5ba5d3cca6b0e"
+KERNEL_SOURCES_SHA256 = "0d25a3d4b93db1548bd907271dfcfd85dae43af765f6c1ab851fba553ad16457"
 
 
 @njit(cache=True)

@@ -162,7 +162,7 @@ def osc_damping_work(m, c, k, y0, v0, t):
 @njit(cache=True)
 def _damping_work_u(c, sig, wn2, wd, y0, v0, t):
     """The under-damped branch of :func:`osc_damping_work` from the pad's constants (as :func:`_osc_u`);
-    ``c > 0``, ``t > 0``."""
+    ``c > 0``, ``t > 0`` (``sig`` may have underflowed to 0)."""
     # v = Re(Z e^{lam t}), lam = -sig + i wd, Z = zr + i zi = v0 + i (wn2 y0 + sig v0)/wd:
     # c v^2 = c (|Z|^2 e^{-2 sig t} + Re(Z^2 e^{2 lam t})) / 2, integrated in closed form; in real
     # arithmetic, with e^{2 lam t} - 1 = (em cos 2 wd t - 2 sin^2 wd t) + i (1 + em) sin 2 wd t,
@@ -177,7 +177,11 @@ def _damping_work_u(c, sig, wn2, wd, y0, v0, t):
     ei = (1.0 + em) * (2.0 * sn * cs)
     z2r = zr * zr - zi * zi
     z2i = 2.0 * zr * zi
-    part1 = 0.5 * (zr * zr + zi * zi) * (-em) / (2.0 * sig)
+    if sig != 0.0:
+        part1 = 0.5 * (zr * zr + zi * zi) * (-em) / (2.0 * sig)
+    else:
+        # c > 0 so small against m that 0.5 c / m underflows to 0: -em / (2 sig) is t in the limit
+        part1 = 0.5 * (zr * zr + zi * zi) * t
     # Re(Z^2 (e^{2 lam t} - 1) / (2 lam)), |lam|^2 = wn2
     part2 = 0.5 * (-sig * (z2r * er - z2i * ei) + wd * (z2r * ei + z2i * er)) / (2.0 * wn2)
     return c * (part1 + part2)
