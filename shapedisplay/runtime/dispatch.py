@@ -26,7 +26,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "0d25a3d4b93db1548bd907271dfcfd85dae43af765f6c1ab851fba553ad16457"
+KERNEL_SOURCES_SHA256 = "fdeab6cce4fab004daedc689568d1020189f59ab46cbe73f34a8c5a2e973051f"
 
 
 @njit(cache=True)

@@ -94,7 +94,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "559a82ae10c9b6b8af2eafa4ad0a04978e935e523e8e0673df9f2fb83a70aec1"
+KERNEL_SOURCES_SHA256 = "ae9c53663ffe3913bd4a803f38f586be86ce7e2a76569069ec0c85cec5f31c49"
 
 
 @njit(cache=True, inline="always")
