@@ -628,15 +628,21 @@ def test_rows_of_one_value_are_read_only_views_with_the_values_of_every_row():
     """The render returns a row that holds one value on every tick (mu_s of a table whose friction does not vary,
     the lateral rows of a table without them, vy on a path along x) as a read-only view of that value, with
     the bytes of the row written out (Renderer._inputs with every row); the other rows, and every row of a
-    table whose friction varies, are written out."""
-    from shapedisplay.runtime.renderer import INPUT_ROWS
+    table whose friction varies, are written out. The model gets V, which on a path along x without a -0 in vx is
+    vx itself (not written out)."""
+    from shapedisplay.runtime.renderer import INPUT_ROWS, lookup_inputs
     along = parse_stroke("0,0.5 <-> 40,0.5 @ 30 mm/s", 10_000)
     diag = parse_stroke("0,0 -> 40,1 @ 30 mm/s", 10_000)
     xs = np.arange(121) * 0.5e-3
     plain = ramp_table()
     lateral = make_table({"normal_force": 0.5 + np.clip(100.0 * (xs - 0.02), 0.0, 2.0), "lateral_x": 0.1 * xs})
     varying = make_table({"normal_force": 1.0 + 0.0 * xs, "friction_scale": 1.0 + 5.0 * xs})
+    # along x through signed zeros: vx is -0 on some ticks, where V must be +0 (V is not vx there)
+    n = 3000
+    zeros = CursorPath(np.arange(n) / 10_000.0, np.random.default_rng(5).choice([0.0, -0.0, 2e-6, -3e-6], n),
+                       np.full(n, -0.0), 10_000.0, "zeros")
     for table, cp, views in ((plain, along, {"vy", "mu_s", "lateral_x", "lateral_y"}),
+                             (plain, zeros, {"vy", "mu_s", "lateral_x", "lateral_y"}),
                              (plain, diag, {"mu_s", "lateral_x", "lateral_y"}),
                              (lateral, along, {"vy", "mu_s", "lateral_y"}), (varying, along, set())):
         for model in ("exact", "jump"):
@@ -647,6 +653,13 @@ def test_rows_of_one_value_are_read_only_views_with_the_values_of_every_row():
                 got = getattr(res, name)
                 assert got.shape == cp.t.shape and got.tobytes() == want[name].tobytes(), name
                 assert (got.strides == (0,) and not got.flags.writeable) == (name in views), name
+            # the V the render hands the model: vx itself where the lookup says so (bit 0), else its own row
+            k, n = len(INPUT_ROWS), cp.t.size
+            block = np.full((k + 9, n), np.nan)
+            ones = lookup_inputs(cp.t, cp.x, cp.y, r._blocks, r._data, r._bg, r._grid, r._config, r._slot_channel,
+                                 block[:k], block[k + 5:].view(np.int64), block[k + 2:k + 5], False)
+            assert bool(ones & 1) == (cp is along and table is not varying)
+            assert (block[1] if ones & 1 else block[0]).tobytes() == want["V"].tobytes()
             # the other outputs as the rows written out give them (the model and skin stretch read the one value)
             ref = Renderer(table, device=quiet_device(), model=model, tick_rate=10_000)
             t, V, N, mus, muk, gain = ref.model_inputs(cp)

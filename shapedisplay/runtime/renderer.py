@@ -183,7 +183,9 @@ def lookup_inputs(t, x, y, blocks, data, bg, grid, config, slot_channel, out, sc
     ``gain``, ``lateral_x``, ``lateral_y``, ``skin_target`` of a table without their channel; ``vy`` on
     a path along x. Unless ``every_row``, those rows get only their first element:
     :meth:`Renderer.render` hands :func:`~.dispatch.render_ticks` one-element rows and returns
-    read-only views of the one value instead of writing it once per tick.
+    read-only views of the one value instead of writing it once per tick. Bit 0 (``V``) has its own
+    meaning: ``V`` is ``vx`` bit for bit (a path along x with no ``-0`` in ``vx``) and was not written
+    (only without ``every_row``): read ``vx``.
 
     A table whose friction coefficients do not vary along the path (no ``friction_scale``,
     ``breakaway_force`` or ``kinetic_force`` channel, no active slope term) takes
@@ -215,11 +217,12 @@ def _motion(t, x, y, grid, two_d, out, copies, every_row):
     (rows 4 and 5, ``(x_mid - x0) / dx`` and the same in y if ``two_d``): what :func:`_axis_speed` and
     :func:`.lookup.corners` compute, in loops over whole rows (loops over views, which the compiler
     vectorises, divisions and square roots included). ``copies`` (3, n) gets ``t``, ``x`` and ``y``, written
-    in the loops that read them. Returns True on a path along x, where ``vy`` is +0 on every tick (then
-    written only at its first element unless ``every_row``)."""
+    in the loops that read them. Returns ``(along_x, v_is_vx)``: True on a path along x, where ``vy`` is +0 on
+    every tick (then written only at its first element unless ``every_row``); and True where ``V`` is ``vx``
+    bit for bit and was not written (only without ``every_row``)."""
     n = t.shape[0]
     if n == 0:
-        return False
+        return False, False
     sp = out[0]
     vx = out[1]
     vy = out[2]
@@ -249,6 +252,7 @@ def _motion(t, x, y, grid, two_d, out, copies, every_row):
     # vector's x is unused where the speed is 0 too)
     y_first = y[0]
     along_x = math.isfinite(y_first)
+    v_is_vx = False
     for i in range(n - 1):
         v = y1[i]
         cy1[i] = v
@@ -270,11 +274,23 @@ def _motion(t, x, y, grid, two_d, out, copies, every_row):
         # and the axis -(-1, +0) = (1, -0); so V is vx itself, +0 where vx is a zero (the speed is 0), and
         # the pass in order is not needed.
         in_range = True
-        for i in range(n):
-            v = vx[i]
-            a = abs(v)
-            in_range &= (a == 0.0) | ((a >= _SQUARE_LO) & (a <= _SQUARE_HI))
-            sp[i] = v if v != 0.0 else 0.0
+        if not every_row:
+            # V is vx bit for bit unless some vx is -0 (V is +0 there): then V is not written at all
+            neg_zero = False
+            for i in range(n):
+                v = vx[i]
+                a = abs(v)
+                in_range &= (a == 0.0) | ((a >= _SQUARE_LO) & (a <= _SQUARE_HI))
+                neg_zero |= (a == 0.0) & (math.copysign(1.0, v) < 0.0)
+            if in_range and not neg_zero:
+                v_is_vx = True
+        if not v_is_vx:
+            in_range = True
+            for i in range(n):
+                v = vx[i]
+                a = abs(v)
+                in_range &= (a == 0.0) | ((a >= _SQUARE_LO) & (a <= _SQUARE_HI))
+                sp[i] = v if v != 0.0 else 0.0
         if in_range:
             axis_pass = False
         else:
@@ -326,7 +342,7 @@ def _motion(t, x, y, grid, two_d, out, copies, every_row):
         fy = uy[1:]
         for i in range(n - 1):
             fy[i] = (0.5 * (y1[i] + y0[i]) - grid.y0) / grid.dy
-    return along_x
+    return along_x, v_is_vx
 
 
 #: Row of :func:`lookup_inputs`' block that each stored channel's slot fills (-1: none).
@@ -342,8 +358,11 @@ def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, s
     n = t.shape[0]
     two_d = grid.rows != 1
     ones = (1 << 4) | (1 << 5)
-    if _motion(t, x, y, grid, two_d, out, copies, every_row):
+    along_x, v_is_vx = _motion(t, x, y, grid, two_d, out, copies, every_row)
+    if along_x:
         ones |= 1 << 2
+    if v_is_vx:
+        ones |= 1
     # the four samples around each midpoint (scratch rows) and their weights (rows 4, 5 in place)
     fx = out[4]
     fy = out[5]
@@ -807,8 +826,10 @@ class Renderer:
         f, ss, t, x, y = block[k:k + 5]
         # one-element rows for the model and the skin stretch (they read the value once), read-only views of
         # the value on every tick for the result
-        rows = [ins[r, :1] if ones >> r & 1 and n > 0 else ins[r] for r in range(k)]
+        rows = [ins[r, :1] if ones >> r & 1 and r > 0 and n > 0 else ins[r] for r in range(k)]
         V, vx, vy, N, mus, muk, gain, lat_x, lat_y, target = rows
+        if ones & 1:                       # V is vx bit for bit (and was not written)
+            V = vx
         phase = np.empty(n, np.int8)
         et, ea = self._run_model(cp.t, V, N, mus, muk, gain, f, phase)
         if self._slot_channel[Slot.SKIN_STRETCH] >= 0:
