@@ -149,14 +149,16 @@ def test_delta_mu_zero_slips_once_then_slides(c):
 
 
 def test_exact_phase_cap_is_the_c_runtimes():
-    """The exact kernel cuts a tick at the cap the C runtime derives, PHASES_BASE + 4 h omega / pi (omega
-    damped, or natural when the pad is not under-damped), never above MAX_EVENTS_PER_TICK."""
+    """The exact and jump kernels cut a tick at the cap the C runtime derives, PHASES_BASE + 4 h omega / pi
+    (omega damped, or natural when the pad is not under-damped), never above MAX_EVENTS_PER_TICK; the
+    re-stick polish takes at most as many steps as the C runtime's."""
     import re
     from pathlib import Path
     from shapedisplay.runtime import pads
     h_src = (Path(pads.__file__).parent.parent / "runtime_c" / "sd_runtime.h").read_text()
     assert int(re.search(r"#define SD_PHASES_BASE (\d+)", h_src).group(1)) == pads.PHASES_BASE
     assert int(re.search(r"#define SD_MAX_EVENTS_PER_TICK (\d+)L", h_src).group(1)) == pads.MAX_EVENTS_PER_TICK
+    assert int(re.search(r"#define SD_POLISH_MAX (\d+)", h_src).group(1)) == pads.POLISH_MAX
     w = math.sqrt(2000.0 / 1e-6)
     assert pads.phase_cap(1e-6, 0.0, 2000.0, 1e-4) == 32 + int(1e-4 * 4 * w / math.pi)     # c = 0
     wd = math.sqrt(2000.0 / 1e-6 - (0.5 * 0.01 / 1e-6) ** 2)

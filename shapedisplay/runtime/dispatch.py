@@ -26,7 +26,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "fdeab6cce4fab004daedc689568d1020189f59ab46cbe73f34a8c5a2e973051f"
+KERNEL_SOURCES_SHA256 = "8416a93f4d60e054a4b875a9008aca4ed7d83d0282e527eeed1daa6cfe1b4862"
 
 
 @njit(cache=True)

@@ -67,6 +67,9 @@ MAX_EVENTS_PER_TICK = 200_000
 #: The exact model's cap on phase changes in a tick of length h: PHASES_BASE + h * 4 omega / pi
 #: (:func:`phase_cap`; the C runtime's SD_PHASES_BASE).
 PHASES_BASE = 32
+#: Newton/bisection steps of the exact model's re-stick polish (:func:`_polish`; the C runtime's
+#: SD_POLISH_MAX; measured at most 46 in double)
+POLISH_MAX = 64
 _ADMIT = 1.0 - 1e-9      # re-stick admissible if |f| <= _ADMIT * mu_s N
 _ADMIT_TOUCH = 1.0 - 1e-6  # stricter for tangent touches (grazing at the limit is not a re-stick)
 
@@ -290,7 +293,7 @@ def _polish(m, c, k, y0, v0, V, s, lo, hi, wlo, whi):
     if not (lo < t < hi):
         t = 0.5 * (lo + hi)
     wn2 = k / m
-    for _ in range(200):
+    for _ in range(POLISH_MAX):
         y, v = osc(m, c, k, y0, v0, t)
         wt = -s * (v - V)
         if wt == 0.0:
@@ -1034,9 +1037,10 @@ def jump_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
     t = 0.0
     nev0 = n_ev
     it = 0
+    it_cap = phase_cap(m, c, k, h)
     while t < h:
         it += 1
-        if it > MAX_EVENTS_PER_TICK:
+        if it > it_cap:
             st.truncated += 1
             break
         rem = h - t

@@ -94,7 +94,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "ae9c53663ffe3913bd4a803f38f586be86ce7e2a76569069ec0c85cec5f31c49"
+KERNEL_SOURCES_SHA256 = "5d8c518ff8e7f56d2c47a732e48aec1c4838928ab10590ad47b09d4e09d44222"
 
 
 @njit(cache=True, inline="always")
