@@ -26,7 +26,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "8416a93f4d60e054a4b875a9008aca4ed7d83d0282e527eeed1daa6cfe1b4862"
+KERNEL_SOURCES_SHA256 = "e78bddba1ad238529e1dfd55ae8ba84cb1e26560009688e5120b4fe5af3930fc"
 
 
 @njit(cache=True)

@@ -1611,12 +1611,18 @@ def _cos_sin(x):
 
 @njit(cache=True, inline="always")
 def _expm1_minus_x(x):
-    """``e^x - 1 - x``: its series below |x| = 0.25 (error below 1e-16 of the value; quicker than expm1), else expm1."""
+    """``e^x - 1 - x``: its series below |x| = 0.25 (error below 1e-16 of the value; quicker than expm1), else
+    through exp (the cancellation costs at most 4e-15 of the value there)."""
     if abs(x) < 0.25:
-        return x * x * (0.5 + x * (1.0 / 6 + x * (1.0 / 24 + x * (1.0 / 120 + x * (1.0 / 720 + x * (
-            1.0 / 5040 + x * (1.0 / 40320 + x * (1.0 / 362880 + x * (1.0 / 3628800 + x * (1.0 / 39916800 + x * (
-                1.0 / 479001600)))))))))))
-    return math.expm1(x) - x
+        # the series' eleven terms in Estrin's grouping: a short chain of dependent operations
+        x2 = x * x
+        x4 = x2 * x2
+        x8 = x4 * x4
+        lo = (0.5 + x * (1.0 / 6)) + x2 * (1.0 / 24 + x * (1.0 / 120))
+        mid = (1.0 / 720 + x * (1.0 / 5040)) + x2 * (1.0 / 40320 + x * (1.0 / 362880))
+        hi = (1.0 / 3628800 + x * (1.0 / 39916800)) + x2 * (1.0 / 479001600)
+        return x2 * ((lo + x4 * mid) + x8 * hi)
+    return (math.exp(x) - 1.0) - x
 
 
 @njit(cache=True, inline="always")
@@ -1643,7 +1649,11 @@ def _lin_propagator(m, ce, k, h):
         if x > 0.5:
             d = (math.exp(r1 * h) - e2) / (r1 - r2)    # no cancellation to speak of; exp is quicker than expm1
         else:
-            d = e2 * h * (math.expm1(x) / x if x > 1e-300 else 1.0)
+            if x < 0.05:
+                d = e2 * h * (1.0 + x * (0.5 + x * (1.0 / 6 + x * (1.0 / 24 + x * (1.0 / 120 + x * (
+                    1.0 / 720 + x * (1.0 / 5040 + x * (1.0 / 40320 + x * (1.0 / 362880)))))))))
+            else:
+                d = e2 * h * ((math.exp(x) - 1.0) / x)
         return e2 - r2 * d, d, -wn2 * d, e2 + r1 * d
     wd = math.sqrt(-disc)
     e = math.exp(-sig * h)
@@ -1671,14 +1681,15 @@ def _poly_basis(m, ce, k, wn, h, lng, r11, r12, r21, r22):
         ik = 1.0 / k
         hm = 0.5 * h
         # s^2: g2 tau^2 + g1 tau + g0
-        g2 = ik / (h * h)
+        ih = 1.0 / h
+        g2 = ik * ih * ih
         g1 = -2.0 * ce * g2 * ik
         g0 = -(ce * g1 + 2.0 * m * g2) * ik
         u2 = (g2 * h + g1) * h + g0 - p11 * g0 - p12 * g1
         z2 = 2.0 * g2 * h + g1 - p21 * g0 - p22 * g1
         zm2 = 2.0 * g2 * hm + g1 - r21 * g0 - r22 * g1
         # s^3: f3 tau^3 + f2 tau^2 + f1 tau + f0
-        f3 = ik / (h * h * h)
+        f3 = g2 * ih
         f2 = -3.0 * ce * f3 * ik
         f1 = -(2.0 * ce * f2 + 6.0 * m * f3) * ik
         f0 = -(ce * f1 + 2.0 * m * f2) * ik
@@ -1764,6 +1775,11 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
     hmin = 1e-6 * math.sqrt(m / k)
     usc0 = mus * W / k
     zsc0 = abs(V) + A * om + mus * W / math.sqrt(k * m)
+    # time scale of the stick-slip cycle: the time the drive takes to stretch the pad to breakaway (none without
+    # a drive). Where z changes fast (a breakaway, the collapse to re-stick) an error in z is a shift in time
+    # along the path (the fast mode damps it out or the landing on zero takes it as one), weighed against it.
+    vd = abs(V) + A * om
+    tsc = usc0 / vd if vd > 0.0 else 0.0
     h = min(te - t, prm.substep)
     h_want = h            # the step the error control asks for (h is it cut to the tick's end or a cap)
     if h0 > 0.0:
@@ -1896,8 +1912,13 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
         # the error estimate: the Picard pass's change plus the cubic fit's change to a quadratic through the end
         duq = R1 * u2
         dzq = R1 * z2
-        err = max((abs(du - duq) + abs(du - du1)) / (usc0 + abs(u)),
-                  (abs(dz - dzq) + abs(dz - dz1)) / (zsc0 + abs(z)))
+        # (u against its scale; z against its scale plus the change of the relative speed over tsc at the step's
+        # mean rate: a time shift of tol * tsc)
+        eu = (abs(du - duq) + abs(du - du1)) / (usc0 + abs(u))
+        ez = (abs(dz - dzq) + abs(dz - dz1)) / (zsc0 + abs(z) + abs(vr1 - vr0) * (tsc / h))
+        err = eu if eu > ez else ez
+        if not (eu <= err and ez <= err):
+            err = math.inf     # not a number in either: shorten
         err *= EXP_ERR_WEIGHT
         if not (err <= tol):
             # too long (or overflowed): shorten by the fourth-order rule

@@ -94,7 +94,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "5d8c518ff8e7f56d2c47a732e48aec1c4838928ab10590ad47b09d4e09d44222"
+KERNEL_SOURCES_SHA256 = "cb8d09f191089d77ae190f7a0fa48ff91363426b4e8db59cfe5792d148092b29"
 
 
 @njit(cache=True, inline="always")
