@@ -26,7 +26,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "e78bddba1ad238529e1dfd55ae8ba84cb1e26560009688e5120b4fe5af3930fc"
+KERNEL_SOURCES_SHA256 = "86dd3fb657552b77d05bfbc209c8dd8763cd33dfa7c2a644c9629a0808ad2934"
 
 
 @njit(cache=True)

@@ -262,7 +262,7 @@ class StribeckModel(PadModel):
         Plain curve: the local error allowed per slip step, relative to the
         pad's scales (default :data:`STRIBECK_TOLERANCE`, 1e-13, or the
         profile's ``[stribeck] tolerance``; from 1e-14 to 1e-3). Tolerances
-        from 1e-9 up run the slip by exponential Rosenbrock steps (the pad's
+        from 3e-9 up run the slip by exponential Rosenbrock steps (the pad's
         fast modes in closed form, steps as long as the accuracy allows),
         tighter ones by Taylor steps of adaptive order.
     substep_s : float, optional

@@ -94,7 +94,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "cb8d09f191089d77ae190f7a0fa48ff91363426b4e8db59cfe5792d148092b29"
+KERNEL_SOURCES_SHA256 = "eae7b4b2c8fcc956dd43ed18437a89eb65fb0f65ccb0da113b93084ac4707328"
 
 
 @njit(cache=True, inline="always")
