@@ -78,7 +78,7 @@ from .layouts import BURST_POLICIES, BURST_STATE, Policy, record
 from .settings import MAX_AUDIO_SAMPLES, audio_length, policy_id  # noqa: F401 (their home is .settings)
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to layouts.py (Policy).
-KERNEL_SOURCES_SHA256 = "c8ebcb58a7f4cc675552cd886ab2eaec54b674a78504a29a46ab5818b6c22919"
+KERNEL_SOURCES_SHA256 = "7870acd0d95b0065277f72ba0c1317b8f41db8406008b554b57190f7ae5a98c1"
 #: Carrier re-anchored with sin/cos every this many samples (rotation in between).
 CARRIER_BLOCK = 64
 

@@ -34,16 +34,17 @@ C_DIR = HERE.parent / "runtime_c"
 
 #: Runtime modules whose cached kernels use other files, and those files (in generation order).
 KERNEL_DEPENDENCIES = {
-    "dispatch.py": ("pads.py", "layouts.py"),
-    "bursts.py": ("layouts.py", "exactdiv.py"),
-    "renderer.py": ("dispatch.py", "lookup.py", "bursts.py", "layouts.py", "exactdiv.py"),
+    "dispatch.py": ("pads.py", "layouts.py", "borrow.py"),
+    "bursts.py": ("layouts.py", "exactdiv.py", "borrow.py"),
+    "renderer.py": ("dispatch.py", "lookup.py", "bursts.py", "layouts.py", "exactdiv.py", "borrow.py"),
 }
 _HASH_LINE = re.compile(r'^KERNEL_SOURCES_SHA256 = "[0-9a-f]*"$', re.M)
 _OUTS = ("out_f, out_state, out_x, out_v, out_wf, out_wd")
 _RENDER_OUTS = "out_f, out_phase"
 _ARGS = "prm, t[i - 1], {h}, {V}, N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev"
 # render_ticks: mus, muk and gain may hold one value for every tick (shape (1,)): index i & 0 = 0
-_RENDER_ARGS = "prm, t[i - 1], {h}, {V}, N[i], mus[i & ms], muk[i & mk], gain[i & mg], ev_t, ev_a, n_ev"
+_RENDER_ARGS = ("prm, t[i - 1], {h}, {V}, N[i], mus[unsigned(i) & ms], muk[unsigned(i) & mk], "
+                "gain[unsigned(i) & mg], ev_t, ev_a, n_ev")
 
 
 def _kernel_call(kernel: str, prepared, args: str, render: bool) -> tuple[str, str]:
@@ -59,8 +60,8 @@ def _kernel_call(kernel: str, prepared, args: str, render: bool) -> tuple[str, s
 def _stick_fast_branch(mid: int, kernel: str, with_work: bool, render: bool = False, prepared=None) -> str:
     """One model's branch of ``run_ticks`` (``render``: of ``render_ticks``, which stores friction and phase only)."""
     if render:
-        stores = ("out_f[i] = fe\n"
-                  "                    out_phase[i] = 0")
+        stores = ("out_f[u] = fe\n"
+                  "                    out_phase[u] = 0")
         keep = "xa = x\n                    " if with_work else ""
         last_work = ("            Vi = V[n - 1]\n"
                      "            h = t[n - 1] - t[n - 2]\n"
@@ -71,23 +72,23 @@ def _stick_fast_branch(mid: int, kernel: str, with_work: bool, render: bool = Fa
              "            st.work_damping = 0.0\n")
         outs, store = _RENDER_OUTS, "_store_render"
         start = "xa = x\n        " if with_work else ""
-        args, mus_i = _RENDER_ARGS, "mus[i & ms]"
+        args, mus_u = _RENDER_ARGS, "mus[u & ms]"
     else:
-        work = ("out_wf[i] = fa * Vi * h + 0.5 * k * Vi * Vi * h * h\n"
-                "                    out_wd[i] = c * Vi * Vi * h") if with_work else \
-            ("out_wf[i] = 0.0\n"
-             "                    out_wd[i] = 0.0")
-        stores = ("out_f[i] = fe\n"
-                  "                    out_state[i] = 0.0\n"
-                  "                    out_x[i] = xe\n"
-                  "                    out_v[i] = Vi\n"
+        work = ("out_wf[u] = fa * Vi * h + 0.5 * k * Vi * Vi * h * h\n"
+                "                    out_wd[u] = c * Vi * Vi * h") if with_work else \
+            ("out_wf[u] = 0.0\n"
+             "                    out_wd[u] = 0.0")
+        stores = ("out_f[u] = fe\n"
+                  "                    out_state[u] = 0.0\n"
+                  "                    out_x[u] = xe\n"
+                  "                    out_v[u] = Vi\n"
                   f"                    {work}")
         keep = ""
         last_work = ("            st.work_friction = out_wf[n - 1]\n"
                      "            st.work_damping = out_wd[n - 1]\n")
         outs, store = _OUTS, "_store"
         start = ""
-        args, mus_i = _ARGS, "mus[i]"
+        args, mus_u = _ARGS, "mus[u]"
     before, call = _kernel_call(kernel, prepared, args.format(h="h", V="Vi"), render)
     return f'''    if model == {mid}:
         # Stuck ticks (the common case) run inline with the stretch in a register; the
@@ -99,19 +100,28 @@ def _stick_fast_branch(mid: int, kernel: str, with_work: bool, render: bool = Fa
         {before}x = st.x
         {start}phase = st.phase
         synced = True
-        for i in range(1, n):
-            Vi = V[i]
-            h = t[i] - t[i - 1]
+        i = 1
+        while i < n:
             if fast_ok and phase == 0.0:
-                xe = x + Vi * h
-                fa = k * x + c * Vi
-                fe = k * xe + c * Vi
-                thr = {mus_i} * N[i]
-                if abs(fa) < thr and abs(fe) < thr:
+                # a run of stuck ticks, in a loop of its own (its values stay in registers)
+                while i < n:
+                    u = unsigned(i)
+                    Vi = V[u]
+                    h = t[u] - t[unsigned(i - 1)]
+                    xe = x + Vi * h
+                    fa = k * x + c * Vi
+                    fe = k * xe + c * Vi
+                    thr = {mus_u} * N[u]
+                    if not (abs(fa) < thr and abs(fe) < thr):
+                        break
                     {keep}x = xe
                     {stores}
                     synced = False
-                    continue
+                    i += 1
+                if i == n:
+                    break
+            Vi = V[i]
+            h = t[i] - t[i - 1]
             if not synced:
                 st.x = x
             n_ev = {call}
@@ -119,6 +129,7 @@ def _stick_fast_branch(mid: int, kernel: str, with_work: bool, render: bool = Fa
             x = st.x
             phase = st.phase
             synced = True
+            i += 1
         if not synced:
             st.x = x
             st.v = V[n - 1]
@@ -148,6 +159,9 @@ def {name}(model, state, params, t, V, N, mus, muk, gain, {outs},
 {" " * (len(name) + 5)}ev_t, ev_a):
 {doc}    st = state[0]
     prm = params[0]
+    # the event rows as the kernels take them: without a reference count to change at every call
+    ev_t = borrowed(ev_t)
+    ev_a = borrowed(ev_a)
     n = t.shape[0]
     n_ev = 0
     if n == 0:
@@ -181,9 +195,9 @@ _RENDER_TICKS_DOC = '''    """:func:`run_ticks` for the offline render, which ke
     """
 '''
 
-_RENDER_MASKS = """    ms = -1 if mus.shape[0] == n else 0
-    mk = -1 if muk.shape[0] == n else 0
-    mg = -1 if gain.shape[0] == n else 0
+_RENDER_MASKS = """    ms = unsigned(-1 if mus.shape[0] == n else 0)
+    mk = unsigned(-1 if muk.shape[0] == n else 0)
+    mg = unsigned(-1 if gain.shape[0] == n else 0)
 """
 
 
@@ -214,6 +228,7 @@ import numpy as np
 from numba import njit
 
 from . import pads
+from .borrow import borrowed, unsigned
 from .layouts import PAD_PARAMS, PAD_STATE
 
 #: (model name, kernel in pads, stick fast path, prepared kernel) per model id; models.check_dispatch checks it

@@ -11,6 +11,7 @@ import numpy as np
 from numba import njit
 
 from . import pads
+from .borrow import borrowed, unsigned
 from .layouts import PAD_PARAMS, PAD_STATE
 
 #: (model name, kernel in pads, stick fast path, prepared kernel) per model id; models.check_dispatch checks it
@@ -26,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "86dd3fb657552b77d05bfbc209c8dd8763cd33dfa7c2a644c9629a0808ad2934"
+KERNEL_SOURCES_SHA256 = "8612d39ad67cdc9d09dc41fb48d5b068b1bf37dba474afa9fa7c633b9ff78f5d"
 
 
 @njit(cache=True)
@@ -76,6 +77,9 @@ def run_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_state, o
     """
     st = state[0]
     prm = params[0]
+    # the event rows as the kernels take them: without a reference count to change at every call
+    ev_t = borrowed(ev_t)
+    ev_a = borrowed(ev_a)
     n = t.shape[0]
     n_ev = 0
     if n == 0:
@@ -94,24 +98,33 @@ def run_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_state, o
         x = st.x
         phase = st.phase
         synced = True
-        for i in range(1, n):
+        i = 1
+        while i < n:
+            if fast_ok and phase == 0.0:
+                # a run of stuck ticks, in a loop of its own (its values stay in registers)
+                while i < n:
+                    u = unsigned(i)
+                    Vi = V[u]
+                    h = t[u] - t[unsigned(i - 1)]
+                    xe = x + Vi * h
+                    fa = k * x + c * Vi
+                    fe = k * xe + c * Vi
+                    thr = mus[u] * N[u]
+                    if not (abs(fa) < thr and abs(fe) < thr):
+                        break
+                    x = xe
+                    out_f[u] = fe
+                    out_state[u] = 0.0
+                    out_x[u] = xe
+                    out_v[u] = Vi
+                    out_wf[u] = fa * Vi * h + 0.5 * k * Vi * Vi * h * h
+                    out_wd[u] = c * Vi * Vi * h
+                    synced = False
+                    i += 1
+                if i == n:
+                    break
             Vi = V[i]
             h = t[i] - t[i - 1]
-            if fast_ok and phase == 0.0:
-                xe = x + Vi * h
-                fa = k * x + c * Vi
-                fe = k * xe + c * Vi
-                thr = mus[i] * N[i]
-                if abs(fa) < thr and abs(fe) < thr:
-                    x = xe
-                    out_f[i] = fe
-                    out_state[i] = 0.0
-                    out_x[i] = xe
-                    out_v[i] = Vi
-                    out_wf[i] = fa * Vi * h + 0.5 * k * Vi * Vi * h * h
-                    out_wd[i] = c * Vi * Vi * h
-                    synced = False
-                    continue
             if not synced:
                 st.x = x
             n_ev = pads.exact_tick_prepared(st, prm, t[i - 1], h, Vi, N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev, pc, True)
@@ -119,6 +132,7 @@ def run_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_state, o
             x = st.x
             phase = st.phase
             synced = True
+            i += 1
         if not synced:
             st.x = x
             st.v = V[n - 1]
@@ -137,24 +151,33 @@ def run_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_state, o
         x = st.x
         phase = st.phase
         synced = True
-        for i in range(1, n):
+        i = 1
+        while i < n:
+            if fast_ok and phase == 0.0:
+                # a run of stuck ticks, in a loop of its own (its values stay in registers)
+                while i < n:
+                    u = unsigned(i)
+                    Vi = V[u]
+                    h = t[u] - t[unsigned(i - 1)]
+                    xe = x + Vi * h
+                    fa = k * x + c * Vi
+                    fe = k * xe + c * Vi
+                    thr = mus[u] * N[u]
+                    if not (abs(fa) < thr and abs(fe) < thr):
+                        break
+                    x = xe
+                    out_f[u] = fe
+                    out_state[u] = 0.0
+                    out_x[u] = xe
+                    out_v[u] = Vi
+                    out_wf[u] = 0.0
+                    out_wd[u] = 0.0
+                    synced = False
+                    i += 1
+                if i == n:
+                    break
             Vi = V[i]
             h = t[i] - t[i - 1]
-            if fast_ok and phase == 0.0:
-                xe = x + Vi * h
-                fa = k * x + c * Vi
-                fe = k * xe + c * Vi
-                thr = mus[i] * N[i]
-                if abs(fa) < thr and abs(fe) < thr:
-                    x = xe
-                    out_f[i] = fe
-                    out_state[i] = 0.0
-                    out_x[i] = xe
-                    out_v[i] = Vi
-                    out_wf[i] = 0.0
-                    out_wd[i] = 0.0
-                    synced = False
-                    continue
             if not synced:
                 st.x = x
             n_ev = pads.jump_tick(st, prm, t[i - 1], h, Vi, N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev)
@@ -162,6 +185,7 @@ def run_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_state, o
             x = st.x
             phase = st.phase
             synced = True
+            i += 1
         if not synced:
             st.x = x
             st.v = V[n - 1]
@@ -263,6 +287,9 @@ def render_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_phase
     """
     st = state[0]
     prm = params[0]
+    # the event rows as the kernels take them: without a reference count to change at every call
+    ev_t = borrowed(ev_t)
+    ev_a = borrowed(ev_a)
     n = t.shape[0]
     n_ev = 0
     if n == 0:
@@ -270,9 +297,9 @@ def render_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_phase
     st.work_friction = 0.0
     st.work_damping = 0.0
     _store_render(st, 0, out_f, out_phase)
-    ms = -1 if mus.shape[0] == n else 0
-    mk = -1 if muk.shape[0] == n else 0
-    mg = -1 if gain.shape[0] == n else 0
+    ms = unsigned(-1 if mus.shape[0] == n else 0)
+    mk = unsigned(-1 if muk.shape[0] == n else 0)
+    mg = unsigned(-1 if gain.shape[0] == n else 0)
     if model == 0:
         # Stuck ticks (the common case) run inline with the stretch in a register; the
         # kernel runs when a breakaway may happen or the pad slips. Same arithmetic as
@@ -285,28 +312,38 @@ def render_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_phase
         xa = x
         phase = st.phase
         synced = True
-        for i in range(1, n):
-            Vi = V[i]
-            h = t[i] - t[i - 1]
+        i = 1
+        while i < n:
             if fast_ok and phase == 0.0:
-                xe = x + Vi * h
-                fa = k * x + c * Vi
-                fe = k * xe + c * Vi
-                thr = mus[i & ms] * N[i]
-                if abs(fa) < thr and abs(fe) < thr:
+                # a run of stuck ticks, in a loop of its own (its values stay in registers)
+                while i < n:
+                    u = unsigned(i)
+                    Vi = V[u]
+                    h = t[u] - t[unsigned(i - 1)]
+                    xe = x + Vi * h
+                    fa = k * x + c * Vi
+                    fe = k * xe + c * Vi
+                    thr = mus[u & ms] * N[u]
+                    if not (abs(fa) < thr and abs(fe) < thr):
+                        break
                     xa = x
                     x = xe
-                    out_f[i] = fe
-                    out_phase[i] = 0
+                    out_f[u] = fe
+                    out_phase[u] = 0
                     synced = False
-                    continue
+                    i += 1
+                if i == n:
+                    break
+            Vi = V[i]
+            h = t[i] - t[i - 1]
             if not synced:
                 st.x = x
-            n_ev = pads.exact_tick_prepared(st, prm, t[i - 1], h, Vi, N[i], mus[i & ms], muk[i & mk], gain[i & mg], ev_t, ev_a, n_ev, pc, i == n - 1)
+            n_ev = pads.exact_tick_prepared(st, prm, t[i - 1], h, Vi, N[i], mus[unsigned(i) & ms], muk[unsigned(i) & mk], gain[unsigned(i) & mg], ev_t, ev_a, n_ev, pc, i == n - 1)
             _store_render(st, i, out_f, out_phase)
             x = st.x
             phase = st.phase
             synced = True
+            i += 1
         if not synced:
             st.x = x
             st.v = V[n - 1]
@@ -328,27 +365,37 @@ def render_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_phase
         x = st.x
         phase = st.phase
         synced = True
-        for i in range(1, n):
+        i = 1
+        while i < n:
+            if fast_ok and phase == 0.0:
+                # a run of stuck ticks, in a loop of its own (its values stay in registers)
+                while i < n:
+                    u = unsigned(i)
+                    Vi = V[u]
+                    h = t[u] - t[unsigned(i - 1)]
+                    xe = x + Vi * h
+                    fa = k * x + c * Vi
+                    fe = k * xe + c * Vi
+                    thr = mus[u & ms] * N[u]
+                    if not (abs(fa) < thr and abs(fe) < thr):
+                        break
+                    x = xe
+                    out_f[u] = fe
+                    out_phase[u] = 0
+                    synced = False
+                    i += 1
+                if i == n:
+                    break
             Vi = V[i]
             h = t[i] - t[i - 1]
-            if fast_ok and phase == 0.0:
-                xe = x + Vi * h
-                fa = k * x + c * Vi
-                fe = k * xe + c * Vi
-                thr = mus[i & ms] * N[i]
-                if abs(fa) < thr and abs(fe) < thr:
-                    x = xe
-                    out_f[i] = fe
-                    out_phase[i] = 0
-                    synced = False
-                    continue
             if not synced:
                 st.x = x
-            n_ev = pads.jump_tick(st, prm, t[i - 1], h, Vi, N[i], mus[i & ms], muk[i & mk], gain[i & mg], ev_t, ev_a, n_ev)
+            n_ev = pads.jump_tick(st, prm, t[i - 1], h, Vi, N[i], mus[unsigned(i) & ms], muk[unsigned(i) & mk], gain[unsigned(i) & mg], ev_t, ev_a, n_ev)
             _store_render(st, i, out_f, out_phase)
             x = st.x
             phase = st.phase
             synced = True
+            i += 1
         if not synced:
             st.x = x
             st.v = V[n - 1]
@@ -359,27 +406,27 @@ def render_ticks(model, state, params, t, V, N, mus, muk, gain, out_f, out_phase
         return n_ev
     if model == 2:
         for i in range(1, n):
-            n_ev = pads.karnopp_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i & ms], muk[i & mk], gain[i & mg], ev_t, ev_a, n_ev)
+            n_ev = pads.karnopp_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[unsigned(i) & ms], muk[unsigned(i) & mk], gain[unsigned(i) & mg], ev_t, ev_a, n_ev)
             _store_render(st, i, out_f, out_phase)
         return n_ev
     if model == 3:
         for i in range(1, n):
-            n_ev = pads.stribeck_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i & ms], muk[i & mk], gain[i & mg], ev_t, ev_a, n_ev)
+            n_ev = pads.stribeck_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[unsigned(i) & ms], muk[unsigned(i) & mk], gain[unsigned(i) & mg], ev_t, ev_a, n_ev)
             _store_render(st, i, out_f, out_phase)
         return n_ev
     if model == 4:
         for i in range(1, n):
-            n_ev = pads.euler_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i & ms], muk[i & mk], gain[i & mg], ev_t, ev_a, n_ev)
+            n_ev = pads.euler_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[unsigned(i) & ms], muk[unsigned(i) & mk], gain[unsigned(i) & mg], ev_t, ev_a, n_ev)
             _store_render(st, i, out_f, out_phase)
         return n_ev
     if model == 5:
         for i in range(1, n):
-            n_ev = pads.rk4_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i & ms], muk[i & mk], gain[i & mg], ev_t, ev_a, n_ev)
+            n_ev = pads.rk4_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[unsigned(i) & ms], muk[unsigned(i) & mk], gain[unsigned(i) & mg], ev_t, ev_a, n_ev)
             _store_render(st, i, out_f, out_phase)
         return n_ev
     if model == 6:
         for i in range(1, n):
-            n_ev = pads.tanh_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i & ms], muk[i & mk], gain[i & mg], ev_t, ev_a, n_ev)
+            n_ev = pads.tanh_tick(st, prm, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[unsigned(i) & ms], muk[unsigned(i) & mk], gain[unsigned(i) & mg], ev_t, ev_a, n_ev)
             _store_render(st, i, out_f, out_phase)
         return n_ev
     return n_ev

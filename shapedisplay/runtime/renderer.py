@@ -94,7 +94,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "eae7b4b2c8fcc956dd43ed18437a89eb65fb0f65ccb0da113b93084ac4707328"
+KERNEL_SOURCES_SHA256 = "462027783af66d4cca7c678c4f8456a4587022ad9927d6b864c64019a2e280f0"
 
 
 @njit(cache=True, inline="always")
