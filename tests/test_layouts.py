@@ -137,7 +137,7 @@ def test_a_new_registry_line_gets_its_own_branches():
     src = codegen.dispatch_source(prep)
     assert src.count("pc = pads.mine_constants(prm)\n") == 2                   # run_ticks, render_ticks
     assert src.count("st, prm, t[i - 1], h, Vi, N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev, pc, True)") == 2  # exact's, mine's
-    assert src.count("gain[i & mg], ev_t, ev_a, n_ev, pc, i == n - 1)") == 2            # exact's, mine's
+    assert src.count("gain[unsigned(i) & mg], ev_t, ev_a, n_ev, pc, i == n - 1)") == 2   # exact's, mine's
     assert src.count("pads.mine_tick(") == 1
 
 

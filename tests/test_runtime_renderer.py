@@ -320,8 +320,8 @@ def test_renderer_source_names_the_kernels_it_compiles_in():
     """online_step is cached by numba keyed on renderer.py alone; renderer.py must change with its kernels.
 
     Every module whose cached kernels call into other files carries the sha256 of those files
-    (written by `make generate`); pads.py reaches online_step through dispatch.py, and dispatch.py views
-    float64 arguments as the layouts of layouts.py.
+    (written by `make generate`); pads.py reaches online_step through dispatch.py, dispatch.py views
+    float64 arguments as the layouts of layouts.py, and its tick loops take arrays through borrow.py.
     """
     import hashlib
     import importlib
@@ -330,7 +330,7 @@ def test_renderer_source_names_the_kernels_it_compiles_in():
     from shapedisplay.runtime import codegen, renderer
     here = Path(renderer.__file__).parent
     assert set(codegen.KERNEL_DEPENDENCIES["renderer.py"]) >= {"dispatch.py", "lookup.py", "bursts.py"}
-    assert codegen.KERNEL_DEPENDENCIES["dispatch.py"] == ("pads.py", "layouts.py")
+    assert codegen.KERNEL_DEPENDENCIES["dispatch.py"] == ("pads.py", "layouts.py", "borrow.py")
     for name, deps in codegen.KERNEL_DEPENDENCIES.items():
         mod = importlib.import_module(f"shapedisplay.runtime.{name[:-3]}")
         blob = b"".join((here / n).read_bytes() for n in deps)

@@ -73,6 +73,7 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
+from .borrow import borrowed
 from .exactdiv import div_fixed, divisor_ok, span_ok
 from .layouts import BURST_POLICIES, BURST_STATE, Policy, record
 from .settings import MAX_AUDIO_SAMPLES, audio_length, policy_id  # noqa: F401 (their home is .settings)
@@ -448,6 +449,9 @@ def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy,
     """
     # the divisions by the rise and decay are multiply-adds with the same bits (.exactdiv) where its
     # conditions hold: on the divisors here, on each piece's dividends (monotone along it) at its two ends
+    # the rows without their reference count: the views of them taken piece by piece change none
+    out = borrowed(out)
+    times = borrowed(times)
     yrise = 1.0 / rise
     ydecay = 1.0 / decay
     fast = divisor_ok(rate) and divisor_ok(rise) and divisor_ok(decay)
@@ -627,6 +631,8 @@ def _apply_carrier(BS, rate, carrier, n, out, known):
     here): a renderer keeps them from stream to stream, since they depend
     only on the carrier and the rate.
     """
+    out = borrowed(out)      # (views of it and of the anchors per group change no reference count)
+    known = borrowed(known)
     w = 2.0 * math.pi * carrier
     cd = BS.rc
     sd = BS.rs

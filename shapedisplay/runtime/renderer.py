@@ -94,7 +94,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "462027783af66d4cca7c678c4f8456a4587022ad9927d6b864c64019a2e280f0"
+KERNEL_SOURCES_SHA256 = "fbfa55b4ea3c88118f3fbccb7604c18e955ae79b4fe2cfdc44172168f4e1918c"
 
 
 @njit(cache=True, inline="always")
