@@ -58,6 +58,7 @@ from numba import njit
 
 from ..errors import InputError, ModelError
 from ..table import FrictionTable
+from .borrow import unsigned
 from .bursts import (CARRIER_BLOCK, carrier_anchors, carrier_at, envelope_at, finished_events, forget_events,
                      new_burst_state, render_bursts, sample_times, synth)
 from .cursor import MAX_POSITION_M, CursorPath
@@ -394,15 +395,16 @@ def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, s
             clamp = one == Slot.NORMAL_FORCE or one == Slot.BURST_GAIN
             d = data[slot_channel[one]]
             dst = out[row]
+            # (cells >= 0: indexed as unsigned, without the check for a negative index)
             if clamp:
                 for i in range(n):
                     c0, c1, tx = axis_cell_at(fx[i], cols)
-                    v = d[off + c0] * (1 - tx) + d[off + c1] * tx
+                    v = d[unsigned(off + c0)] * (1 - tx) + d[unsigned(off + c1)] * tx
                     dst[i] = 0.0 if v < 0.0 else v
             else:
                 for i in range(n):
                     c0, c1, tx = axis_cell_at(fx[i], cols)
-                    dst[i] = d[off + c0] * (1 - tx) + d[off + c1] * tx
+                    dst[i] = d[unsigned(off + c0)] * (1 - tx) + d[unsigned(off + c1)] * tx
         elif whole and not two_d:
             for i in range(n):
                 c0, c1, tx = axis_cell_at(fx[i], cols)
