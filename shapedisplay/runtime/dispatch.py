@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "8612d39ad67cdc9d09dc41fb48d5b068b1bf37dba474afa9fa7c633b9ff78f5d"
+KERNEL_SOURCES_SHA256 = "e53692c5ee03b373f88ed3b564ac6b375b92bfc8c2fa5f2cb5955789941e656c"
 
 
 @njit(cache=True)

@@ -95,7 +95,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "fbfa55b4ea3c88118f3fbccb7604c18e955ae79b4fe2cfdc44172168f4e1918c"
+KERNEL_SOURCES_SHA256 = "3ffd8e12cb6bdcb6ea6cb83d53c071250b26f40e9476bbe980db352f1c8e0f03"
 
 
 @njit(cache=True, inline="always")
