@@ -112,6 +112,31 @@ def test_exponential_steps_match_tight_radau_within_their_tolerance(hz, amp, v, 
         assert worst[1e-8] < worst[1e-7] < worst[1e-5] < worst[1e-4]
 
 
+def test_every_tolerance_the_report_tries_keeps_its_event_bound():
+    """The accuracy report's contactor stroke at each of its slip tolerances and tick rates: event times within 10
+    tolerances of the mean event interval of a tight Radau run (1e-9 s for the default Taylor steps), amplitudes
+    within 100 tolerances. The report compares each setting's cost with scipy's at equal error, so the bound
+    must hold for every setting it may pick, the loosest ones included."""
+    from shapedisplay.reports.accuracy import STRIBECK_TOLERANCES, build_cases
+    case = next(c for c in build_cases(False) if c.name == "stribeck_contactor")
+    p = case.params
+    hz, amp, v = case.contactor["hz"], case.contactor["amplitude_m"], float(case.V(0.0))
+    ref = stribeck_ivp("Radau", 1e-11, m=p["m"], k=p["k"], c=p["c"], mu_s=p["mu_s"], mu_k=p["mu_k"], a=p["a"],
+                       b=p["b"], W=1.0, V=v, amp=amp, omega=2 * math.pi * hz, t_end=case.duration)
+    assert ref.status == "ok" and ref.event_time.size >= 8
+    scale = float(np.mean(np.diff(ref.event_time)))
+    for tol in STRIBECK_TOLERANCES:
+        for rate in case.rates:
+            r = simulate_pad("stribeck", V=v, N=1.0, pad=IMAIZUMI_PAD, friction=IMAIZUMI_FRICTION, tick_rate=rate,
+                             duration=case.duration, contactor_hz=hz, contactor_amplitude_m=amp, tolerance=tol)
+            assert r.event_time.size == ref.event_time.size, (tol, rate)
+            err = float(np.max(np.abs(r.event_time - ref.event_time)))
+            # measured: 0.08-0.65 tolerances of the interval from 3e-9 to 4e-4 (100 Hz, 1 and 10 kHz)
+            bound = 1e-9 if tol is None else 10 * tol * scale
+            assert err <= bound, (tol, rate, err, bound)
+            assert np.allclose(r.event_amplitude, ref.event_amplitude, rtol=100 * (tol or 1e-9), atol=0), (tol, rate)
+
+
 @pytest.mark.parametrize("tol", [None, 1e-6, 1e-3])
 def test_linear_curve_matches_its_closed_form(tol):
     """Exact for every tolerance: an exponential step solves the linear curve's slip in closed form."""
