@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "e53692c5ee03b373f88ed3b564ac6b375b92bfc8c2fa5f2cb5955789941e656c"
+KERNEL_SOURCES_SHA256 = "852418add402d41e7de11a0022a034639cf4c1fd41f638d255783e29e68819bd"
 
 
 @njit(cache=True)

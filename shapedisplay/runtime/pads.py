@@ -1664,8 +1664,38 @@ def _lin_propagator(m, ce, k, h):
     return e * cs + sig * d, d, -wn2 * d, e * cs - sig * d
 
 
+#: Terms of the responses' series in :func:`_poly_basis` at most (|ce| h / m and wn h are at most 6 there) and
+#: the reciprocals of n and n (n - 1) it takes
+_SERIES_TERMS = 64
+_INV_N = tuple([0.0] + [1.0 / n for n in range(1, _SERIES_TERMS)])
+_INV_NN = tuple([0.0, 0.0] + [1.0 / (n * (n - 1)) for n in range(2, _SERIES_TERMS)])
+
+
 @njit(cache=True, inline="always")
-def _poly_basis(m, ce, k, wn, h, lng, r11, r12, r21, r22):
+def _basis_in_closed_form(m, ce, wn, h, tol):
+    """Whether :func:`_poly_basis` takes a step of ``h`` in closed form (else by its series) at tolerance ``tol``.
+
+    The closed form's polynomial particular solutions cancel on a step short
+    against the pad's period: the response to ``s^3`` by about
+    ``120 (1 / w^4 + sg / w^6 + sg^3 / w^8)`` roundings (``w = wn h``,
+    ``sg = |ce| h / m``; the response to ``s^2`` by less). At a breakaway
+    (``|ce| / m`` about 3.5e5 1/s) a step of a few microseconds loses every
+    digit of it, and the step's error estimate then rejects steps for noise.
+    The series is taken there, unless it would need too many terms (``sg`` or
+    ``w`` above 6); the closed form where its cancellation stays below a
+    tenth of the tolerance.
+    """
+    sg = abs(ce) * h / m
+    w = wn * h
+    if sg > 6.0 or w > 6.0:
+        return True
+    w2 = w * w
+    w4 = w2 * w2
+    return 1.3e-13 * (w4 + sg * w2 + sg * sg * sg) < tol * (w4 * w4)
+
+
+@njit(cache=True, inline="always")
+def _poly_basis(m, ce, k, wn, h, lng, r11, r12, r21, r22, eps):
     """Responses from rest of ``m u'' + ce u' + k u = s^2`` and ``= s^3`` (``s = tau / h``) at ``h`` and ``h / 2``.
 
     Returns ``(u, u', u'_mid)`` of the first, then of the second (a
@@ -1673,7 +1703,9 @@ def _poly_basis(m, ce, k, wn, h, lng, r11, r12, r21, r22):
     ``lng``: the step is long against the pad's time scales: the polynomial
     particular solutions with the homogeneous part by the propagator
     (``r..`` over ``h / 2``, squared for ``h``); otherwise (the closed form
-    would cancel) the responses' Taylor series, ``a_n = u_n h^n``, in one loop.
+    would cancel, see :func:`_basis_in_closed_form`) the responses' Taylor
+    series, ``a_n = u_n h^n``, in one loop, to terms below ``eps`` of the
+    sum (a hundredth of the slip tolerance).
     """
     if lng:
         p11 = r11 * r11 + r12 * r21
@@ -1707,29 +1739,32 @@ def _poly_basis(m, ce, k, wn, h, lng, r11, r12, r21, r22):
     b1 = 0.0                      # a_4 of s^3
     u2 = a1
     z2 = 4.0 * a1
-    w = 1.0 / 16.0                # 2^-n
-    zm2 = 8.0 * a1 * w
+    w = 1.0 / 8.0                 # 2^(1-n)
+    zm2 = 4.0 * a1 * w
     u3 = 0.0
     z3 = 0.0
     zm3 = 0.0
-    for n in range(5, 40):
-        inv = 1.0 / (n * (n - 1))
-        a2 = -(sg * (n - 1) * a1 + wh * a0) * inv
-        b2 = -(sg * (n - 1) * b1 + wh * b0) * inv
+    fn = 4.0
+    for n in range(5, _SERIES_TERMS):
+        fn += 1.0
+        i1 = _INV_N[n]
+        i2 = _INV_NN[n]
+        a2 = -(sg * i1 * a1 + wh * i2 * a0)
+        b2 = -(sg * i1 * b1 + wh * i2 * b0)
         if n == 5:
             b2 += h * h / (20.0 * m)
         w *= 0.5
         u2 += a2
-        z2 += n * a2
-        zm2 += n * a2 * 2.0 * w
+        z2 += fn * a2
+        zm2 += fn * a2 * w
         u3 += b2
-        z3 += n * b2
-        zm3 += n * b2 * 2.0 * w
+        z3 += fn * b2
+        zm3 += fn * b2 * w
         a0 = a1
         a1 = a2
         b0 = b1
         b1 = b2
-        if abs(a2) * n <= 1e-17 * abs(z2) and abs(b2) * n <= 1e-17 * abs(z3):
+        if abs(a2) * fn <= eps * abs(z2) and abs(b2) * fn <= eps * abs(z3):
             break
     ih = 1.0 / h
     return u2, z2 * ih, zm2 * ih, u3, z3 * ih, zm3 * ih
@@ -1767,6 +1802,7 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
     om = prm.contactor_omega
     tol = prm.stribeck_tol
     tol4 = math.sqrt(math.sqrt(tol))   # fourth roots for the step rule (two square roots: a fraction of pow's cost)
+    eps_ser = max(1e-2 * tol, 1e-17)   # how far the responses' series runs
     dmu = mus - muk
     if not W > 0.0:
         b = 0.0           # a lifted finger: no friction at all (the viscous term included)
@@ -1890,12 +1926,12 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
         al2 = R1 - al3
         # its response from rest (at the end and the midpoint), then once more with the remainder taken along
         # the corrected path (a Picard pass: the remainder was taken along the linear solution)
-        lng = (abs(ce) / m + wn) * h > 0.25
+        lng = _basis_in_closed_form(m, ce, wn, h, tol)
         r11 = q11 * q11 + q12 * q21
         r12 = q11 * q12 + q12 * q22
         r21 = q21 * q11 + q22 * q21
         r22 = q21 * q12 + q22 * q22
-        u2, z2, zm2, u3, z3, zm3 = _poly_basis(m, ce, k, wn, h, lng, r11, r12, r21, r22)
+        u2, z2, zm2, u3, z3, zm3 = _poly_basis(m, ce, k, wn, h, lng, r11, r12, r21, r22, eps_ser)
         du = al2 * u2 + al3 * u3
         dz = al2 * z2 + al3 * z3
         dzm = al2 * zm2 + al3 * zm3

@@ -95,7 +95,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "3ffd8e12cb6bdcb6ea6cb83d53c071250b26f40e9476bbe980db352f1c8e0f03"
+KERNEL_SOURCES_SHA256 = "1f9442907a9065fd827cddfc8efc39207e7cb1c88b231d061947004a9f3f6a3b"
 
 
 @njit(cache=True, inline="always")
