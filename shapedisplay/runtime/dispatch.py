@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "852418add402d41e7de11a0022a034639cf4c1fd41f638d255783e29e68819bd"
+KERNEL_SOURCES_SHA256 = "4cba4aacc98f8824de8d5e67ac2ac940a6dc076543dc1b348d76c1f2aa801205"
 
 
 @njit(cache=True)

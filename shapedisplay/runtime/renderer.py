@@ -95,7 +95,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "1f9442907a9065fd827cddfc8efc39207e7cb1c88b231d061947004a9f3f6a3b"
+KERNEL_SOURCES_SHA256 = "7d57de49bf3edf3d80548bbac18044a5f4f4e80035f907593df02f84b7aadfe8"
 
 
 @njit(cache=True, inline="always")
