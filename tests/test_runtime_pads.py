@@ -589,6 +589,10 @@ def test_konyo_slips_take_the_fast_paths(monkeypatch):
                 yb *= 1.001
                 cases.append(("continued", (m, c, k, yb, vb, V, s, 2.0 * tp), (m, c, k, yb, vb, V, s, 2.0 * tp, 0.0)))
     expected = [walk(*w) for _, _, w in cases]
+    # the fast paths' compiled helpers are built (typed against the real walk) before the walk is replaced
+    for kind in ("fresh", "continued"):
+        fn = pads.fresh_slip_search if kind == "fresh" else pads.continued_slip_search
+        fn.py_func(*next(a for k_, a, _ in cases if k_ == kind))
 
     def no_walk(*args):
         raise AssertionError("fell back to the bracket walk")
