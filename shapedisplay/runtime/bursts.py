@@ -51,7 +51,7 @@ on ``j``, so a stream synthesised in one call (offline) or tick by tick
 The offline stream (:func:`synth_stream`) computes the same samples in two
 passes: the envelope piece by piece (between two transitions the envelope
 is one expression of the sample time, for every policy), then the carrier,
-sixteen blocks side by side, two to a vector register. Both are loops
+sixteen blocks side by side, four to a vector register. Both are loops
 without branches that the compiler vectorises. They are compiled with numpy's error model: their
 divisors (the sample rate, ``rise``, ``decay``) are positive by the
 settings' rules, so only numba's ZeroDivisionError checks go; the
@@ -530,22 +530,24 @@ def _clip1(v):
     return v, 0
 
 
-#: Carrier blocks rotated side by side by :func:`_apply_carrier` (two per 4-wide vector).
+#: Carrier blocks rotated side by side by :func:`_apply_carrier` (four per 4-wide vector, a multiple of 4).
 CARRIER_GROUP = 16
 
 
 @intrinsic
 def _rotate_blocks(typingctx, anchors, cd, sd, car, blk):
     """``car[b * blk + k]`` = the sine of carrier block ``b`` after ``k`` rotations, ``k < blk``, for the
-    :data:`CARRIER_GROUP` blocks whose anchors are ``anchors = (cos_0, sin_0, cos_1, sin_1, ...)``.
+    :data:`CARRIER_GROUP` blocks whose anchors are ``anchors = (cos_0, sin_0, cos_1, sin_1, ...)``; ``blk``
+    a multiple of 4 (:data:`CARRIER_BLOCK`).
 
-    The rotation of :func:`synth`, ``(c, s) -> (c cd - s sd, s cd + c sd)``, on two blocks per 4-wide
-    vector ``(c_a, s_a, c_b, s_b)``: ``v cd + swap(v) (-sd, sd, -sd, sd)``. Each lane is one IEEE product
-    and one sum, the operations of the scalar recurrence (``x (-sd) = -(x sd)`` exactly, and adding it is
-    subtracting ``x sd``), so every sample has the scalar loop's bits; numba has no vector type, so the
-    loop is written here in LLVM IR, where the pairs stay in vector registers from step to step (the
-    scalar form spends two multiplies per output on each of four products; this one a vector multiply
-    per two blocks, about a quarter of the work).
+    The rotation of :func:`synth`, ``(c, s) -> (c cd - s sd, s cd + c sd)``, on four blocks at a time: their
+    cosines in one 4-wide vector ``C`` and their sines in another ``S``, ``C' = C cd + S (-sd)``,
+    ``S' = S cd + C sd``. Each lane is one IEEE product and one sum, the operations of the scalar recurrence
+    (``x (-sd) = -(x sd)`` exactly, and adding it is subtracting ``x sd``), so every sample has the scalar
+    loop's bits. Four steps' sine vectors (step by block) are transposed in registers into four samples of
+    each block, stored as one vector each: no lane is taken out of a vector alone (storing lanes one by
+    one took more shuffles than the rotation took arithmetic). numba has no vector type, so the loop is
+    written here in LLVM IR, where the vectors stay in registers from step to step.
     """
     f64 = types.float64
     if not (isinstance(anchors, types.Array) and isinstance(car, types.Array) and anchors.dtype == f64
@@ -564,14 +566,30 @@ def _rotate_blocks(typingctx, anchors, cd, sd, car, blk):
         i64 = ir.IntType(64)
         v4 = ir.VectorType(dbl, 4)
         undef = ir.Constant(v4, ir.Undefined)
-        cds = undef
-        sds = undef
-        nsd = builder.fsub(ir.Constant(dbl, -0.0), sdv)           # -sd exactly
-        for i in range(4):
-            cds = builder.insert_element(cds, cdv, ir.Constant(i32, i))
-            sds = builder.insert_element(sds, nsd if i % 2 == 0 else sdv, ir.Constant(i32, i))
-        start = [builder.load(builder.bitcast(builder.gep(ap, [ir.Constant(i64, 4 * m)]), v4.as_pointer()),
-                              align=8) for m in range(CARRIER_GROUP // 2)]
+
+        def splat(x):
+            v = undef
+            for i in range(4):
+                v = builder.insert_element(v, x, ir.Constant(i32, i))
+            return v
+
+        def shuffle(a, b, lanes):
+            return builder.shuffle_vector(a, b, ir.Constant(ir.VectorType(i32, 4), lanes))
+
+        def vector_at(ptr, i):
+            return builder.bitcast(builder.gep(ptr, [i]), v4.as_pointer())
+
+        cds = splat(cdv)
+        sds = splat(sdv)
+        nsds = splat(builder.fsub(ir.Constant(dbl, -0.0), sdv))           # -sd exactly
+        quads = CARRIER_GROUP // 4
+        c_start, s_start = [], []
+        for q in range(quads):
+            # the anchors of blocks 4q .. 4q+3, (c, s) interleaved: two loads split into cosines and sines
+            lo = builder.load(vector_at(ap, ir.Constant(i64, 8 * q)), align=8)
+            hi = builder.load(vector_at(ap, ir.Constant(i64, 8 * q + 4)), align=8)
+            c_start.append(shuffle(lo, hi, [0, 2, 4, 6]))
+            s_start.append(shuffle(lo, hi, [1, 3, 5, 7]))
         pre = builder.block
         loop = builder.append_basic_block("rotate.loop")
         done = builder.append_basic_block("rotate.done")
@@ -579,23 +597,36 @@ def _rotate_blocks(typingctx, anchors, cd, sd, car, blk):
         builder.position_at_end(loop)
         k = builder.phi(i64)
         k.add_incoming(ir.Constant(i64, 0), pre)
-        vs = []
-        for v0 in start:
-            ph = builder.phi(v4)
-            ph.add_incoming(v0, pre)
-            vs.append(ph)
-        swap = ir.Constant(ir.VectorType(i32, 4), [1, 0, 3, 2])
-        nxt = []
-        for m, v in enumerate(vs):
-            for lane, b in ((1, 2 * m), (3, 2 * m + 1)):
-                idx = builder.add(builder.mul(ir.Constant(i64, b), nblk), k)
-                builder.store(builder.extract_element(v, ir.Constant(i32, lane)), builder.gep(cp, [idx]))
-            nxt.append(builder.fadd(builder.fmul(v, cds), builder.fmul(builder.shuffle_vector(v, undef, swap), sds)))
-        k1 = builder.add(k, ir.Constant(i64, 1))
-        k.add_incoming(k1, builder.block)
-        for ph, v in zip(vs, nxt):
-            ph.add_incoming(v, builder.block)
-        builder.cbranch(builder.icmp_signed("<", k1, nblk), loop, done)
+        c_phi, s_phi, c_next, s_next = [], [], [], []
+        for q in range(quads):
+            c_phi.append(builder.phi(v4))
+            c_phi[q].add_incoming(c_start[q], pre)
+            s_phi.append(builder.phi(v4))
+            s_phi[q].add_incoming(s_start[q], pre)
+        for q in range(quads):
+            c, s = c_phi[q], s_phi[q]
+            steps = []                   # steps[j][b]: the sine of block 4q + b after k + j rotations
+            for _ in range(4):
+                steps.append(s)
+                c, s = (builder.fadd(builder.fmul(c, cds), builder.fmul(s, nsds)),
+                        builder.fadd(builder.fmul(s, cds), builder.fmul(c, sds)))
+            c_next.append(c)
+            s_next.append(s)
+            even01 = shuffle(steps[0], steps[1], [0, 4, 2, 6])
+            odd01 = shuffle(steps[0], steps[1], [1, 5, 3, 7])
+            even23 = shuffle(steps[2], steps[3], [0, 4, 2, 6])
+            odd23 = shuffle(steps[2], steps[3], [1, 5, 3, 7])
+            blocks = (shuffle(even01, even23, [0, 1, 4, 5]), shuffle(odd01, odd23, [0, 1, 4, 5]),
+                      shuffle(even01, even23, [2, 3, 6, 7]), shuffle(odd01, odd23, [2, 3, 6, 7]))
+            for b in range(4):
+                idx = builder.add(builder.mul(ir.Constant(i64, 4 * q + b), nblk), k)
+                builder.store(blocks[b], vector_at(cp, idx), align=8)
+        k4 = builder.add(k, ir.Constant(i64, 4))
+        k.add_incoming(k4, builder.block)
+        for q in range(quads):
+            c_phi[q].add_incoming(c_next[q], builder.block)
+            s_phi[q].add_incoming(s_next[q], builder.block)
+        builder.cbranch(builder.icmp_signed("<", k4, nblk), loop, done)
         builder.position_at_end(done)
         return context.get_dummy_value()
     return sig, codegen
@@ -622,7 +653,7 @@ def _apply_carrier(BS, rate, carrier, n, out, known):
     The same carrier samples as :func:`synth` (anchors at multiples of
     :data:`CARRIER_BLOCK`, the same rotation in between), but
     :data:`CARRIER_GROUP` blocks are rotated side by side into a scratch row
-    (:func:`_rotate_blocks`, two blocks per vector): the blocks are
+    (:func:`_rotate_blocks`, four blocks per vector): the blocks are
     independent, so their recurrences fill the floating-point pipeline that
     one recurrence leaves mostly waiting; the product with the envelope and
     the limiting then run as one loop without branches, which the compiler

@@ -95,7 +95,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "7d57de49bf3edf3d80548bbac18044a5f4f4e80035f907593df02f84b7aadfe8"
+KERNEL_SOURCES_SHA256 = "2736fa61f1bfab824f4d05d6892bfcf2cac47b0a8299ab90b3db9f1c3f0903bd"
 
 
 @njit(cache=True, inline="always")
