@@ -6,7 +6,7 @@ The stroke, table and device are those of ``bench_runtime.py``'s "full render ag
 and forth four times at 50 mm/s, 10 kHz ticks, 48 kHz audio). Each round runs the render's stages one after the
 other on fresh rows, as :meth:`Renderer.render` does, and times each on this thread's CPU clock:
 
-* ``lookup``: the table lookup and the model inputs (``renderer.lookup_inputs``, with the copies of t, x, y);
+* ``lookup``: the table lookup and the model inputs (``renderer.lookup_inputs``);
 * ``model``: the model's tick loop (``dispatch.render_ticks`` through ``Renderer._run_model``);
 * ``skin``: the skin-stretch row;
 * ``audio``: the burst audio (``bursts.render_bursts`` with the renderer's kept carrier anchors and sample times);
@@ -50,10 +50,10 @@ def staged_render(r: Renderer, cp, clock=time.thread_time):
     k = len(INPUT_ROWS)
     n = cp.t.size
     t0 = clock()
-    block = np.empty((k + 9, n))
+    block = np.empty((k + 6, n))
     ins = block[:k]
     ones = lookup_inputs(cp.t, cp.x, cp.y, r._blocks, r._data, r._bg, r._grid, r._config, r._slot_channel, ins,
-                         block[k + 5:].view(np.int64), block[k + 2:k + 5], False)
+                         block[k + 2:].view(np.int64), False)
     t1 = clock()
     f, ss = block[k], block[k + 1]
     rows = [ins[q, :1] if ones >> q & 1 and q > 0 and n > 0 else ins[q] for q in range(k)]

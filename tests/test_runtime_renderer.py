@@ -624,6 +624,33 @@ def test_run_block_equals_run_ticks_and_grows_its_event_buffer(model):
     assert many > n or model not in ("exact", "jump")
 
 
+def test_render_returns_the_paths_own_rows_as_read_only_views():
+    """t, x, y of a render are the cursor path's rows (not copies), read-only: of the path itself on the tick grid,
+    of the resampled path otherwise, and float64 rows of the same values for a path that held another type."""
+    on_grid = parse_stroke("0,0.5 <-> 40,0.5 @ 30 mm/s", 10_000)
+    n = 500
+    raw = CursorPath(np.arange(n) / 7_000.0, np.linspace(0.0, 0.02, n), np.linspace(0.01, 0.0, n), None, "raw")
+    f32 = CursorPath(np.arange(n, dtype=np.float32) / np.float32(10_000), np.linspace(0, 0.02, n, dtype=np.float32),
+                     np.zeros(n, np.float32), 10_000.0, "float32")
+    for model in ("exact", "jump"):
+        r = Renderer(ramp_table(), device=quiet_device(), model=model, tick_rate=10_000)
+        res = r.render(on_grid)
+        for name in ("t", "x", "y"):
+            got, src = getattr(res, name), getattr(on_grid, name)
+            assert np.shares_memory(got, src) and not got.flags.writeable and got.tobytes() == src.tobytes(), name
+        res = r.render(raw)
+        grid = raw.resample(10_000)
+        for name in ("t", "x", "y"):
+            got = getattr(res, name)
+            assert not got.flags.writeable and got.tobytes() == getattr(grid, name).tobytes(), name
+            assert not np.shares_memory(got, getattr(raw, name)), name
+        res = r.render(f32)
+        for name in ("t", "x", "y"):
+            got = getattr(res, name)
+            assert got.dtype == np.float64 and not got.flags.writeable, name
+            assert got.tobytes() == getattr(f32, name).astype(np.float64).tobytes(), name
+
+
 def test_rows_of_one_value_are_read_only_views_with_the_values_of_every_row():
     """The render returns a row that holds one value on every tick (mu_s of a table whose friction does not vary,
     the lateral rows of a table without them, vy on a path along x) as a read-only view of that value, with
@@ -655,9 +682,9 @@ def test_rows_of_one_value_are_read_only_views_with_the_values_of_every_row():
                 assert (got.strides == (0,) and not got.flags.writeable) == (name in views), name
             # the V the render hands the model: vx itself where the lookup says so (bit 0), else its own row
             k, n = len(INPUT_ROWS), cp.t.size
-            block = np.full((k + 9, n), np.nan)
+            block = np.full((k + 6, n), np.nan)
             ones = lookup_inputs(cp.t, cp.x, cp.y, r._blocks, r._data, r._bg, r._grid, r._config, r._slot_channel,
-                                 block[:k], block[k + 5:].view(np.int64), block[k + 2:k + 5], False)
+                                 block[:k], block[k + 2:].view(np.int64), False)
             assert bool(ones & 1) == (cp is along and table is not varying)
             assert (block[1] if ones & 1 else block[0]).tobytes() == want["V"].tobytes()
             # the other outputs as the rows written out give them (the model and skin stretch read the one value)

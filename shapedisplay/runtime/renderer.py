@@ -72,6 +72,13 @@ from .settings import (audio_length, constant_normal_force, derive_config, devic
                        mapping_settings, render_settings, slot_channels)
 
 
+def _read_only(a):
+    """A read-only view of the array ``a`` (the same memory)."""
+    view = a.view()
+    view.flags.writeable = False
+    return view
+
+
 def _one_value(row, n):
     """``row`` as shape (n,): itself if it has n elements, else a read-only view of its one value on
     every tick (stride 0; no memory written per tick)."""
@@ -169,7 +176,7 @@ INPUT_ROWS = ("V", "vx", "vy", "normal_force", "mu_s", "mu_k", "gain", "lateral_
 
 
 @njit(cache=True, error_model="numpy")
-def lookup_inputs(t, x, y, blocks, data, bg, grid, config, slot_channel, out, scratch, copies, every_row):
+def lookup_inputs(t, x, y, blocks, data, bg, grid, config, slot_channel, out, scratch, every_row):
     """Offline: each tick's table lookup at its motion midpoint, velocities and model inputs.
 
     ``blocks, data, bg, grid``: the packed table (:func:`.lookup.pack_channels`); ``config``: a
@@ -177,7 +184,6 @@ def lookup_inputs(t, x, y, blocks, data, bg, grid, config, slot_channel, out, sc
     :data:`INPUT_ROWS`; ``scratch``: (4, n) int64, overwritten. Per tick the arithmetic of
     :meth:`FrictionTable.sample` (the lookup) and of :func:`prepare_inputs` (the rest), so the values are
     theirs bit for bit; but no (NSLOT, n) array of looked-up values is written and read back.
-    ``copies``: (3, n) float64 that gets copies of ``t, x, y``, in the passes that read them anyway.
 
     Returns a bit mask of the rows that hold one value on every tick (bit ``r`` for row ``r``; 0 unless
     the table takes :func:`_lookup_passes`, where ``mu_s`` and ``mu_k`` always do): ``mu_s``, ``mu_k``;
@@ -202,9 +208,9 @@ def lookup_inputs(t, x, y, blocks, data, bg, grid, config, slot_channel, out, sc
     varying = (slot_channel[Slot.FRICTION_SCALE] >= 0 or slot_channel[Slot.BREAKAWAY_FORCE] >= 0
                or slot_channel[Slot.KINETIC_FORCE] >= 0 or (cfg.k_mu != 0.0 and slot_channel[Slot.GRAD_X] >= 0))
     if varying:
-        _lookup_fused(t, x, y, blocks, data, bg, grid, config, slot_channel, out, copies)
+        _lookup_fused(t, x, y, blocks, data, bg, grid, config, slot_channel, out)
         return 0
-    return _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, scratch, copies, every_row)
+    return _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, scratch, every_row)
 
 
 #: Magnitudes whose squares are normal numbers (with margin; see :func:`_motion`).
@@ -213,14 +219,13 @@ _SQUARE_HI = 2.0 ** 500
 
 
 @njit(cache=True, error_model="numpy")
-def _motion(t, x, y, grid, two_d, out, copies, every_row):
+def _motion(t, x, y, grid, two_d, out, every_row):
     """Rows 0-2 of :func:`lookup_inputs` (``V``, ``vx``, ``vy``) and each tick's midpoint in table samples
     (rows 4 and 5, ``(x_mid - x0) / dx`` and the same in y if ``two_d``): what :func:`_axis_speed` and
     :func:`.lookup.corners` compute, in loops over whole rows (loops over views, which the compiler
-    vectorises, divisions and square roots included). ``copies`` (3, n) gets ``t``, ``x`` and ``y``, written
-    in the loops that read them. Returns ``(along_x, v_is_vx)``: True on a path along x, where ``vy`` is +0 on
-    every tick (then written only at its first element unless ``every_row``); and True where ``V`` is ``vx``
-    bit for bit and was not written (only without ``every_row``)."""
+    vectorises, divisions and square roots included). Returns ``(along_x, v_is_vx)``: True on a path along x,
+    where ``vy`` is +0 on every tick (then written only at its first element unless ``every_row``); and True
+    where ``V`` is ``vx`` bit for bit and was not written (only without ``every_row``)."""
     n = t.shape[0]
     if n == 0:
         return False, False
@@ -229,12 +234,6 @@ def _motion(t, x, y, grid, two_d, out, copies, every_row):
     vy = out[2]
     ux = out[4]
     uy = out[5]
-    ct = copies[0]
-    cx = copies[1]
-    cy = copies[2]
-    ct[0] = t[0]
-    cx[0] = x[0]
-    cy[0] = y[0]
     vx[0] = 0.0
     vy[0] = 0.0
     t1 = t[1:]
@@ -245,9 +244,6 @@ def _motion(t, x, y, grid, two_d, out, copies, every_row):
     y0 = y[:-1]
     vx1 = vx[1:]
     vy1 = vy[1:]
-    ct1 = ct[1:]
-    cx1 = cx[1:]
-    cy1 = cy[1:]
     # a path along x (every y the same finite number): vy is (y - y) / h = +0 and uy = +0 / |v| = +0 (unused
     # where the speed is 0), so neither is divided out, and |v| = sqrt(vx vx + 0) is sqrt(vx vx) (the unit
     # vector's x is unused where the speed is 0 too)
@@ -255,17 +251,11 @@ def _motion(t, x, y, grid, two_d, out, copies, every_row):
     along_x = math.isfinite(y_first)
     v_is_vx = False
     for i in range(n - 1):
-        v = y1[i]
-        cy1[i] = v
-        along_x &= v == y_first
+        along_x &= y1[i] == y_first
     axis_pass = True
     if along_x:
         for i in range(n - 1):
-            a = t1[i]
-            b = x1[i]
-            ct1[i] = a
-            cx1[i] = b
-            vx1[i] = (b - x0[i]) / (a - t0[i])
+            vx1[i] = (x1[i] - x0[i]) / (t1[i] - t0[i])
         if every_row:
             vy[:] = 0.0
         # sqrt(vx vx) is |vx| where vx vx is a normal number (in binary floating point the rounded square root
@@ -302,12 +292,8 @@ def _motion(t, x, y, grid, two_d, out, copies, every_row):
                 ux[i] = vx[i] / s
     else:
         for i in range(n - 1):
-            a = t1[i]
-            b = x1[i]
-            ct1[i] = a
-            cx1[i] = b
-            h = a - t0[i]
-            vx1[i] = (b - x0[i]) / h
+            h = t1[i] - t0[i]
+            vx1[i] = (x1[i] - x0[i]) / h
             vy1[i] = (y1[i] - y0[i]) / h
         # the unit vector of the motion (rows 4, 5; unused where the speed is 0)
         for i in range(n):
@@ -352,14 +338,14 @@ _CHANNEL_ROW[[Slot.NORMAL_FORCE, Slot.BURST_GAIN, Slot.LATERAL_X, Slot.LATERAL_Y
 
 
 @njit(cache=True, error_model="numpy")
-def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, scratch, copies, every_row):
+def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, scratch, every_row):
     """:func:`lookup_inputs` for a table whose ``mu_s``, ``mu_k`` are the device's: motion, cells, channels,
     then the derivation of :func:`_derive` row by row. Returns the mask of rows that hold one value."""
     cfg = config[0]
     n = t.shape[0]
     two_d = grid.rows != 1
     ones = (1 << 4) | (1 << 5)
-    along_x, v_is_vx = _motion(t, x, y, grid, two_d, out, copies, every_row)
+    along_x, v_is_vx = _motion(t, x, y, grid, two_d, out, every_row)
     if along_x:
         ones |= 1 << 2
     if v_is_vx:
@@ -492,7 +478,7 @@ def _lookup_passes(t, x, y, blocks, data, bg, grid, config, slot_channel, out, s
 
 
 @njit(cache=True, error_model="numpy")
-def _lookup_fused(t, x, y, blocks, data, bg, grid, config, slot_channel, out, copies):
+def _lookup_fused(t, x, y, blocks, data, bg, grid, config, slot_channel, out):
     """:func:`lookup_inputs` in one pass over the ticks (any table)."""
     cfg = config[0]
     n = t.shape[0]
@@ -532,9 +518,6 @@ def _lookup_fused(t, x, y, blocks, data, bg, grid, config, slot_channel, out, co
         out[7, i] = vals[Slot.LATERAL_X]
         out[8, i] = vals[Slot.LATERAL_Y]
         out[9, i] = vals[Slot.SKIN_STRETCH] if skin >= 0 else cfg.skin_target
-        copies[0, i] = t[i]
-        copies[1, i] = x[i]
-        copies[2, i] = y[i]
 
 
 @njit(cache=True, error_model="numpy")
@@ -788,7 +771,7 @@ class Renderer:
             block = np.empty((len(INPUT_ROWS), cp.t.size))
         scratch = (np.empty((4, cp.t.size)) if scratch is None else scratch).view(np.int64)
         lookup_inputs(cp.t, cp.x, cp.y, self._blocks, self._data, self._bg, self._grid, self._config,
-                      self._slot_channel, block, scratch, np.empty((3, cp.t.size)), True)
+                      self._slot_channel, block, scratch, True)
         return block
 
     def model_inputs(self, cursor: CursorPath):
@@ -813,19 +796,19 @@ class Renderer:
             raise InputError(f"`cursor` must be a CursorPath (got {type(cursor).__name__})")
         cp = cursor if cursor.tick_rate == self.tick_rate else cursor.resample(self.tick_rate)
         n_audio = audio_length(cp.duration, self.audio_rate)     # refuse an impossible stream before the work
-        # every per-tick array of the run in one block: the inputs, the friction force, skin stretch, the
-        # copies of t, x, y and the lookup's scratch rows (untouched by most tables). Fewer, larger
-        # allocations are reused by the allocator from run to run instead of being returned to the system and
-        # faulted in again (most of a short render's cost).
+        # every per-tick array of the run in one block: the inputs, the friction force, skin stretch and the
+        # lookup's scratch rows (untouched by most tables). Fewer, larger allocations are reused by the allocator
+        # from run to run instead of being returned to the system and faulted in again (most of a short render's
+        # cost).
         k = len(INPUT_ROWS)
         n = cp.t.size
-        block = np.empty((k + 9, n))
+        block = np.empty((k + 6, n))
         ins = block[:k]
-        # the lookup also writes the copies of t, x, y (in the passes that read them) and leaves each row that
-        # holds one value on every tick with its first element only (bit r of `ones` for row r)
+        # the lookup leaves each row that holds one value on every tick with its first element only (bit r of
+        # `ones` for row r)
         ones = lookup_inputs(cp.t, cp.x, cp.y, self._blocks, self._data, self._bg, self._grid, self._config,
-                             self._slot_channel, ins, block[k + 5:].view(np.int64), block[k + 2:k + 5], False)
-        f, ss, t, x, y = block[k:k + 5]
+                             self._slot_channel, ins, block[k + 2:].view(np.int64), False)
+        f, ss = block[k], block[k + 1]
         # one-element rows for the model and the skin stretch (they read the value once), read-only views of
         # the value on every tick for the result
         rows = [ins[r, :1] if ones >> r & 1 and r > 0 and n > 0 else ins[r] for r in range(k)]
@@ -839,6 +822,8 @@ class Renderer:
         else:                              # every tick's target is the profile's
             skin_stretch_uniform(float(self.config["skin_target"]), f, mus, N, ss)
         vy, mus, lat_x, lat_y = (_one_value(a, n) for a in (vy, mus, lat_x, lat_y))
+        # the result's t, x, y: the path's own rows as read-only views (float64 rows of another type), not copied
+        t, x, y = (_read_only(np.asarray(a, np.float64)) for a in (cp.t, cp.x, cp.y))
         b = self.device.burst
         audio, clipped = render_bursts(et, ea, cp.t[0], cp.duration, self.audio_rate, b.carrier_hz, b.rise_s,
                                        b.decay_s, self.burst_policy, self._carrier_anchors(n_audio),

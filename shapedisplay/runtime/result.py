@@ -22,6 +22,10 @@ class RenderResult:
     model : str; ``tick_rate`` : Hz; ``burst_policy`` : str
     mu_s : (n,), the static friction coefficient of each tick (None when the C runtime played the path)
 
+    :meth:`~.renderer.Renderer.render` returns ``t``, ``x`` and ``y`` as read-only views of the cursor path's
+    own rows (of the path resampled to the tick rate if it was not on the tick grid; converted to float64 if
+    it held another type), not copies. Copy them (``np.array(result.t)``) to write into them.
+
     A row that holds one value on every tick (``mu_s`` where the friction coefficients do not vary along
     the path, ``lateral_x``/``lateral_y`` of a table without them, ``vy`` on a path along x) may be a
     read-only view of that value (stride 0) rather than n stored copies: read it as any array; copy it
