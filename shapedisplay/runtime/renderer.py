@@ -253,9 +253,26 @@ def _motion(t, x, y, grid, two_d, out, every_row):
     for i in range(n - 1):
         along_x &= y1[i] == y_first
     axis_pass = True
+    midpoints = False
     if along_x:
+        # one pass for vx, the checks below on it and the midpoints in table samples (row 4, which this path
+        # needs for nothing else unless a check fails: then computed again after the unit vectors)
+        gx0 = grid.x0
+        gdx = grid.dx
+        fx1 = ux[1:]
+        in_range = True
+        neg_zero = False
         for i in range(n - 1):
-            vx1[i] = (x1[i] - x0[i]) / (t1[i] - t0[i])
+            b = x1[i]
+            a = x0[i]
+            v = (b - a) / (t1[i] - t0[i])
+            vx1[i] = v
+            fx1[i] = (0.5 * (b + a) - gx0) / gdx
+            m = abs(v)
+            in_range &= (m == 0.0) | ((m >= _SQUARE_LO) & (m <= _SQUARE_HI))
+            neg_zero |= (m == 0.0) & (math.copysign(1.0, v) < 0.0)
+        ux[0] = (x[0] - gx0) / gdx
+        midpoints = True
         if every_row:
             vy[:] = 0.0
         # sqrt(vx vx) is |vx| where vx vx is a normal number (in binary floating point the rounded square root
@@ -263,18 +280,10 @@ def _motion(t, x, y, grid, two_d, out, every_row):
         # Then the unit vector is (+-1, +0), and the pad axis, (1, 0) at the start, stays (1, +-0) from tick to
         # tick: a tick along it keeps it and gets |vx|, a tick against it (dx ax + dy ay = -1 < 0) gets -|vx|
         # and the axis -(-1, +0) = (1, -0); so V is vx itself, +0 where vx is a zero (the speed is 0), and
-        # the pass in order is not needed.
-        in_range = True
-        if not every_row:
-            # V is vx bit for bit unless some vx is -0 (V is +0 there): then V is not written at all
-            neg_zero = False
-            for i in range(n):
-                v = vx[i]
-                a = abs(v)
-                in_range &= (a == 0.0) | ((a >= _SQUARE_LO) & (a <= _SQUARE_HI))
-                neg_zero |= (a == 0.0) & (math.copysign(1.0, v) < 0.0)
-            if in_range and not neg_zero:
-                v_is_vx = True
+        # the pass in order is not needed. V is vx bit for bit unless some vx is -0 (V is +0 there): then V is
+        # not written at all (vx[0] = +0 passes both checks).
+        if not every_row and in_range and not neg_zero:
+            v_is_vx = True
         if not v_is_vx:
             in_range = True
             for i in range(n):
@@ -286,6 +295,7 @@ def _motion(t, x, y, grid, two_d, out, every_row):
             axis_pass = False
         else:
             uy[:] = 0.0
+            midpoints = False
             for i in range(n):
                 s = math.sqrt(vx[i] * vx[i])
                 sp[i] = s
@@ -320,10 +330,11 @@ def _motion(t, x, y, grid, two_d, out, every_row):
                     ax = -dx
                     ay = -dy
     # the midpoints in table samples
-    ux[0] = (x[0] - grid.x0) / grid.dx
-    fx = ux[1:]
-    for i in range(n - 1):
-        fx[i] = (0.5 * (x1[i] + x0[i]) - grid.x0) / grid.dx
+    if not midpoints:
+        ux[0] = (x[0] - grid.x0) / grid.dx
+        fx = ux[1:]
+        for i in range(n - 1):
+            fx[i] = (0.5 * (x1[i] + x0[i]) - grid.x0) / grid.dx
     if two_d:
         uy[0] = (y[0] - grid.y0) / grid.dy
         fy = uy[1:]
