@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "4cba4aacc98f8824de8d5e67ac2ac940a6dc076543dc1b348d76c1f2aa801205"
+KERNEL_SOURCES_SHA256 = "2860c53885f9f23601262a0f7aad460cbd3fc28456bd8596497f4da1c660e64e"
 
 
 @njit(cache=True)

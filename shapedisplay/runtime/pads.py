@@ -1414,7 +1414,7 @@ def _stick_force(prm, V, ua, xca, ta, t):
 
 
 @njit(cache=True, error_model="numpy")
-def _stribeck_stick(prm, V, thr, ua, ta, te):
+def _stribeck_stick(prm, V, thr, ua, ta, te, newton_stop):
     """Stick from ``ta`` (stretch ``ua``) to at most ``te``: the first time ``|F|`` exceeds ``thr``, or ``te``.
 
     Returns ``(t, broke, u, z, F)`` with the state and the needed friction at
@@ -1424,7 +1424,11 @@ def _stribeck_stick(prm, V, thr, ua, ta, te):
     (Taylor's bound back from the end); otherwise pieces whose ends lie below
     ``thr`` by more than ``|F''| dt^2 / 8`` cannot reach it, the others are
     quartered (to 1e-13 s, a grazing touch) and a crossing is polished by
-    safeguarded Newton (to ~1e-16 s).
+    safeguarded Newton (to ~1e-16 s). ``newton_stop``: a Newton step within
+    that ends the polish even where it falls on an end of the bracket (the
+    default tolerance's Taylor steps keep the polish as it was, which then
+    bisects the bracket down to 1e-16 s: the same root to rounding, at
+    about twenty evaluations more per breakaway).
     """
     m = prm.mass
     k = prm.stiffness
@@ -1466,6 +1470,10 @@ def _stribeck_stick(prm, V, thr, ua, ta, te):
                 else:
                     lo = tt
                 tn = tt - f / (sg * dF) if dF != 0.0 else 0.5 * (lo + hi)
+                if newton_stop and abs(tn - tt) <= 1e-16 * (1.0 + abs(tt)):
+                    # converged (a Newton step within rounding of the root that may fall on the bracket's end)
+                    tb = tn
+                    break
                 if not (lo < tn <= hi):
                     tn = 0.5 * (lo + hi)
                 if abs(tn - tt) <= 1e-16 * (1.0 + abs(tt)) or hi - lo <= 1e-16 * (1.0 + abs(hi)):
@@ -1771,6 +1779,37 @@ def _poly_basis(m, ce, k, wn, h, lng, r11, r12, r21, r22, eps):
     ih = 1.0 / h
     return u2, z2 * ih, zm2 * ih, u3, z3 * ih, zm3 * ih
 
+@njit(cache=True, inline="always")
+def _landing_refined(hg, htr, lo, hi, q0, qd0, q1, u1, z1, S1, sr, W, muk, dmu, E0, ex, b, c, k, m, A, om, vr1):
+    """The next trial step for a landing on ``sr vr = 0``: the regula falsi's ``hg`` polished by Newton on the
+    cubic through the trial's ends (``sr vr`` and its rate at 0 and at ``htr``), kept inside ``(lo, hi)``.
+
+    The trial's own cubic is accurate to its fourth order where the secant
+    through the bracket is to its first: most landings then need one trial
+    less. Falls back to ``hg`` where the cubic's root is not in the bracket.
+    """
+    F1 = -sr * W * (muk + dmu * E0 * (1.0 + ex)) - b * vr1
+    m0 = htr * qd0
+    m1 = htr * sr * ((F1 - c * z1 - k * u1) / m + A * om * om * S1)
+    s = hg / htr
+    for _ in range(6):
+        s2 = s * s
+        s3 = s2 * s
+        p = (q0 * (2.0 * s3 - 3.0 * s2 + 1.0) + m0 * (s3 - 2.0 * s2 + s) + q1 * (3.0 * s2 - 2.0 * s3)
+             + m1 * (s3 - s2))
+        dp = q0 * (6.0 * s2 - 6.0 * s) + m0 * (3.0 * s2 - 4.0 * s + 1.0) + q1 * (6.0 * s - 6.0 * s2) + m1 * (3.0 * s2 - 2.0 * s)
+        if not (dp != 0.0):
+            return hg
+        ds = p / dp
+        s -= ds
+        if abs(ds) <= 1e-12 * abs(s):
+            break
+    h = s * htr
+    if lo < h < hi:
+        return h
+    return hg
+
+
 @njit(cache=True, error_model="numpy")
 def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
     """Slip of the plain Stribeck curve from ``t`` to at most ``te`` by exponential Rosenbrock steps.
@@ -1845,6 +1884,7 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
             break
         # linearisation: F(vr) ~ F0 + G (vr - vr0), G = W dmu a E0 / W - b
         F0 = -sr * W * (muk + dmu * E0) - b * vr0
+        vrd0 = (F0 - c * z - k * u) / m + A * om * om * S0     # the rate of v_r at the start
         G = a * dmu * E0 - b
         ce = c - G
         if ce < 0.0:
@@ -2016,6 +2056,8 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
                 h = lo + vlo * (hi - lo) / (vlo - vhi)
                 if not (lo < h < hi):
                     h = 0.5 * (lo + hi)
+                h = _landing_refined(h, hi, lo, hi, sr * vr0, sr * vrd0, q1, u1, z1, S1, sr, W, muk, dmu, E0, ex, b, c,
+                                     k, m, A, om, vr1)
                 continue
         elif hi > 0.0:
             # a trial short of the zero found before
@@ -2025,13 +2067,17 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
                 if side == -1:
                     vhi *= 0.5
                 side = -1
+                htr = h
                 lo = h
                 vlo = q1
                 h = lo + vlo * (hi - lo) / (vlo - vhi)
                 if not (lo < h < hi):
                     h = 0.5 * (lo + hi)
+                h = _landing_refined(h, htr, lo, hi, sr * vr0, sr * vrd0, q1, u1, z1, S1, sr, W, muk, dmu, E0, ex, b,
+                                     c, k, m, A, om, vr1)
                 continue
         # accept the step
+        E_start = E0
         t_new = t + h if t + h < te else te
         u = u1
         z = z1
@@ -2063,10 +2109,6 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
         side = 0
         vlo = sr * vr0
         touch_checked = False
-        if t >= te:
-            # the next tick starts with the step wanted here (not the rest of the tick this one was cut to)
-            hn = h_want
-            break
         # next step: the fourth-order rule with Gustafsson's prediction (an error growing from step to step, as
         # in the collapse to re-stick, shortens the next one before it fails), at most twice as long (four times
         # after a step far within the tolerance)
@@ -2075,11 +2117,24 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
             grow = 4.0
         else:
             grow = 0.8 * tol4 / e4
+            gmax = 2.0
+            if E0 < E_start and not landed:
+                # the curve's remainder scales with E: where it fell over the step (the end of a breakaway, the
+                # entry to steady sliding) the next step's error falls with it
+                grow *= math.sqrt(math.sqrt(E_start / E0)) if E0 > 0.0 else 4.0
+                gmax = 4.0
             if e4_prev > 0.0:
                 gus = grow * (h / h_prev) * (e4_prev / e4)
                 if gus < grow:
                     grow = gus
-            grow = min(2.0, max(0.2, grow))
+            grow = min(gmax, max(0.2, grow))
+        if t >= te:
+            # the next tick starts with the step wanted here (not the rest of the tick this one was cut to), or
+            # shorter if this step, cut to at least half of it, asks for less
+            hn = h_want
+            if h >= 0.5 * h_want and h * grow < hn:
+                hn = h * grow
+            break
         h_prev = h
         e4_prev = e4
         h_want = min(h * grow, prm.substep)
@@ -2117,7 +2172,7 @@ def _stribeck_plain_tick(st, prm, t0, h, V, W, mus, muk, B, ev_t, ev_a, n_ev):
     F = 0.0
     for _ in range(MAX_EVENTS_PER_TICK):
         if phase == 0.0:
-            t, broke, u, z, F = _stribeck_stick(prm, V, thr, u, t, te)
+            t, broke, u, z, F = _stribeck_stick(prm, V, thr, u, t, te, prm.stribeck_tol >= STRIBECK_EXP_MIN_TOL)
             if not broke:
                 break
             n_ev = _record(ev_t, ev_a, n_ev, t, B * abs(k * u))

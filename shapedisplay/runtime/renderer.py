@@ -102,7 +102,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "2736fa61f1bfab824f4d05d6892bfcf2cac47b0a8299ab90b3db9f1c3f0903bd"
+KERNEL_SOURCES_SHA256 = "ca09e1ac6d407c5f35be0bb034dde8c7615d30876a5ca4eca7df7134a6eb98f2"
 
 
 @njit(cache=True, inline="always")
