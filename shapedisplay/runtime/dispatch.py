@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "2860c53885f9f23601262a0f7aad460cbd3fc28456bd8596497f4da1c660e64e"
+KERNEL_SOURCES_SHA256 = "a4c9a46543dacb32c34ec9e552ea501eb26c409d090918a5249927ef0fe41883"
 
 
 @njit(cache=True)

@@ -2123,6 +2123,11 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
                 # entry to steady sliding) the next step's error falls with it
                 grow *= math.sqrt(math.sqrt(E_start / E0)) if E0 > 0.0 else 4.0
                 gmax = 4.0
+            elif E0 > E_start and not landed and e4_prev == 0.0:
+                # and where it rose, the next error rises with it: the first step of a tick has no error before it
+                # for the prediction below (the entry from steady sliding into the slow-down before the fold, where
+                # the tick's first, long step would fail)
+                grow *= math.sqrt(math.sqrt(E_start / E0))
             if e4_prev > 0.0:
                 gus = grow * (h / h_prev) * (e4_prev / e4)
                 if gus < grow:

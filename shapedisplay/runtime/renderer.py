@@ -102,7 +102,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "ca09e1ac6d407c5f35be0bb034dde8c7615d30876a5ca4eca7df7134a6eb98f2"
+KERNEL_SOURCES_SHA256 = "4002b7eb1eee6381fc16f232500667beee5ed65ec519778ff24ddabdb19cee99"
 
 
 @njit(cache=True, inline="always")
