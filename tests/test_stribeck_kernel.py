@@ -297,3 +297,57 @@ def test_slip_step_responses_to_the_curves_remainder_match_the_matrix_exponentia
             ref = _poly_responses_by_expm(m, ce, k, h)
             for g, e, scale in zip(got, ref, (ref[0], ref[1], ref[1], ref[3], ref[4], ref[4])):
                 assert abs(g - e) <= 0.1 * tol * abs(scale) + 1e-14 * abs(e), (ce, h, lng, got, ref)
+
+
+def _contactor_params():
+    model = get_model("stribeck", DeviceProfile(pad=IMAIZUMI_PAD, friction=IMAIZUMI_FRICTION), contactor_hz=9.0,
+                      contactor_amplitude_m=1.25e-3, tolerance=1e-4)
+    return model.params
+
+
+@settings(max_examples=200, deadline=None)
+@given(ua=st.floats(-2.0e-3, 2.0e-3), ta=st.floats(0.0, 0.5), V=st.floats(-0.3, 0.3))
+def test_stick_polish_stopped_at_the_converged_newton_step_finds_the_same_breakaway(ua, ta, V):
+    """The exponential steps' stick stops its Newton polish at the converged step; the default tolerance's polish
+    bisects on to 1e-16 s. Both find the same breakaway time to rounding, and the same state there."""
+    from shapedisplay.runtime.pads import _stribeck_stick
+    prm = _contactor_params()
+    thr = 2.1
+    a = _stribeck_stick(prm, V, thr, ua, ta, ta + 0.01, False)
+    b = _stribeck_stick(prm, V, thr, ua, ta, ta + 0.01, True)
+    assert a[1] == b[1]
+    assert abs(a[0] - b[0]) <= 4e-16 * (1.0 + abs(a[0])), (a, b)
+    for x, y in zip(a[2:], b[2:]):
+        assert abs(x - y) <= 1e-12 * (1.0 + abs(x)), (a, b)
+    if a[1] and a[0] > ta:
+        assert abs(abs(a[4]) - thr) <= 1e-12 * thr      # on the threshold: a breakaway located inside the tick
+
+
+@settings(max_examples=300, deadline=None)
+@given(sr=st.sampled_from([-1.0, 1.0]), q0=st.floats(1e-4, 0.05), q1=st.floats(-0.05, -1e-5),
+       e0=st.floats(-0.5, 0.5), e1=st.floats(-0.5, 0.5), htr=st.floats(1e-7, 1e-3), shift=st.floats(-0.1, 0.1),
+       wild=st.tuples(st.floats(-0.1, 0.1), st.floats(-0.1, 0.1), st.floats(0.01, 0.99)))
+def test_landing_trial_polished_on_the_trials_cubic(sr, q0, q1, e0, e1, htr, shift, wild):
+    """The next landing trial: Newton on the trial's cubic in time (s_r v_r and its rate at both ends) from the
+    regula falsi's guess. Near a straight line (rates within half of the secant's) it returns the cubic's root;
+    whatever the rates, the result stays inside the bracket."""
+    from shapedisplay.runtime.pads import _landing_refined
+    m, k, c, W, muk = 1e-4, 1e3, 1.0, 1.0, 1.4
+    z1 = 0.05
+
+    def refined(m0, m1, guess, lo, hi):
+        # the end's rate m1 = htr sr ((F1 - c z1 - k u1) / m) with F1 = -sr W muk (no drop, no viscous term, no
+        # contactor): the stretch u1 that gives it
+        u1 = (-sr * W * muk - c * z1 - m * m1 / (htr * sr)) / k
+        return _landing_refined(guess * htr, htr, lo, hi, q0, m0 / htr, q1, u1, z1, 0.0, sr, W, muk, 0.0, 1.0, 0.0,
+                                0.0, c, k, m, 0.0, 0.0, 0.0) / htr
+
+    d = q1 - q0
+    m0, m1 = d * (1.0 + e0), d * (1.0 + e1)
+    s = refined(m0, m1, min(0.99, max(0.01, q0 / (q0 - q1) + shift)), 0.0, htr)
+    p = (q0 * (2 * s**3 - 3 * s**2 + 1) + m0 * (s**3 - 2 * s**2 + s) + q1 * (3 * s**2 - 2 * s**3)
+         + m1 * (s**3 - s**2))
+    assert 0.0 < s < 1.0 and abs(p) <= 1e-9 * (abs(q0) + abs(q1)), (s, p)
+    lo, hi = 0.3 * htr, 0.7 * htr
+    s = refined(wild[0], wild[1], 0.3 + 0.4 * wild[2], lo, hi)
+    assert 0.3 <= s <= 0.7
