@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "a4c9a46543dacb32c34ec9e552ea501eb26c409d090918a5249927ef0fe41883"
+KERNEL_SOURCES_SHA256 = "e5bf6b05616e9a69389c4f470e65bf45fa007829ede3288904300cb8b3963ee3"
 
 
 @njit(cache=True)

@@ -2012,6 +2012,14 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
             side = 0
             vlo = sr * vr0
             continue
+        # the two passes are the first two iterates of the fixed point the correction converges to (from zero:
+        # the linear solution): where they contract by kap (|kap| < 1/2), Aitken's extrapolation takes the
+        # correction to its limit (the first iterate zero: no extrapolation). The estimate above stays that of the passes.
+        ddz = dz - dz1
+        if abs(ddz) < 0.5 * abs(dz1):
+            fk = ddz / (dz1 - ddz)      # kap / (1 - kap), kap = ddz / dz1
+            du += fk * (du - du1)
+            dz += fk * ddz
         u1 += du
         z1 += dz
         vr1 = z1 + V - A * om * C1

@@ -102,7 +102,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "4002b7eb1eee6381fc16f232500667beee5ed65ec519778ff24ddabdb19cee99"
+KERNEL_SOURCES_SHA256 = "7285ae1108d9a9b0fd1443230102c0fe34beabdf61ffedfd9de7de136a50170d"
 
 
 @njit(cache=True, inline="always")
