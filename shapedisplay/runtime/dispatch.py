@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "e5bf6b05616e9a69389c4f470e65bf45fa007829ede3288904300cb8b3963ee3"
+KERNEL_SOURCES_SHA256 = "67b9228894e830033ac592d4103732d19928a67535272fa7c48943763c3b64ef"
 
 
 @njit(cache=True)

@@ -1779,6 +1779,7 @@ def _poly_basis(m, ce, k, wn, h, lng, r11, r12, r21, r22, eps):
     ih = 1.0 / h
     return u2, z2 * ih, zm2 * ih, u3, z3 * ih, zm3 * ih
 
+
 @njit(cache=True, inline="always")
 def _landing_refined(hg, htr, lo, hi, q0, qd0, q1, u1, z1, S1, sr, W, muk, dmu, E0, ex, b, c, k, m, A, om, vr1):
     """The next trial step for a landing on ``sr vr = 0``: the regula falsi's ``hg`` polished by Newton on the

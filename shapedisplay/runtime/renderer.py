@@ -102,7 +102,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "7285ae1108d9a9b0fd1443230102c0fe34beabdf61ffedfd9de7de136a50170d"
+KERNEL_SOURCES_SHA256 = "5daee5362acd1b5704e487087993f82f4c1f971efc0e63bc2fca623f114ee356"
 
 
 @njit(cache=True, inline="always")
