@@ -44,7 +44,7 @@ BELT = dict(m=1.0, k=1.0, c=0.0, mu_s=1.0, mu_k=0.5)
 BELT_STRIBECK = dict(BELT, a=3.0, b=0.1)
 #: Slip tolerances the ``stribeck`` model runs at (None: its default, Taylor steps at 1e-13; the looser ones take
 #: exponential Rosenbrock steps as long as the accuracy allows), in full and quick mode.
-STRIBECK_TOLERANCES = (None, 3e-9, 1e-8, 3e-8, 1e-6, 3e-6, 1e-5, 3e-5, 1e-4, 2e-4, 3e-4, 4e-4)
+STRIBECK_TOLERANCES = (None, 3e-9, 1e-8, 3e-8, 1e-6, 3e-6, 1e-5, 3e-5, 1e-4, 2e-4, 3e-4, 4e-4, 1e-3)
 STRIBECK_TOLERANCES_QUICK = (None, 1e-5, 3e-4)
 #: A setting counts as "within 1 %" if its worst relative period error is at most this and no event is missing
 #: or spurious.

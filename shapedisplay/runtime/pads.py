@@ -1606,8 +1606,9 @@ def _stribeck_taylor_slip(prm, u, z, sr, V, W, mus, muk, t, te):
 #: with the tolerance near 1e-9 of the pad's scales, measured against Radau at rtol 1e-12).
 STRIBECK_EXP_MIN_TOL = 3e-9
 #: Weight of an exponential step's error estimate: the estimate (the change of the correction between the fits and
-#: passes) is of the lower orders; weighted, event times stay within a tolerance of the event interval (measured)
-EXP_ERR_WEIGHT = 10.0
+#: passes) is of the lower orders; weighted, stick-slip periods stay within half a tolerance (measured on the
+#: contactor case and a lighter-damped pad from 1e-5 to 1e-3)
+EXP_ERR_WEIGHT = 3.0
 
 
 @njit(cache=True, inline="always")
@@ -1854,7 +1855,11 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
     ik = 1.0 / k
     hmin = 1e-6 * math.sqrt(m / k)
     usc0 = mus * W / k
-    zsc0 = abs(V) + A * om + mus * W / math.sqrt(k * m)
+    # speed scale: the drive's speeds plus the speed the release of the pad's stretch reaches, mu_s W over the
+    # larger of the pad's spring-mass impedance sqrt(k m) and its sliding damping c + b (an overdamped pad never
+    # reaches the free oscillation's mu_s W / sqrt(k m): measured against that, an error in z before the fold
+    # passed unnoticed and moved the collapse to re-stick by microseconds)
+    zsc0 = abs(V) + A * om + mus * W / max(math.sqrt(k * m), c + b)
     # time scale of the stick-slip cycle: the time the drive takes to stretch the pad to breakaway (none without
     # a drive). Where z changes fast (a breakaway, the collapse to re-stick) an error in z is a shift in time
     # along the path (the fast mode damps it out or the landing on zero takes it as one), weighed against it.
@@ -1876,7 +1881,7 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
     side = 0
     vlo = sr * vr0
     vhi = 0.0
-    vtol = 1e-2 * tol * zsc0
+    vtol = 1e-2 * tol * (abs(V) + A * om + mus * W / math.sqrt(k * m))   # (the free oscillation's speed scale)
     h_prev = 0.0      # the last accepted step and the cube root of its error (step-size prediction)
     e4_prev = 0.0
     touch_checked = False   # a touch inside a step looked for from this start point already
