@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "2a1a896356d01b6e3a3d421b1d8fe446699f00d42345376a4f8cb4c5d635d5f5"
+KERNEL_SOURCES_SHA256 = "2202652c18f6e2e5347cf9afb05aab0698b9c60efd98860de790cba239dbde7a"
 
 
 @njit(cache=True)

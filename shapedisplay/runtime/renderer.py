@@ -102,7 +102,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "b04db02de9db6faa9ee6fef0d36636dd13344ae20617f531c619fe38badd1d79"
+KERNEL_SOURCES_SHA256 = "dc0e8a6811ea39998414b89f6d0923f739795bcb20b4c5d9ed06e9e03ba1aa2c"
 
 
 @njit(cache=True, inline="always")
