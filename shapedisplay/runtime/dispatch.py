@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "2202652c18f6e2e5347cf9afb05aab0698b9c60efd98860de790cba239dbde7a"
+KERNEL_SOURCES_SHA256 = "e0d55544b42202974c2344d0ddcd887b5ba119cdb59974da3d12d8d652d9c437"
 
 
 @njit(cache=True)

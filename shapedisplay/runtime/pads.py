@@ -1606,9 +1606,12 @@ def _stribeck_taylor_slip(prm, u, z, sr, V, W, mus, muk, t, te):
 #: with the tolerance near 1e-9 of the pad's scales, measured against Radau at rtol 1e-12).
 STRIBECK_EXP_MIN_TOL = 3e-9
 #: Weight of an exponential step's error estimate: the estimate (the change of the correction between the fits and
-#: passes) is of the lower orders; weighted, stick-slip periods stay within about half a tolerance (measured against
+#: passes) is of the lower orders; weighted, event times stay within a tolerance of the event interval (measured)
+EXP_ERR_WEIGHT = 10.0
+#: The weight where the sliding pad is overdamped (c + b >= 2 sqrt(k m)) and the speed's error is measured against
+#: the speed it reaches (see _stribeck_exp_slip): stick-slip periods within about half a tolerance (measured against
 #: Radau: 0.01-0.09 on the contactor case, 0.01-0.56 with a twentieth of its damping, 3e-9 to 1e-3, 100 Hz to 10 kHz)
-EXP_ERR_WEIGHT = 3.0
+EXP_ERR_WEIGHT_OVERDAMPED = 3.0
 
 
 @njit(cache=True, inline="always")
@@ -1825,7 +1828,9 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
     correction (its response in closed form), computed twice: along the
     linear solution, then along the corrected one (a Picard pass). The error
     estimate is the second pass's change plus the cubic's change to a
-    quadratic through the end, weighted by :data:`EXP_ERR_WEIGHT`; steps are
+    quadratic through the end, weighted by :data:`EXP_ERR_WEIGHT` (or
+    :data:`EXP_ERR_WEIGHT_OVERDAMPED` where the sliding pad is overdamped and
+    the speed's scale is the speed it reaches); steps are
     as long as it stays below ``prm.stribeck_tol`` of the pad's scales
     (fourth-order rule; a tick at a time in steady sliding). A step that carries the
     relative speed through zero is shortened to land on the zero (secant
@@ -1855,11 +1860,13 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
     ik = 1.0 / k
     hmin = 1e-6 * math.sqrt(m / k)
     usc0 = mus * W / k
-    # speed scale: the drive's speeds plus the speed the release of the pad's stretch reaches, mu_s W over the
-    # larger of the pad's spring-mass impedance sqrt(k m) and its sliding damping c + b (an overdamped pad never
-    # reaches the free oscillation's mu_s W / sqrt(k m): measured against that, an error in z before the fold
-    # passed unnoticed and moved the collapse to re-stick by microseconds)
-    zsc0 = abs(V) + A * om + mus * W / max(math.sqrt(k * m), c + b)
+    # speed scale: the drive's speeds plus the speed the release of the pad's stretch reaches: mu_s W / sqrt(k m)
+    # (the free oscillation's), or mu_s W / (c + b) where the sliding pad is overdamped (it never reaches the
+    # former: measured against that, an error in z before the fold passed unnoticed and moved the collapse to
+    # re-stick by microseconds); the estimate's weight goes with it
+    od = c + b >= 2.0 * math.sqrt(k * m)
+    zsc0 = abs(V) + A * om + mus * W / ((c + b) if od else math.sqrt(k * m))
+    ew = EXP_ERR_WEIGHT_OVERDAMPED if od else EXP_ERR_WEIGHT
     # time scale of the stick-slip cycle: the time the drive takes to stretch the pad to breakaway (none without
     # a drive). Where z changes fast (a breakaway, the collapse to re-stick) an error in z is a shift in time
     # along the path (the fast mode damps it out or the landing on zero takes it as one), weighed against it.
@@ -2005,7 +2012,7 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
         err = eu if eu > ez else ez
         if not (eu <= err and ez <= err):
             err = math.inf     # not a number in either: shorten
-        err *= EXP_ERR_WEIGHT
+        err *= ew
         if not (err <= tol):
             # too long (or overflowed): shorten by the fourth-order rule
             if err > 0.0 and math.isfinite(err):

@@ -102,7 +102,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "dc0e8a6811ea39998414b89f6d0923f739795bcb20b4c5d9ed06e9e03ba1aa2c"
+KERNEL_SOURCES_SHA256 = "88926247ea5087eb69d09ab455e21b2be7fdf2bd5d215ceb81108fa64dc6c4f9"
 
 
 @njit(cache=True, inline="always")
