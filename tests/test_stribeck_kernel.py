@@ -87,6 +87,23 @@ def _viscous_belt_events(m, k, b, mus, W, V, n):
     return np.array(out)
 
 
+def test_default_steps_hold_on_a_pad_with_almost_no_sliding_damping():
+    """The contactor stroke with c = 0 and b = 0.05 N s/m (35 breakaways in 0.5 s) at 100 Hz ticks, default
+    tolerance: every event within 1e-9 s of Radau at rtol 1e-11. A 0.2 ms Taylor step whose last terms were small
+    ran into the collapse to re-stick (its speed 3.2e-3 m/s off at its end); the re-stick came 0.51 us late and the
+    events drifted up to 19.5 us. Each step's polynomial is now checked against the equation of motion at its end
+    (measured now: within 1.2e-11 s)."""
+    pad = PadParams(1.0e-4, 1.0e3, 0.0)
+    dev = DeviceProfile(pad=pad, friction=IMAIZUMI_FRICTION, extra={"stribeck": {"a": 55.0, "b": 0.05}})
+    ref = stribeck_ivp("Radau", 1e-11, m=1e-4, k=1e3, c=0.0, mu_s=2.1, mu_k=1.4, a=55.0, b=0.05, W=1.0, V=0.1,
+                       amp=1.25e-3, omega=2 * math.pi * 9.0, t_end=0.5)
+    assert ref.status == "ok" and ref.event_time.size >= 30
+    model = get_model("stribeck", dev, contactor_hz=9.0, contactor_amplitude_m=1.25e-3)
+    r = simulate_pad(model, V=0.1, N=1.0, pad=pad, friction=IMAIZUMI_FRICTION, tick_rate=100, duration=0.5)
+    assert r.event_time.size == ref.event_time.size
+    assert np.max(np.abs(r.event_time - ref.event_time)) < 1e-9
+
+
 @pytest.mark.parametrize("hz,amp,v,duration", [(9.0, 1.25e-3, 0.1, 0.25), (0.0, 0.0, 0.04, 0.12)])
 def test_exponential_steps_match_tight_radau_within_their_tolerance(hz, amp, v, duration):
     """Looser tolerances (exponential Rosenbrock slip steps): event errors bounded by, and shrinking with, the tolerance."""

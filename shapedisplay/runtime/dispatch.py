@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "e0d55544b42202974c2344d0ddcd887b5ba119cdb59974da3d12d8d652d9c437"
+KERNEL_SOURCES_SHA256 = "03b001f7fd5ad5f6fa77549fd7d1104d250f8a8289e75ce7f0191bec44bf2a38"
 
 
 @njit(cache=True)

@@ -1530,6 +1530,36 @@ def _stribeck_lin_step(prm, u, z, sr, V, W, mus, muk, t, te):
     return u, z, sr, False, t
 
 
+#: How far a Taylor step's polynomial may miss the equation of motion at its end before the step is taken again,
+#: shorter: the speed's rate of the polynomial against the one the state there implies, times the step, in
+#: tolerances of the speed scale. A step truncated as the series prescribes misses by about (p + 1) of its last
+#: term, far below this; it catches a step whose last terms are small while the series no longer holds (on a pad
+#: with almost no sliding damping a 0.2 ms step ran into the collapse to re-stick, its speed 3.2e-3 m/s off)
+_TAYLOR_DEFECT_TOLS = 1e3
+
+
+@njit(cache=True, inline="always")
+def _taylor_defect_ok(prm, co, p, tau, sr, V, W, mus, muk, t, u0, z0):
+    """Whether the step's polynomial at ``tau`` satisfies ``m z' = F - c z - k u`` within
+    :data:`_TAYLOR_DEFECT_TOLS` tolerances of the speed scale (over the step), with ``(u, z)`` there."""
+    m = prm.mass
+    k = prm.stiffness
+    c = prm.damping
+    A = prm.contactor_amplitude
+    om = prm.contactor_omega
+    u1 = _horner(co, 0, p, tau)
+    z1, zd = _horner_d(co, 1, p, tau)
+    vr1 = z1 + V - (A * om * math.cos(om * (t + tau)) if A != 0.0 else 0.0)
+    fr = 0.0
+    if W > 0.0:
+        x = -prm.stribeck_a * sr * vr1 / W
+        E = math.exp(x) if x > -700.0 else 0.0
+        fr = -sr * W * (muk + (mus - muk) * E) - prm.stribeck_b * vr1
+    d = abs(zd - (fr - c * z1 - k * u1) / m) * tau
+    zsc = abs(V) + A * om + mus * W / math.sqrt(k * m) + abs(z0)
+    return d <= _TAYLOR_DEFECT_TOLS * prm.stribeck_tol * zsc, u1, z1
+
+
 @njit(cache=True, error_model="numpy")
 def _stribeck_taylor_slip(prm, u, z, sr, V, W, mus, muk, t, te):
     """Slip of the plain Stribeck curve from ``t`` to at most ``te`` by Taylor steps.
@@ -1546,10 +1576,13 @@ def _stribeck_taylor_slip(prm, u, z, sr, V, W, mus, muk, t, te):
     om = prm.contactor_omega
     hmin = 1e-6 * math.sqrt(m / k)
     co = np.empty((5, STRIBECK_MAX_ORDER + 1))     # the step's Taylor coefficients (see _stribeck_series)
+    # a step's polynomial checked against the equation of motion where it ends (see _taylor_defect_ok): a step
+    # whose last terms are small although the series no longer holds is shortened (hlim) and taken again
+    hlim = math.inf
     for it in range(MAX_EVENTS_PER_TICK):
         if t >= te:
             break
-        p, hs = _stribeck_series(prm, W, V, mus, muk, sr, t, u, z, min(te - t, prm.substep), co)
+        p, hs = _stribeck_series(prm, W, V, mus, muk, sr, t, u, z, min(te - t, prm.substep, hlim), co)
         if not (hs >= hmin) or it >= _STRIBECK_MAX_TAYLOR_STEPS:
             # the series cannot follow the friction curve here (its exponential varies on a time scale far
             # below the pad's: absurd speeds, micronewton loads): a linearised exponential step keeps the
@@ -1573,14 +1606,18 @@ def _stribeck_taylor_slip(prm, u, z, sr, V, W, mus, muk, t, te):
                 break
             lo = tau
             flo = f
-        if root < 0.0:
-            u = _horner(co, 0, p, hs)
-            z = _horner(co, 1, p, hs)
-            t = t + hs if t + hs < te else te
-            continue
-        if root > 0.0:
-            u = _horner(co, 0, p, root)
-            z = _horner(co, 1, p, root)
+        if root != 0.0:
+            tau = hs if root < 0.0 else root
+            ok, u1, z1 = _taylor_defect_ok(prm, co, p, tau, sr, V, W, mus, muk, t, u, z)
+            if not ok:
+                hlim = 0.5 * tau
+                continue
+            hlim = math.inf
+            u = u1
+            z = z1
+            if root < 0.0:
+                t = t + hs if t + hs < te else te
+                continue
             t += root
         # relative speed zero: re-stick if the friction needed to follow the contactor is admissible
         ddxc = -A * om * om * math.sin(om * t) if A != 0.0 else 0.0

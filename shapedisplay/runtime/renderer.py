@@ -102,7 +102,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "88926247ea5087eb69d09ab455e21b2be7fdf2bd5d215ceb81108fa64dc6c4f9"
+KERNEL_SOURCES_SHA256 = "b6bd85c5a671eb8653623e937be90028e03dfbf5925740ac73e325d3b33a9eac"
 
 
 @njit(cache=True, inline="always")
