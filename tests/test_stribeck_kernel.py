@@ -175,8 +175,8 @@ def test_loose_tolerances_keep_the_contactor_period_error_a_fraction_of_the_tole
 def test_period_error_stays_a_fraction_of_the_tolerance_up_to_the_loosest_on_a_lighter_damped_pad():
     """The contactor stroke on the Imaizumi pad with a twentieth of its damping (c = 0.05 N s/m), 100 Hz: the
     relative error of the intervals between events within half the tolerance from 1e-5 to 1e-3. The speed part
-    of an exponential step's error is measured against the speed the pad reaches (mu_s W over the larger of
-    sqrt(k m) and c + b); against the free oscillation's mu_s W / sqrt(k m) an error before the fold went unseen
+    of an exponential step's error is measured against the speed the pad reaches (mu_s W / (c + b) where the sliding
+    pad is overdamped); against the free oscillation's mu_s W / sqrt(k m) an error before the fold went unseen
     and the periods were 3.1 tolerances off at 1e-3 (0.14-0.31 below it). Measured now: 0.10-0.39."""
     ref = stribeck_ivp("Radau", 1e-10, m=1e-4, k=1e3, c=0.05, mu_s=2.1, mu_k=1.4, a=55.0, b=1.9, W=1.0, V=0.1,
                        amp=1.25e-3, omega=2 * math.pi * 9.0, t_end=0.5)

@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "03b001f7fd5ad5f6fa77549fd7d1104d250f8a8289e75ce7f0191bec44bf2a38"
+KERNEL_SOURCES_SHA256 = "6bec76878f18f62846b6640b54aebf37ab1b9148dc84e59337adff7f6248f4d6"
 
 
 @njit(cache=True)

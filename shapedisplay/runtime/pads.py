@@ -1222,6 +1222,12 @@ _STRIBECK_SAMPLES = 4    # sign checks of the relative speed per step (a touch i
 _STRIBECK_MAX_TAYLOR_STEPS = 20_000
 
 
+@njit(cache=True, inline="always")
+def _free_speed_scale(V, A, om, mus, W, k, m):
+    """The speed scale of a slip: the drive's speeds plus the free oscillation's ``mu_s W / sqrt(k m)``."""
+    return abs(V) + A * om + mus * W / math.sqrt(k * m)
+
+
 @njit(cache=True, error_model="numpy")
 def _stribeck_series(prm, W, V, mus, muk, sr, t, u, z, hcap, co):
     """Taylor coefficients of a slip of the plain Stribeck curve about ``t``; returns ``(p, h)``.
@@ -1251,7 +1257,7 @@ def _stribeck_series(prm, W, V, mus, muk, sr, t, u, z, hcap, co):
         C = math.cos(om * t)
         S = math.sin(om * t)
     us = 1.0 / (mus * W / k + abs(u) + 1e-300)
-    zs = 1.0 / (abs(V) + A * om + mus * W / math.sqrt(k * m) + abs(z) + 1e-300)
+    zs = 1.0 / (_free_speed_scale(V, A, om, mus, W, k, m) + abs(z) + 1e-300)
     tol = prm.stribeck_tol
     pmax = STRIBECK_MAX_ORDER
     co[0, 0] = u
@@ -1556,7 +1562,7 @@ def _taylor_defect_ok(prm, co, p, tau, sr, V, W, mus, muk, t, u0, z0):
         E = math.exp(x) if x > -700.0 else 0.0
         fr = -sr * W * (muk + (mus - muk) * E) - prm.stribeck_b * vr1
     d = abs(zd - (fr - c * z1 - k * u1) / m) * tau
-    zsc = abs(V) + A * om + mus * W / math.sqrt(k * m) + abs(z0)
+    zsc = _free_speed_scale(V, A, om, mus, W, k, m) + abs(z0)
     return d <= _TAYLOR_DEFECT_TOLS * prm.stribeck_tol * zsc, u1, z1
 
 
@@ -1902,7 +1908,7 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
     # former: measured against that, an error in z before the fold passed unnoticed and moved the collapse to
     # re-stick by microseconds); the estimate's weight goes with it
     od = c + b >= 2.0 * math.sqrt(k * m)
-    zsc0 = abs(V) + A * om + mus * W / ((c + b) if od else math.sqrt(k * m))
+    zsc0 = abs(V) + A * om + mus * W / (c + b) if od else _free_speed_scale(V, A, om, mus, W, k, m)
     ew = EXP_ERR_WEIGHT_OVERDAMPED if od else EXP_ERR_WEIGHT
     # time scale of the stick-slip cycle: the time the drive takes to stretch the pad to breakaway (none without
     # a drive). Where z changes fast (a breakaway, the collapse to re-stick) an error in z is a shift in time
@@ -1925,7 +1931,7 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
     side = 0
     vlo = sr * vr0
     vhi = 0.0
-    vtol = 1e-2 * tol * (abs(V) + A * om + mus * W / math.sqrt(k * m))   # (the free oscillation's speed scale)
+    vtol = 1e-2 * tol * _free_speed_scale(V, A, om, mus, W, k, m)
     h_prev = 0.0      # the last accepted step and the cube root of its error (step-size prediction)
     e4_prev = 0.0
     touch_checked = False   # a touch inside a step looked for from this start point already

@@ -102,7 +102,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "b6bd85c5a671eb8653623e937be90028e03dfbf5925740ac73e325d3b33a9eac"
+KERNEL_SOURCES_SHA256 = "87aee7c061b8900cf82ef91b148283dd2c7869a206ceba0a0f7230c381bad0a8"
 
 
 @njit(cache=True, inline="always")
