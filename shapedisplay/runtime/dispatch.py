@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "6bec76878f18f62846b6640b54aebf37ab1b9148dc84e59337adff7f6248f4d6"
+KERNEL_SOURCES_SHA256 = "bfa6985bf807790a7c5238aa0dc3c8a75d43e5e257732221c26f1df2b86e6b0f"
 
 
 @njit(cache=True)

@@ -1932,6 +1932,10 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
     vlo = sr * vr0
     vhi = 0.0
     vtol = 1e-2 * tol * _free_speed_scale(V, A, om, mus, W, k, m)
+    # or how close in time: a tenth of the tolerance's time shift (tol * tsc, as in the step's error below). The
+    # collapse to re-stick crosses zero at thousands of m/s^2, where vtol alone is a few nanoseconds and the
+    # landing's secant steps take several trials more (none without a drive: tsc = 0)
+    ttol = 0.1 * tol * tsc
     h_prev = 0.0      # the last accepted step and the cube root of its error (step-size prediction)
     e4_prev = 0.0
     touch_checked = False   # a touch inside a step looked for from this start point already
@@ -2109,7 +2113,7 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
                             continue
         if q1 <= 0.0:
             # through zero: land on it (Illinois-modified regula falsi on the step length)
-            if -q1 <= vtol or h - lo <= 1e-15 * (1.0 + abs(t)):
+            if -q1 <= vtol or h - lo <= max(1e-15 * (1.0 + abs(t)), ttol):
                 landed = True
             else:
                 if side == 1:
@@ -2125,7 +2129,7 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
                 continue
         elif hi > 0.0:
             # a trial short of the zero found before
-            if q1 <= vtol or hi - h <= 1e-15 * (1.0 + abs(t)):
+            if q1 <= vtol or hi - h <= max(1e-15 * (1.0 + abs(t)), ttol):
                 landed = True
             else:
                 if side == -1:
@@ -2174,11 +2178,11 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
         vlo = sr * vr0
         touch_checked = False
         # next step: the fourth-order rule with Gustafsson's prediction (an error growing from step to step, as
-        # in the collapse to re-stick, shortens the next one before it fails), at most twice as long (four times
-        # after a step far within the tolerance)
+        # in the collapse to re-stick, shortens the next one before it fails), at most twice as long (up to eight
+        # times after a step far within the tolerance: the rule itself, the end of a breakaway)
         e4 = math.sqrt(math.sqrt(err))
         if err <= tol * 1.5e-3:
-            grow = 4.0
+            grow = min(8.0, 0.8 * tol4 / e4) if err > 0.0 else 8.0
         else:
             grow = 0.8 * tol4 / e4
             gmax = 2.0
@@ -2186,7 +2190,7 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
                 # the curve's remainder scales with E: where it fell over the step (the end of a breakaway, the
                 # entry to steady sliding) the next step's error falls with it
                 grow *= math.sqrt(math.sqrt(E_start / E0)) if E0 > 0.0 else 4.0
-                gmax = 4.0
+                gmax = 8.0
             elif E0 > E_start and not landed and e4_prev == 0.0:
                 # and where it rose, the next error rises with it: the first step of a tick has no error before it
                 # for the prediction below (the entry from steady sliding into the slow-down before the fold, where
@@ -2199,15 +2203,18 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
             grow = min(gmax, max(0.2, grow))
         if t >= te:
             # the next tick starts with the step wanted here (not the rest of the tick this one was cut to), or
-            # shorter if this step, cut to at least half of it, asks for less
+            # shorter if this step, cut to at least half of it, asks for less, or if its error asks to shorten
+            # (an error growing towards the collapse to re-stick: the wanted step may be ticks old)
             hn = h_want
-            if h >= 0.5 * h_want and h * grow < hn:
+            if h * grow < hn and (h >= 0.5 * h_want or grow < 1.0):
                 hn = h * grow
             break
         h_prev = h
         e4_prev = e4
         h_want = min(h * grow, prm.substep)
         h = min(h_want, te - t)
+        if te - t < 1.25 * h and te - t <= prm.substep:
+            h = te - t    # up to a quarter longer rather than a sliver to the tick's end
     F = -sr * W * (muk + dmu * E0) - b * (z + V - A * om * C0)
     return u, z, sr, False, t, F, hn
 

@@ -102,7 +102,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "87aee7c061b8900cf82ef91b148283dd2c7869a206ceba0a0f7230c381bad0a8"
+KERNEL_SOURCES_SHA256 = "58727d83f105d468e4638930c2c83fa7551c6cd24603efbd6987078d0e11ce97"
 
 
 @njit(cache=True, inline="always")
