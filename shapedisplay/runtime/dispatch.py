@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "bfa6985bf807790a7c5238aa0dc3c8a75d43e5e257732221c26f1df2b86e6b0f"
+KERNEL_SOURCES_SHA256 = "92551cbd330f9a5328e7a84acb3ff5fffea69523abdba9e233837eef2b6ebee3"
 
 
 @njit(cache=True)

@@ -1953,8 +1953,20 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
             rgrow = sig + math.sqrt(sig * sig + k / m)
             if h * rgrow > 3.0:
                 h = 3.0 / rgrow
-        if not (h >= hmin) and h < te - t:
-            # the curve's drop is steeper than any step resolves (a micronewton load): linearised steps
+        # an oscillating linear part (complex roots): at most a quarter of its period per step. The sign checks at
+        # the step's quarters and the touch check between its ends see a dip of the relative speed to zero only
+        # on steps short against the oscillation: a lightly damped pad sliding fast (the curve's remainder nil,
+        # the error estimate with it) otherwise stepped a whole tick over its collapse to re-stick
+        sgo = 0.5 * ce / m
+        dso = sgo * sgo - k / m
+        if dso < 0.0:
+            wdo = math.sqrt(-dso)
+            if h * wdo > 0.5 * math.pi:
+                h = 0.5 * math.pi / wdo
+        if not (h >= hmin) and h < te - t and hi < 0.0:
+            # the curve's drop is steeper than any step resolves (a micronewton load): linearised steps (not
+            # inside a bracket around a zero of the relative speed: there a short step is a landing's, the zero
+            # being that close; the linearised steps' re-stick came a tenth of a microsecond early)
             u, z, sr, stuck, t = _stribeck_lin_step(prm, u, z, sr, V, W, mus, muk, t, te)
             if A != 0.0:
                 C0 = math.cos(om * t)
@@ -2165,10 +2177,15 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
             E0 = 1.0 if W > 0.0 else 0.0
             z = dxc - V
         else:
-            # the curve at the corrected end: E0 e^x e^d, d = -a sr dz / W (small: a short series)
+            # the curve at the corrected end: E0 e^x e^d, d = -a sr dz / W (small: a short series); where the
+            # curve fell to below half over the step, e^x = 1 + ex has lost digits to the cancellation (all of
+            # them from x < -37 on: E0 then stayed zero for the rest of the slip, and the rise of the friction
+            # towards mu_s before the next re-stick went unseen): E at the end afresh
             d = -aw * sr * (dz - dz1) if W > 0.0 else 0.0
             vr0 = vr1
-            if abs(d) < 0.05:
+            if ex < -0.5:
+                E0 = math.exp(-aw * sr * vr1) if W > 0.0 else 0.0
+            elif abs(d) < 0.05:
                 E0 = E0 * (1.0 + ex) * (1.0 + d * (1.0 + d * (0.5 + d * (1.0 / 6.0 + d * (1.0 / 24.0))))) if W > 0.0 else 0.0
             else:
                 E0 = E0 * (1.0 + ex) * math.exp(d)

@@ -102,7 +102,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "58727d83f105d468e4638930c2c83fa7551c6cd24603efbd6987078d0e11ce97"
+KERNEL_SOURCES_SHA256 = "f951c1a75ec1a1032bd1310fcb36e7c1732cd7549ce87646aff0c99b863fe75f"
 
 
 @njit(cache=True, inline="always")
