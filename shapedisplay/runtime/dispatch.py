@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "92551cbd330f9a5328e7a84acb3ff5fffea69523abdba9e233837eef2b6ebee3"
+KERNEL_SOURCES_SHA256 = "bddecee3c882cfe79fa4d8bc659b711ce7d44c87b1a5defa35304f7c6a214584"
 
 
 @njit(cache=True)

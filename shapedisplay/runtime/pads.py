@@ -1653,7 +1653,7 @@ STRIBECK_EXP_MIN_TOL = 3e-9
 EXP_ERR_WEIGHT = 10.0
 #: The weight where the sliding pad is overdamped (c + b >= 2 sqrt(k m)) and the speed's error is measured against
 #: the speed it reaches (see _stribeck_exp_slip): stick-slip periods within about half a tolerance (measured against
-#: Radau: 0.01-0.09 on the contactor case, 0.01-0.56 with a twentieth of its damping, 3e-9 to 1e-3, 100 Hz to 10 kHz)
+#: Radau: 0.01-0.10 on the contactor case, 0.01-0.37 with a twentieth of its damping, 3e-9 to 1e-3, 100 Hz to 10 kHz)
 EXP_ERR_WEIGHT_OVERDAMPED = 3.0
 
 
