@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "bddecee3c882cfe79fa4d8bc659b711ce7d44c87b1a5defa35304f7c6a214584"
+KERNEL_SOURCES_SHA256 = "f6e57e16f22c3f4bfa86ac7e0611e84050825c36092e1c89eb62c31b77a770ca"
 
 
 @njit(cache=True)

@@ -1948,7 +1948,7 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
         G = a * dmu * E0 - b
         ce = c - G
         if ce < 0.0:
-            # a self-excited step: growth up to e^20 (the error estimate decides the rest; no overflow)
+            # a self-excited step: growth up to e^3 (the error estimate decides the rest; no overflow)
             sig = -0.5 * ce / m
             rgrow = sig + math.sqrt(sig * sig + k / m)
             if h * rgrow > 3.0:
