@@ -109,8 +109,9 @@ def test_exponential_steps_keep_their_bound_where_the_sliding_pad_is_underdamped
     """The contactor stroke on pads whose sliding is underdamped (c + b < 2 sqrt(k m) = 0.63 N s/m; 35 and 27
     breakaways in 0.5 s), 1e-8 to 1e-3 at 100 Hz and 1 kHz ticks: every event within 10 tolerances of the mean
     event interval of the default tolerance's (itself within 1.2e-11 s of Radau on the first pad). Three faults
-    moved events by 0.4 us to 1.3 ms before: a step where the curve fell by more than e^37 left E exactly zero for
-    the rest of the slip (the rise of the friction towards mu_s before the next re-stick unseen); steps of a whole
+    moved events by up to 58 us (first pad) and 2.9 ms (second), or lost them, at 100 Hz: a step where the curve
+    fell by more than e^37 left E exactly zero for the rest of the slip (the rise of the friction towards mu_s
+    before the next re-stick unseen); steps of a whole
     tick over a pad oscillating at 0.5 kHz missed its collapse to re-stick between their sign checks; a landing
     whose zero lay closer than the shortest step went to the linearised steps, which re-stuck 0.1 us early.
     Measured now: at most 8.7 tolerances of the interval (at 1e-8)."""
