@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "f6e57e16f22c3f4bfa86ac7e0611e84050825c36092e1c89eb62c31b77a770ca"
+KERNEL_SOURCES_SHA256 = "6d1e038f9d5a9ab7ae57ee25d2db32a596fc52781a43e3254cf6a4b2daa2ebec"
 
 
 @njit(cache=True)

@@ -1947,22 +1947,23 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
         vrd0 = (F0 - c * z - k * u) / m + A * om * om * S0     # the rate of v_r at the start
         G = a * dmu * E0 - b
         ce = c - G
+        # the linear part's roots -sig +- sqrt(sig^2 - k/m) bound the step twice
+        sig = 0.5 * ce / m
+        sig2 = sig * sig
+        wn2 = k / m
         if ce < 0.0:
             # a self-excited step: growth up to e^3 (the error estimate decides the rest; no overflow)
-            sig = -0.5 * ce / m
-            rgrow = sig + math.sqrt(sig * sig + k / m)
+            rgrow = math.sqrt(sig2 + wn2) - sig
             if h * rgrow > 3.0:
                 h = 3.0 / rgrow
-        # an oscillating linear part (complex roots): at most a quarter of its period per step. The sign checks at
-        # the step's quarters and the touch check between its ends see a dip of the relative speed to zero only
-        # on steps short against the oscillation: a lightly damped pad sliding fast (the curve's remainder nil,
-        # the error estimate with it) otherwise stepped a whole tick over its collapse to re-stick
-        sgo = 0.5 * ce / m
-        dso = sgo * sgo - k / m
-        if dso < 0.0:
-            wdo = math.sqrt(-dso)
-            if h * wdo > 0.5 * math.pi:
-                h = 0.5 * math.pi / wdo
+        if sig2 < wn2:
+            # an oscillating linear part (complex roots): at most a quarter of its period per step. The sign checks
+            # at the step's quarters and the touch check between its ends see a dip of the relative speed to zero
+            # only on steps short against the oscillation: a lightly damped pad sliding fast (the curve's remainder
+            # nil, the error estimate with it) otherwise stepped a whole tick over its collapse to re-stick
+            wd = math.sqrt(wn2 - sig2)
+            if h * wd > 0.5 * math.pi:
+                h = 0.5 * math.pi / wd
         if not (h >= hmin) and h < te - t and hi < 0.0:
             # the curve's drop is steeper than any step resolves (a micronewton load): linearised steps (not
             # inside a bracket around a zero of the relative speed: there a short step is a landing's, the zero
