@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "6d1e038f9d5a9ab7ae57ee25d2db32a596fc52781a43e3254cf6a4b2daa2ebec"
+KERNEL_SOURCES_SHA256 = "033fff6e8a7cf64fa228d3a1c61aa8144a12bc989fd22d43e0b981d292d66766"
 
 
 @njit(cache=True)

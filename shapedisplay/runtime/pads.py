@@ -57,7 +57,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.extending import intrinsic
 
 from .layouts import PAD_STATE, record
 
@@ -1213,6 +1215,112 @@ def _contactor(prm, t):
     return A * sn, A * w * math.cos(w * t), -A * w * w * sn
 
 
+# ---------------------------------------------------------------- elementary functions in line
+@intrinsic
+def _f64_from_bits(typingctx, bits):
+    """The float64 whose IEEE 754 bits are the int64 ``bits`` (compiled code only)."""
+    if not isinstance(bits, types.Integer):
+        return None
+
+    def codegen(context, builder, sig, args):
+        return builder.bitcast(args[0], ir.DoubleType())
+    return types.float64(types.int64), codegen
+
+
+@intrinsic
+def _bits_of_f64(typingctx, x):
+    """The IEEE 754 bits of the float64 ``x`` as an int64 (compiled code only)."""
+    if not isinstance(x, types.Float):
+        return None
+
+    def codegen(context, builder, sig, args):
+        return builder.bitcast(args[0], ir.IntType(64))
+    return types.int64(types.float64), codegen
+
+
+#: :func:`_exp`'s constants: the bits of 2^(j / 256), j = 0 ... 255; 256 / ln 2; ln 2 / 256 split in two
+#: (Cody and Waite, fdlibm's split of ln 2: the high part has 32 significant bits, n * hi is exact for
+#: |n| < 2^21); 1.5 * 2^52, whose addition rounds x 256 / ln 2 to an integer n in the low bits
+_EXP2_256_BITS = np.array([np.float64(2.0 ** (j / 256)).view(np.int64) for j in range(256)], dtype=np.int64)
+_INV_LN2_256 = 256.0 / math.log(2.0)
+_LN2_256_HI = float.fromhex("0x1.62e42feep-9")
+_LN2_256_LO = float.fromhex("0x1.a39ef35793c76p-41")
+_EXP_SHIFT = 1.5 * 2.0 ** 52
+_EXP_SHIFT_BITS = int(np.float64(_EXP_SHIFT).view(np.int64))
+
+
+@njit(cache=True, inline="always")
+def _exp(x):
+    """``e^x`` in line, within 1 ulp: no call into libm (the call, and the registers it makes the caller
+    spill, cost the exponential slip steps more than the arithmetic). ``x = (256 m + j) ln 2 / 256 + r``,
+    ``|r| <= ln 2 / 512``: ``2^m 2^(j / 256) (1 + p(r))``, ``p`` the series of ``e^r - 1`` to ``r^4``
+    (truncation below 4e-17). Results below the smallest normal number (x < -708) are 0, above 709.78 infinite."""
+    if x < -708.0:
+        return 0.0
+    if x > 709.78:
+        return math.inf
+    kd = x * _INV_LN2_256 + _EXP_SHIFT
+    n = _bits_of_f64(kd) - _EXP_SHIFT_BITS
+    kd -= _EXP_SHIFT
+    r = (x - kd * _LN2_256_HI) - kd * _LN2_256_LO
+    r2 = r * r
+    p = r + r2 * ((0.5 + r * (1.0 / 6)) + r2 * (1.0 / 24))
+    sc = _f64_from_bits(_EXP2_256_BITS[n & 255] + ((n >> 8) << 52))
+    return sc + sc * p
+
+
+#: The minimax polynomials of cos and sin on [-pi/4, pi/4] (fdlibm's __kernel_cos and __kernel_sin, within
+#: 1 ulp there) for :func:`_cos_sin`
+_COS_C = (4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05,
+          -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11)
+_SIN_S = (-1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04,
+          2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10)
+
+
+#: pi / 2 split for :func:`_cos_sin`'s reduction (fdlibm's: the high part has 33 significant bits, so n * hi is
+#: exact for |n| < 2^20), and 2 / pi
+_PIO2_HI = 1.57079632673412561417e+00
+_PIO2_LO = 6.07710050650619224932e-11
+_INV_PIO2 = 2.0 / math.pi
+
+
+@njit(cache=True, inline="always")
+def _cos_sin_kernel(x):
+    """``(cos x, sin x)`` for |x| <= pi/4 (a little beyond: the reduction's rounding) by the minimax polynomials."""
+    C1, C2, C3, C4, C5, C6 = _COS_C
+    S1, S2, S3, S4, S5, S6 = _SIN_S
+    z = x * x
+    w = z * z
+    r = z * (C1 + z * (C2 + z * C3)) + w * w * (C4 + z * (C5 + z * C6))
+    hz = 0.5 * z
+    c = 1.0 - hz
+    c = c + (((1.0 - c) - hz) + z * r)
+    rs = S2 + z * (S3 + z * S4) + z * w * (S5 + z * S6)
+    return c, x + z * x * (S1 + z * rs)
+
+
+@njit(cache=True, inline="always")
+def _cos_sin(x):
+    """``(cos x, sin x)`` in line (a call into libm, and the registers it makes the caller spill, cost the
+    Stribeck kernels more than the arithmetic): the minimax polynomials after a reduction by the nearest
+    multiple n pi / 2 (Cody and Waite, |x| < 1.6e6: the contactor's phase over 28 000 periods; an absolute
+    error below 2e-16 + |n| 1e-26), else libm's."""
+    if abs(x) <= 0.7853981633974483:
+        return _cos_sin_kernel(x)
+    if not abs(x) < 1.6e6:
+        return math.cos(x), math.sin(x)
+    nd = math.floor(x * _INV_PIO2 + 0.5)
+    c, s = _cos_sin_kernel((x - nd * _PIO2_HI) - nd * _PIO2_LO)
+    q = int(nd) & 3
+    if q == 0:
+        return c, s
+    if q == 1:
+        return -s, c
+    if q == 2:
+        return -c, -s
+    return s, -c
+
+
 # ---------------------------------------------------------------- plain Stribeck curve: Taylor slip steps
 #: Highest order of the Taylor slip step (coefficients kept per step; the step picks its order below it).
 STRIBECK_MAX_ORDER = 14
@@ -1408,8 +1516,7 @@ def _stick_force(prm, V, ua, xca, ta, t):
     ddxc = 0.0
     dddxc = 0.0
     if A != 0.0:
-        sn = math.sin(om * t)
-        cs = math.cos(om * t)
+        cs, sn = _cos_sin(om * t)
         xc = A * sn
         dxc = A * om * cs
         ddxc = -A * om * om * sn
@@ -1441,7 +1548,7 @@ def _stribeck_stick(prm, V, thr, ua, ta, te, newton_stop):
     c = prm.damping
     A = prm.contactor_amplitude
     om = prm.contactor_omega
-    xca = A * math.sin(om * ta) if A != 0.0 else 0.0
+    xca = A * _cos_sin(om * ta)[1] if A != 0.0 else 0.0
     fpp = A * om * om * math.sqrt((k - m * om * om) ** 2 + (c * om) ** 2) if A != 0.0 else 0.0
     ub, zb, Fb, dFb = _stick_force(prm, V, ua, xca, ta, te)
     dt = te - ta
@@ -1658,17 +1765,6 @@ EXP_ERR_WEIGHT_OVERDAMPED = 3.0
 
 
 @njit(cache=True, inline="always")
-def _cos_sin(x):
-    """``(cos x, sin x)``; a short series for the small angles of one slip step (error below 1e-19)."""
-    if abs(x) < 0.1:
-        x2 = x * x
-        c = 1.0 - x2 * (0.5 - x2 * (1.0 / 24 - x2 * (1.0 / 720 - x2 * (1.0 / 40320 - x2 * (1.0 / 3628800)))))
-        s = x * (1.0 - x2 * (1.0 / 6 - x2 * (1.0 / 120 - x2 * (1.0 / 5040 - x2 * (1.0 / 362880 - x2 * (1.0 / 39916800))))))
-        return c, s
-    return math.cos(x), math.sin(x)
-
-
-@njit(cache=True, inline="always")
 def _expm1_minus_x(x):
     """``e^x - 1 - x``: its series below |x| = 0.25 (error below 1e-16 of the value; quicker than expm1), else
     through exp (the cancellation costs at most 4e-15 of the value there)."""
@@ -1681,7 +1777,7 @@ def _expm1_minus_x(x):
         mid = (1.0 / 720 + x * (1.0 / 5040)) + x2 * (1.0 / 40320 + x * (1.0 / 362880))
         hi = (1.0 / 3628800 + x * (1.0 / 39916800)) + x2 * (1.0 / 479001600)
         return x2 * ((lo + x4 * mid) + x8 * hi)
-    return (math.exp(x) - 1.0) - x
+    return (_exp(x) - 1.0) - x
 
 
 @njit(cache=True, inline="always")
@@ -1703,21 +1799,21 @@ def _lin_propagator(m, ce, k, h):
         else:
             r1 = -sig + sq
             r2 = wn2 / r1
-        e2 = math.exp(r2 * h)
+        e2 = _exp(r2 * h)
         x = (r1 - r2) * h
         if x > 0.5:
-            d = (math.exp(r1 * h) - e2) / (r1 - r2)    # no cancellation to speak of; exp is quicker than expm1
+            d = (_exp(r1 * h) - e2) / (r1 - r2)    # no cancellation to speak of; exp is quicker than expm1
         else:
             if x < 0.05:
                 d = e2 * h * (1.0 + x * (0.5 + x * (1.0 / 6 + x * (1.0 / 24 + x * (1.0 / 120 + x * (
                     1.0 / 720 + x * (1.0 / 5040 + x * (1.0 / 40320 + x * (1.0 / 362880)))))))))
             else:
-                d = e2 * h * ((math.exp(x) - 1.0) / x)
+                d = e2 * h * ((_exp(x) - 1.0) / x)
         return e2 - r2 * d, d, -wn2 * d, e2 + r1 * d
     wd = math.sqrt(-disc)
-    e = math.exp(-sig * h)
-    cs = math.cos(wd * h)
-    d = e * math.sin(wd * h) / wd
+    e = _exp(-sig * h)
+    cs, sn = _cos_sin(wd * h)
+    d = e * sn / wd
     return e * cs + sig * d, d, -wn2 * d, e * cs - sig * d
 
 
@@ -1923,7 +2019,7 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
     hn = 0.0
     # friction curve at the start: W (mu_k + dmu E) with E = exp(-a sr vr / W)
     vr0 = z + V - A * om * C0
-    E0 = math.exp(-aw * max(sr * vr0, 0.0)) if W > 0.0 else 0.0
+    E0 = _exp(-aw * max(sr * vr0, 0.0)) if W > 0.0 else 0.0
     # the bracket [lo, hi] of step lengths around a zero of the relative speed (hi < 0: none yet), with sr vr
     # at its ends; vtol: how close to zero a landing must come
     lo = 0.0
@@ -1970,12 +2066,11 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
             # being that close; the linearised steps' re-stick came a tenth of a microsecond early)
             u, z, sr, stuck, t = _stribeck_lin_step(prm, u, z, sr, V, W, mus, muk, t, te)
             if A != 0.0:
-                C0 = math.cos(om * t)
-                S0 = math.sin(om * t)
+                C0, S0 = _cos_sin(om * t)
             if stuck:
                 return u, z, sr, True, t, 0.0, 0.0
             vr0 = z + V - A * om * C0
-            E0 = math.exp(-aw * max(sr * vr0, 0.0)) if W > 0.0 else 0.0
+            E0 = _exp(-aw * max(sr * vr0, 0.0)) if W > 0.0 else 0.0
             h = min(te - t, prm.substep)
             h_want = h
             lo = 0.0
@@ -2185,11 +2280,11 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
             d = -aw * sr * (dz - dz1) if W > 0.0 else 0.0
             vr0 = vr1
             if ex < -0.5:
-                E0 = math.exp(-aw * sr * vr1) if W > 0.0 else 0.0
+                E0 = _exp(-aw * sr * vr1) if W > 0.0 else 0.0
             elif abs(d) < 0.05:
                 E0 = E0 * (1.0 + ex) * (1.0 + d * (1.0 + d * (0.5 + d * (1.0 / 6.0 + d * (1.0 / 24.0))))) if W > 0.0 else 0.0
             else:
-                E0 = E0 * (1.0 + ex) * math.exp(d)
+                E0 = E0 * (1.0 + ex) * _exp(d)
         lo = 0.0
         hi = -1.0
         side = 0
@@ -2254,8 +2349,7 @@ def _stribeck_plain_tick(st, prm, t0, h, V, W, mus, muk, B, ev_t, ev_a, n_ev):
     if phase != 0.0:
         # a new finger speed at the tick start can reverse the relative velocity: friction follows it
         if A != 0.0:
-            Ct = math.cos(om * t0)
-            St = math.sin(om * t0)
+            Ct, St = _cos_sin(om * t0)
         tcs = t0
         vr = z + V - A * om * Ct
         if vr != 0.0:
@@ -2275,8 +2369,7 @@ def _stribeck_plain_tick(st, prm, t0, h, V, W, mus, muk, B, ev_t, ev_a, n_ev):
             continue
         if prm.stribeck_tol >= STRIBECK_EXP_MIN_TOL:
             if tcs != t and A != 0.0:
-                Ct = math.cos(om * t)
-                St = math.sin(om * t)
+                Ct, St = _cos_sin(om * t)
             u, z, sr, stuck, t, F, hn = _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, Ct, St,
                                                            st.slip_step if t == t0 else 0.0)
             st.slip_step = hn

@@ -102,7 +102,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "bdd4ae1ac27d32ff9f80230d59b8042834e70ff3f1d51c3236821f17d5adf587"
+KERNEL_SOURCES_SHA256 = "61061582b7753517aa7fd60554b2f96ebc00befe806992b63d952d6a64b9ff6f"
 
 
 @njit(cache=True, inline="always")
