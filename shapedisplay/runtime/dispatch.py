@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "033fff6e8a7cf64fa228d3a1c61aa8144a12bc989fd22d43e0b981d292d66766"
+KERNEL_SOURCES_SHA256 = "7d4d17c5d0ce6ac485b7c0f34a17246c59d2ac384ee9b2a3c4ce5ddd7be5443d"
 
 
 @njit(cache=True)

@@ -1501,10 +1501,12 @@ def _series_root(co, p, sr, lo, hi):
 
 
 @njit(cache=True, inline="always")
-def _stick_force(prm, V, ua, xca, ta, t):
-    """Stuck on the contactor since ``ta`` (stretch ``ua``, contactor at ``xca``): ``(u, z, F, F')`` at ``t``.
+def _stick_force(prm, V, ua, xca, Ca, Sa, ta, t):
+    """Stuck on the contactor since ``ta`` (stretch ``ua``, contactor at ``xca``, its phase ``(cos, sin)`` there
+    ``(Ca, Sa)``): ``(u, z, F, F')`` at ``t``.
 
-    ``F = m x_c'' + c z + k u`` is the friction needed to keep the pad on the contactor.
+    ``F = m x_c'' + c z + k u`` is the friction needed to keep the pad on the contactor. The contactor's
+    phase at ``t`` is the one at ``ta`` turned by ``omega (t - ta)`` (a short angle over a tick: no reduction).
     """
     m = prm.mass
     k = prm.stiffness
@@ -1516,7 +1518,9 @@ def _stick_force(prm, V, ua, xca, ta, t):
     ddxc = 0.0
     dddxc = 0.0
     if A != 0.0:
-        cs, sn = _cos_sin(om * t)
+        cd, sd = _cos_sin(om * (t - ta))
+        cs = Ca * cd - Sa * sd
+        sn = Sa * cd + Ca * sd
         xc = A * sn
         dxc = A * om * cs
         ddxc = -A * om * om * sn
@@ -1541,23 +1545,32 @@ def _stribeck_stick(prm, V, thr, ua, ta, te, newton_stop):
     that ends the polish even where it falls on an end of the bracket (the
     default tolerance's Taylor steps keep the polish as it was, which then
     bisects the bracket down to 1e-16 s: the same root to rounding, at
-    about twenty evaluations more per breakaway).
+    about twenty evaluations more per breakaway). An evaluation at a time
+    evaluated before (the tick's end, a piece's end where the polish starts,
+    the polish's last point) is taken from it.
     """
     m = prm.mass
     k = prm.stiffness
     c = prm.damping
     A = prm.contactor_amplitude
     om = prm.contactor_omega
-    xca = A * _cos_sin(om * ta)[1] if A != 0.0 else 0.0
+    Ca = 1.0
+    Sa = 0.0
+    if A != 0.0:
+        Ca, Sa = _cos_sin(om * ta)
+    xca = A * Sa
     fpp = A * om * om * math.sqrt((k - m * om * om) ** 2 + (c * om) ** 2) if A != 0.0 else 0.0
-    ub, zb, Fb, dFb = _stick_force(prm, V, ua, xca, ta, te)
+    ue, ze, Fe, dFe = _stick_force(prm, V, ua, xca, Ca, Sa, ta, te)
     dt = te - ta
-    if abs(Fb) + abs(dFb) * dt + 0.5 * fpp * dt * dt <= thr:
-        return te, False, ub, zb, Fb
-    _, _, Fa, _ = _stick_force(prm, V, ua, xca, ta, ta)
+    if abs(Fe) + abs(dFe) * dt + 0.5 * fpp * dt * dt <= thr:
+        return te, False, ue, ze, Fe
+    u, z, Fa, _ = _stick_force(prm, V, ua, xca, Ca, Sa, ta, ta)
     if abs(Fa) > thr:
-        u, z, F, _ = _stick_force(prm, V, ua, xca, ta, ta)
-        return ta, True, u, z, F
+        return ta, True, u, z, Fa
+    # (u, z, Fl, dFl) the last evaluation, at tl
+    tl = ta
+    Fl = Fa
+    dFl = 0.0
     x = ta
     tb = te
     broke = False
@@ -1567,7 +1580,12 @@ def _stribeck_stick(prm, V, thr, ua, ta, te, newton_stop):
         if dt > te - x:
             dt = te - x
         xb = x + dt
-        _, _, Fb, _ = _stick_force(prm, V, ua, xca, ta, xb)
+        if xb == te:
+            u, z, Fl, dFl = ue, ze, Fe, dFe
+        else:
+            u, z, Fl, dFl = _stick_force(prm, V, ua, xca, Ca, Sa, ta, xb)
+        tl = xb
+        Fb = Fl
         if abs(Fb) > thr:
             # crossing in (x, xb]: root of |F| - thr (one crossing: the piece's curvature is small)
             lo = x
@@ -1576,13 +1594,15 @@ def _stribeck_stick(prm, V, thr, ua, ta, te, newton_stop):
             tt = hi
             tb = hi
             for _ in range(100):
-                _, _, Ft, dF = _stick_force(prm, V, ua, xca, ta, tt)
-                f = sg * Ft - thr
+                if tt != tl:
+                    u, z, Fl, dFl = _stick_force(prm, V, ua, xca, Ca, Sa, ta, tt)
+                    tl = tt
+                f = sg * Fl - thr
                 if f > 0.0:
                     hi = tt
                 else:
                     lo = tt
-                tn = tt - f / (sg * dF) if dF != 0.0 else 0.5 * (lo + hi)
+                tn = tt - f / (sg * dFl) if dFl != 0.0 else 0.5 * (lo + hi)
                 if newton_stop and abs(tn - tt) <= 1e-16 * (1.0 + abs(tt)):
                     # converged (a Newton step within rounding of the root that may fall on the bracket's end)
                     tb = tn
@@ -1604,8 +1624,9 @@ def _stribeck_stick(prm, V, thr, ua, ta, te, newton_stop):
             dt *= 0.25
     if not broke:
         tb = x if x < te else te
-    u, z, F, _ = _stick_force(prm, V, ua, xca, ta, tb)
-    return tb, broke, u, z, F
+    if tb != tl:
+        u, z, Fl, _ = _stick_force(prm, V, ua, xca, Ca, Sa, ta, tb)
+    return tb, broke, u, z, Fl
 
 
 @njit(cache=True, error_model="numpy")

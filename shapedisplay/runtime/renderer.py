@@ -102,7 +102,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "61061582b7753517aa7fd60554b2f96ebc00befe806992b63d952d6a64b9ff6f"
+KERNEL_SOURCES_SHA256 = "bb75879ca12ee53e3397eff23db6dd84b9d1675550a4fbfc1df9fb31c5482921"
 
 
 @njit(cache=True, inline="always")
