@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "7d4d17c5d0ce6ac485b7c0f34a17246c59d2ac384ee9b2a3c4ce5ddd7be5443d"
+KERNEL_SOURCES_SHA256 = "ab802fb6ec5fdd6df36fa78831962f6118dfe844e1be00b5d00ab53eb3f4d5d9"
 
 
 @njit(cache=True)

@@ -1530,7 +1530,7 @@ def _stick_force(prm, V, ua, xca, Ca, Sa, ta, t):
     return u, z, m * ddxc + c * z + k * u, m * dddxc + c * ddxc + k * z
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _stribeck_stick(prm, V, thr, ua, ta, te, newton_stop):
     """Stick from ``ta`` (stretch ``ua``) to at most ``te``: the first time ``|F|`` exceeds ``thr``, or ``te``.
 
@@ -2353,7 +2353,7 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
     return u, z, sr, False, t, F, hn
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _stribeck_plain_tick(st, prm, t0, h, V, W, mus, muk, B, ev_t, ev_a, n_ev):
     """The plain Stribeck curve over one tick: stick in closed form, slip by Taylor steps (see stribeck_tick)."""
     k = prm.stiffness
@@ -2466,7 +2466,7 @@ def _stribeck_slip(prm, u, du, s, V, W, mus, muk, ta, dur):
     return u, du, s, F
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def stribeck_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
     """Imaizumi pad on a laterally vibrating contactor, finger bone at speed ``V``.
 

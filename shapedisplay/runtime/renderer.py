@@ -102,7 +102,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "bb75879ca12ee53e3397eff23db6dd84b9d1675550a4fbfc1df9fb31c5482921"
+KERNEL_SOURCES_SHA256 = "4d1b0e224611c60cd2243dac9720d559d31f56e8775ac379890dea3830e57f97"
 
 
 @njit(cache=True, inline="always")
