@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "ab802fb6ec5fdd6df36fa78831962f6118dfe844e1be00b5d00ab53eb3f4d5d9"
+KERNEL_SOURCES_SHA256 = "e05a4888d9eb7b6c072c9295c03112b37274a059e86d121951ca3154aea485f1"
 
 
 @njit(cache=True)

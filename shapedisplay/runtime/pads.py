@@ -1254,7 +1254,8 @@ def _exp(x):
     """``e^x`` in line, within 1 ulp: no call into libm (the call, and the registers it makes the caller
     spill, cost the exponential slip steps more than the arithmetic). ``x = (256 m + j) ln 2 / 256 + r``,
     ``|r| <= ln 2 / 512``: ``2^m 2^(j / 256) (1 + p(r))``, ``p`` the series of ``e^r - 1`` to ``r^4``
-    (truncation below 4e-17). Results below the smallest normal number (x < -708) are 0, above 709.78 infinite."""
+    (truncation below 4e-17). Below x = -708 (3.3e-308, near the smallest normal number) 0, above 709.78
+    infinite."""
     if x < -708.0:
         return 0.0
     if x > 709.78:

@@ -102,7 +102,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "4d1b0e224611c60cd2243dac9720d559d31f56e8775ac379890dea3830e57f97"
+KERNEL_SOURCES_SHA256 = "a52f2e6b310aa23570298980a64a8af050101858823932b21287fb3eb5948c95"
 
 
 @njit(cache=True, inline="always")
