@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "e05a4888d9eb7b6c072c9295c03112b37274a059e86d121951ca3154aea485f1"
+KERNEL_SOURCES_SHA256 = "c0067d6faa00c1877ff4bad6f64f8654ef36e69d4da606a613b4d0aca5acb457"
 
 
 @njit(cache=True)

@@ -1822,15 +1822,16 @@ def _lin_propagator(m, ce, k, h):
             r1 = -sig + sq
             r2 = wn2 / r1
         e2 = _exp(r2 * h)
-        x = (r1 - r2) * h
+        # r1 - r2 = 2 sq: its reciprocal is computed beside the exponentials, not after them
+        x = 2.0 * sq * h
         if x > 0.5:
-            d = (_exp(r1 * h) - e2) / (r1 - r2)    # no cancellation to speak of; exp is quicker than expm1
+            d = (_exp(r1 * h) - e2) * (0.5 / sq)    # no cancellation to speak of; exp is quicker than expm1
         else:
             if x < 0.05:
                 d = e2 * h * (1.0 + x * (0.5 + x * (1.0 / 6 + x * (1.0 / 24 + x * (1.0 / 120 + x * (
                     1.0 / 720 + x * (1.0 / 5040 + x * (1.0 / 40320 + x * (1.0 / 362880)))))))))
             else:
-                d = e2 * h * ((_exp(x) - 1.0) / x)
+                d = e2 * h * ((_exp(x) - 1.0) * (1.0 / x))
         return e2 - r2 * d, d, -wn2 * d, e2 + r1 * d
     wd = math.sqrt(-disc)
     e = _exp(-sig * h)
@@ -2115,27 +2116,50 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
         # of zero inside the step even where the end is past a second one
         ch, sh = _cos_sin(0.25 * om * h)
         q11, q12, q21, q22 = _lin_propagator(m, ce, k, 0.25 * h)
+        # and over h / 2 (for the responses below too): the midpoint and the end each by one product from the
+        # one before (a shorter chain than four quarter steps); the quarter points for the sign checks beside
+        r11 = q11 * q11 + q12 * q21
+        r12 = q11 * q12 + q12 * q22
+        r21 = q21 * q11 + q22 * q21
+        r22 = q21 * q12 + q22 * q22
+        ch2 = ch * ch - sh * sh
+        sh2 = 2.0 * ch * sh
         uh = u - up0 - (X * C0 + Y * S0)
         zh = z - om * (Y * C0 - X * S0)
-        C1 = C0
-        S1 = S0
-        qprev = sr * vr0
+        um = r11 * uh + r12 * zh
+        zm = r21 * uh + r22 * zh
+        Cm = C0 * ch2 - S0 * sh2
+        Sm = S0 * ch2 + C0 * sh2
+        vrm = zm + om * (Y * Cm - X * Sm) + V - A * om * Cm
+        ue = r11 * um + r12 * zm
+        ze = r21 * um + r22 * zm
+        C1 = Cm * ch2 - Sm * sh2
+        S1 = Sm * ch2 + Cm * sh2
         cross = 0
-        vrm = vr0
-        for j in range(4):
-            uh, zh = q11 * uh + q12 * zh, q21 * uh + q22 * zh
-            C1, S1 = C1 * ch - S1 * sh, S1 * ch + C1 * sh
-            if j == 1:
-                vrm = zh + om * (Y * C1 - X * S1) + V - A * om * C1
-            if j < 3 and cross == 0 and hi < 0.0:
-                qj = sr * (zh + om * (Y * C1 - X * S1) + V - A * om * C1)
-                if qj <= 0.0:
-                    cross = j + 1
-                    vhi = qj
-                    vlo = qprev
-                qprev = qj
-        u1 = uh + up0 + X * C1 + Y * S1
-        z1 = zh + om * (Y * C1 - X * S1)
+        if hi < 0.0:
+            # the sign of sr vr at the first three quarters
+            q0 = sr * vr0
+            Cq = C0 * ch - S0 * sh
+            Sq = S0 * ch + C0 * sh
+            qa = sr * ((q21 * uh + q22 * zh) + om * (Y * Cq - X * Sq) + V - A * om * Cq)
+            qb = sr * vrm
+            Cq = Cm * ch - Sm * sh
+            Sq = Sm * ch + Cm * sh
+            qc = sr * ((q21 * um + q22 * zm) + om * (Y * Cq - X * Sq) + V - A * om * Cq)
+            if qa <= 0.0:
+                cross = 1
+                vhi = qa
+                vlo = q0
+            elif qb <= 0.0:
+                cross = 2
+                vhi = qb
+                vlo = qa
+            elif qc <= 0.0:
+                cross = 3
+                vhi = qc
+                vlo = qb
+        u1 = ue + up0 + X * C1 + Y * S1
+        z1 = ze + om * (Y * C1 - X * S1)
         vr1 = z1 + V - A * om * C1
         if cross > 0:
             # through zero inside the step: land on the crossing between the quarters around it
@@ -2159,10 +2183,6 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
         # its response from rest (at the end and the midpoint), then once more with the remainder taken along
         # the corrected path (a Picard pass: the remainder was taken along the linear solution)
         lng = _basis_in_closed_form(m, ce, wn, h, tol)
-        r11 = q11 * q11 + q12 * q21
-        r12 = q11 * q12 + q12 * q22
-        r21 = q21 * q11 + q22 * q21
-        r22 = q21 * q12 + q22 * q22
         u2, z2, zm2, u3, z3, zm3 = _poly_basis(m, ce, k, wn, h, lng, r11, r12, r21, r22, eps_ser)
         du = al2 * u2 + al3 * u3
         dz = al2 * z2 + al3 * z3
