@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "c0067d6faa00c1877ff4bad6f64f8654ef36e69d4da606a613b4d0aca5acb457"
+KERNEL_SOURCES_SHA256 = "91ffb0068d7028a6a146891b3a16a7451016230c7cee1c3215717d9c06484c12"
 
 
 @njit(cache=True)
