@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "91ffb0068d7028a6a146891b3a16a7451016230c7cee1c3215717d9c06484c12"
+KERNEL_SOURCES_SHA256 = "72e77a2c789abda7a2dbe8cf9a65e1be0f6f12dc760eddf5fe1875890850fa21"
 
 
 @njit(cache=True)
