@@ -434,8 +434,8 @@ def test_landing_trial_polished_on_the_trials_cubic(sr, q0, q1, e0, e1, htr, shi
     assert 0.3 <= s <= 0.7
 
 
-def _elementary_in_line(name):
-    """A compiled loop over one of the kernels' in-line elementary functions (their bit casts run only compiled)."""
+def _elementary_compiled(name):
+    """A compiled loop over one of the kernels' own elementary functions (their bit casts run only compiled)."""
     from numba import njit
 
     from shapedisplay.runtime import pads
@@ -454,11 +454,11 @@ def _elementary_in_line(name):
     return run
 
 
-def test_exp_in_line_within_an_ulp_of_libm_over_its_whole_range():
+def test_kernels_exp_within_an_ulp_of_libm_over_its_whole_range():
     """The Stribeck kernels' own exponential (a table of 2^(j/256) and a short series; no call into libm): within
     one unit in the last place of numpy's exp from -708 to 709.78, exact at 0, 0 below -708 (below 3.3e-308, at
     the smallest normal numbers and under), infinite above 709.78, not a number for not a number."""
-    run = _elementary_in_line("_exp")
+    run = _elementary_compiled("_exp")
     rng = np.random.default_rng(20261124)
     xs = np.concatenate([rng.uniform(-708.0, 709.78, 100_000), rng.uniform(-1.0, 1.0, 100_000),
                          rng.uniform(-1e-6, 1e-6, 10_000), np.arange(-708.0, 709.5, 0.5)])
@@ -470,11 +470,11 @@ def test_exp_in_line_within_an_ulp_of_libm_over_its_whole_range():
     assert list(got[:7]) == [1.0, 1.0, 0.0, 0.0, 0.0, np.inf, np.inf] and np.isnan(got[7])
 
 
-def test_cos_sin_in_line_within_rounding_of_libm_over_the_contactors_phases():
+def test_kernels_cos_sin_within_rounding_of_libm_over_the_contactors_phases():
     """The kernels' own (cos, sin): minimax polynomials on [-pi/4, pi/4] after a reduction by the nearest multiple
     of pi/2 (a two-part pi/2). Within 1.2e-16 of numpy's from the slip step's short angles to 1.6e6 rad (the
     contactor's phase over hours at 9 Hz), at the multiples of pi/2 too; beyond, libm's own."""
-    run = _elementary_in_line("_cos_sin")
+    run = _elementary_compiled("_cos_sin")
     rng = np.random.default_rng(20261124)
     xs = np.concatenate([rng.uniform(-0.8, 0.8, 50_000), rng.uniform(-60.0, 60.0, 50_000),
                          rng.uniform(-1.6e6, 1.6e6, 50_000), np.arange(-4000, 4000) * (math.pi / 2),

@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "72e77a2c789abda7a2dbe8cf9a65e1be0f6f12dc760eddf5fe1875890850fa21"
+KERNEL_SOURCES_SHA256 = "b97818c30e1557deabd084fdfb190a684440ea514b977e05317a442066931b0e"
 
 
 @njit(cache=True)

@@ -1215,7 +1215,7 @@ def _contactor(prm, t):
     return A * sn, A * w * math.cos(w * t), -A * w * w * sn
 
 
-# ---------------------------------------------------------------- elementary functions in line
+# ---------------------------------------------------------------- elementary functions of the kernels' own
 @intrinsic
 def _f64_from_bits(typingctx, bits):
     """The float64 whose IEEE 754 bits are the int64 ``bits`` (compiled code only)."""
@@ -1251,8 +1251,8 @@ _EXP_SHIFT_BITS = int(np.float64(_EXP_SHIFT).view(np.int64))
 
 @njit(cache=True)
 def _exp(x):
-    """``e^x`` in line, within 1 ulp: no call into libm (the call, and the registers it makes the caller
-    spill, cost the exponential slip steps more than the arithmetic). ``x = (256 m + j) ln 2 / 256 + r``,
+    """``e^x`` of the Stribeck kernels' own, within 1 ulp (measured quicker in the slip steps than libm's).
+    ``x = (256 m + j) ln 2 / 256 + r``,
     ``|r| <= ln 2 / 512``: ``2^m 2^(j / 256) (1 + p(r))``, ``p`` the series of ``e^r - 1`` to ``r^4``
     (truncation below 4e-17). Below x = -708 (3.3e-308, near the smallest normal number) 0, above 709.78
     infinite."""
@@ -1302,8 +1302,8 @@ def _cos_sin_kernel(x):
 
 @njit(cache=True)
 def _cos_sin(x):
-    """``(cos x, sin x)`` in line (a call into libm, and the registers it makes the caller spill, cost the
-    Stribeck kernels more than the arithmetic): the minimax polynomials after a reduction by the nearest
+    """``(cos x, sin x)`` of the Stribeck kernels' own (measured quicker there than libm's): the minimax
+    polynomials after a reduction by the nearest
     multiple n pi / 2 (Cody and Waite, |x| < 1.6e6 rad: 250 000 periods, 7.9 h of a 9 Hz contactor; an
     absolute error below 2e-16 + |n| 1e-26), else libm's."""
     if abs(x) <= 0.7853981633974483:
