@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "b97818c30e1557deabd084fdfb190a684440ea514b977e05317a442066931b0e"
+KERNEL_SOURCES_SHA256 = "0df6f9665d004adeac39aac266b671e68a3d147d9fc6e4c771468712847fc212"
 
 
 @njit(cache=True)

@@ -2111,13 +2111,13 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
             Fc = -G * A * om / (mw2 * mw2 + ce * ce * om * om)
             X = Fc * mw2
             Y = Fc * ce * om
-        # the linear solution at the quarters of the step (its propagator over h / 4, applied four times; the
-        # contactor rotated by a quarter of the angle): the sign of sr vr at the first three finds a crossing
-        # of zero inside the step even where the end is past a second one
+        # the linear solution at the midpoint and the end of the step by its propagator over h / 2 (the square
+        # of the one over h / 4; also the responses' below), each by one product from the one before (a shorter
+        # chain than four quarter steps), the contactor turned by half the angle; beside them the quarter
+        # points: the sign of sr vr at the first three finds a crossing of zero inside the step even where the
+        # end is past a second one
         ch, sh = _cos_sin(0.25 * om * h)
         q11, q12, q21, q22 = _lin_propagator(m, ce, k, 0.25 * h)
-        # and over h / 2 (for the responses below too): the midpoint and the end each by one product from the
-        # one before (a shorter chain than four quarter steps); the quarter points for the sign checks beside
         r11 = q11 * q11 + q12 * q21
         r12 = q11 * q12 + q12 * q22
         r21 = q21 * q11 + q22 * q21

@@ -102,7 +102,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "8fbf95fb4eea2b0a4cdec93bdf26c158e1d13c2ae1c7440f0eed9c3822035073"
+KERNEL_SOURCES_SHA256 = "6168260cd166e48068547688642640ce1e1f31bb4bc419d98640aaef3daca2d2"
 
 
 @njit(cache=True, inline="always")
