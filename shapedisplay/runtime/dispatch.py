@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "0df6f9665d004adeac39aac266b671e68a3d147d9fc6e4c771468712847fc212"
+KERNEL_SOURCES_SHA256 = "c383d32c75aa577bd97670931ccf9bda3821ccd8216f197c37a5a69dd641934f"
 
 
 @njit(cache=True)

@@ -1249,7 +1249,7 @@ _EXP_SHIFT = 1.5 * 2.0 ** 52
 _EXP_SHIFT_BITS = int(np.float64(_EXP_SHIFT).view(np.int64))
 
 
-@njit(cache=True)
+@njit(cache=True, forceinline=True)
 def _exp(x):
     """``e^x`` of the Stribeck kernels' own, within 1 ulp (measured quicker in the slip steps than libm's).
     ``x = (256 m + j) ln 2 / 256 + r``,
@@ -1285,7 +1285,7 @@ _PIO2_LO = 6.07710050650619224932e-11
 _INV_PIO2 = 2.0 / math.pi
 
 
-@njit(cache=True)
+@njit(cache=True, forceinline=True)
 def _cos_sin_kernel(x):
     """``(cos x, sin x)`` for |x| <= pi/4 (a little beyond: the reduction's rounding) by the minimax polynomials."""
     C1, C2, C3, C4, C5, C6 = _COS_C
@@ -1300,7 +1300,7 @@ def _cos_sin_kernel(x):
     return c, x + z * x * (S1 + z * rs)
 
 
-@njit(cache=True)
+@njit(cache=True, forceinline=True)
 def _cos_sin(x):
     """``(cos x, sin x)`` of the Stribeck kernels' own (measured quicker there than libm's): the minimax
     polynomials after a reduction by the nearest
@@ -1531,7 +1531,7 @@ def _stick_force(prm, V, ua, xca, Ca, Sa, ta, t):
     return u, z, m * ddxc + c * z + k * u, m * dddxc + c * ddxc + k * z
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", forceinline=True)
 def _stribeck_stick(prm, V, thr, ua, ta, te, newton_stop):
     """Stick from ``ta`` (stretch ``ua``) to at most ``te``: the first time ``|F|`` exceeds ``thr``, or ``te``.
 
@@ -2374,7 +2374,7 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
     return u, z, sr, False, t, F, hn
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", forceinline=True)
 def _stribeck_plain_tick(st, prm, t0, h, V, W, mus, muk, B, ev_t, ev_a, n_ev):
     """The plain Stribeck curve over one tick: stick in closed form, slip by Taylor steps (see stribeck_tick)."""
     k = prm.stiffness
