@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "c383d32c75aa577bd97670931ccf9bda3821ccd8216f197c37a5a69dd641934f"
+KERNEL_SOURCES_SHA256 = "63762838aa6ec635bb21777084f25842aaeacefc852dec869fee7977f533e92d"
 
 
 @njit(cache=True)

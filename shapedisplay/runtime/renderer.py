@@ -102,7 +102,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "241d6c69c33aa9b5345570fa63804809b8028a04df3c05222e844ed5545389a4"
+KERNEL_SOURCES_SHA256 = "bc8ebd47df9f2e37f916543a5cd9f6048eac5563b73d4342859d9a9c07e40f43"
 
 
 @njit(cache=True, inline="always")
