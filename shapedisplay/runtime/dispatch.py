@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "63762838aa6ec635bb21777084f25842aaeacefc852dec869fee7977f533e92d"
+KERNEL_SOURCES_SHA256 = "7dafda8eb5c939ebdcd1ca97adb12fb75e2ef741db3674a19b672d36799f7fa7"
 
 
 @njit(cache=True)

@@ -1184,6 +1184,10 @@ def karnopp_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
 
 
 # ================================================================ stribeck
+# Every Stribeck kernel below is compiled with fused multiply-add allowed (fastmath={"contract"}, nothing else:
+# no reordering, no assumption that values are finite); a product and a sum then round once where the
+# processor has the instruction (physics.md: what that moves). The small functions on the slip's chain are
+# forceinline: LLVM in-lines them as the caller compiles (numba's own in-lining tripled the first compile).
 @njit(cache=True, fastmath={"contract"})
 def stribeck_mu(vr_abs, W, mus, muk, a, b, p, d, variant):
     """Friction coefficient of the Imaizumi pad at relative speed |vr| (m/s), load W (N).

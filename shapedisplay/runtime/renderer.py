@@ -102,7 +102,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "bc8ebd47df9f2e37f916543a5cd9f6048eac5563b73d4342859d9a9c07e40f43"
+KERNEL_SOURCES_SHA256 = "a518e462b6e2e78e85d96ede72bc398ed2b1061171da72abbbc52f804b09732c"
 
 
 @njit(cache=True, inline="always")
