@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "7dafda8eb5c939ebdcd1ca97adb12fb75e2ef741db3674a19b672d36799f7fa7"
+KERNEL_SOURCES_SHA256 = "2cfca432307210eb6dab821ad61e0fb633ccf621809aa72de4aade492582b5fa"
 
 
 @njit(cache=True)

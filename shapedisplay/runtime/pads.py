@@ -1184,11 +1184,14 @@ def karnopp_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
 
 
 # ================================================================ stribeck
-# Every Stribeck kernel below is compiled with fused multiply-add allowed (fastmath={"contract"}, nothing else:
+# Every Stribeck kernel below is compiled with fused multiply-add allowed (_STRIBECK_FASTMATH: "contract", nothing else:
 # no reordering, no assumption that values are finite); a product and a sum then round once where the
 # processor has the instruction (physics.md: what that moves). The small functions on the slip's chain are
 # forceinline: LLVM in-lines them as the caller compiles (numba's own in-lining tripled the first compile).
-@njit(cache=True, fastmath={"contract"})
+_STRIBECK_FASTMATH = {"contract"}
+
+
+@njit(cache=True, fastmath=_STRIBECK_FASTMATH)
 def stribeck_mu(vr_abs, W, mus, muk, a, b, p, d, variant):
     """Friction coefficient of the Imaizumi pad at relative speed |vr| (m/s), load W (N).
 
@@ -1208,7 +1211,7 @@ def stribeck_mu(vr_abs, W, mus, muk, a, b, p, d, variant):
     return muk + (mus - muk) * e + b * u, (-(mus - muk) * a * e + b) / W
 
 
-@njit(cache=True, fastmath={"contract"})
+@njit(cache=True, fastmath=_STRIBECK_FASTMATH)
 def _contactor(prm, t):
     """Contactor position, velocity and acceleration ``A sin(w t)`` and its derivatives at ``t``."""
     A = prm.contactor_amplitude
@@ -1253,7 +1256,7 @@ _EXP_SHIFT = 1.5 * 2.0 ** 52
 _EXP_SHIFT_BITS = int(np.float64(_EXP_SHIFT).view(np.int64))
 
 
-@njit(cache=True, forceinline=True, fastmath={"contract"})
+@njit(cache=True, forceinline=True, fastmath=_STRIBECK_FASTMATH)
 def _exp(x):
     """``e^x`` of the Stribeck kernels' own, within 1 ulp (measured quicker in the slip steps than libm's).
     ``x = (256 m + j) ln 2 / 256 + r``,
@@ -1289,7 +1292,7 @@ _PIO2_LO = 6.07710050650619224932e-11
 _INV_PIO2 = 2.0 / math.pi
 
 
-@njit(cache=True, forceinline=True, fastmath={"contract"})
+@njit(cache=True, forceinline=True, fastmath=_STRIBECK_FASTMATH)
 def _cos_sin_kernel(x):
     """``(cos x, sin x)`` for |x| <= pi/4 (a little beyond: the reduction's rounding) by the minimax polynomials."""
     C1, C2, C3, C4, C5, C6 = _COS_C
@@ -1304,7 +1307,7 @@ def _cos_sin_kernel(x):
     return c, x + z * x * (S1 + z * rs)
 
 
-@njit(cache=True, forceinline=True, fastmath={"contract"})
+@njit(cache=True, forceinline=True, fastmath=_STRIBECK_FASTMATH)
 def _cos_sin(x):
     """``(cos x, sin x)`` of the Stribeck kernels' own (measured quicker there than libm's): the minimax
     polynomials after a reduction by the nearest
@@ -1335,13 +1338,13 @@ _STRIBECK_SAMPLES = 4    # sign checks of the relative speed per step (a touch i
 _STRIBECK_MAX_TAYLOR_STEPS = 20_000
 
 
-@njit(cache=True, inline="always", fastmath={"contract"})
+@njit(cache=True, inline="always", fastmath=_STRIBECK_FASTMATH)
 def _free_speed_scale(V, A, om, mus, W, k, m):
     """The speed scale of a slip: the drive's speeds plus the free oscillation's ``mu_s W / sqrt(k m)``."""
     return abs(V) + A * om + mus * W / math.sqrt(k * m)
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, error_model="numpy", fastmath=_STRIBECK_FASTMATH)
 def _stribeck_series(prm, W, V, mus, muk, sr, t, u, z, hcap, co):
     """Taylor coefficients of a slip of the plain Stribeck curve about ``t``; returns ``(p, h)``.
 
@@ -1452,7 +1455,7 @@ def _stribeck_series(prm, W, V, mus, muk, sr, t, u, z, hcap, co):
     return p, min(h1, h2, hc)
 
 
-@njit(cache=True, inline="always", fastmath={"contract"})
+@njit(cache=True, inline="always", fastmath=_STRIBECK_FASTMATH)
 def _plain_friction(vr_abs, W, mus, muk, a, b):
     """``(W mu, W dmu/d|vr|)`` of the plain Stribeck curve at relative speed ``vr_abs`` (N, N s/m).
 
@@ -1465,7 +1468,7 @@ def _plain_friction(vr_abs, W, mus, muk, a, b):
     return W * (muk + (mus - muk) * e) + b * vr_abs, b - (mus - muk) * a * e
 
 
-@njit(cache=True, inline="always", fastmath={"contract"})
+@njit(cache=True, inline="always", fastmath=_STRIBECK_FASTMATH)
 def _horner(co, row, p, tau):
     acc = co[row, p]
     for j in range(p - 1, -1, -1):
@@ -1473,7 +1476,7 @@ def _horner(co, row, p, tau):
     return acc
 
 
-@njit(cache=True, inline="always", fastmath={"contract"})
+@njit(cache=True, inline="always", fastmath=_STRIBECK_FASTMATH)
 def _horner_d(co, row, p, tau):
     """Value and derivative of the polynomial ``co[row, :p+1]`` at ``tau``."""
     acc = co[row, p]
@@ -1484,7 +1487,7 @@ def _horner_d(co, row, p, tau):
     return acc, d
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, error_model="numpy", fastmath=_STRIBECK_FASTMATH)
 def _series_root(co, p, sr, lo, hi):
     """Root of ``sr * vr`` (row 2 of ``co``) in ``(lo, hi]`` with ``sr vr(lo) > 0 >= sr vr(hi)``: safeguarded Newton."""
     t = hi
@@ -1505,7 +1508,7 @@ def _series_root(co, p, sr, lo, hi):
     return hi
 
 
-@njit(cache=True, inline="always", fastmath={"contract"})
+@njit(cache=True, inline="always", fastmath=_STRIBECK_FASTMATH)
 def _stick_force(prm, V, ua, xca, Ca, Sa, ta, t):
     """Stuck on the contactor since ``ta`` (stretch ``ua``, contactor at ``xca``, its phase ``(cos, sin)`` there
     ``(Ca, Sa)``): ``(u, z, F, F')`` at ``t``.
@@ -1535,7 +1538,7 @@ def _stick_force(prm, V, ua, xca, Ca, Sa, ta, t):
     return u, z, m * ddxc + c * z + k * u, m * dddxc + c * ddxc + k * z
 
 
-@njit(cache=True, error_model="numpy", forceinline=True, fastmath={"contract"})
+@njit(cache=True, error_model="numpy", forceinline=True, fastmath=_STRIBECK_FASTMATH)
 def _stribeck_stick(prm, V, thr, ua, ta, te, newton_stop):
     """Stick from ``ta`` (stretch ``ua``) to at most ``te``: the first time ``|F|`` exceeds ``thr``, or ``te``.
 
@@ -1634,7 +1637,7 @@ def _stribeck_stick(prm, V, thr, ua, ta, te, newton_stop):
     return tb, broke, u, z, Fl
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, error_model="numpy", fastmath=_STRIBECK_FASTMATH)
 def _stribeck_lin_step(prm, u, z, sr, V, W, mus, muk, t, te):
     """One linearised exponential slip step (the fallback where no accurate step resolves the curve's drop).
 
@@ -1677,7 +1680,7 @@ def _stribeck_lin_step(prm, u, z, sr, V, W, mus, muk, t, te):
 _TAYLOR_DEFECT_TOLS = 1e3
 
 
-@njit(cache=True, inline="always", fastmath={"contract"})
+@njit(cache=True, inline="always", fastmath=_STRIBECK_FASTMATH)
 def _taylor_defect_ok(prm, co, p, tau, sr, V, W, mus, muk, t, u0, z0):
     """Whether the step's polynomial at ``tau`` satisfies ``m z' = F - c z - k u`` within
     :data:`_TAYLOR_DEFECT_TOLS` tolerances of the speed scale (over the step), with ``(u, z)`` there."""
@@ -1699,7 +1702,7 @@ def _taylor_defect_ok(prm, co, p, tau, sr, V, W, mus, muk, t, u0, z0):
     return d <= _TAYLOR_DEFECT_TOLS * prm.stribeck_tol * zsc, u1, z1
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, error_model="numpy", fastmath=_STRIBECK_FASTMATH)
 def _stribeck_taylor_slip(prm, u, z, sr, V, W, mus, muk, t, te):
     """Slip of the plain Stribeck curve from ``t`` to at most ``te`` by Taylor steps.
 
@@ -1790,7 +1793,7 @@ EXP_ERR_WEIGHT = 10.0
 EXP_ERR_WEIGHT_OVERDAMPED = 3.0
 
 
-@njit(cache=True, inline="always", fastmath={"contract"})
+@njit(cache=True, inline="always", fastmath=_STRIBECK_FASTMATH)
 def _expm1_minus_x(x):
     """``e^x - 1 - x``: its series below |x| = 0.25 (error below 1e-16 of the value; quicker than expm1), else
     through exp (the cancellation costs at most 4e-15 of the value there)."""
@@ -1806,7 +1809,7 @@ def _expm1_minus_x(x):
     return (_exp(x) - 1.0) - x
 
 
-@njit(cache=True, inline="always", fastmath={"contract"})
+@njit(cache=True, inline="always", fastmath=_STRIBECK_FASTMATH)
 def _lin_propagator(m, ce, k, h):
     """Propagator of ``m u'' + ce u' + k u = 0`` over ``h``: ``(p11, p12, p21, p22)`` with ``[u, u'](h) = P [u, u'](0)``.
 
@@ -1851,7 +1854,7 @@ _INV_N = tuple([0.0] + [1.0 / n for n in range(1, _SERIES_TERMS)])
 _INV_NN = tuple([0.0, 0.0] + [1.0 / (n * (n - 1)) for n in range(2, _SERIES_TERMS)])
 
 
-@njit(cache=True, inline="always", fastmath={"contract"})
+@njit(cache=True, inline="always", fastmath=_STRIBECK_FASTMATH)
 def _basis_in_closed_form(m, ce, wn, h, tol):
     """Whether :func:`_poly_basis` takes a step of ``h`` in closed form (else by its series) at tolerance ``tol``.
 
@@ -1874,7 +1877,7 @@ def _basis_in_closed_form(m, ce, wn, h, tol):
     return 1.3e-13 * (w4 + sg * w2 + sg * sg * sg) < tol * (w4 * w4)
 
 
-@njit(cache=True, inline="always", fastmath={"contract"})
+@njit(cache=True, inline="always", fastmath=_STRIBECK_FASTMATH)
 def _poly_basis(m, ce, k, wn, h, lng, r11, r12, r21, r22, eps):
     """Responses from rest of ``m u'' + ce u' + k u = s^2`` and ``= s^3`` (``s = tau / h``) at ``h`` and ``h / 2``.
 
@@ -1950,7 +1953,7 @@ def _poly_basis(m, ce, k, wn, h, lng, r11, r12, r21, r22, eps):
     return u2, z2 * ih, zm2 * ih, u3, z3 * ih, zm3 * ih
 
 
-@njit(cache=True, inline="always", fastmath={"contract"})
+@njit(cache=True, inline="always", fastmath=_STRIBECK_FASTMATH)
 def _landing_refined(hg, htr, lo, hi, q0, qd0, q1, u1, z1, S1, sr, W, muk, dmu, E0, ex, b, c, k, m, A, om, vr1):
     """The next trial step for a landing on ``sr vr = 0``: the regula falsi's ``hg`` polished by Newton on the
     cubic through the trial's ends (``sr vr`` and its rate at 0 and at ``htr``), kept inside ``(lo, hi)``.
@@ -1981,7 +1984,7 @@ def _landing_refined(hg, htr, lo, hi, q0, qd0, q1, u1, z1, S1, sr, W, muk, dmu, 
     return hg
 
 
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, error_model="numpy", fastmath=_STRIBECK_FASTMATH)
 def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
     """Slip of the plain Stribeck curve from ``t`` to at most ``te`` by exponential Rosenbrock steps.
 
@@ -2378,7 +2381,7 @@ def _stribeck_exp_slip(prm, u, z, sr, V, W, mus, muk, t, te, C0, S0, h0):
     return u, z, sr, False, t, F, hn
 
 
-@njit(cache=True, error_model="numpy", forceinline=True, fastmath={"contract"})
+@njit(cache=True, error_model="numpy", forceinline=True, fastmath=_STRIBECK_FASTMATH)
 def _stribeck_plain_tick(st, prm, t0, h, V, W, mus, muk, B, ev_t, ev_a, n_ev):
     """The plain Stribeck curve over one tick: stick in closed form, slip by Taylor steps (see stribeck_tick)."""
     k = prm.stiffness
@@ -2442,7 +2445,7 @@ def _stribeck_plain_tick(st, prm, t0, h, V, W, mus, muk, B, ev_t, ev_a, n_ev):
     return n_ev
 
 
-@njit(cache=True, fastmath={"contract"})
+@njit(cache=True, fastmath=_STRIBECK_FASTMATH)
 def _stribeck_slip(prm, u, du, s, V, W, mus, muk, ta, dur):
     """Pre-maximum variant: ``dur`` seconds from ``ta`` by exponential Rosenbrock substeps; returns (u, du, s, F).
 
@@ -2491,7 +2494,7 @@ def _stribeck_slip(prm, u, du, s, V, W, mus, muk, ta, dur):
     return u, du, s, F
 
 
-@njit(cache=True, fastmath={"contract"})
+@njit(cache=True, fastmath=_STRIBECK_FASTMATH)
 def stribeck_tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev):
     """Imaizumi pad on a laterally vibrating contactor, finger bone at speed ``V``.
 
