@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "2cfca432307210eb6dab821ad61e0fb633ccf621809aa72de4aade492582b5fa"
+KERNEL_SOURCES_SHA256 = "e22620299624ac660b9ceb1f04a297c989e74617f12aad3432a5739273cd29ef"
 
 
 @njit(cache=True)

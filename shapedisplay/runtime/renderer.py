@@ -102,7 +102,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "53a171ec63fe37e65fdae23d787f1f48770e1d04d921338bedffbb651d3f7b9e"
+KERNEL_SOURCES_SHA256 = "49d46b44501e434dccf5a5d913023e3813df692862014a1fb985011567c515a1"
 
 
 @njit(cache=True, inline="always")
