@@ -47,7 +47,7 @@ def mmm(values, spec=".3g"):
     return "/".join(format(x, spec) for x in (min(v), statistics.median(v), max(v)))
 
 
-def part_scipy(runs, quick, only, models=(), levels=False):
+def part_scipy(runs, quick, only, models=(), levels=False, batches=3):
     cases = [c for c in A.build_cases(quick) if not only or c.name in only]
     per_case = {}
     floors = []
@@ -61,7 +61,8 @@ def part_scipy(runs, quick, only, models=(), levels=False):
             if case.name not in refs:
                 refs[case.name] = A.reference(case, quick)     # untimed; the same every run
             ref = refs[case.name]
-            results = [A.run_setting(case, s, device, ref, runs_renderer=1, runs_peer=1) for s in A.settings(case, quick)
+            results = [A.run_setting(case, s, device, ref, runs_renderer=batches, runs_peer=batches)
+                       for s in A.settings(case, quick)
                        if not models or s["family"] == "scipy" or s["model"] in models]
             eq = {"model": A.equal_error(results, A.COSTS["model"], ft, interface=A.interface_floor(case.duration)),
                   "render": A.equal_error(results, A.COSTS["render"], ft, fa)}
@@ -168,10 +169,12 @@ def main():
     ap.add_argument("--skip-scipy", action="store_true")
     ap.add_argument("--skip-stribeck", action="store_true")
     ap.add_argument("--levels", action="store_true", help="also print every error level of the model-alone comparison")
+    ap.add_argument("--batches", type=int, default=3,
+                    help="timed batches per setting and run, the least taken, on both sides (the report's own: 3)")
     a = ap.parse_args()
     only = {x for x in a.cases.split(",") if x}
     if not a.skip_scipy:
-        part_scipy(a.runs, a.quick, only, {x for x in a.models.split(",") if x}, a.levels)
+        part_scipy(a.runs, a.quick, only, {x for x in a.models.split(",") if x}, a.levels, a.batches)
     if not a.skip_stribeck:
         part_stribeck(a.runs)
 
