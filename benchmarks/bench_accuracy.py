@@ -1,6 +1,6 @@
 """Speed against scipy at equal error, and the ``stribeck`` model against real time.
 
-Run: ``.venv/bin/python benchmarks/bench_accuracy.py [--runs 3] [--quick] [--cases a,b] [--models exact]``.
+Run: ``.venv/bin/python benchmarks/bench_accuracy.py [--runs 3] [--batches 3] [--quick] [--cases a,b] [--models exact]``.
 
 Targets:
 
@@ -11,7 +11,9 @@ Targets:
 
 Part 1 runs every setting of every case of the report (renderer models, tick
 rates, tables, substeps; scipy Radau/BDF/LSODA at rtol 1e-3...1e-9) with the
-report's own functions, ``--runs`` times. Each run gives, per case, the
+report's own functions, ``--runs`` times, each setting's cost in a run the
+least of ``--batches`` timed batches (3, as the report times them) on both
+sides. Each run gives, per case, the
 speed-up at equal error at the least favourable error level (see
 ``shapedisplay.reports.accuracy.equal_error``) for the model alone and for
 the full render, and the bound: scipy's cost over the least work a tick
