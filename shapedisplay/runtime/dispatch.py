@@ -27,7 +27,7 @@ REGISTRY = (
 )
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels in pads.py
 #: or to the layouts run_block views its arguments as.
-KERNEL_SOURCES_SHA256 = "e22620299624ac660b9ceb1f04a297c989e74617f12aad3432a5739273cd29ef"
+KERNEL_SOURCES_SHA256 = "9d24cb8acd04ce7842199be53aaf070d564817b57a97befb58ab753168e562f3"
 
 
 @njit(cache=True)

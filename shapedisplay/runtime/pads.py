@@ -1913,7 +1913,8 @@ def _phi_basis(m, h, x1, x2):
 
 @njit(cache=True, inline="always", fastmath=_STRIBECK_FASTMATH)
 def _basis_in_closed_form(m, ce, wn, h, tol):
-    """Whether :func:`_poly_basis` takes a step of ``h`` in closed form (else by its series) at tolerance ``tol``.
+    """Whether :func:`_poly_basis` takes a step of ``h`` in closed form (else by the phi functions or its series) at
+    tolerance ``tol``.
 
     The closed form's polynomial particular solutions cancel on a step short
     against the pad's period: the response to ``s^3`` by about
@@ -1921,9 +1922,9 @@ def _basis_in_closed_form(m, ce, wn, h, tol):
     ``sg = |ce| h / m``; the response to ``s^2`` by less). At a breakaway
     (``|ce| / m`` about 3.5e5 1/s) a step of a few microseconds loses every
     digit of it, and the step's error estimate then rejects steps for noise.
-    The series is taken there, unless it would need too many terms (``sg`` or
-    ``w`` above 6); the closed form where its cancellation stays below a
-    tenth of the tolerance.
+    The phi functions or the series are taken there, unless the series would
+    need too many terms (``sg`` or ``w`` above 6); the closed form where its
+    cancellation stays below a tenth of the tolerance.
     """
     sg = abs(ce) * h / m
     w = wn * h
