@@ -274,3 +274,46 @@ def test_kept_sample_times_give_the_same_stream(policy, rate):
         shifted, _ = render_bursts(et + 0.01, ea, 0.01, dur, rate, policy=policy)
         got, _ = render_bursts(et + 0.01, ea, 0.01, dur, rate, policy=policy, times=times)
         assert got.tobytes() == shifted.tobytes()
+
+
+@pytest.mark.parametrize("policy", ["retrigger", "max"])
+def test_groups_below_full_scale_skip_the_limiting_and_lose_nothing(policy):
+    """A group whose envelope bound is below full scale by the margin is not limited: with peaks just inside
+    the margin (1 - 2e-9), and just outside it (1 - 5e-10, 1 and above), the stream is still what synth
+    writes sample by sample, clipped count included, over many groups and carrier phases."""
+    from shapedisplay.runtime.bursts import policy_id, synth, synth_stream
+    rate, n = 48000.0, 200_000
+    rng = np.random.default_rng(7)
+    et = np.sort(rng.uniform(0.0, n / rate, 400))
+    for peak in (1.0 - 2e-9, 1.0 - 5e-10, 1.0, 1.0 + 1e-12, 1.3):
+        ea = np.full(et.size, peak)
+        a, b = np.zeros(n), np.empty(n)
+        sa, sb = new_burst_state(300.0, rate)[0], new_burst_state(300.0, rate)[0]
+        ca = synth(sa, et, ea, et.size, 0.0, rate, 0, n, 300.0, 0.005, 0.03, policy_id(policy), a)
+        cb = synth_stream(sb, et, ea, et.size, 0.0, rate, n, 300.0, 0.005, 0.03, policy_id(policy), b)
+        assert ca == cb and a.tobytes() == b.tobytes(), peak
+        assert ca == 0 if peak <= 1.0 else True, (peak, ca)
+        assert ca > 0 if peak > 1.2 else True, (peak, ca)
+
+
+def test_rotated_carrier_stays_within_the_limiting_margin():
+    """The margin that lets a group skip the limiting: every carrier sample of the offline rotation is within
+    1e-12 of [-1, 1] (anchors exact to rounding, at most CARRIER_BLOCK - 1 rotations from one)."""
+    from numba import njit
+
+    from shapedisplay.runtime.bursts import CARRIER_BLOCK, CARRIER_GROUP, _rotate_blocks, carrier_anchors
+
+    @njit
+    def rotate(anchors, cd, sd, car, blk):
+        _rotate_blocks(anchors, cd, sd, car, blk)
+    for carrier, rate in ((300.0, 48000.0), (250.0, 44100.0), (1000.5, 96000.0), (37.0, 8000.0), (3000.0, 8000.0)):
+        st = new_burst_state(carrier, rate)[0]
+        groups = 400
+        anchors = carrier_anchors(carrier, rate, groups * CARRIER_GROUP)
+        car = np.empty(CARRIER_GROUP * CARRIER_BLOCK)
+        worst = 0.0
+        for g in range(groups):
+            rotate(anchors[2 * CARRIER_GROUP * g:2 * CARRIER_GROUP * (g + 1)], st["rc"], st["rs"], car,
+                   CARRIER_BLOCK)
+            worst = max(worst, float(np.abs(car).max()))
+        assert 0.99 < worst <= 1.0 + 1e-12, (carrier, rate, worst)

@@ -48,11 +48,15 @@ on ``j``, so a stream synthesised in one call (offline) or tick by tick
 ``CARRIER_BLOCK`` rotations' round-off (~1e-14 rad), and a tick costs one
 ``sin``/``cos`` pair per ``CARRIER_BLOCK`` samples.
 
-The offline stream (:func:`synth_stream`) computes the same samples in two
-passes: the envelope piece by piece (between two transitions the envelope
-is one expression of the sample time, for every policy), then the carrier,
-sixteen blocks side by side, four to a vector register. Both are loops
-without branches that the compiler vectorises. They are compiled with numpy's error model: their
+The offline stream (:func:`synth_stream`) computes the same samples group
+by group of :data:`CARRIER_GROUP` carrier blocks (1024 samples, which stay
+in the first-level cache): the group's carrier first, sixteen blocks side by
+side, four to a vector register, into a scratch row; then the envelope piece
+by piece (between two transitions the envelope is one expression of the
+sample time, for every policy), each sample written already multiplied by
+its carrier sample; last, only in a group whose envelope may reach full
+scale, the limiting. All are loops without branches that the compiler
+vectorises. They are compiled with numpy's error model: their
 divisors (the sample rate, ``rise``, ``decay``) are positive by the
 settings' rules, so only numba's ZeroDivisionError checks go; the
 arithmetic and every sample are unchanged.
@@ -74,12 +78,12 @@ from numba import njit, types
 from numba.extending import intrinsic
 
 from .borrow import borrowed
-from .exactdiv import div_fixed, divisor_ok, span_ok
+from .exactdiv import div_fixed, div_nonzero, divisor_ok, span_nonzero
 from .layouts import BURST_POLICIES, BURST_STATE, Policy, record
 from .settings import MAX_AUDIO_SAMPLES, audio_length, policy_id  # noqa: F401 (their home is .settings)
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to layouts.py (Policy).
-KERNEL_SOURCES_SHA256 = "7870acd0d95b0065277f72ba0c1317b8f41db8406008b554b57190f7ae5a98c1"
+KERNEL_SOURCES_SHA256 = "e4a5b326c00fbb0859cc5a8b9a01631c134808e2db3cb89079cbfa875787659e"
 #: Carrier re-anchored with sin/cos every this many samples (rotation in between).
 CARRIER_BLOCK = 64
 
@@ -378,64 +382,99 @@ def sample_times(t_origin, rate, out):
     """``out[j] = t_origin + j / rate``, the sample times of a stream (bit for bit: the division by the rate
     is a multiply-add with the same bits, :mod:`.exactdiv`, where its conditions hold; a loop the compiler
     vectorises). A :class:`~.renderer.Renderer` keeps those of ``t_origin = 0`` from render to render."""
-    if divisor_ok(rate):
-        yr = 1.0 / rate
-        for j in range(out.shape[0]):
-            out[j] = t_origin + div_fixed(float(j), rate, yr)
-    else:
-        for j in range(out.shape[0]):
-            out[j] = t_origin + j / rate
+    _times_from(t_origin, rate, 0, out)
+
+
+@intrinsic
+def _bits_as_double(typingctx, i):
+    """The float64 whose bits are those of the int64 ``i``."""
+    sig = types.float64(types.int64)
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], ir.DoubleType())
+    return sig, codegen
+
+
+#: 2**52: ``_bits_as_double(_TWO52_BITS | j) - _TWO52`` is ``float(j)`` for ``0 <= j < 2**52``.
+_TWO52 = 4503599627370496.0
+_TWO52_BITS = 0x4330000000000000
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _fill_rise(ts, out, te, e0, a, rise, yrise, fast):
+def _times_from(t_origin, rate, j0, out):
+    """``out[m] = t_origin + (j0 + m) / rate``: :func:`sample_times` of samples ``j0 ..``. The index is
+    made a float by its bits (2**52 + j as a double, less 2**52: exact below 2**52), two instructions the
+    compiler vectorises where ``float(j)`` of an int64 takes a scalar conversion per sample on CPUs without
+    AVX-512."""
+    if divisor_ok(rate) and j0 >= 0 and j0 + out.shape[0] < 2 ** 52:
+        yr = 1.0 / rate
+        for m in range(out.shape[0]):
+            jf = _bits_as_double(_TWO52_BITS | (j0 + m)) - _TWO52
+            out[m] = t_origin + div_fixed(jf, rate, yr)
+    else:
+        for m in range(out.shape[0]):
+            out[m] = t_origin + (j0 + m) / rate
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _fill_rise(ts, out, car, te, e0, a, rise, yrise, fast):
     """The rise of a segment at the sample times ``ts`` into ``out`` (one shape; ``ts`` may be ``out`` itself,
     then a loop in place, which the compiler vectorises without a check for overlapping arrays)."""
-    if out.shape[0] > 0 and fast and span_ok(ts[0] - te, ts[ts.shape[0] - 1] - te):
+    if out.shape[0] > 0 and fast and span_nonzero(ts[0] - te, ts[ts.shape[0] - 1] - te):
         for m in range(out.shape[0]):
-            out[m] = e0 + (a - e0) * div_fixed(ts[m] - te, rise, yrise)
+            out[m] = (e0 + (a - e0) * div_nonzero(ts[m] - te, rise, yrise)) * car[m]
     else:
         for m in range(out.shape[0]):
-            out[m] = e0 + (a - e0) * ((ts[m] - te) / rise)
+            out[m] = (e0 + (a - e0) * ((ts[m] - te) / rise)) * car[m]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _fill_decay(ts, out, te, a, rise, decay, ydecay, fast):
+def _fill_decay(ts, out, car, te, a, rise, decay, ydecay, fast):
     """The decay of a segment, as :func:`_fill_rise`."""
-    if out.shape[0] > 0 and fast and span_ok((ts[0] - te) - rise, (ts[ts.shape[0] - 1] - te) - rise):
+    if out.shape[0] > 0 and fast and span_nonzero((ts[0] - te) - rise, (ts[ts.shape[0] - 1] - te) - rise):
         for m in range(out.shape[0]):
-            r = 1.0 - div_fixed((ts[m] - te) - rise, decay, ydecay)
-            out[m] = a * r * r
+            r = 1.0 - div_nonzero((ts[m] - te) - rise, decay, ydecay)
+            out[m] = (a * r * r) * car[m]
     else:
         for m in range(out.shape[0]):
             r = 1.0 - ((ts[m] - te) - rise) / decay
-            out[m] = a * r * r
+            out[m] = (a * r * r) * car[m]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _fill_sums(ts, out, tref, ra, rat, q0, q1, q2, rise, decay, yrise, ydecay, fast):
+def _fill_sums(ts, out, car, tref, ra, rat, q0, q1, q2, rise, decay, yrise, ydecay, fast):
     """The running sums of ``add`` between two transitions, as :func:`_fill_rise`."""
     d0 = ts[0] - tref
     d1 = ts[ts.shape[0] - 1] - tref
-    if fast and span_ok(d0, d1) and span_ok(ra * d0 - rat, ra * d1 - rat):
+    if fast and span_nonzero(d0, d1) and span_nonzero(ra * d0 - rat, ra * d1 - rat):
         for m in range(out.shape[0]):
             dt = ts[m] - tref
-            e = div_fixed(ra * dt - rat, rise, yrise)
-            x = div_fixed(dt, decay, ydecay)
+            e = div_nonzero(ra * dt - rat, rise, yrise)
+            x = div_nonzero(dt, decay, ydecay)
             e += q0 - 2.0 * q1 * x + q2 * x * x
-            out[m] = e if e > 0.0 else 0.0
+            out[m] = (e if e > 0.0 else 0.0) * car[m]
+    elif fast and span_nonzero(d0, d1) and ra * d0 - rat == 0.0 and ra * d1 - rat == 0.0:
+        # no burst rising: the rise term is a zero on every sample (its sign cannot change the sum's
+        # sample: a nonzero sum is the sum, a zero one gives 0 either way)
+        for m in range(out.shape[0]):
+            x = div_nonzero(ts[m] - tref, decay, ydecay)
+            e = q0 - 2.0 * q1 * x + q2 * x * x
+            out[m] = (e if e > 0.0 else 0.0) * car[m]
     else:
         for m in range(out.shape[0]):
             dt = ts[m] - tref
             e = (ra * dt - rat) / rise
             x = dt / decay
             e += q0 - 2.0 * q1 * x + q2 * x * x
-            out[m] = e if e > 0.0 else 0.0
+            out[m] = (e if e > 0.0 else 0.0) * car[m]
 
 
 @njit(cache=True, error_model="numpy")
-def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy, out, times):
-    """``out[j] = E(t_origin + j / rate)`` for ``j < n``: what :func:`envelope_at` gives sample by sample.
+def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, j0, n, rise, decay, policy, out, times, car):
+    """``out[j] = E(t_origin + j / rate) * car[j - j0]`` for ``j0 <= j < n``: the envelope :func:`envelope_at`
+    gives sample by sample (continued from the state ``BS``, left at sample ``n``), times the carrier
+    samples ``car``. Returns a bound on the envelope over these samples: no sample's envelope exceeds it
+    by more than rounding (``inf`` for ``add``, whose sums are not bounded here).
 
     The sample times first (:func:`sample_times` into ``out``; for a stream that starts at ``t_origin = 0``
     they are read from ``times`` instead if it holds at least ``n``, the times of a stream from 0 kept from
@@ -445,13 +484,15 @@ def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy,
     the two running polynomials. Each piece is a loop without branches, which the compiler vectorises
     (the two divisions per sample included); every value is computed by the same operations as
     :func:`_segment` and :func:`_sums`, so bit for bit the same. The pieces' bounds come from the same
-    comparisons, searched from the index the event time gives.
+    comparisons, searched from the index the event time gives. Each sample's envelope is rounded before
+    it is multiplied by its carrier sample: the product of the two passes this once was, bit for bit.
     """
     # the divisions by the rise and decay are multiply-adds with the same bits (.exactdiv) where its
     # conditions hold: on the divisors here, on each piece's dividends (monotone along it) at its two ends
     # the rows without their reference count: the views of them taken piece by piece change none
     out = borrowed(out)
     times = borrowed(times)
+    car = borrowed(car)
     yrise = 1.0 / rise
     ydecay = 1.0 / decay
     fast = divisor_ok(rate) and divisor_ok(rise) and divisor_ok(decay)
@@ -459,29 +500,32 @@ def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy,
     if kept:
         ts = times
     else:
-        sample_times(t_origin, rate, out[:n])
+        _times_from(t_origin, rate, j0, out[j0:n])
         ts = out
     if policy == Policy.ADD:
-        j = 0
+        j = j0
         while j < n:
             nxt = _add_advance(BS, ev_t, ev_a, n_ev, ts[j], rise, decay)
             k = _first_after(ts, j + 1, n, _index_near(nxt, t_origin, rate), nxt)
             v = out[j:k]
+            cv = car[j - j0:k - j0]
             if BS.i_out == BS.i_in:
-                v[:] = 0.0
+                for m in range(v.shape[0]):
+                    v[m] = 0.0 * cv[m]
             elif kept:
-                _fill_sums(times[j:k], v, BS.tref, BS.ra, BS.rat, BS.q0, BS.q1, BS.q2, rise, decay, yrise, ydecay,
+                _fill_sums(times[j:k], v, cv, BS.tref, BS.ra, BS.rat, BS.q0, BS.q1, BS.q2, rise, decay, yrise, ydecay,
                            fast)
             else:
-                _fill_sums(v, v, BS.tref, BS.ra, BS.rat, BS.q0, BS.q1, BS.q2, rise, decay, yrise, ydecay, fast)
+                _fill_sums(v, v, cv, BS.tref, BS.ra, BS.rat, BS.q0, BS.q1, BS.q2, rise, decay, yrise, ydecay, fast)
             j = k
-        return
+        return np.inf
     retrigger = policy == Policy.RETRIGGER
     i_in = BS.i_in
     te = BS.te
     e0 = BS.e0
     a = BS.a
-    j = 0
+    amax = 0.0
+    j = j0
     while j < n:
         t = ts[j]
         while i_in < n_ev and ev_t[i_in] < t:
@@ -497,27 +541,32 @@ def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy,
         if i_in < n_ev:
             tn = ev_t[i_in]
             k = _first_after(ts, j + 1, n, _index_near(tn, t_origin, rate), tn)
+        amax = max(amax, max(e0, a))
         # samples j .. k-1 play segment (te, e0, a): rise until tau >= rise, decay until u >= decay, then 0
         m1 = _first_not_below(ts, j, k, _index_near(te + rise, t_origin, rate), te, rise)
         v = out[j:m1]                    # (loops over views: the compiler vectorises them, not range(j, m1))
         if kept:
-            _fill_rise(times[j:m1], v, te, e0, a, rise, yrise, fast)
+            _fill_rise(times[j:m1], v, car[j - j0:m1 - j0], te, e0, a, rise, yrise, fast)
         else:
-            _fill_rise(v, v, te, e0, a, rise, yrise, fast)
+            _fill_rise(v, v, car[j - j0:m1 - j0], te, e0, a, rise, yrise, fast)
         m2 = m1
         if m1 < k:
             m2 = _first_not_below2(ts, m1, k, _index_near(te + rise + decay, t_origin, rate), te, rise, decay)
             v = out[m1:m2]
             if kept:
-                _fill_decay(times[m1:m2], v, te, a, rise, decay, ydecay, fast)
+                _fill_decay(times[m1:m2], v, car[m1 - j0:m2 - j0], te, a, rise, decay, ydecay, fast)
             else:
-                _fill_decay(v, v, te, a, rise, decay, ydecay, fast)
-        out[m2:k] = 0.0
+                _fill_decay(v, v, car[m1 - j0:m2 - j0], te, a, rise, decay, ydecay, fast)
+        v = out[m2:k]
+        cv = car[m2 - j0:k - j0]
+        for m in range(v.shape[0]):
+            v[m] = 0.0 * cv[m]
         j = k
     BS.i_in = i_in
     BS.te = te
     BS.e0 = e0
     BS.a = a
+    return amax
 
 
 @njit(cache=True, error_model="numpy")
@@ -530,7 +579,7 @@ def _clip1(v):
     return v, 0
 
 
-#: Carrier blocks rotated side by side by :func:`_apply_carrier` (four per 4-wide vector, a multiple of 4).
+#: Carrier blocks rotated side by side by :func:`_synth_groups` (four per 4-wide vector, a multiple of 4).
 CARRIER_GROUP = 16
 
 
@@ -647,23 +696,24 @@ def carrier_anchors(carrier, rate, nblocks):
 
 
 @njit(cache=True, error_model="numpy")
-def _apply_carrier(BS, rate, carrier, n, out, known):
-    """Multiply ``out[:n]`` (envelope samples from sample 0) by the carrier in place; count limited samples.
+def _synth_groups(BS, ev_t, ev_a, n_ev, t_origin, rate, n, carrier, rise, decay, policy, out, known, times):
+    """Samples ``0 .. n-1`` of a stream from a fresh ``BS`` into ``out[:n]``; returns the number limited.
 
-    The same carrier samples as :func:`synth` (anchors at multiples of
-    :data:`CARRIER_BLOCK`, the same rotation in between), but
-    :data:`CARRIER_GROUP` blocks are rotated side by side into a scratch row
-    (:func:`_rotate_blocks`, four blocks per vector): the blocks are
-    independent, so their recurrences fill the floating-point pipeline that
-    one recurrence leaves mostly waiting; the product with the envelope and
-    the limiting then run as one loop without branches, which the compiler
-    vectorises. ``known`` holds the anchors of the first blocks
-    (:func:`carrier_anchors`, any number of them; the others are computed
-    here): a renderer keeps them from stream to stream, since they depend
-    only on the carrier and the rate.
+    The carrier samples of :func:`synth` (anchors at multiples of :data:`CARRIER_BLOCK`, the same rotation
+    in between), but :data:`CARRIER_GROUP` blocks are rotated side by side into a scratch row
+    (:func:`_rotate_blocks`, four blocks per vector): the blocks are independent, so their recurrences
+    fill the floating-point pipeline that one recurrence leaves mostly waiting. The group's envelope
+    is then written multiplied by them (:func:`_envelope_fill`), and the group is limited to [-1, 1] only
+    where its envelope bound times ``1 + 1e-9`` is not below 1: below, every product is below 1 in
+    magnitude (a carrier sample is within 1e-12 of the unit circle after a block's rotations, an envelope
+    sample within rounding of the bound), so the limiting would change and count nothing. The last
+    blocks (fewer than a group) take the scalar rotation. ``known`` holds the anchors of the first blocks
+    (:func:`carrier_anchors`, any number of them; the others are computed here): a renderer keeps them
+    from stream to stream, since they depend only on the carrier and the rate.
     """
-    out = borrowed(out)      # (views of it and of the anchors per group change no reference count)
+    out = borrowed(out)
     known = borrowed(known)
+    times = borrowed(times)
     w = 2.0 * math.pi * carrier
     cd = BS.rc
     sd = BS.rs
@@ -675,7 +725,7 @@ def _apply_carrier(BS, rate, carrier, n, out, known):
     anchors = np.empty(2 * grp)
     b = 0
     nknown = known.shape[0] // 2
-    while b + grp < nb:                   # groups of whole blocks; the last block is left to the tail
+    while b + grp < nb:
         j0 = b * blk
         if b + grp <= nknown:
             _rotate_blocks(known[2 * b:2 * (b + grp)], cd, sd, car, blk)
@@ -685,13 +735,18 @@ def _apply_carrier(BS, rate, carrier, n, out, known):
                 anchors[2 * g] = math.cos(th)
                 anchors[2 * g + 1] = math.sin(th)
             _rotate_blocks(anchors, cd, sd, car, blk)
-        v = out[j0:j0 + grp * blk]
-        for m in range(v.shape[0]):
-            x = v[m] * car[m]
-            clipped += (x > 1.0) | (x < -1.0)
-            x = 1.0 if x > 1.0 else x
-            v[m] = -1.0 if x < -1.0 else x
+        amax = _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, j0, j0 + grp * blk, rise, decay, policy, out,
+                              times, car)
+        if not (amax * (1.0 + 1e-9) < 1.0):
+            v = out[j0:j0 + grp * blk]
+            for m in range(v.shape[0]):
+                x = v[m]
+                clipped += (x > 1.0) | (x < -1.0)
+                x = 1.0 if x > 1.0 else x
+                v[m] = -1.0 if x < -1.0 else x
         b += grp
+    car[:] = 1.0
+    _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, b * blk, n, rise, decay, policy, out, times, car)
     cr = BS.cc
     sr = BS.cs
     for j in range(b * blk, n):
@@ -721,20 +776,15 @@ def synth_stream(BS, ev_t, ev_a, n_ev, t_origin, rate, n, carrier, rise, decay, 
     """A whole stream at once: samples ``0 .. n-1`` into ``out[:n]`` from a fresh ``BS``.
 
     Bit for bit what :func:`synth` writes for ``j0 = 0, j1 = n`` (the tests
-    check it), in two passes: the envelope, then the carrier
-    (:func:`_apply_carrier`; ``anchors``: the carrier's first anchors from
+    check it), group by group of carrier blocks
+    (:func:`_synth_groups`; ``anchors``: the carrier's first anchors from
     :func:`carrier_anchors`, optional). ``times``: optional,
     :func:`sample_times` of a stream from 0 at this rate, read instead of
     computed when ``t_origin`` is 0 and it holds at least ``n``. Returns the
     number of samples limited to [-1, 1].
     """
-    if times is None:
-        _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy, out, np.empty(0))
-    else:
-        _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, n, rise, decay, policy, out, times)
-    if anchors is None:
-        return _apply_carrier(BS, rate, carrier, n, out, np.empty(0))
-    return _apply_carrier(BS, rate, carrier, n, out, anchors)
+    return _synth_groups(BS, ev_t, ev_a, n_ev, t_origin, rate, n, carrier, rise, decay, policy, out,
+                         np.empty(0) if anchors is None else anchors, np.empty(0) if times is None else times)
 
 
 def render_bursts(event_time, event_amplitude, t_start, duration, rate, carrier_hz=300.0,

@@ -58,6 +58,15 @@ def div_fixed(a, b, y):
     return fma(r, y, q) if q != 0.0 else q
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def div_nonzero(a, b, y):
+    """:func:`div_fixed` of a nonzero ``a`` (a dividend :func:`span_nonzero` admits): the quotient is then
+    nonzero, so the test for a zero one goes (two vector instructions fewer in a loop the compiler
+    vectorises)."""
+    q = a * y
+    return fma(fma(-q, b, a), y, q)
+
+
 #: Dividends of magnitude in [TINY, HUGE] (or 0) and divisors in [1 / DIVISOR_RANGE, DIVISOR_RANGE] are safe.
 TINY = 2.0 ** -960
 HUGE = 2.0 ** 960
@@ -77,4 +86,13 @@ def span_ok(d0, d1):
     monotone in its index checks its first and last one."""
     lo = min(d0, d1)
     hi = max(d0, d1)
-    return (TINY <= lo and hi <= HUGE) or (-HUGE <= lo and hi <= -TINY) or (lo == 0.0 and hi == 0.0)
+    return span_nonzero(d0, d1) or (lo == 0.0 and hi == 0.0)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def span_nonzero(d0, d1):
+    """:func:`span_ok` without its zeros: True if every number between ``d0`` and ``d1`` is a nonzero
+    dividend :func:`div_nonzero` handles (both of one sign, magnitudes in 2**-960 .. 2**960)."""
+    lo = min(d0, d1)
+    hi = max(d0, d1)
+    return (TINY <= lo and hi <= HUGE) or (-HUGE <= lo and hi <= -TINY)

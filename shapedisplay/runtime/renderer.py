@@ -102,7 +102,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "a908b2cfedab94b6af1503a4b9f2fc4f2ecd00ecb6096cd90d27abdc3031c936"
+KERNEL_SOURCES_SHA256 = "f9b78cc3e047bf517c96308f238232fecdfa68451ecdd50cfdc7c0a4af020746"
 
 
 @njit(cache=True, inline="always")
