@@ -92,8 +92,20 @@ CARRIER_BLOCK = 64
 def new_burst_state(carrier: float, rate: float) -> np.ndarray:
     """A fresh burst state (a one-element :data:`~.layouts.BURST_STATE` array) for a ``carrier`` Hz
     carrier sampled at ``rate`` Hz: no event entered, envelope 0, no carrier sample yet."""
-    w = 2.0 * math.pi * carrier
-    return record(BURST_STATE, cj=-1, rc=math.cos(w / rate), rs=math.sin(w / rate))
+    key = (float(carrier), float(rate))
+    fresh = _FRESH_STATES.get(key)
+    if fresh is None:
+        w = 2.0 * math.pi * key[0]
+        fresh = record(BURST_STATE, cj=-1, rc=math.cos(w / key[1]), rs=math.sin(w / key[1])).tobytes()
+        if len(_FRESH_STATES) < 64:
+            _FRESH_STATES[key] = fresh
+    return np.frombuffer(bytearray(fresh), BURST_STATE)
+
+
+#: The bytes of fresh burst states by (carrier, rate), for :func:`new_burst_state` (a record built field by
+#: field, or a copy of one, costs several microseconds; an array over a copy of its bytes about one, and
+#: every offline render starts one).
+_FRESH_STATES: dict = {}
 
 
 @njit(cache=True)
