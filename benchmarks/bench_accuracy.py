@@ -19,8 +19,9 @@ speed-up at equal error at the least favourable error level (see
 the full render, and the bound: scipy's cost over the least work a tick
 renderer must do (per tick and per 48 kHz audio sample; for the model alone,
 at least the least work of ``run_kernel``'s six input and six output rows at
-the path's length), timed in the same run. Printed: min/median/max over the
-runs.
+the path's length, or of ``run_kernel`` with the cheapest model over as many
+ticks with the pad stuck on every one, whichever costs more), timed in the
+same run. Printed: min/median/max over the runs.
 
 Part 2 plays a flat table with the ``stribeck`` model on the Konyo pad (the
 bundled ``handheld-stick`` profile: m = 1e-6 kg, k = 2 N/mm) over a grid of

@@ -479,6 +479,19 @@ def test_equal_error_speedup_on_known_settings():
     assert equal_error([res[0], res[2]], "cpu_s_per_sim_s", 1e-9) is None
 
 
+def test_stuck_floor_runs_the_model_on_ticks_that_all_stay_stuck():
+    """The model alone's second floor is what its name says: the cheapest model over a path on which the pad
+    never breaks away (every tick stuck, no event), and a positive CPU time per call."""
+    from shapedisplay.reports.common import stuck_floor, stuck_path
+    from shapedisplay.runtime.models import run_kernel
+    for n in (2, 9001, 100_001):
+        model, inputs = stuck_path(n)
+        assert model.name == "jump"
+        _, f, phase, x, _, _, _, ev_t, _ = run_kernel(model, *inputs)
+        assert ev_t.size == 0 and not phase.any() and np.all(np.abs(f) < 1e-3 * inputs[2] * inputs[3])
+    assert stuck_floor(9001, runs=1, min_batch_s=0.001) > 0.0
+
+
 def test_cpu_per_call_reads_the_clock_a_few_times_per_run(monkeypatch):
     """cpu_per_call on a fake CPU clock: each call of fn costs 2 us, each clock read 0.5 us (a system
     call). The per-call figure is the call's cost plus at most a few percent of clock reads, with

@@ -478,8 +478,10 @@ def run(out_dir, quick=False, progress=True, plots=True, stream=None) -> dict:
                                  "floor_costs): per tick read the input and write one output; per audio sample "
                                  "write one carrier sample times an envelope; for the model alone at least one "
                                  "call that reads run_kernel's six per-tick input rows and writes its six "
-                                 "per-tick output rows over the case's path (reports.common.interface_floor), "
-                                 "timed per case and tick rate"},
+                                 "per-tick output rows over the case's path (reports.common.interface_floor), or run_kernel "
+                                 "with the cheapest model over that many ticks with the pad stuck on every one "
+                                 "(reports.common.stuck_floor), whichever costs more, timed per case and tick "
+                                 "rate"},
               "timing": {"clock": "time.process_time (CPU s), per call: each run repeats the call for at least "
                                   f"{batch:g} s of CPU time",
                          "renderer": f"full render: Renderer.render (lookup + model + burst audio at 48 kHz); "
@@ -559,9 +561,9 @@ def equal_error(results, cost, floor_tick, floor_audio=0.0, audio_rate=48000.0, 
     number of events, a tick renderer's with the duration: where events
     are few the bound falls below :data:`SPEEDUP_TARGET`. For the model
     alone, ``interface`` (a function of the tick rate giving CPU s per
-    simulated s) is the least work of ``run_kernel``'s own inputs and
-    outputs (:func:`.common.interface_floor`); the bound uses the larger of
-    the two floors.
+    simulated s) is the least work of the model itself (:func:`interface_floor`:
+    ``run_kernel``'s own inputs and outputs, or its ticks with the pad stuck on
+    every one, whichever costs more); the bound uses the larger of the two floors.
 
     Returns None if no level has a qualifying setting of both families.
     """
@@ -596,16 +598,18 @@ def equal_error(results, cost, floor_tick, floor_audio=0.0, audio_rate=48000.0, 
 
 
 def interface_floor(duration):
-    """``tick rate -> CPU s per simulated s`` of run_kernel's interface over a path of ``duration`` s.
+    """``tick rate -> CPU s per simulated s``: the least work of the model alone over a path of ``duration`` s,
+    the larger of its interface's rows (:func:`.common.interface_floor`) and of its ticks with the pad stuck
+    on every one (:func:`.common.stuck_floor`).
 
-    Timed in the calling run (:func:`.common.interface_floor` at the path's
-    tick count), once per tick rate.
+    Timed in the calling run at the path's tick count, once per tick rate.
     """
     seen = {}
 
     def floor(rate):
         if rate not in seen:
-            seen[rate] = common.interface_floor(int(round(duration * rate)) + 1) / duration
+            n = int(round(duration * rate)) + 1
+            seen[rate] = max(common.interface_floor(n), common.stuck_floor(n)) / duration
         return seen[rate]
     return floor
 

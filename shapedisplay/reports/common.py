@@ -264,6 +264,34 @@ def interface_floor(n, runs=3, min_batch_s=0.02):
     return min(per_call)
 
 
+def stuck_floor(n, runs=3, min_batch_s=0.02):
+    """Least work of a stick-slip model over ``n`` ticks, timed now: CPU s per call.
+
+    Whatever its physics, a tick model advances its state on every tick: at
+    the least, a stuck pad's stretch moves with the surface, the stick force
+    follows it and is compared with the static limit, and the tick's outputs
+    are written. The floor is ``run_kernel`` with the cheapest model
+    (``jump``, whose stuck ticks run in a loop of their own) over ``n`` ticks
+    on which the pad never breaks away (the static limit far above any force
+    the path reaches): min of ``runs`` runs of at least ``min_batch_s`` each,
+    after a warm-up.
+    """
+    from ..runtime.models import run_kernel
+    model, inputs = stuck_path(n)
+    per_call, _ = cpu_per_call(lambda: run_kernel(model, *inputs), runs=runs, min_batch_s=min_batch_s)
+    return min(per_call)
+
+
+def stuck_path(n):
+    """The model and the ``run_kernel`` inputs ``(t, V, N, mu_s, mu_k, gain)`` of :func:`stuck_floor`: ``n``
+    ticks 1 ms apart at 1 mm/s under 1 MN (the stick force after them, k x, stays orders of magnitude below
+    the static limit)."""
+    from ..runtime.models import get_model
+    n = int(n)
+    one = np.ones(n)
+    return get_model("jump"), (np.arange(n) * 1e-3, np.full(n, 1e-3), np.full(n, 1e6), one, one, one)
+
+
 def tick_percentiles(samples_ns):
     """p50 and p99 of per-tick times (ns array) in seconds."""
     a = np.asarray(samples_ns, dtype=np.float64) * 1e-9
