@@ -5,18 +5,23 @@ import numpy as np
 import pytest
 from numba import njit
 
-from shapedisplay.runtime.exactdiv import HUGE, TINY, div_fixed, divisor_ok, span_ok
+from shapedisplay.runtime.exactdiv import HUGE, TINY, div_fixed, div_nonzero, divisor_ok, span_nonzero
 
 
 @njit(cache=False)
 def _mismatches(a, b):
-    """How many ``div_fixed(a[i], b[i], 1 / b[i])`` differ from ``a[i] / b[i]`` in any bit (sign of zero included)."""
+    """How many ``div_fixed(a[i], b[i], 1 / b[i])`` differ from ``a[i] / b[i]`` in any bit (sign of zero included),
+    and of the nonzero ``a[i]``, how many ``div_nonzero`` does."""
     bad = 0
     for i in range(a.shape[0]):
         q = a[i] / b[i]
         f = div_fixed(a[i], b[i], 1.0 / b[i])
         if f != q or np.signbit(f) != np.signbit(q):
             bad += 1
+        if a[i] != 0.0:
+            f = div_nonzero(a[i], b[i], 1.0 / b[i])
+            if f != q or np.signbit(f) != np.signbit(q):
+                bad += 1
     return bad
 
 
@@ -42,6 +47,8 @@ def test_signed_zeros_and_the_checks():
     assert _mismatches(np.array([0.0, -0.0, 0.0, -0.0]), np.array([3.0, 3.0, -3.0, -3.0])) == 0
     assert divisor_ok(48000.0) and divisor_ok(-0.005) and not divisor_ok(0.0) and not divisor_ok(np.inf)
     assert not divisor_ok(np.nan) and not divisor_ok(2.0 ** 61) and not divisor_ok(2.0 ** -61)
-    assert span_ok(1e-6, 2.0) and span_ok(-2.0, -1e-6) and span_ok(0.0, 0.0) and span_ok(2.0, 1e-6)
-    assert not span_ok(-1.0, 1.0) and not span_ok(0.0, 1.0) and not span_ok(TINY / 2, 1.0)
-    assert not span_ok(1.0, HUGE * 2) and not span_ok(np.nan, 1.0) and not span_ok(1.0, np.inf)
+    assert span_nonzero(1e-6, 2.0) and span_nonzero(-2.0, -1e-6) and span_nonzero(2.0, 1e-6)
+    assert span_nonzero(TINY, HUGE) and span_nonzero(-HUGE, -TINY)
+    assert not span_nonzero(0.0, 0.0) and not span_nonzero(-0.0, 1.0) and not span_nonzero(-1.0, 1.0)
+    assert not span_nonzero(0.0, 1.0) and not span_nonzero(TINY / 2, 1.0)
+    assert not span_nonzero(1.0, HUGE * 2) and not span_nonzero(np.nan, 1.0) and not span_nonzero(1.0, np.inf)

@@ -83,7 +83,7 @@ from .layouts import BURST_POLICIES, BURST_STATE, Policy, record
 from .settings import MAX_AUDIO_SAMPLES, audio_length, policy_id  # noqa: F401 (their home is .settings)
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to layouts.py (Policy).
-KERNEL_SOURCES_SHA256 = "e4a5b326c00fbb0859cc5a8b9a01631c134808e2db3cb89079cbfa875787659e"
+KERNEL_SOURCES_SHA256 = "62934621b389021f0c114ced24c5114cf27cc74b13d5062c86c5af9c3ba35661"
 #: Carrier re-anchored with sin/cos every this many samples (rotation in between).
 CARRIER_BLOCK = 64
 
@@ -430,8 +430,8 @@ def _times_from(t_origin, rate, j0, out):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _fill_rise(ts, out, car, te, e0, a, rise, yrise, fast):
-    """The rise of a segment at the sample times ``ts`` into ``out`` (one shape; ``ts`` may be ``out`` itself,
-    then a loop in place, which the compiler vectorises without a check for overlapping arrays)."""
+    """The rise of a segment at the sample times ``ts``, times the carrier samples ``car``, into ``out`` (one
+    shape; ``ts`` may be ``out`` itself, then a loop in place)."""
     if out.shape[0] > 0 and fast and span_nonzero(ts[0] - te, ts[ts.shape[0] - 1] - te):
         for m in range(out.shape[0]):
             out[m] = (e0 + (a - e0) * div_nonzero(ts[m] - te, rise, yrise)) * car[m]

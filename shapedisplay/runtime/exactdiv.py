@@ -26,7 +26,7 @@ vectorises it, and the offline burst envelope divides twice per audio sample
 library call where it does not, so the bits never depend on the machine.
 
 The conditions are checked, not assumed: :func:`divisor_ok` for the divisor
-and :func:`span_ok` for the dividends, once per loop (the callers' dividends
+and :func:`span_nonzero` for the dividends, once per loop (the callers' dividends
 are monotone along a loop, so its first and last one bound the rest); a
 loop where they do not hold divides with ``/``. With both in range (dividend 0 or of magnitude 2**-960 .. 2**960,
 divisor 2**-60 .. 2**60) the quotient, the reciprocal and the remainder are
@@ -60,7 +60,7 @@ def div_fixed(a, b, y):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def div_nonzero(a, b, y):
-    """:func:`div_fixed` of a nonzero ``a`` (a dividend :func:`span_nonzero` admits): the quotient is then
+    """:func:`div_fixed` of a nonzero ``a`` (as :func:`span_nonzero` admits them): the quotient is then
     nonzero, so the test for a zero one goes (two vector instructions fewer in a loop the compiler
     vectorises)."""
     q = a * y
@@ -80,19 +80,10 @@ def divisor_ok(b):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def span_ok(d0, d1):
-    """True if every number between ``d0`` and ``d1`` is a dividend :func:`div_fixed` handles: both 0, or
-    both of one sign with magnitudes in 2**-960 .. 2**960 (False for NaN). A loop whose dividends are
-    monotone in its index checks its first and last one."""
-    lo = min(d0, d1)
-    hi = max(d0, d1)
-    return span_nonzero(d0, d1) or (lo == 0.0 and hi == 0.0)
-
-
-@njit(cache=True, inline="always", error_model="numpy")
 def span_nonzero(d0, d1):
-    """:func:`span_ok` without its zeros: True if every number between ``d0`` and ``d1`` is a nonzero
-    dividend :func:`div_nonzero` handles (both of one sign, magnitudes in 2**-960 .. 2**960)."""
+    """True if every number between ``d0`` and ``d1`` is a dividend :func:`div_fixed` and :func:`div_nonzero`
+    handle, none of them zero: both of one sign with magnitudes in 2**-960 .. 2**960 (False for a zero, NaN
+    or inf). A loop whose dividends are monotone in its index checks its first and last one."""
     lo = min(d0, d1)
     hi = max(d0, d1)
     return (TINY <= lo and hi <= HUGE) or (-HUGE <= lo and hi <= -TINY)

@@ -102,7 +102,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "348ca675721efcb22faf50eb1ca0094fa1a150eb50b1c6c504f9aff7f7fa00b7"
+KERNEL_SOURCES_SHA256 = "09e5918b8d4f3ef6b2af9ba56877d211b10bee2b808b5865e3f22d707bc05c96"
 
 
 @njit(cache=True, inline="always")
