@@ -454,6 +454,13 @@ def _fill_decay(ts, out, car, te, a, rise, decay, ydecay, fast):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _fill_silence(out, car):
+    """No burst playing: ``0 * car`` into ``out`` (the zero takes the carrier sample's sign, as the product does)."""
+    for m in range(out.shape[0]):
+        out[m] = 0.0 * car[m]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _fill_sums(ts, out, car, tref, ra, rat, q0, q1, q2, rise, decay, yrise, ydecay, fast):
     """The running sums of ``add`` between two transitions, as :func:`_fill_rise`."""
     d0 = ts[0] - tref
@@ -522,8 +529,7 @@ def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, j0, n, rise, decay, pol
             v = out[j:k]
             cv = car[j - j0:k - j0]
             if BS.i_out == BS.i_in:
-                for m in range(v.shape[0]):
-                    v[m] = 0.0 * cv[m]
+                _fill_silence(v, cv)
             elif kept:
                 _fill_sums(times[j:k], v, cv, BS.tref, BS.ra, BS.rat, BS.q0, BS.q1, BS.q2, rise, decay, yrise, ydecay,
                            fast)
@@ -569,10 +575,7 @@ def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, j0, n, rise, decay, pol
                 _fill_decay(times[m1:m2], v, car[m1 - j0:m2 - j0], te, a, rise, decay, ydecay, fast)
             else:
                 _fill_decay(v, v, car[m1 - j0:m2 - j0], te, a, rise, decay, ydecay, fast)
-        v = out[m2:k]
-        cv = car[m2 - j0:k - j0]
-        for m in range(v.shape[0]):
-            v[m] = 0.0 * cv[m]
+        _fill_silence(out[m2:k], car[m2 - j0:k - j0])
         j = k
     BS.i_in = i_in
     BS.te = te
@@ -581,14 +584,19 @@ def _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, j0, n, rise, decay, pol
     return amax
 
 
-@njit(cache=True, error_model="numpy")
-def _clip1(v):
-    """(v limited to [-1, 1], 1 if it was limited)."""
-    if v > 1.0:
-        return 1.0, 1
-    if v < -1.0:
-        return -1.0, 1
-    return v, 0
+@njit(cache=True, inline="always", error_model="numpy")
+def _limit(v, bound):
+    """Limit the samples ``v`` to [-1, 1] in place and return how many were limited, unless the envelope
+    ``bound`` of their group times ``1 + 1e-9`` is below 1: then none can be (see :func:`_synth_groups`)."""
+    if bound * (1.0 + 1e-9) < 1.0:
+        return 0
+    clipped = 0
+    for m in range(v.shape[0]):
+        x = v[m]
+        clipped += (x > 1.0) | (x < -1.0)
+        x = 1.0 if x > 1.0 else x
+        v[m] = -1.0 if x < -1.0 else x
+    return clipped
 
 
 #: Carrier blocks rotated side by side by :func:`_synth_groups` (four per 4-wide vector, a multiple of 4).
@@ -719,7 +727,7 @@ def _synth_groups(BS, ev_t, ev_a, n_ev, t_origin, rate, n, carrier, rise, decay,
     where its envelope bound times ``1 + 1e-9`` is not below 1: below, every product is below 1 in
     magnitude (a carrier sample is within 1e-12 of the unit circle after a block's rotations, an envelope
     sample within rounding of the bound), so the limiting would change and count nothing. The last
-    blocks (fewer than a group) take the scalar rotation. ``known`` holds the anchors of the first blocks
+    blocks (fewer than a group) take the scalar rotation into the scratch row, then the same steps. ``known`` holds the anchors of the first blocks
     (:func:`carrier_anchors`, any number of them; the others are computed here): a renderer keeps them
     from stream to stream, since they depend only on the carrier and the rate.
     """
@@ -749,19 +757,13 @@ def _synth_groups(BS, ev_t, ev_a, n_ev, t_origin, rate, n, carrier, rise, decay,
             _rotate_blocks(anchors, cd, sd, car, blk)
         amax = _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, j0, j0 + grp * blk, rise, decay, policy, out,
                               times, car)
-        if not (amax * (1.0 + 1e-9) < 1.0):
-            v = out[j0:j0 + grp * blk]
-            for m in range(v.shape[0]):
-                x = v[m]
-                clipped += (x > 1.0) | (x < -1.0)
-                x = 1.0 if x > 1.0 else x
-                v[m] = -1.0 if x < -1.0 else x
+        clipped += _limit(out[j0:j0 + grp * blk], amax)
         b += grp
-    car[:] = 1.0
-    _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, b * blk, n, rise, decay, policy, out, times, car)
+    # the last blocks (fewer than a group): the scalar rotation into the scratch row, then as a group
+    j0 = b * blk
     cr = BS.cc
     sr = BS.cs
-    for j in range(b * blk, n):
+    for j in range(j0, n):
         if j % blk == 0:
             if j // blk < nknown:
                 cr = known[2 * (j // blk)]
@@ -772,9 +774,9 @@ def _synth_groups(BS, ev_t, ev_a, n_ev, t_origin, rate, n, carrier, rise, decay,
                 sr = math.sin(th)
         else:
             cr, sr = cr * cd - sr * sd, sr * cd + cr * sd
-        v, c = _clip1(out[j] * sr)
-        out[j] = v
-        clipped += c
+        car[j - j0] = sr
+    amax = _envelope_fill(BS, ev_t, ev_a, n_ev, t_origin, rate, j0, n, rise, decay, policy, out, times, car)
+    clipped += _limit(out[j0:n], amax)
     if n > 0:
         BS.cc = cr
         BS.cs = sr

@@ -102,7 +102,7 @@ _KEPT_TIME_SAMPLES = 1 << 20
 
 #: See shapedisplay.runtime.codegen: numba's cache does not notice changes to the kernels that
 #: online_step compiles in (dispatch/pads, lookup, bursts) or to the constants of layouts.py.
-KERNEL_SOURCES_SHA256 = "09e5918b8d4f3ef6b2af9ba56877d211b10bee2b808b5865e3f22d707bc05c96"
+KERNEL_SOURCES_SHA256 = "e6c4ce15c51f0a1daa1568d8001fe712c49e1dc40d386de541b463e03dd14dfd"
 
 
 @njit(cache=True, inline="always")
