@@ -1,5 +1,6 @@
 """Friction-envelope table container: bit-exact round trips, verification, layout, lookups."""
 import json
+import zlib
 
 import numpy as np
 import pytest
@@ -329,20 +330,12 @@ def test_negative_zero_channel_keeps_its_checksum(tmp_path):
     assert u.checksum() == t.checksum() and u.quant == t.quant
 
 
-def test_streamed_npz_bytes_equal_writestr_of_the_whole_npy():
-    """write_npz streams each array into its zip entry a chunk at a time: the file is byte for byte what
-    ZipFile.writestr of numpy.save's whole output gives (deflate fed in chunks makes the same stream)."""
+def _writestr_npz(arrays) -> bytes:
+    """The .npz that ZipFile.writestr of numpy.save's whole output gives, compressed as write_npz chooses."""
     import io
     import zipfile
 
-    from shapedisplay.container import _CHUNK, entry_compression, write_npz
-    rng = np.random.default_rng(9)
-    y, x = np.mgrid[0:1500, 0:1700]
-    arrays = {"header": np.frombuffer(b'{"a": 1}', np.uint8),
-              "smooth": np.rint(120 + 100 * np.sin(x / 80.0) * np.cos(y / 60.0)).astype(np.uint8),   # deflate 1
-              "noisy": rng.integers(0, 65535, (1500, 1700), dtype=np.uint16),                         # stored
-              "wide": rng.normal(0, 1, 3 * _CHUNK // 8 + 77),                                         # float64
-              "empty": np.zeros((0, 3), np.float32)}
+    from shapedisplay.container import entry_compression
     expected = io.BytesIO()
     with zipfile.ZipFile(expected, "w", allowZip64=True) as zf:
         for name, a in arrays.items():
@@ -351,12 +344,65 @@ def test_streamed_npz_bytes_equal_writestr_of_the_whole_npy():
             method, level = entry_compression(a.reshape(-1).view(np.uint8))
             zf.writestr(zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0)), npy.getbuffer(),
                         compress_type=method, compresslevel=level)
+    return expected.getvalue()
+
+
+def _streamed_arrays():
+    from shapedisplay.container import _CHUNK
+    rng = np.random.default_rng(9)
+    y, x = np.mgrid[0:1500, 0:1700]
+    return {"header": np.frombuffer(b'{"a": 1}', np.uint8),
+            "smooth": np.rint(120 + 100 * np.sin(x / 80.0) * np.cos(y / 60.0)).astype(np.uint8),   # large, deflated
+            "noisy": rng.integers(0, 65535, (1500, 1700), dtype=np.uint16),                         # stored
+            "wide": rng.normal(0, 1, 3 * _CHUNK // 8 + 77),                                         # float64
+            "empty": np.zeros((0, 3), np.float32)}
+
+
+def test_streamed_npz_matches_writestr_of_the_whole_npy():
+    """write_npz streams each array into its zip entry a chunk at a time: every entry's name, method,
+    CRC, sizes and content are those of ZipFile.writestr of numpy.save's whole output; small and stored
+    entries byte for byte, the large deflated one through ISA-L's deflate (a plain deflate stream that
+    zlib inflates to the same bytes)."""
+    import io
+    import zipfile
+
+    from shapedisplay.container import write_npz
+    arrays = _streamed_arrays()
+    expected = _writestr_npz(arrays)
     got = io.BytesIO()
     write_npz(got, arrays)
-    assert got.getvalue() == expected.getvalue()
-    with zipfile.ZipFile(got) as z:
-        assert {i.filename: i.compress_type for i in z.infolist()}["smooth.npy"] == zipfile.ZIP_DEFLATED
-        assert {i.filename: i.compress_type for i in z.infolist()}["noisy.npy"] == zipfile.ZIP_STORED
+    with zipfile.ZipFile(got) as z, zipfile.ZipFile(io.BytesIO(expected)) as ze:
+        infos, want = z.infolist(), ze.infolist()
+        assert [i.filename for i in infos] == [i.filename for i in want]
+        for i, w in zip(infos, want):
+            assert (i.compress_type, i.CRC, i.file_size, i.date_time) == (w.compress_type, w.CRC, w.file_size,
+                                                                          w.date_time)
+            assert z.read(i) == ze.read(w)
+            if i.filename != "smooth.npy":
+                assert i.compress_size == w.compress_size
+        methods = {i.filename: i.compress_type for i in infos}
+        assert methods["smooth.npy"] == zipfile.ZIP_DEFLATED and methods["noisy.npy"] == zipfile.ZIP_STORED
+        raw = got.getvalue()
+        smooth = z.getinfo("smooth.npy")
+        start = smooth.header_offset + 30 + len(smooth.filename.encode()) + len(smooth.extra)
+        stream = raw[start:start + smooth.compress_size]
+        assert zlib.decompress(stream, -15) == ze.read("smooth.npy")      # plain deflate
+        assert smooth.compress_size < 0.5 * smooth.file_size
     with np.load(io.BytesIO(got.getvalue())) as z:
         for name, a in arrays.items():
             assert z[name].dtype == a.dtype and np.array_equal(z[name], a)
+
+
+def test_streamed_npz_without_isal_is_byte_for_byte_writestr(monkeypatch):
+    """Without the isal package the large entries are deflated by zlib level 1: the whole file is then
+    byte for byte what ZipFile.writestr of numpy.save's whole output gives."""
+    import io
+
+    from shapedisplay import container
+    monkeypatch.setattr(container, "_isal_zlib", lambda: None)
+    arrays = _streamed_arrays()
+    got = io.BytesIO()
+    container.write_npz(got, arrays)
+    assert got.getvalue() == _writestr_npz(arrays)
+
+
