@@ -16,10 +16,18 @@ from pathlib import Path
 from .errors import FileFormatError, InputError, ModelError, unknown_key
 from .units import parse_quantity
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+
+def toml_module():
+    """The TOML parser (``tomllib``, or ``tomli`` before Python 3.11), imported on first use.
+
+    Loading it costs a process about 8 ms; a ``play`` takes its device from
+    the table and never parses TOML.
+    """
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover
+        import tomli as tomllib
+    return tomllib
 
 
 #: Tick rates a renderer runs at and a device profile may declare, Hz (the one home of this range).
@@ -211,6 +219,7 @@ def load_device(source: str | Path | None = None) -> DeviceProfile:
         if not path.exists():
             names = sorted(p.stem for p in (BUNDLED_DEVICES).glob("*.toml"))
             raise unknown_key("device", str(source), names)
+    tomllib = toml_module()
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:

@@ -5,7 +5,6 @@ on one line: "`mu_k` must be <= `mu_s` (got mu_k=0.7, mu_s=0.5)".
 """
 from __future__ import annotations
 
-import difflib
 import importlib
 from typing import Iterable
 
@@ -43,6 +42,7 @@ class MissingDependencyError(ShapeDisplayError, ImportError):
 
 def did_you_mean(name: str, valid: Iterable[str]) -> str:
     """Return " (did you mean 'x'?)" for the closest valid name, or ""."""
+    import difflib          # on first use: about 2 ms of every start otherwise
     match = difflib.get_close_matches(str(name), list(valid), n=1, cutoff=0.5)
     return f" (did you mean '{match[0]}'?)" if match else ""
 

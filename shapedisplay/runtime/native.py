@@ -20,8 +20,6 @@ import ctypes
 import hashlib
 import os
 import shutil
-import subprocess
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -79,6 +77,8 @@ def library_path() -> Path:
 
 def _build(lib_path: Path) -> None:
     """Compile the sources into ``lib_path`` (atomically: a temporary name, then a rename)."""
+    import subprocess       # only to build: about 5 ms of every play's start otherwise
+    import tempfile
     cc = compiler()
     if not cc:
         raise InputError("the C runtime needs a C compiler (cc, gcc or clang, or $CC); use the Python engine")

@@ -47,19 +47,14 @@ Placement rules (documented in the README):
 from __future__ import annotations
 
 import math
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..devices import toml_module
 from ..errors import FileFormatError, InputError, did_you_mean
 from ..forces import DEFAULT_SLOPE_FRICTION_GAIN, MappingOptions
 from .fields import Canvas, Ctx, SceneError, Widget, check_keys, choice, length, number, pair, quantity
 from .widgets import WIDGET_TYPES, place_widget
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 SECTIONS = ("scene", "canvas", "device", "mapping", "defaults", "widget")
 CANVAS_KEYS = ("size", "pixels", "dpi", "resolution")
@@ -133,6 +128,7 @@ def load_scene(path, device=None) -> Scene:
         raise FileFormatError(f"scene '{p}': no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise FileFormatError(f"scene '{p}': unreadable ({exc})") from None
+    tomllib = toml_module()
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

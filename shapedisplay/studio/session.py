@@ -114,7 +114,8 @@ class Session:
 
     def _check_scene_reads(self, text: str) -> None:
         """Refuse a scene that would read a file outside the source's folder."""
-        from ..scene.spec import tomllib
+        from ..devices import toml_module
+        tomllib = toml_module()
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError:
