@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -362,21 +363,32 @@ def wall_regions(mask: np.ndarray, k: int, *, out: np.ndarray | None = None) -> 
     spans : list of (row_min, row_max, col_min, col_max)
         Inclusive sample bounds of each region in ``top``.
 
-    Cost: one labelling pass, one histogram of the labels (``bincount`` for
-    intp labels; ``np.add.at`` for int32 labels, which ``bincount`` would
-    first copy into intp: twice the memory), one pass mapping
-    the chosen labels to ranks and one bounding-box pass over that (all in
-    C); choosing the largest is linear in the number of regions (a
-    threshold from the histogram of sizes, not a sort or a partition of
-    every region: a noisy 4096x4096 map has millions of them).
+    Cost: where a C compiler is there, one pass over the mask's rows in C
+    (``sd_regions.c`` beside this module, built once into the cache
+    directory as the C runtime is: union-find over the runs of each row,
+    each region's size and box kept at its root; no label per sample):
+    about 0.05 s for a noisy 4096x4096 map's 2.2 million regions, against
+    about 0.4 s for the path below. Without one: scipy's labelling pass,
+    one histogram of the labels (``bincount`` for intp labels;
+    ``np.add.at`` for int32 labels, which ``bincount`` would first copy
+    into intp: twice the memory), one pass mapping the chosen labels to
+    ranks and one bounding-box pass over that (all in C); choosing the
+    largest is linear in the number of regions (a threshold from the
+    histogram of sizes, not a sort or a partition of every region). Both
+    give the same result (the tests compare them with scipy's labels).
     """
+    if out is not None and (out.shape != mask.shape or out.dtype not in (np.dtype(np.intp), np.dtype(np.int32))
+                            or not out.flags.c_contiguous):
+        raise InputError(f"`out` must be a C-contiguous intp or int32 array of shape {mask.shape} "
+                         f"(got {out.dtype} {out.shape})")
+    native = _native_regions() if mask.ndim == 2 and mask.size else None
+    if native is not None:
+        found = _regions_in_c(native, mask, k)
+        if found is not None:
+            return found
     label, find_objects = _labelling()
     if out is None:
         out = np.empty(mask.shape, np.int32 if mask.size < 2 ** 31 else np.intp)
-    elif out.shape != mask.shape or out.dtype not in (np.dtype(np.intp), np.dtype(np.int32)) \
-            or not out.flags.c_contiguous:
-        raise InputError(f"`out` must be a C-contiguous intp or int32 array of shape {mask.shape} "
-                         f"(got {out.dtype} {out.shape})")
     labels = out
     n = label(mask, labels)
     if n == 0:
@@ -405,6 +417,47 @@ def wall_regions(mask: np.ndarray, k: int, *, out: np.ndarray | None = None) -> 
     spans = [(sl[0].start, sl[0].stop - 1, sl[1].start, sl[1].stop - 1)
              for sl in find_objects(ranked, k)]
     return int(n), cand.astype(np.int64), spans
+
+
+#: The C source of :func:`wall_regions`' one-pass count (shipped in the package).
+REGIONS_SOURCE = Path(__file__).resolve().parent / "sd_regions.c"
+_REGIONS = None
+
+
+def _native_regions():
+    """``sd_regions`` (from :data:`REGIONS_SOURCE`, built once by the system C compiler into the cache
+    directory), or None where it cannot be built or loaded here: :func:`wall_regions` then uses scipy."""
+    global _REGIONS
+    if _REGIONS is None:
+        import ctypes
+
+        from .runtime.native import load_shared, shared_library_path
+        try:
+            lib = load_shared(shared_library_path("sd_regions", [REGIONS_SOURCE]), [REGIONS_SOURCE],
+                              what="the wall-region counter")
+        except InputError:
+            _REGIONS = False
+        else:
+            fn = lib.sd_regions
+            vp, i64 = ctypes.c_void_p, ctypes.c_int64
+            fn.argtypes = [vp, i64, i64, i64, vp, vp]
+            fn.restype = i64
+            _REGIONS = fn
+    return _REGIONS or None
+
+
+def _regions_in_c(fn, mask: np.ndarray, k: int):
+    """:func:`wall_regions`' result from ``sd_regions``; None if it ran out of memory."""
+    m = np.ascontiguousarray(mask, dtype=bool)
+    rows, cols = m.shape
+    top = np.zeros(max(k, 1), np.int64)
+    spans = np.zeros(4 * max(k, 1), np.int64)
+    n = int(fn(m.ctypes.data, rows, cols, k, top.ctypes.data, spans.ctypes.data))
+    if n < 0:
+        return None
+    kept = min(k, n)
+    box = spans[:4 * kept].reshape(kept, 4).tolist()
+    return n, top[:kept].copy(), [tuple(b) for b in box]
 
 
 #: 4-connectivity of :func:`wall_regions` (``scipy.ndimage.generate_binary_structure(2, 1)``).

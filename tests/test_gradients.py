@@ -6,6 +6,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from shapedisplay import sources
+from shapedisplay.runtime import native
 from shapedisplay.errors import InputError
 from shapedisplay.gradients import (GRADIENT_METHODS, detect_walls, gradient, limit_walls, slope_along,
                                     slope_magnitude)
@@ -189,32 +190,80 @@ def _regions_by_scipy(mask, k):
     return n, [int(t) for t in top], spans
 
 
-@settings(max_examples=60, deadline=None)
-@given(st.integers(1, 40), st.integers(1, 40), st.floats(0.0, 1.0), st.integers(1, 30), st.integers(0, 2 ** 32 - 1))
+def _regions_both_ways(mask, k):
+    """wall_regions' result by the C count (where a compiler is there) and by scipy's labelling path."""
+    from shapedisplay import gradients
+    ways = []
+    if native.compiler() is not None:
+        assert gradients._native_regions() is not None
+        ways.append(gradients.wall_regions(mask, k))
+    saved = gradients._REGIONS
+    gradients._REGIONS = False
+    try:
+        ways.append(gradients.wall_regions(mask, k))
+    finally:
+        gradients._REGIONS = saved
+    for n, top, spans in ways:
+        assert top.dtype == np.int64 and all(type(v) is int for box in spans for v in box)
+    return [(n, top.tolist(), spans) for n, top, spans in ways]
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.integers(1, 40), st.integers(1, 40), st.floats(0.0, 1.0), st.integers(0, 30), st.integers(0, 2 ** 32 - 1))
 def test_wall_regions_match_scipy_labelling(rows, cols, density, k, seed):
-    from shapedisplay.gradients import wall_regions
     mask = np.random.default_rng(seed).random((rows, cols)) < density
-    n, top, spans = wall_regions(mask, k)
-    assert (n, list(top), spans) == _regions_by_scipy(mask, k)
+    for found in _regions_both_ways(mask, k):
+        assert found == _regions_by_scipy(mask, k)
 
 
 def test_wall_regions_beyond_the_size_histogram_and_ties():
-    from shapedisplay.gradients import wall_regions
     mask = np.zeros((700, 700), bool)
     mask[10:310, 20:320] = True             # 90 000 samples: beyond the histogram's top bin (65 536)
     mask[400:690, 400:690] = True           # 84 100 samples: also beyond it
     mask[350:352, ::2] = True               # 350 regions of 2 samples: ties filled in label order
     mask[360, 1::2] = True                  # 350 single samples
     for k in (1, 2, 3, 20, 400, 1000):
-        n, top, spans = wall_regions(mask, k)
-        assert (n, list(top), spans) == _regions_by_scipy(mask, k)
-    assert spans[0] == (10, 309, 20, 319) and spans[1] == (400, 689, 400, 689)
-    n, top, spans = wall_regions(np.zeros((5, 5), bool), 20)
-    assert (n, top.size, spans) == (0, 0, [])
+        for found in _regions_both_ways(mask, k):
+            assert found == _regions_by_scipy(mask, k)
+    assert found[2][0] == (10, 309, 20, 319) and found[2][1] == (400, 689, 400, 689)
+    for found in _regions_both_ways(np.zeros((5, 5), bool), 20):
+        assert found == (0, [], [])
 
 
-def test_wall_regions_with_int32_and_intp_labels_agree():
+def test_wall_regions_of_shapes_that_merge_late():
+    """Regions whose runs meet only rows later (a U, a comb, a spiral, a full mask, single rows and columns):
+    the one-pass count keeps the lowest-numbered run as each region's root, so the labels stay scipy's."""
+    u = np.zeros((30, 40), bool)
+    u[2:28, 3] = u[2:28, 36] = u[27, 3:37] = True          # two arms joined at the bottom row
+    comb = np.zeros((25, 61), bool)
+    comb[:20, ::4] = True
+    comb[22, :] = True                                     # teeth joined by a bar below them
+    spiral = np.zeros((41, 41), bool)
+    for i in range(0, 20, 4):
+        spiral[i, i:41 - i] = spiral[i:41 - i, 40 - i] = spiral[40 - i, i:41 - i] = True
+        spiral[i + 2:41 - i, i] = True
+        if i + 2 < 41 - i - 2:
+            spiral[i + 2, i:i + 4] = True
+    rng = np.random.default_rng(5)
+    for mask in (u, comb, spiral, np.ones((17, 23), bool), rng.random((1, 300)) < 0.5,
+                 rng.random((300, 1)) < 0.5, rng.random((257, 263)) < 0.59):
+        for k in (1, 5, 50):
+            for found in _regions_both_ways(mask, k):
+                assert found == _regions_by_scipy(mask, k)
+
+
+def test_wall_regions_fall_back_to_scipy_when_the_count_runs_out_of_memory(monkeypatch):
+    from shapedisplay import gradients
+    mask = np.random.default_rng(8).random((60, 70)) < 0.5
+    monkeypatch.setattr(gradients, "_native_regions", lambda: (lambda *args: -1))
+    n, top, spans = gradients.wall_regions(mask, 6)
+    assert (n, top.tolist(), spans) == _regions_by_scipy(mask, 6)
+
+
+def test_wall_regions_with_int32_and_intp_labels_agree(monkeypatch):
+    from shapedisplay import gradients
     from shapedisplay.gradients import wall_regions
+    monkeypatch.setattr(gradients, "_native_regions", lambda: None)   # the labels are scipy's path's
     mask = np.random.default_rng(12).random((90, 110)) < 0.45
     by32 = wall_regions(mask, 9, out=np.empty(mask.shape, np.int32))
     bypt = wall_regions(mask, 9, out=np.empty(mask.shape, np.intp))

@@ -63,41 +63,67 @@ def _sources() -> list[Path]:
     return [*(RUNTIME_C / n for n in SOURCES), PLAY_SOURCE]
 
 
+def shared_library_path(stem: str, sources: list[Path], headers: list[Path] = ()) -> Path:
+    """The cached file a library of ``sources`` is built into (it may not exist yet).
+
+    Named ``STEM-DIGEST.so`` with the digest of the sources, the headers and
+    :data:`CFLAGS`: a changed source builds a new file.
+    """
+    if not all(p.is_file() for p in sources):
+        missing = [str(p) for p in sources if not p.is_file()]
+        raise InputError(f"C sources are missing ({', '.join(missing)})")
+    digest = hashlib.sha256(b"".join(p.read_bytes() for p in [*sources, *headers])
+                            + " ".join(CFLAGS).encode()).hexdigest()[:16]
+    return cache_dir() / f"{stem}-{digest}.so"
+
+
 def library_path() -> Path:
     """The file the library of the current sources is built into (it may not exist yet)."""
-    srcs = _sources()
-    if not all(p.is_file() for p in srcs):
-        missing = [str(p) for p in srcs if not p.is_file()]
-        raise InputError(f"the C runtime's sources are missing ({', '.join(missing)}); "
-                         "use the Python engine")
-    digest = hashlib.sha256(b"".join(p.read_bytes() for p in [*srcs, *sorted(RUNTIME_C.glob("*.h"))])
-                            + " ".join(CFLAGS).encode()).hexdigest()[:16]
-    return cache_dir() / f"sd_runtime-{digest}.so"
+    try:
+        return shared_library_path("sd_runtime", _sources(), sorted(RUNTIME_C.glob("*.h")))
+    except InputError as exc:
+        raise InputError(f"the C runtime's {exc}; use the Python engine") from None
 
 
-def _build(lib_path: Path) -> None:
-    """Compile the sources into ``lib_path`` (atomically: a temporary name, then a rename)."""
+def build_shared(lib_path: Path, sources: list[Path], include: Path | None = None,
+                 what: str = "the C runtime", hint: str = "") -> None:
+    """Compile ``sources`` into the shared library ``lib_path`` (atomically: a temporary name, then a rename).
+
+    ``what`` names the library in messages; ``hint`` ends the one for a missing compiler.
+    """
     import subprocess       # only to build: about 5 ms of every play's start otherwise
     import tempfile
     cc = compiler()
     if not cc:
-        raise InputError("the C runtime needs a C compiler (cc, gcc or clang, or $CC); use the Python engine")
+        raise InputError(f"{what} needs a C compiler (cc, gcc or clang, or $CC){hint}")
     try:
         lib_path.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryDirectory(dir=lib_path.parent) as d:
             tmp = Path(d) / lib_path.name
+            inc = ["-I", str(include)] if include is not None else []
             try:
-                res = subprocess.run([cc, *CFLAGS, "-I", str(RUNTIME_C), *map(str, _sources()), "-lm", "-o",
-                                      str(tmp)], capture_output=True, text=True, timeout=300)
+                res = subprocess.run([cc, *CFLAGS, *inc, *map(str, sources), "-lm", "-o", str(tmp)],
+                                     capture_output=True, text=True, timeout=300)
             except (OSError, subprocess.TimeoutExpired) as exc:
-                raise InputError(f"building the C runtime failed: cannot run {cc!r} ({exc})") from None
+                raise InputError(f"building {what} failed: cannot run {cc!r} ({exc})") from None
             if res.returncode != 0:
-                raise InputError(f"building the C runtime with {cc!r} failed: "
+                raise InputError(f"building {what} with {cc!r} failed: "
                                  f"{' '.join(res.stderr.strip().splitlines()[-1:])}")
             os.replace(tmp, lib_path)
     except OSError as exc:
-        raise InputError(f"building the C runtime failed: cannot write its cache directory {lib_path.parent} "
+        raise InputError(f"building {what} failed: cannot write its cache directory {lib_path.parent} "
                          f"({exc.strerror or exc}); set XDG_CACHE_HOME to a writable folder") from None
+
+
+def load_shared(lib_path: Path, sources: list[Path], include: Path | None = None,
+                what: str = "the C runtime", hint: str = "") -> ctypes.CDLL:
+    """Load the library at ``lib_path``, building it from ``sources`` first if it is not there."""
+    if not lib_path.is_file():
+        build_shared(lib_path, sources, include, what, hint)
+    try:
+        return ctypes.CDLL(str(lib_path))
+    except OSError as exc:
+        raise InputError(f"loading {what} {lib_path} failed ({exc}); delete the file to rebuild it") from None
 
 
 def library() -> ctypes.CDLL:
@@ -105,13 +131,7 @@ def library() -> ctypes.CDLL:
     global _LIB
     if _LIB is not None:
         return _LIB
-    lib_path = library_path()
-    if not lib_path.is_file():
-        _build(lib_path)
-    try:
-        lib = ctypes.CDLL(str(lib_path))
-    except OSError as exc:
-        raise InputError(f"loading the C runtime {lib_path} failed ({exc}); delete the file to rebuild it") from None
+    lib = load_shared(library_path(), _sources(), RUNTIME_C, hint="; use the Python engine")
     vp, c_int64 = ctypes.c_void_p, ctypes.c_int64
     lib.sd_renderer_size.restype = ctypes.c_size_t
     lib.sd_image_size.restype = ctypes.c_size_t

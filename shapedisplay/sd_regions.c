@@ -1,0 +1,140 @@
+/* Connected regions of a mask (4-connected) in one pass over its rows: their count and the k largest,
+ * with their bounding boxes. What shapedisplay.gradients.wall_regions computes with scipy.ndimage's
+ * label, a histogram of the labels and find_objects, without a label per sample.
+ *
+ * The mask is cut into runs (maximal horizontal stretches of set samples), numbered in raster order. A run
+ * joins the runs of the row above that share a column with it (union-find: the set keeps its lowest run
+ * number as its root, path halving on the way). A region's first run in raster order holds its first
+ * sample, so ordering the roots by run number numbers the regions as scipy.ndimage.label does: raster
+ * order of each region's first sample. Each root carries its region's size and bounding box, merged on
+ * every union.
+ *
+ * Memory: 32 bytes per run, allocated after a first pass counts the runs; 24 bytes per column for two
+ * rows of runs. */
+#include <stdint.h>
+#include <stdlib.h>
+
+typedef struct {
+    int64_t parent;
+    int64_t size;
+    int32_t r0, r1, c0, c1;
+} sd_run_t;
+
+static int64_t root_of(sd_run_t *runs, int64_t i)
+{
+    while (runs[i].parent != i) {
+        runs[i].parent = runs[runs[i].parent].parent;
+        i = runs[i].parent;
+    }
+    return i;
+}
+
+static void join(sd_run_t *runs, int64_t a, int64_t b)
+{
+    a = root_of(runs, a);
+    b = root_of(runs, b);
+    if (a == b)
+        return;
+    if (b < a) {
+        int64_t t = a;
+        a = b;
+        b = t;
+    }
+    sd_run_t *keep = &runs[a], *gone = &runs[b];
+    gone->parent = a;
+    keep->size += gone->size;
+    if (gone->r0 < keep->r0) keep->r0 = gone->r0;
+    if (gone->r1 > keep->r1) keep->r1 = gone->r1;
+    if (gone->c0 < keep->c0) keep->c0 = gone->c0;
+    if (gone->c1 > keep->c1) keep->c1 = gone->c1;
+}
+
+/* mask: rows x cols bytes, 0 or 1 (a numpy bool array), C order. Writes the labels of the min(k, n) largest regions to
+ * top (largest first; equal sizes in label order) and their inclusive bounds (row_min, row_max,
+ * col_min, col_max) to spans (4 per region). Returns n, the number of regions, or -1 if memory runs out. */
+int64_t sd_regions(const uint8_t *mask, int64_t rows, int64_t cols, int64_t k, int64_t *top, int64_t *spans)
+{
+    int64_t count = 0;
+    for (int64_t r = 0; r < rows; r++) {
+        const uint8_t *m = mask + r * cols;
+        int64_t starts = m[0];
+        for (int64_t c = 1; c < cols; c++)             /* 0/1 samples: a run starts where one exceeds the last */
+            starts += m[c] > m[c - 1];
+        count += starts;
+    }
+    if (count == 0)
+        return 0;
+    int64_t half = cols / 2 + 2;                       /* most runs a row can hold, and a candidate */
+    sd_run_t *runs = malloc((size_t)count * sizeof *runs);
+    int64_t *row_runs = malloc((size_t)(6 * half) * sizeof *row_runs);
+    if (!runs || !row_runs) {
+        free(runs);
+        free(row_runs);
+        return -1;
+    }
+    /* previous and current row: first column, last column, run number of each run */
+    int64_t *ps = row_runs, *pe = ps + half, *pid = pe + half;
+    int64_t *cs = pid + half, *ce = cs + half, *cid = ce + half;
+    int64_t pn = 0, next = 0;
+    for (int64_t r = 0; r < rows; r++) {
+        const uint8_t *m = mask + r * cols;
+        /* the row's runs, without a branch per sample: each position is written as a candidate start
+         * and a candidate end, and kept by advancing the count only where a run starts or ends */
+        int64_t cn = 0, ends = 0, j = 0;
+        unsigned before = 0;
+        for (int64_t c = 0; c < cols; c++) {
+            unsigned v = m[c] != 0;
+            cs[cn] = c;
+            cn += v & (before ^ 1u);
+            ce[ends] = c - 1;
+            ends += (v ^ 1u) & before;
+            before = v;
+        }
+        if (before)
+            ce[ends] = cols - 1;
+        for (int64_t i = 0; i < cn; i++) {
+            int64_t a = cs[i], b = ce[i], id = next++;
+            runs[id] = (sd_run_t){id, b - a + 1, (int32_t)r, (int32_t)r, (int32_t)a, (int32_t)b};
+            while (j < pn && pe[j] < a)
+                j++;
+            for (int64_t q = j; q < pn && ps[q] <= b; q++)
+                join(runs, id, pid[q]);
+            cid[i] = id;
+        }
+        int64_t *t;
+        t = ps; ps = cs; cs = t;
+        t = pe; pe = ce; ce = t;
+        t = pid; pid = cid; cid = t;
+        pn = cn;
+    }
+    /* number the regions (roots in run order) and keep the k largest: top[0..kept) sorted by size
+     * descending, then label ascending (a later root of equal size ranks after the ones kept) */
+    int64_t n = 0, kept = 0;
+    int64_t *best = spans;                             /* root run of each kept region, until the end */
+    for (int64_t id = 0; id < count; id++) {
+        if (runs[id].parent != id)
+            continue;
+        n++;
+        int64_t size = runs[id].size;
+        if (kept == k && (k == 0 || size <= runs[best[k - 1]].size))
+            continue;
+        int64_t i = kept < k ? kept++ : k - 1;
+        while (i > 0 && runs[best[i - 1]].size < size) {
+            best[i] = best[i - 1];
+            top[i] = top[i - 1];
+            i--;
+        }
+        best[i] = id;
+        top[i] = n;
+    }
+    for (int64_t i = kept - 1; i >= 0; i--) {          /* spans[4 i ..] from best[i]: backwards, no overlap */
+        sd_run_t *q = &runs[best[i]];
+        spans[4 * i] = q->r0;
+        spans[4 * i + 1] = q->r1;
+        spans[4 * i + 2] = q->c0;
+        spans[4 * i + 3] = q->c1;
+    }
+    free(runs);
+    free(row_runs);
+    return n;
+}
