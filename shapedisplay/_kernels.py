@@ -1,20 +1,75 @@
-"""Single-pass kernels for the compiler's large-array work, in cache-sized numpy chunks.
+"""Single-pass kernels for the compiler's large-array work, in C or in cache-sized numpy chunks.
 
-Each kernel walks flat float64 arrays once, a chunk of :data:`CHUNK`
-samples at a time, so its temporaries are a few hundred KiB that stay in
-the CPU cache instead of 128 MiB numpy temporaries of a 4096x4096 map
-(each a pass of its own through memory). Plain numpy, not numba: loading
-numba and its cached kernels costs a compile process about 0.6 s of
-start-up, more than these passes take on a 4096x4096 map. Results are
-bit-identical to the numpy expressions they replace (the same
-floating-point operations in the same order); the tests check that.
+Each kernel walks flat float64 arrays once. Where a C compiler is there,
+the slope kernels (:func:`wall_scan`, :func:`clip_where`,
+:func:`clip_magnitude`) run as their twins in ``sd_kernels.c`` (beside
+this module), built once into the cache directory as the C runtime is
+(:func:`c_kernels`): the same IEEE operations in the same order on the
+same samples, built without fused multiply-adds, so the same values bit
+for bit (the tests compare them), in one loop. Otherwise, and for the
+others, numpy does the work a chunk of :data:`CHUNK` samples at a time,
+so its temporaries are a few hundred KiB that stay in the CPU cache
+instead of 128 MiB numpy temporaries of a 4096x4096 map (each a pass of
+its own through memory). Not numba: loading numba and its cached kernels
+costs a compile process about 0.6 s of start-up, more than these passes
+take on a 4096x4096 map; loading the C library takes about a millisecond.
 """
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 
 #: Samples per chunk: 32 Ki float64 = 256 KiB per temporary (fits an L2 cache).
 CHUNK = 1 << 15
+#: The C source of the kernels' twins and of the wall-region count (shipped in the package).
+C_SOURCE = Path(__file__).resolve().parent / "sd_kernels.c"
+_C = None
+
+
+def c_kernels():
+    """The C kernels as a ctypes library, or None where they cannot be built or loaded here.
+
+    Built from :data:`C_SOURCE` by the system C compiler (``$CC``, ``cc``,
+    ``gcc`` or ``clang``) once per source version into the cache directory
+    (``$XDG_CACHE_HOME/shapedisplay``), as the C runtime is; about half a
+    second the first time. Without a compiler every kernel runs in numpy.
+    """
+    global _C
+    if _C is None:
+        import ctypes
+
+        from .errors import ShapeDisplayError
+        from .runtime.native import load_shared, shared_library_path
+        try:
+            lib = load_shared(shared_library_path("sd_kernels", [C_SOURCE]), [C_SOURCE],
+                              what="the compiler's C kernels")
+        except ShapeDisplayError:
+            _C = False
+        else:
+            vp, i64, f64 = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
+            for name, args in (("sd_regions", [vp, i64, i64, i64, vp, vp]),
+                               ("sd_wall_scan", [vp, vp, i64, f64, vp, vp, i64]),
+                               ("sd_clip_where", [vp, vp, i64, f64, vp]),
+                               ("sd_clip_magnitude", [vp, vp, i64, f64, vp, i64])):
+                fn = getattr(lib, name)
+                fn.argtypes = args
+                fn.restype = i64
+            _C = lib
+    return _C or None
+
+
+def _c_for(*arrays):
+    """:func:`c_kernels` if every array is C-contiguous and of a dtype the C twins take (float64 slopes,
+    bool masks), else None (numpy's path)."""
+    for a in arrays:
+        if not (a.flags.c_contiguous and a.dtype in _C_DTYPES):
+            return None
+    return c_kernels()
+
+
+_C_DTYPES = (np.dtype(np.float64), np.dtype(np.bool_))
+_F64 = np.dtype(np.float64)
 
 
 def _chunks(n: int):
@@ -41,6 +96,13 @@ def wall_scan(gx, gy, limit2):
     The mask (flat bool, True where gx^2+gy^2 > limit2) is allocated only
     once a chunk holds such a sample; None means there is none.
     """
+    lib = _c_for(gx, gy)
+    if lib is not None and gx.dtype == gy.dtype == _F64 and gx.size == gy.size:
+        mask = np.empty(gx.size, dtype=bool)
+        peak = np.zeros(1)
+        count = lib.sd_wall_scan(gx.ctypes.data, gy.ctypes.data, gx.size, limit2, mask.ctypes.data,
+                                 peak.ctypes.data, CHUNK)
+        return count, float(peak[0]), mask if count else None
     count = 0
     peak = 0.0
     mask = None
@@ -70,6 +132,9 @@ def clip_where(fx, fy, limit, mask):
     the pass that finds them (the same operations on the same samples).
     Returns the count clipped.
     """
+    lib = _c_for(fx, fy, mask)
+    if lib is not None and fx.dtype == fy.dtype == _F64 and mask.dtype == np.bool_ and fx.size == fy.size == mask.size:
+        return lib.sd_clip_where(fx.ctypes.data, fy.ctypes.data, fx.size, limit, mask.ctypes.data)
     count = 0
     with np.errstate(over="ignore"):
         for s in _chunks(fx.size):
@@ -97,6 +162,11 @@ def clip_magnitude(fx, fy, limit):
     multiplied by ``limit / sqrt(fx^2 + fy^2)``. Returns (count clipped,
     peak magnitude before clipping).
     """
+    lib = _c_for(fx, fy)
+    if lib is not None and fx.dtype == fy.dtype == _F64 and fx.size == fy.size:
+        peak = np.zeros(1)
+        count = lib.sd_clip_magnitude(fx.ctypes.data, fy.ctypes.data, fx.size, limit, peak.ctypes.data, CHUNK)
+        return count, float(np.sqrt(peak[0]))
     limit2 = limit * limit
     count = 0
     peak2 = 0.0

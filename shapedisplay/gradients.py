@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -364,8 +363,8 @@ def wall_regions(mask: np.ndarray, k: int, *, out: np.ndarray | None = None) -> 
         Inclusive sample bounds of each region in ``top``.
 
     Cost: where a C compiler is there, one pass over the mask's rows in C
-    (``sd_regions.c`` beside this module, built once into the cache
-    directory as the C runtime is: union-find over the runs of each row,
+    (``sd_regions`` in ``sd_kernels.c``, see :func:`._kernels.c_kernels`:
+    union-find over the runs of each row,
     each region's size and box kept at its root; no label per sample):
     about 0.05 s for a noisy 4096x4096 map's 2.2 million regions, against
     about 0.4 s for the path below. Without one: scipy's labelling pass,
@@ -381,9 +380,10 @@ def wall_regions(mask: np.ndarray, k: int, *, out: np.ndarray | None = None) -> 
                             or not out.flags.c_contiguous):
         raise InputError(f"`out` must be a C-contiguous intp or int32 array of shape {mask.shape} "
                          f"(got {out.dtype} {out.shape})")
-    native = _native_regions() if mask.ndim == 2 and mask.size else None
-    if native is not None:
-        found = _regions_in_c(native, mask, k)
+    from . import _kernels
+    lib = _kernels.c_kernels() if mask.ndim == 2 and mask.size else None
+    if lib is not None:
+        found = _regions_in_c(lib.sd_regions, mask, k)
         if found is not None:
             return found
     label, find_objects = _labelling()
@@ -417,33 +417,6 @@ def wall_regions(mask: np.ndarray, k: int, *, out: np.ndarray | None = None) -> 
     spans = [(sl[0].start, sl[0].stop - 1, sl[1].start, sl[1].stop - 1)
              for sl in find_objects(ranked, k)]
     return int(n), cand.astype(np.int64), spans
-
-
-#: The C source of :func:`wall_regions`' one-pass count (shipped in the package).
-REGIONS_SOURCE = Path(__file__).resolve().parent / "sd_regions.c"
-_REGIONS = None
-
-
-def _native_regions():
-    """``sd_regions`` (from :data:`REGIONS_SOURCE`, built once by the system C compiler into the cache
-    directory), or None where it cannot be built or loaded here: :func:`wall_regions` then uses scipy."""
-    global _REGIONS
-    if _REGIONS is None:
-        import ctypes
-
-        from .runtime.native import load_shared, shared_library_path
-        try:
-            lib = load_shared(shared_library_path("sd_regions", [REGIONS_SOURCE]), [REGIONS_SOURCE],
-                              what="the wall-region counter")
-        except InputError:
-            _REGIONS = False
-        else:
-            fn = lib.sd_regions
-            vp, i64 = ctypes.c_void_p, ctypes.c_int64
-            fn.argtypes = [vp, i64, i64, i64, vp, vp]
-            fn.restype = i64
-            _REGIONS = fn
-    return _REGIONS or None
 
 
 def _regions_in_c(fn, mask: np.ndarray, k: int):

@@ -373,9 +373,9 @@ def test_wall_labelling_loads_no_scipy_ndimage_and_a_later_import_shares_it(tmp_
     of start-up); the same labels as ndimage.label; importing scipy.ndimage afterwards still works."""
     code = (
         "import sys, numpy as np\n"
-        "from shapedisplay import gradients\n"
+        "from shapedisplay import _kernels\n"
         "from shapedisplay.gradients import wall_regions\n"
-        "gradients._REGIONS = False\n"                       # scipy's path, not the C count
+        "_kernels._C = False\n"                              # scipy's path, not the C count
         "mask = np.random.default_rng(4).random((300, 300)) < 0.4\n"
         "n, top, spans = wall_regions(mask, 5)\n"
         "print('scipy.ndimage' in sys.modules)\n"
@@ -390,7 +390,7 @@ def test_wall_labelling_loads_no_scipy_ndimage_and_a_later_import_shares_it(tmp_
 
 def test_wall_labelling_falls_back_to_the_public_scipy_functions(monkeypatch):
     from shapedisplay import gradients
-    monkeypatch.setattr(gradients, "_native_regions", lambda: None)   # scipy's path, not the C count
+    monkeypatch.setattr("shapedisplay._kernels._C", False)         # scipy's path, not the C count
     mask = np.random.default_rng(6).random((200, 210)) < 0.45
     direct = gradients.wall_regions(mask, 7)
     monkeypatch.setattr(gradients, "_LABELLING", gradients._public_labelling())

@@ -192,17 +192,17 @@ def _regions_by_scipy(mask, k):
 
 def _regions_both_ways(mask, k):
     """wall_regions' result by the C count (where a compiler is there) and by scipy's labelling path."""
-    from shapedisplay import gradients
+    from shapedisplay import _kernels, gradients
     ways = []
     if native.compiler() is not None:
-        assert gradients._native_regions() is not None
+        assert _kernels.c_kernels() is not None
         ways.append(gradients.wall_regions(mask, k))
-    saved = gradients._REGIONS
-    gradients._REGIONS = False
+    saved = _kernels._C
+    _kernels._C = False
     try:
         ways.append(gradients.wall_regions(mask, k))
     finally:
-        gradients._REGIONS = saved
+        _kernels._C = saved
     for n, top, spans in ways:
         assert top.dtype == np.int64 and all(type(v) is int for box in spans for v in box)
     return [(n, top.tolist(), spans) for n, top, spans in ways]
@@ -253,17 +253,19 @@ def test_wall_regions_of_shapes_that_merge_late():
 
 
 def test_wall_regions_fall_back_to_scipy_when_the_count_runs_out_of_memory(monkeypatch):
-    from shapedisplay import gradients
+    import types
+
+    from shapedisplay import _kernels, gradients
     mask = np.random.default_rng(8).random((60, 70)) < 0.5
-    monkeypatch.setattr(gradients, "_native_regions", lambda: (lambda *args: -1))
+    monkeypatch.setattr(_kernels, "c_kernels", lambda: types.SimpleNamespace(sd_regions=lambda *args: -1))
     n, top, spans = gradients.wall_regions(mask, 6)
     assert (n, top.tolist(), spans) == _regions_by_scipy(mask, 6)
 
 
 def test_wall_regions_with_int32_and_intp_labels_agree(monkeypatch):
-    from shapedisplay import gradients
+    from shapedisplay import _kernels
     from shapedisplay.gradients import wall_regions
-    monkeypatch.setattr(gradients, "_native_regions", lambda: None)   # the labels are scipy's path's
+    monkeypatch.setattr(_kernels, "_C", False)          # the labels are scipy's path's
     mask = np.random.default_rng(12).random((90, 110)) < 0.45
     by32 = wall_regions(mask, 9, out=np.empty(mask.shape, np.int32))
     bypt = wall_regions(mask, 9, out=np.empty(mask.shape, np.intp))

@@ -1,16 +1,22 @@
-/* Connected regions of a mask (4-connected) in one pass over its rows: their count and the k largest,
- * with their bounding boxes. What shapedisplay.gradients.wall_regions computes with scipy.ndimage's
- * label, a histogram of the labels and find_objects, without a label per sample.
+/* The compiler's large-array kernels in C: the operations of shapedisplay/_kernels.py (numpy) in the
+ * same order on the same samples, so the same values bit for bit (IEEE double, no contraction into fused
+ * multiply-adds: built with -ffp-contract=off), in one pass without numpy's temporaries; and the count of
+ * wall regions that shapedisplay.gradients.wall_regions otherwise takes from scipy.ndimage.
  *
- * The mask is cut into runs (maximal horizontal stretches of set samples), numbered in raster order. A run
- * joins the runs of the row above that share a column with it (union-find: the set keeps its lowest run
- * number as its root, path halving on the way). A region's first run in raster order holds its first
- * sample, so ordering the roots by run number numbers the regions as scipy.ndimage.label does: raster
- * order of each region's first sample. Each root carries its region's size and bounding box, merged on
- * every union.
+ * Wall regions (sd_regions): connected regions of a mask (4-connected) in one pass over its rows, their
+ * count and the k largest with their bounding boxes, without a label per sample. The mask is cut into
+ * runs (maximal horizontal stretches of set samples), numbered in raster order. A run joins the runs of
+ * the row above that share a column with it (union-find: the set keeps its lowest run number as its
+ * root, path halving on the way). A region's first run in raster order holds its first sample, so
+ * ordering the roots by run number numbers the regions as scipy.ndimage.label does: raster order of each
+ * region's first sample. Each root carries its region's size and bounding box, merged on every union.
+ * Memory: 32 bytes per run, allocated after a first pass counts the runs; 48 bytes per column for two
+ * rows of runs.
  *
- * Memory: 32 bytes per run, allocated after a first pass counts the runs; 24 bytes per column for two
- * rows of runs. */
+ * NaN (slopes that overflowed into inf - inf) is handled as numpy and the Python around it handle it
+ * (see next_peak). Encoding the codes stays in numpy: its division runs on wider vectors than a portable
+ * build of this file gets, and measured faster. */
+#include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 
@@ -137,4 +143,82 @@ int64_t sd_regions(const uint8_t *mask, int64_t rows, int64_t cols, int64_t k, i
     free(runs);
     free(row_runs);
     return n;
+}
+
+/* The largest squared magnitude as _kernels takes it: chunk by chunk of `chunk` samples, a chunk's
+ * largest value (NaN if it holds one) replacing the running peak only if it is greater (Python's max of
+ * the two, peak first: a chunk holding a NaN leaves the peak as it was). */
+static double next_peak(double peak, double chunk_top, int chunk_nan)
+{
+    return !chunk_nan && chunk_top > peak ? chunk_top : peak;
+}
+
+/* _kernels.wall_scan: m2 = gx*gx + gy*gy; mask[i] = m2 > limit2; returns the count of such samples,
+ * *peak the largest m2 (chunks as next_peak). */
+int64_t sd_wall_scan(const double *gx, const double *gy, int64_t n, double limit2, uint8_t *mask, double *peak,
+                     int64_t chunk)
+{
+    int64_t count = 0;
+    double top = 0.0;
+    for (int64_t s = 0; s < n; s += chunk) {
+        int64_t e = s + chunk < n ? s + chunk : n;
+        double ctop = -INFINITY;
+        int cnan = 0;
+        for (int64_t i = s; i < e; i++) {
+            double m2 = gx[i] * gx[i] + gy[i] * gy[i];
+            uint8_t w = m2 > limit2;
+            mask[i] = w;
+            count += w;
+            cnan |= m2 != m2;
+            ctop = m2 > ctop ? m2 : ctop;
+        }
+        top = next_peak(top, ctop, cnan);
+    }
+    *peak = top;
+    return count;
+}
+
+/* _kernels.clip_where: where mask[i], (fx, fy)[i] *= limit / sqrt(fx^2 + fy^2). Returns the count.
+ * Without a branch per sample (a noisy map's mask is as good as random): every sample's factor is
+ * computed and those outside the mask take 1, which leaves a value as it was bit for bit. */
+int64_t sd_clip_where(double *fx, double *fy, int64_t n, double limit, const uint8_t *mask)
+{
+    int64_t count = 0;
+    for (int64_t i = 0; i < n; i++) {
+        double x = fx[i], y = fy[i];
+        double f = limit / sqrt(x * x + y * y);
+        f = mask[i] ? f : 1.0;
+        fx[i] = x * f;
+        fy[i] = y * f;
+        count += mask[i];
+    }
+    return count;
+}
+
+/* _kernels.clip_magnitude: where fx^2 + fy^2 > limit^2, (fx, fy)[i] *= limit / sqrt(fx^2 + fy^2).
+ * Returns the count; *peak2 the largest squared magnitude before clipping (chunks as next_peak). */
+int64_t sd_clip_magnitude(double *fx, double *fy, int64_t n, double limit, double *peak2, int64_t chunk)
+{
+    double limit2 = limit * limit, top = 0.0;
+    int64_t count = 0;
+    for (int64_t s = 0; s < n; s += chunk) {
+        int64_t e = s + chunk < n ? s + chunk : n;
+        double ctop = -INFINITY;
+        int cnan = 0;
+        for (int64_t i = s; i < e; i++) {
+            double x = fx[i], y = fy[i];
+            double m2 = x * x + y * y;
+            cnan |= m2 != m2;
+            ctop = m2 > ctop ? m2 : ctop;
+            if (m2 > limit2) {
+                double f = limit / sqrt(m2);
+                fx[i] = x * f;
+                fy[i] = y * f;
+                count++;
+            }
+        }
+        top = next_peak(top, ctop, cnan);
+    }
+    *peak2 = top;
+    return count;
 }

@@ -1,0 +1,106 @@
+"""The compiler's C kernels (``shapedisplay/sd_kernels.c``) against their numpy twins in ``_kernels``, bit for bit.
+
+Every kernel is run twice on copies of the same input: once through the C
+library, once with it switched off (numpy's chunked path, the reference).
+Outputs are compared as bytes, so NaN, infinities and the sign of zero
+count too; the chunk size is made small so that many chunk boundaries (and
+chunks holding a NaN, whose peak the Python around numpy ignores) are
+crossed.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from shapedisplay import _kernels
+from shapedisplay.runtime import native
+
+pytestmark = [pytest.mark.skipif(native.compiler() is None, reason="needs a C compiler"),
+              pytest.mark.filterwarnings("ignore::RuntimeWarning")]   # numpy's path on inf and NaN
+
+SPECIAL = [0.0, -0.0, 1.5, -1.5, 1e-320, -1e-320, 1e154, -1e154, 1e200, 3e307, np.inf, -np.inf, np.nan]
+
+
+def _both(name, *args):
+    """(C result, numpy result) of ``_kernels.<name>``, each on fresh copies of the array arguments."""
+    assert _kernels.c_kernels() is not None
+    results = []
+    for use_c in (True, False):
+        saved = _kernels._C
+        if not use_c:
+            _kernels._C = False
+        try:
+            copies = [a.copy() if isinstance(a, np.ndarray) else a for a in args]
+            out = getattr(_kernels, name)(*copies)
+        finally:
+            _kernels._C = saved
+        results.append((out, copies))
+    return results
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return (a is None) == (b is None) and a.dtype == b.dtype and a.tobytes() == b.tobytes()
+    if isinstance(a, tuple):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    if isinstance(a, float) and isinstance(b, float):
+        return np.array([a]).tobytes() == np.array([b]).tobytes()
+    return type(a) is type(b) and a == b
+
+
+def _slopes(seed, n, specials):
+    rng = np.random.default_rng(seed)
+    gx, gy = rng.normal(0, 2, n), rng.normal(0, 2, n)
+    if specials and n:
+        idx = rng.integers(0, n, 2 * specials)
+        gx[idx[:specials]] = rng.choice(SPECIAL, specials)
+        gy[idx[specials:]] = rng.choice(SPECIAL, specials)
+    return gx, gy
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.integers(0, 2 ** 32 - 1), st.integers(0, 700), st.integers(0, 12), st.sampled_from([1, 7, 64, 1 << 15]),
+       st.sampled_from([0.0, 1e-300, 2.25, 1e300, np.inf]))
+def test_slope_kernels_match_numpy(seed, n, specials, chunk, limit2):
+    gx, gy = _slopes(seed, n, specials)
+    saved = _kernels.CHUNK
+    _kernels.CHUNK = chunk
+    try:
+        (c, _), (ref, _) = _both("wall_scan", gx, gy, limit2)
+        assert _same(c, ref)
+        limit = float(np.sqrt(limit2))
+        (c, (cx, cy, _)), (ref, (rx, ry, _)) = _both("clip_magnitude", gx, gy, limit)
+        assert _same(c, ref) and _same(cx, rx) and _same(cy, ry)
+        mask = ref_mask = _both("wall_scan", gx, gy, limit2)[1][0][2]
+        if ref_mask is None:
+            mask = np.zeros(n, bool)
+        (c, (cx, cy, _, _)), (ref, (rx, ry, _, _)) = _both("clip_where", gx, gy, limit, mask)
+        assert _same(c, ref) and _same(cx, rx) and _same(cy, ry)
+    finally:
+        _kernels.CHUNK = saved
+
+
+def test_chunks_holding_a_nan_leave_the_peak_as_numpy_does():
+    """numpy's chunk maximum is NaN where the chunk holds one, and Python's max(peak, nan) keeps the peak:
+    the C kernels skip that whole chunk's peak too (its other samples included)."""
+    gx = np.array([1.0, 2.0, 9.0, np.nan, 3.0, 4.0, 5.0, 0.5])
+    gy = np.zeros_like(gx)
+    saved = _kernels.CHUNK
+    _kernels.CHUNK = 4
+    try:
+        (c, _), (ref, _) = _both("wall_scan", gx, gy, 1.0)
+        assert _same(c, ref) and c[1] == 25.0             # 81 sits in the chunk with the NaN
+        (c, _), (ref, _) = _both("clip_magnitude", gx, gy, 100.0)
+        assert _same(c, ref) and c[1] == 5.0
+    finally:
+        _kernels.CHUNK = saved
+
+
+def test_arrays_the_c_kernels_do_not_take_run_in_numpy():
+    gx = np.arange(20.0)[::2]                             # not contiguous
+    gy = np.ones(10)
+    assert _kernels._c_for(gx, gy) is None
+    assert _kernels._c_for(np.ones(3, np.float32)) is None
+    count, peak, mask = _kernels.wall_scan(gx, gy, 100.0)
+    assert count == 5 and peak == 18.0 ** 2 + 1.0
