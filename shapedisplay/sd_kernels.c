@@ -5,13 +5,14 @@
  *
  * Wall regions (sd_regions): connected regions of a mask (4-connected) in one pass over its rows, their
  * count and the k largest with their bounding boxes, without a label per sample. The mask is cut into
- * runs (maximal horizontal stretches of set samples), numbered in raster order. A run joins the runs of
- * the row above that share a column with it (union-find: the set keeps its lowest run number as its
- * root, path halving on the way). A region's first run in raster order holds its first sample, so
- * ordering the roots by run number numbers the regions as scipy.ndimage.label does: raster order of each
- * region's first sample. Each root carries its region's size and bounding box, merged on every union.
- * Memory: 32 bytes per run, allocated after a first pass counts the runs; 48 bytes per column for two
- * rows of runs.
+ * runs (maximal horizontal stretches of set samples) in raster order. A run that shares a column with a
+ * run of the row above joins that run's set, and unites it with the sets of the other runs above it
+ * that it touches (union-find: the united set keeps the lower number as its root, path halving on the
+ * way); a run with nothing above starts a set, numbered in order. A region's first run in raster order
+ * holds its first sample and has nothing above it, so its set has the region's lowest number: ordering
+ * the roots numbers the regions as scipy.ndimage.label does (raster order of each region's first
+ * sample). Each root carries its region's size and bounding box, merged on every union. Memory: 32 bytes
+ * per set, at most one per run (a first pass counts the runs); 48 bytes per column for two rows of runs.
  *
  * NaN (slopes that overflowed into inf - inf) is handled as numpy and the Python around it handle it
  * (see next_peak). Encoding the codes stays in numpy: its division runs on wider vectors than a portable
@@ -35,12 +36,13 @@ static int64_t root_of(sd_run_t *runs, int64_t i)
     return i;
 }
 
-static void join(sd_run_t *runs, int64_t a, int64_t b)
+/* Unites the sets of a and b; returns the root kept (the lower number). */
+static int64_t join(sd_run_t *runs, int64_t a, int64_t b)
 {
     a = root_of(runs, a);
     b = root_of(runs, b);
     if (a == b)
-        return;
+        return a;
     if (b < a) {
         int64_t t = a;
         a = b;
@@ -53,6 +55,7 @@ static void join(sd_run_t *runs, int64_t a, int64_t b)
     if (gone->r1 > keep->r1) keep->r1 = gone->r1;
     if (gone->c0 < keep->c0) keep->c0 = gone->c0;
     if (gone->c1 > keep->c1) keep->c1 = gone->c1;
+    return a;
 }
 
 /* mask: rows x cols bytes, 0 or 1 (a numpy bool array), C order. Writes the labels of the min(k, n) largest regions to
@@ -99,12 +102,22 @@ int64_t sd_regions(const uint8_t *mask, int64_t rows, int64_t cols, int64_t k, i
         if (before)
             ce[ends] = cols - 1;
         for (int64_t i = 0; i < cn; i++) {
-            int64_t a = cs[i], b = ce[i], id = next++;
-            runs[id] = (sd_run_t){id, b - a + 1, (int32_t)r, (int32_t)r, (int32_t)a, (int32_t)b};
+            int64_t a = cs[i], b = ce[i], id;
             while (j < pn && pe[j] < a)
                 j++;
-            for (int64_t q = j; q < pn && ps[q] <= b; q++)
-                join(runs, id, pid[q]);
+            if (j < pn && ps[j] <= b) {                /* joins the set of the first run above it */
+                id = root_of(runs, pid[j]);
+                sd_run_t *q = &runs[id];
+                q->size += b - a + 1;
+                q->r1 = (int32_t)r;
+                if (a < q->c0) q->c0 = (int32_t)a;
+                if (b > q->c1) q->c1 = (int32_t)b;
+                for (int64_t q2 = j + 1; q2 < pn && ps[q2] <= b; q2++)
+                    id = join(runs, id, pid[q2]);
+            } else {                                   /* nothing above: a set of its own */
+                id = next++;
+                runs[id] = (sd_run_t){id, b - a + 1, (int32_t)r, (int32_t)r, (int32_t)a, (int32_t)b};
+            }
             cid[i] = id;
         }
         int64_t *t;
@@ -117,7 +130,7 @@ int64_t sd_regions(const uint8_t *mask, int64_t rows, int64_t cols, int64_t k, i
      * descending, then label ascending (a later root of equal size ranks after the ones kept) */
     int64_t n = 0, kept = 0;
     int64_t *best = spans;                             /* root run of each kept region, until the end */
-    for (int64_t id = 0; id < count; id++) {
+    for (int64_t id = 0; id < next; id++) {
         if (runs[id].parent != id)
             continue;
         n++;
@@ -179,18 +192,27 @@ int64_t sd_wall_scan(const double *gx, const double *gy, int64_t n, double limit
 }
 
 /* _kernels.clip_where: where mask[i], (fx, fy)[i] *= limit / sqrt(fx^2 + fy^2). Returns the count.
- * Without a branch per sample (a noisy map's mask is as good as random): every sample's factor is
- * computed and those outside the mask take 1, which leaves a value as it was bit for bit. */
+ * A noisy map's mask is as good as random, so a branch per sample is mispredicted about as often as
+ * not: the mask's samples are first gathered a block at a time without a branch, then clipped. */
 int64_t sd_clip_where(double *fx, double *fy, int64_t n, double limit, const uint8_t *mask)
 {
+    enum { BLOCK = 1024 };
+    int32_t at[BLOCK];
     int64_t count = 0;
-    for (int64_t i = 0; i < n; i++) {
-        double x = fx[i], y = fy[i];
-        double f = limit / sqrt(x * x + y * y);
-        f = mask[i] ? f : 1.0;
-        fx[i] = x * f;
-        fy[i] = y * f;
-        count += mask[i];
+    for (int64_t s = 0; s < n; s += BLOCK) {
+        int32_t e = (int32_t)(n - s < BLOCK ? n - s : BLOCK), k = 0;
+        for (int32_t i = 0; i < e; i++) {
+            at[k] = i;
+            k += mask[s + i] != 0;
+        }
+        double *x = fx + s, *y = fy + s;
+        for (int32_t j = 0; j < k; j++) {
+            int32_t i = at[j];
+            double f = limit / sqrt(x[i] * x[i] + y[i] * y[i]);
+            x[i] *= f;
+            y[i] *= f;
+        }
+        count += k;
     }
     return count;
 }
