@@ -40,7 +40,7 @@ def c_kernels():
         import ctypes
 
         from .errors import ShapeDisplayError
-        from .runtime.native import load_shared, shared_library_path
+        from .cbuild import load_shared, shared_library_path
         try:
             lib = load_shared(shared_library_path("sd_kernels", [C_SOURCE]), [C_SOURCE],
                               what="the compiler's C kernels")

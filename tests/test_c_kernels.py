@@ -14,9 +14,9 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from shapedisplay import _kernels
-from shapedisplay.runtime import native
+from shapedisplay import cbuild
 
-pytestmark = [pytest.mark.skipif(native.compiler() is None, reason="needs a C compiler"),
+pytestmark = [pytest.mark.skipif(cbuild.compiler() is None, reason="needs a C compiler"),
               pytest.mark.filterwarnings("ignore::RuntimeWarning")]   # numpy's path on inf and NaN
 
 SPECIAL = [0.0, -0.0, 1.5, -1.5, 1e-320, -1e-320, 1e154, -1e154, 1e200, 3e307, np.inf, -np.inf, np.nan]
