@@ -59,17 +59,16 @@ def c_kernels():
     return _C or None
 
 
-def _c_for(*arrays):
-    """:func:`c_kernels` if every array is C-contiguous and of a dtype the C twins take (float64 slopes,
-    bool masks), else None (numpy's path)."""
-    for a in arrays:
-        if not (a.flags.c_contiguous and a.dtype in _C_DTYPES):
+def _c_for(*slopes, mask=None):
+    """:func:`c_kernels` if the slope arrays are C-contiguous float64 of one size (and ``mask``, if given,
+    C-contiguous bool of that size), else None: numpy's path."""
+    n = slopes[0].size
+    for a in slopes:
+        if not (a.flags.c_contiguous and a.dtype == np.float64 and a.size == n):
             return None
+    if mask is not None and not (mask.flags.c_contiguous and mask.dtype == np.bool_ and mask.size == n):
+        return None
     return c_kernels()
-
-
-_C_DTYPES = (np.dtype(np.float64), np.dtype(np.bool_))
-_F64 = np.dtype(np.float64)
 
 
 def _chunks(n: int):
@@ -97,7 +96,7 @@ def wall_scan(gx, gy, limit2):
     once a chunk holds such a sample; None means there is none.
     """
     lib = _c_for(gx, gy)
-    if lib is not None and gx.dtype == gy.dtype == _F64 and gx.size == gy.size:
+    if lib is not None:              # the C twin writes every sample's mask entry
         mask = np.empty(gx.size, dtype=bool)
         peak = np.zeros(1)
         count = lib.sd_wall_scan(gx.ctypes.data, gy.ctypes.data, gx.size, limit2, mask.ctypes.data,
@@ -132,8 +131,8 @@ def clip_where(fx, fy, limit, mask):
     the pass that finds them (the same operations on the same samples).
     Returns the count clipped.
     """
-    lib = _c_for(fx, fy, mask)
-    if lib is not None and fx.dtype == fy.dtype == _F64 and mask.dtype == np.bool_ and fx.size == fy.size == mask.size:
+    lib = _c_for(fx, fy, mask=mask)
+    if lib is not None:
         return lib.sd_clip_where(fx.ctypes.data, fy.ctypes.data, fx.size, limit, mask.ctypes.data)
     count = 0
     with np.errstate(over="ignore"):
@@ -163,7 +162,7 @@ def clip_magnitude(fx, fy, limit):
     peak magnitude before clipping).
     """
     lib = _c_for(fx, fy)
-    if lib is not None and fx.dtype == fy.dtype == _F64 and fx.size == fy.size:
+    if lib is not None:
         peak = np.zeros(1)
         count = lib.sd_clip_magnitude(fx.ctypes.data, fy.ctypes.data, fx.size, limit, peak.ctypes.data, CHUNK)
         return count, float(np.sqrt(peak[0]))
