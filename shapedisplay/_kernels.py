@@ -2,7 +2,7 @@
 
 Each kernel walks flat float64 arrays once. Where a C compiler is there,
 the slope kernels (:func:`wall_scan`, :func:`clip_where`,
-:func:`clip_magnitude`) run as their twins in ``sd_kernels.c`` (beside
+:func:`clip_magnitude`) and :func:`encode` run as their twins in ``sd_kernels.c`` (beside
 this module), built once into the cache directory as the C runtime is
 (:func:`c_kernels`): the same IEEE operations in the same order on the
 same samples, built without fused multiply-adds, so the same values bit
@@ -51,7 +51,8 @@ def c_kernels():
             for name, args in (("sd_regions", [vp, i64, i64, i64, vp, vp]),
                                ("sd_wall_scan", [vp, vp, i64, f64, vp, vp, i64]),
                                ("sd_clip_where", [vp, vp, i64, f64, vp]),
-                               ("sd_clip_magnitude", [vp, vp, i64, f64, vp, i64])):
+                               ("sd_clip_magnitude", [vp, vp, i64, f64, vp, i64]),
+                               ("sd_encode", [vp, i64, f64, f64, f64, vp, i64])):
                 fn = getattr(lib, name)
                 fn.argtypes = args
                 fn.restype = i64
@@ -212,7 +213,14 @@ def minmax_update(a, state=None):
 
 
 def encode(values, offset, scale, top, out):
-    """out[i] = clip(rint((values[i] - offset) / scale), 0, top) (integer out)."""
+    """out[i] = clip(rint((values[i] - offset) / scale), 0, top) (integer out: uint8 with top 255 or uint16
+    with top 65535; ``scale`` > 0)."""
+    lib = _c_for(values)
+    if lib is not None and out.flags.c_contiguous and out.size == values.size \
+            and (out.dtype, top) in ((np.uint8, 255.0), (np.uint16, 65535.0)):
+        if lib.sd_encode(values.ctypes.data, values.size, offset, scale, top, out.ctypes.data, out.itemsize) >= 0:
+            return
+        # a NaN: numpy's path codes the whole array as before
     b1, _ = _buffers(values.size)
     for s in _chunks(values.size):
         c = b1[:s.stop - s.start]

@@ -15,11 +15,17 @@
  * per set, at most one per run (a first pass counts the runs); 48 bytes per column for two rows of runs.
  *
  * NaN (slopes that overflowed into inf - inf) is handled as numpy and the Python around it handle it
- * (see next_peak). Encoding the codes stays in numpy: its division runs on wider vectors than a portable
- * build of this file gets, and measured faster. */
+ * (see next_peak).
+ *
+ * Codes (sd_encode): a division per sample is what bounds coding a channel (numpy's, on wider vectors
+ * than a portable build gets, is as fast as a plain C loop); sd_encode multiplies by the reciprocal
+ * instead and divides only where that could round to another code (see there). */
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 typedef struct {
     int64_t parent;
@@ -243,4 +249,89 @@ int64_t sd_clip_magnitude(double *fx, double *fy, int64_t n, double limit, doubl
     }
     *peak2 = top;
     return count;
+}
+
+/* _kernels.encode: out[i] = clip(rint((values[i] - offset) / scale), 0, top), top 255 (uint8 out) or 65535
+ * (uint16), rint rounding half to even as numpy's. Returns n, or -1 if a quotient is NaN (nothing
+ * meaningful is written then: the caller codes the array in numpy).
+ *
+ * Each block of samples is first coded from y = x * (1 / scale), x = values[i] - offset, instead of the
+ * quotient q = x / scale. Both are within 2 and 1 units in the last place of the exact x / scale, so
+ * |y - q| < 2^-51 |y|. Clipped to [-1, top + 1] (integers: clipping there before rounding gives the
+ * code clipping after rounding gives, rint being monotonic) y is below 2^17, so |y - q| < 2^-34, and y
+ * rounds to q's integer unless a half-integer lies within that of y. A block where some clipped y lies
+ * within 2^-20 of a half-integer is coded again by division: every code is the quotient's. Beyond the
+ * clip bounds y and q (same sign, within a relative 2^-51) clip to the same end. Rounding is
+ * (c + 1.5 * 2^52) - 1.5 * 2^52: the nearest integer, ties to even, exact for |c| < 2^51. */
+#define SD_RINT(c) (((c) + 6755399441055744.0) - 6755399441055744.0)
+#define SD_CLAMP(c, lo, hi) ((c) > (lo) ? ((c) < (hi) ? (c) : (hi)) : (lo))
+
+/* Codes of values[0..k) from the product by inv (clipped to [-1, top + 1], rounded, clipped to [0, top]);
+ * returns nonzero if one of them must come from the quotient instead (a clipped product within 2^-20 of a
+ * half-integer) or a product is NaN. Two samples per SSE2 instruction where the compiler targets it. */
+static int codes_by_product(const double *values, int64_t k, double offset, double inv, double top,
+                            int32_t *codes)
+{
+    double hi = top + 1.0, edge = 0.5 - 0x1p-20;
+    int flag = 0;
+    int64_t i = 0;
+#if defined(__SSE2__)
+    __m128d off = _mm_set1_pd(offset), r = _mm_set1_pd(inv), lo2 = _mm_set1_pd(-1.0), hi2 = _mm_set1_pd(hi),
+            m = _mm_set1_pd(6755399441055744.0), zero = _mm_setzero_pd(), top2 = _mm_set1_pd(top),
+            sign = _mm_set1_pd(-0.0), edge2 = _mm_set1_pd(edge), bad = _mm_setzero_pd();
+    for (; i + 2 <= k; i += 2) {
+        __m128d y = _mm_mul_pd(_mm_sub_pd(_mm_loadu_pd(values + i), off), r);
+        bad = _mm_or_pd(bad, _mm_cmpunord_pd(y, y));
+        __m128d c = _mm_min_pd(_mm_max_pd(y, lo2), hi2);            /* as SD_CLAMP for all but NaN */
+        __m128d q = _mm_sub_pd(_mm_add_pd(c, m), m);
+        bad = _mm_or_pd(bad, _mm_cmpgt_pd(_mm_andnot_pd(sign, _mm_sub_pd(c, q)), edge2));
+        q = _mm_min_pd(_mm_max_pd(q, zero), top2);
+        _mm_storel_epi64((__m128i *)(codes + i), _mm_cvttpd_epi32(q));
+    }
+    flag = _mm_movemask_pd(bad) != 0;
+#endif
+    for (; i < k; i++) {
+        double y = (values[i] - offset) * inv;
+        double c = SD_CLAMP(y, -1.0, hi), q = SD_RINT(c);
+        flag |= (y != y) | (fabs(c - q) > edge);
+        codes[i] = (int32_t)SD_CLAMP(q, 0.0, top);
+    }
+    return flag;
+}
+
+/* The same codes from the quotients; -1 if one is NaN. */
+static int codes_by_quotient(const double *values, int64_t k, double offset, double scale, double top,
+                             int32_t *codes)
+{
+    double hi = top + 1.0;
+    for (int64_t i = 0; i < k; i++) {
+        double y = (values[i] - offset) / scale;
+        double c = SD_CLAMP(y, -1.0, hi), q = SD_RINT(c);
+        if (y != y)
+            return -1;
+        codes[i] = (int32_t)SD_CLAMP(q, 0.0, top);
+    }
+    return 0;
+}
+
+int64_t sd_encode(const double *values, int64_t n, double offset, double scale, double top, void *out,
+                  int64_t itemsize)
+{
+    enum { BLOCK = 1024 };
+    int32_t codes[BLOCK];
+    double inv = 1.0 / scale;
+    int exact = !(inv < INFINITY);
+    for (int64_t s = 0; s < n; s += BLOCK) {
+        int64_t k = n - s < BLOCK ? n - s : BLOCK;
+        if ((exact || codes_by_product(values + s, k, offset, inv, top, codes))
+                && codes_by_quotient(values + s, k, offset, scale, top, codes) < 0)
+            return -1;
+        if (itemsize == 1)
+            for (int64_t i = 0; i < k; i++)
+                ((uint8_t *)out)[s + i] = (uint8_t)codes[i];
+        else
+            for (int64_t i = 0; i < k; i++)
+                ((uint16_t *)out)[s + i] = (uint16_t)codes[i];
+    }
+    return n;
 }

@@ -104,3 +104,55 @@ def test_arrays_the_c_kernels_do_not_take_run_in_numpy():
     assert _kernels._c_for(np.ones(3, np.float32)) is None
     count, peak, mask = _kernels.wall_scan(gx, gy, 100.0)
     assert count == 5 and peak == 18.0 ** 2 + 1.0
+
+
+def _codes(seed, n, top, specials):
+    """Values, offset and scale as the compiler codes a channel (offset = min, scale = range / top), with
+    quotients on and next to the half-way points between codes, where a product by the reciprocal could
+    round to another code than the quotient."""
+    rng = np.random.default_rng(seed)
+    lo = float(rng.choice([0.0, -1.5, 0.3, -7e-4, 1e3]))
+    scale = float(rng.choice([1.0, 0.1, 3.0, 1e-3, 7.7e-9, 1 / 3])) * float(rng.uniform(0.5, 2.0))
+    k = rng.integers(-2, int(top) + 3, n) + 0.5
+    half = lo + k * scale                               # on (or rounded next to) a half-way point
+    steps = rng.integers(-3, 4, n)
+    values = np.where(rng.random(n) < 0.5, np.nextafter(half, np.sign(steps) * np.inf), half)
+    values = np.where(steps == 0, half, values)
+    plain = rng.random(n) < 0.3
+    values[plain] = lo + rng.uniform(-0.1, 1.1, int(plain.sum())) * scale * top
+    if specials and n:
+        values[rng.integers(0, n, specials)] = rng.choice([np.inf, -np.inf, 1e308, -1e308, 0.0, -0.0], specials)
+    return values, lo, scale
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 2 ** 32 - 1), st.integers(1, 5000), st.sampled_from([(np.uint8, 255.0), (np.uint16, 65535.0)]),
+       st.integers(0, 6))
+def test_encode_matches_numpy_on_and_next_to_half_way_points(seed, n, kind, specials):
+    dtype, top = kind
+    values, lo, scale = _codes(seed, n, top, specials)
+    (_, (_, _, _, _, c)), (_, (_, _, _, _, ref)) = _both("encode", values, lo, scale, top, np.zeros(n, dtype))
+    assert _same(c, ref)
+
+
+def test_encode_ties_go_to_the_even_code_where_the_reciprocal_would_not():
+    """20.5 * 0.1 / 0.1 is 20.5 exactly, while its product by 1 / 0.1 rounds above it: the code is the
+    quotient's (20, ties to even), not the product's (21); 3.5 * 0.7 the other way (4, not 3)."""
+    for s, half, code in ((0.1, 20.5, 20), (0.7, 3.5, 4)):
+        x = half * s
+        assert x / s == half and np.rint(x * (1 / s)) != code
+        values = np.full(3000, x)
+        (_, (_, _, _, _, c)), (_, (_, _, _, _, ref)) = _both("encode", values, 0.0, s, 255.0,
+                                                             np.zeros(3000, np.uint8))
+        assert _same(c, ref) and set(c.tolist()) == {code}
+
+
+def test_encode_with_a_nan_codes_in_numpy():
+    """The C twin reports a NaN quotient (-1) instead of choosing a code for it: numpy codes that array."""
+    values = np.linspace(0.0, 1.0, 5000)
+    values[4321] = np.nan
+    (_, (_, _, _, _, c)), (_, (_, _, _, _, ref)) = _both("encode", values, 0.0, 1 / 255, 255.0,
+                                                         np.zeros(5000, np.uint8))
+    assert _same(c, ref) and c[0] == 0 and c[-1] == 255
+    out = np.zeros(5000, np.uint8)
+    assert _kernels.c_kernels().sd_encode(values.ctypes.data, 5000, 0.0, 1 / 255, 255.0, out.ctypes.data, 1) == -1
