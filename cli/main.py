@@ -199,23 +199,30 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
-def _one_blas_thread() -> None:
-    """Ask numpy's BLAS for one thread unless the user chose a number.
+def _numpy_environment() -> None:
+    """Settings numpy reads once, at import, unless the user set them.
 
-    The package's linear algebra is 3 x 3 and 3 x N products, which one thread
-    does as fast as many; starting the BLAS thread pool costs every command
-    about 80 ms of CPU at ``import numpy``. Set before numpy is imported.
+    One BLAS thread: the package's linear algebra is 3 x 3 and 3 x N products,
+    which one thread does as fast as many; starting the BLAS thread pool costs
+    every command about 80 ms of CPU at ``import numpy``.
+
+    No huge pages asked for (``NUMPY_MADVISE_HUGEPAGE=0``): a command walks
+    its large arrays (a 4096 x 4096 map's 128 MiB) once or twice, so the
+    cost of its memory is the page faults that bring it in; where the kernel
+    makes a huge page on request by compacting memory first, those faults
+    stall, and a compile spent 0.30-0.40 s in the kernel instead of 0.19-0.24 s
+    with ordinary pages (docs/speed.md).
     """
     import os
-    if "numpy" not in sys.modules:
-        for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-            if name in os.environ:
-                return
+    if "numpy" in sys.modules:
+        return
+    if not any(name in os.environ for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")):
         os.environ["OPENBLAS_NUM_THREADS"] = "1"
+    os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
 
 
 def main(argv=None) -> int:
-    _one_blas_thread()
+    _numpy_environment()
     argv = list(sys.argv[1:] if argv is None else argv)
     known = {c for commands in COMMAND_MODULES.values() for c in commands}
     parser = build_parser(argv[0] if argv and argv[0] in known else None)   # --help, typos: every command

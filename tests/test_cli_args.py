@@ -233,3 +233,19 @@ def test_the_command_line_asks_blas_for_one_thread_unless_the_user_chose(env, ex
     out = subprocess.run([sys.executable, "-c", code], env={**base, **env}, capture_output=True, text=True,
                          check=True).stdout.split()
     assert out[-2:] == [expected, "True"]
+
+
+@pytest.mark.parametrize("env, expected", [
+    ({}, "False"),                               # unset: no huge pages asked for (page faults stall less)
+    ({"NUMPY_MADVISE_HUGEPAGE": "1"}, "True"),   # the user's choice is kept
+])
+def test_the_command_line_asks_numpy_for_no_huge_pages_unless_the_user_chose(env, expected):
+    import os
+    import subprocess
+    import sys
+    base = {k: v for k, v in os.environ.items() if k != "NUMPY_MADVISE_HUGEPAGE"}
+    code = ("from shapedisplay_cli.main import main; main(['--version']); "
+            "from numpy._core import multiarray; print(multiarray._get_madvise_hugepage())")
+    out = subprocess.run([sys.executable, "-c", code], env={**base, **env}, capture_output=True, text=True,
+                         check=True).stdout.split()
+    assert out[-1] == expected
