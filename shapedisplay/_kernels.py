@@ -52,7 +52,8 @@ def c_kernels():
                                ("sd_wall_scan", [vp, vp, i64, f64, vp, vp, i64]),
                                ("sd_clip_where", [vp, vp, i64, f64, vp]),
                                ("sd_clip_magnitude", [vp, vp, i64, f64, vp, i64]),
-                               ("sd_encode", [vp, i64, f64, f64, f64, vp, i64])):
+                               ("sd_encode", [vp, i64, f64, f64, f64, vp, i64]),
+                               ("sd_png_gray16", [vp, i64, i64, vp, vp])):
                 fn = getattr(lib, name)
                 fn.argtypes = args
                 fn.restype = i64
@@ -229,3 +230,18 @@ def encode(values, offset, scale, top, out):
         np.rint(c, out=c)
         np.clip(c, 0.0, top, out=c)
         out[s] = c
+
+
+def png_gray16(data: bytes, rows: int, cols: int):
+    """The pixels (uint16, rows x cols) of a non-interlaced 16-bit grey PNG from its inflated image data, or
+    None where the C kernels are not here, the data is not ``rows * (2 * cols + 1)`` bytes or a row names
+    a filter PNG does not have (the caller decodes with Pillow then)."""
+    lib = c_kernels()
+    if lib is None or len(data) != rows * (2 * cols + 1):
+        return None
+    out = np.empty((rows, cols), dtype=np.uint16)
+    two_rows = np.empty(4 * cols, dtype=np.uint8)
+    if lib.sd_png_gray16(np.frombuffer(data, dtype=np.uint8).ctypes.data, rows, cols, two_rows.ctypes.data,
+                         out.ctypes.data) < 0:
+        return None
+    return out

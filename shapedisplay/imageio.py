@@ -13,6 +13,9 @@ palette with or without transparency, interlaced or not), JPEG, TIFF
 (8/16-bit, 32-bit integer, 32-bit float), BMP, GIF, WebP. ``.npy`` arrays of
 shape (rows, cols) or (cols,) are read with numpy.
 
+* **16-bit grey PNG**, the usual height-map file, is decoded by the
+  package itself where it can (libdeflate, C unfiltering; the same pixels,
+  about twice as fast); anything else in such a file is left to Pillow.
 * **Integer pictures** keep their codes: ``full_scale`` is 255 for 8-bit
   channels and 65535 for 16-bit ones (1/2/4-bit grey is widened to 8 bits by
   Pillow: 0 and 255 stay the ends).
@@ -191,6 +194,9 @@ def read_picture(path: str | os.PathLike, channel: str | None = None) -> Picture
         notes = []
         if getattr(im, "n_frames", 1) > 1:
             notes.append(f"first of {im.n_frames} frames used")
+        pixels = _png_gray16(im, path, rows, cols)
+        if pixels is not None:
+            return _channel(im, path, channel, depth, notes, pixels)
         from PIL import Image
         pixels, target = _decode_target(im)
         try:
@@ -207,6 +213,53 @@ def read_picture(path: str | os.PathLike, channel: str | None = None) -> Picture
 
 #: Modes Pillow can decode straight into a numpy array (grey 8 and 16 bits): numpy dtype of their pixels.
 _DIRECT_MODES = {"L": np.dtype(np.uint8), "I;16": np.dtype("<u2")}
+
+
+def _png_gray16(im, path: Path, rows: int, cols: int):
+    """The pixels of a plain 16-bit grey PNG (one frame, not interlaced, no transparency colour), or None.
+
+    Height maps are mostly such files, and decoding them is most of reading
+    them: here the image data is inflated by libdeflate (the ``deflate``
+    package; about twice as fast as the zlib Pillow uses) and unfiltered by
+    the package's C kernels, instead of by Pillow: a 4096x4096 noisy map in
+    0.15 s instead of 0.33 s. Pillow has read the header and the chunks
+    before the image data (lazily, as for any picture); its tile says where
+    the data starts. None for any other picture, where ``deflate`` or the C
+    kernels are missing, or for data these do not take (truncated, corrupt):
+    Pillow then decodes the file as any other, and reports what is wrong.
+    Like Pillow, the chunks' CRCs are not checked; the zlib stream's
+    Adler-32 is.
+    """
+    tile = im.tile[0] if len(im.tile) == 1 else None
+    if (im.format != "PNG" or im.mode != "I;16" or tile is None or tuple(tile[:1]) != ("zip",)
+            or tile[3] != "I;16B" or im.info.get("interlace") or "transparency" in im.info
+            or getattr(im, "n_frames", 1) != 1):
+        return None
+    try:
+        import deflate
+    except ImportError:
+        return None
+    from . import _kernels
+    if _kernels.c_kernels() is None:
+        return None
+    parts = []
+    with open(path, "rb") as fh:
+        size = os.fstat(fh.fileno()).st_size
+        fh.seek(tile[2] - 8)
+        while True:
+            head = fh.read(8)
+            if len(head) < 8 or head[4:] != b"IDAT":
+                break
+            length = int.from_bytes(head[:4], "big")
+            if length + 4 > size - fh.tell():      # a length past the end of the file: truncated
+                return None
+            parts.append(fh.read(length))
+            fh.seek(4, os.SEEK_CUR)                  # CRC
+    try:
+        data = deflate.zlib_decompress(b"".join(parts), rows * (2 * cols + 1))
+    except deflate.DeflateError:
+        return None
+    return _kernels.png_gray16(data, rows, cols)
 
 
 def _decode_target(im):

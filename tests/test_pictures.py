@@ -326,6 +326,7 @@ def test_grey_pictures_decoded_into_the_array_equal_pillows_pixels(tmp_path, kin
         expected = np.asarray(im.convert("I;16") if im.mode == "I;16B" else im)
         expected = expected[..., 0] if expected.ndim == 3 else expected
         direct = im.mode in imageio._DIRECT_MODES
+    monkeypatch.setattr(imageio, "_png_gray16", lambda *a: None)   # 16-bit grey PNG: see the tests below
     used = []
     real = imageio._decode_target
 
@@ -346,3 +347,113 @@ def test_truncated_grey_png_decoded_into_the_array_is_refused(tmp_path):
     (tmp_path / "trunc.png").write_bytes(good[: len(good) // 2])
     with pytest.raises(FileFormatError, match="corrupt or truncated"):
         read_picture(tmp_path / "trunc.png")
+
+
+# ----------------------------------------------------------------- 16-bit grey PNG without Pillow's decoder
+def _paeth(a, b, c):
+    p = a + b - c
+    pa, pb, pc = np.abs(p - a), np.abs(p - b), np.abs(p - c)
+    return np.where((pa <= pb) & (pa <= pc), a, np.where(pb <= pc, b, c))
+
+
+def _filtered_gray16(g: np.ndarray, filters) -> bytes:
+    """PNG image data of 16-bit grey pixels ``g``, row r filtered with filters[r] (0..4), as an encoder does:
+    every predictor comes from the unfiltered bytes, so each row is filtered at once."""
+    raw = g.astype(">u2").view(np.uint8).reshape(g.shape[0], -1).astype(np.int64)
+    out = []
+    prev = np.zeros(raw.shape[1], np.int64)
+    for row, kind in zip(raw, filters):
+        left = np.concatenate([[0, 0], row[:-2]])
+        upleft = np.concatenate([[0, 0], prev[:-2]])
+        pred = [0, left, prev, (left + prev) // 2, _paeth(left, prev, upleft)][kind]
+        out.append(bytes([kind]) + ((row - pred) % 256).astype(np.uint8).tobytes())
+        prev = row
+    return b"".join(out)
+
+
+def _gray16_png(g: np.ndarray, filters, pieces=1, seed=0) -> bytes:
+    """A 16-bit grey PNG whose zlib stream is cut into ``pieces`` IDAT chunks at random places."""
+    z = zlib.compress(_filtered_gray16(g, filters))
+    cuts = sorted(np.random.default_rng(seed).integers(0, len(z) + 1, pieces - 1).tolist())
+    ihdr = struct.pack(">IIBBBBB", g.shape[1], g.shape[0], 16, 0, 0, 0, 0)
+    idat = b"".join(_chunk(b"IDAT", z[a:b]) for a, b in zip([0] + cuts, cuts + [len(z)]))
+    return b"\x89PNG\r\n\x1a\n" + _chunk(b"IHDR", ihdr) + idat + _chunk(b"IEND", b"")
+
+
+def _pillow_pixels(p):
+    with Image.open(p) as im:
+        return np.asarray(im)
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 7), (9, 1), (5, 3), (40, 33)])
+@pytest.mark.parametrize("kind", [0, 1, 2, 3, 4, "mixed"])
+def test_sixteen_bit_grey_png_is_unfiltered_as_pillow_does(tmp_path, shape, kind):
+    """Every PNG filter, on pixels that carry and borrow in both bytes, in IDAT chunks cut anywhere: the
+    pixels Pillow decodes, without Pillow decoding them."""
+    import shapedisplay.imageio as imageio
+    from shapedisplay import _kernels
+    if _kernels.c_kernels() is None:
+        pytest.skip("needs a C compiler")
+    pytest.importorskip("deflate")
+    rng = np.random.default_rng(shape[0] * 100 + shape[1])
+    g = rng.integers(0, 65536, shape).astype(np.uint16)
+    g[0, 0], g.flat[-1] = 65535, 0
+    filters = rng.integers(0, 5, shape[0]) if kind == "mixed" else [kind] * shape[0]
+    p = tmp_path / "g.png"
+    p.write_bytes(_gray16_png(g, filters, pieces=1 + shape[0] % 4))
+    with Image.open(p) as im:
+        assert imageio._png_gray16(im, p, *shape) is not None      # the path under test takes this file
+    pic = read_picture(p)
+    assert pic.values.dtype == np.uint16 and np.array_equal(pic.values, g)
+    assert np.array_equal(_pillow_pixels(p), g) and pic.full_scale == 65535.0 and pic.description == "grey 16-bit"
+
+
+def test_sixteen_bit_grey_png_written_by_pillow_reads_the_same_both_ways(tmp_path, monkeypatch):
+    """A file Pillow's encoder wrote (its own choice of filters, text chunks before the data)."""
+    import shapedisplay.imageio as imageio
+    g = (np.random.default_rng(5).normal(30000, 9000, (64, 70)).clip(0, 65535)).astype(np.uint16)
+    write_png(tmp_path / "w.png", g, text={"height_max_m": "0.002"})
+    fast = read_picture(tmp_path / "w.png")
+    monkeypatch.setattr(imageio, "_png_gray16", lambda *a: None)
+    slow = read_picture(tmp_path / "w.png")
+    assert np.array_equal(fast.values, g) and np.array_equal(slow.values, g) and fast.description == slow.description
+
+
+@pytest.mark.parametrize("damage", ["filter type 5", "truncated", "bad stream", "length past the end"])
+def test_corrupt_sixteen_bit_grey_png_is_left_to_pillow_which_refuses_it(tmp_path, damage):
+    """What the fast path does not take goes to Pillow, whose verdict stands (its errors, or its pixels)."""
+    import shapedisplay.imageio as imageio
+    g = np.arange(12 * 10, dtype=np.uint16).reshape(12, 10) * 500
+    data = bytearray(_gray16_png(g, [4] * 12))
+    if damage == "filter type 5":
+        body = bytearray(_filtered_gray16(g, [4] * 12))
+        body[21 * 5] = 5                                   # row 5's filter byte
+        z = zlib.compress(bytes(body))
+        ihdr = struct.pack(">IIBBBBB", 10, 12, 16, 0, 0, 0, 0)
+        data = b"\x89PNG\r\n\x1a\n" + _chunk(b"IHDR", ihdr) + _chunk(b"IDAT", z) + _chunk(b"IEND", b"")
+    elif damage == "truncated":
+        data = data[:60]
+    elif damage == "bad stream":
+        data[50] ^= 0xFF
+    else:
+        data[33:37] = struct.pack(">I", 1 << 30)            # the IDAT length
+    p = tmp_path / "c.png"
+    p.write_bytes(bytes(data))
+    with Image.open(p) as im:
+        assert imageio._png_gray16(im, p, 12, 10) is None
+    if damage == "length past the end":        # Pillow reads what is there: the whole stream
+        assert np.array_equal(read_picture(p).values, g)
+        return
+    with pytest.raises(FileFormatError, match="corrupt or truncated|not a picture Pillow can read"):
+        read_picture(p)
+
+
+def test_sixteen_bit_grey_png_without_libdeflate_is_decoded_by_pillow(tmp_path, monkeypatch):
+    import sys
+    import shapedisplay.imageio as imageio
+    g = np.arange(6 * 9, dtype=np.uint16).reshape(6, 9) * 1111
+    write_png(tmp_path / "g.png", g)
+    monkeypatch.setitem(sys.modules, "deflate", None)           # import deflate raises ImportError
+    with Image.open(tmp_path / "g.png") as im:
+        assert imageio._png_gray16(im, tmp_path / "g.png", 6, 9) is None
+    assert np.array_equal(read_picture(tmp_path / "g.png").values, g)
