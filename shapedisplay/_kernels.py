@@ -51,7 +51,8 @@ def c_kernels():
             for name, args in (("sd_regions", [vp, i64, i64, i64, vp, vp]),
                                ("sd_wall_scan", [vp, vp, i64, f64, vp, vp, i64]),
                                ("sd_clip_where", [vp, vp, i64, f64, vp]),
-                               ("sd_clip_magnitude", [vp, vp, i64, f64, vp, i64]),
+                               ("sd_clip_magnitude", [vp, vp, i64, f64, vp, i64, f64]),
+                               ("sd_central_band", [vp, i64, i64, i64, i64, f64, f64, vp, vp]),
                                ("sd_encode", [vp, i64, f64, f64, f64, vp, i64]),
                                ("sd_png_gray16", [vp, i64, i64, vp, vp])):
                 fn = getattr(lib, name)
@@ -156,18 +157,23 @@ def clip_where(fx, fy, limit, mask):
     return count
 
 
-def clip_magnitude(fx, fy, limit):
+def clip_magnitude(fx, fy, limit, gain=None):
     """Scale (fx, fy) in place so that |(fx, fy)| <= limit, keeping direction.
 
     Samples within the limit are untouched; beyond it both components are
-    multiplied by ``limit / sqrt(fx^2 + fy^2)``. Returns (count clipped,
-    peak magnitude before clipping).
+    multiplied by ``limit / sqrt(fx^2 + fy^2)``. With ``gain``, both are
+    first multiplied by it (in the same pass where C does the work). Returns
+    (count clipped, peak magnitude before clipping).
     """
     lib = _c_for(fx, fy)
     if lib is not None:
         peak = np.zeros(1)
-        count = lib.sd_clip_magnitude(fx.ctypes.data, fy.ctypes.data, fx.size, limit, peak.ctypes.data, CHUNK)
+        count = lib.sd_clip_magnitude(fx.ctypes.data, fy.ctypes.data, fx.size, limit, peak.ctypes.data, CHUNK,
+                                      1.0 if gain is None else gain)
         return count, float(np.sqrt(peak[0]))
+    if gain is not None:
+        np.multiply(fx, gain, out=fx)
+        np.multiply(fy, gain, out=fy)
     limit2 = limit * limit
     count = 0
     peak2 = 0.0

@@ -435,10 +435,8 @@ def _compile_by_bands(hf, device, mapping, options, kept, band):
         fx, fy = gx.reshape(-1), gy.reshape(-1)
         if wall_mask is not None:
             _kernels.clip_where(fx, fy, limit, wall_mask[r0 * cols:r1 * cols])
-        np.multiply(fx, -mapping.lateral_gain, out=fx)
-        np.multiply(fy, -mapping.lateral_gain, out=fy)
-        if lat_count:   # else pass 1 found no force beyond the limit: clipping would change nothing
-            _kernels.clip_magnitude(fx, fy, fmax if fmax > 0 else math.inf)
+        # without a force beyond the limit in pass 1, clipping changes nothing: the gain alone
+        _kernels.clip_magnitude(fx, fy, fmax if fmax > 0 and lat_count else math.inf, gain=-mapping.lateral_gain)
         return fx, fy
 
     # -- pass 1: walls, ranges
@@ -464,9 +462,7 @@ def _compile_by_bands(hf, device, mapping, options, kept, band):
         if need_n:
             n_range = _kernels.minmax_update(forces_n(r0, r1, False), n_range)
         if lateral:
-            np.multiply(fx, -mapping.lateral_gain, out=fx)
-            np.multiply(fy, -mapping.lateral_gain, out=fy)
-            cnt, peak = _kernels.clip_magnitude(fx, fy, fmax if fmax > 0 else math.inf)
+            cnt, peak = _kernels.clip_magnitude(fx, fy, fmax if fmax > 0 else math.inf, gain=-mapping.lateral_gain)
             lat_count += cnt
             lat_peak = max(lat_peak, peak)
             fx_range = _kernels.minmax_update(fx, fx_range)

@@ -63,8 +63,15 @@ def central_band(h: np.ndarray, dx: float, dy: float, r0: int, r1: int, gx: np.n
 
     The same operations on the same samples as the whole-array function, so
     the same values bit for bit; lets a large map be processed a band of
-    rows at a time.
+    rows at a time. In one pass in C where the compiler's C kernels are
+    here (:mod:`shapedisplay._kernels`).
     """
+    from . import _kernels
+    whole = h.ndim == 2 and h.dtype == np.float64 and h.flags.c_contiguous and gx.size == (r1 - r0) * h.shape[1]
+    lib = _kernels._c_for(gx, gy) if whole else None
+    if lib is not None and lib.sd_central_band(h.ctypes.data, h.shape[0], h.shape[1], r0, r1, 0.5 / dx,
+                                               0.5 / dy, gx.ctypes.data, gy.ctypes.data) == 0:
+        return
     _diff_axis(h[r0:r1], dx, 1, gx)
     rows = h.shape[0]
     lo, hi = max(r0, 1), min(r1, rows - 1)

@@ -200,6 +200,37 @@ int64_t sd_wall_scan(const double *gx, const double *gy, int64_t n, double limit
     return count;
 }
 
+/* gradients.central_band: rows r0..r1-1 of the central differences of h (rows x cols, both at least 3),
+ * second-order one-sided at the edges, sx = 0.5 / dx and sy = 0.5 / dy: gx, gy hold (r1 - r0) x cols. */
+int64_t sd_central_band(const double *h, int64_t rows, int64_t cols, int64_t r0, int64_t r1, double sx,
+                        double sy, double *gx, double *gy)
+{
+    if (rows < 3 || cols < 3 || r0 < 0 || r1 > rows || r0 >= r1)
+        return -1;
+    for (int64_t r = r0; r < r1; r++) {
+        const double *c = h + r * cols, *u = r > 0 ? c - cols : c, *d = r + 1 < rows ? c + cols : c;
+        double *ox = gx + (r - r0) * cols, *oy = gy + (r - r0) * cols;
+        int64_t m = cols - 1;
+        ox[0] = (4.0 * (c[1] - c[0]) - (c[2] - c[0])) * sx;
+        for (int64_t j = 1; j < m; j++)
+            ox[j] = (c[j + 1] - c[j - 1]) * sx;
+        ox[m] = (4.0 * (c[m] - c[m - 1]) - (c[m] - c[m - 2])) * sx;
+        if (r == 0) {
+            const double *d2 = c + 2 * cols;
+            for (int64_t j = 0; j < cols; j++)
+                oy[j] = (4.0 * (d[j] - c[j]) - (d2[j] - c[j])) * sy;
+        } else if (r == rows - 1) {
+            const double *u2 = c - 2 * cols;
+            for (int64_t j = 0; j < cols; j++)
+                oy[j] = (4.0 * (c[j] - u[j]) - (c[j] - u2[j])) * sy;
+        } else {
+            for (int64_t j = 0; j < cols; j++)
+                oy[j] = (d[j] - u[j]) * sy;
+        }
+    }
+    return 0;
+}
+
 /* _kernels.clip_where: where mask[i], (fx, fy)[i] *= limit / sqrt(fx^2 + fy^2). Returns the count.
  * A noisy map's mask is as good as random, so a branch per sample is mispredicted about as often as
  * not: the mask's samples are first gathered a block at a time without a branch, then clipped. */
@@ -226,9 +257,11 @@ int64_t sd_clip_where(double *fx, double *fy, int64_t n, double limit, const uin
     return count;
 }
 
-/* _kernels.clip_magnitude: where fx^2 + fy^2 > limit^2, (fx, fy)[i] *= limit / sqrt(fx^2 + fy^2).
- * Returns the count; *peak2 the largest squared magnitude before clipping (chunks as next_peak). */
-int64_t sd_clip_magnitude(double *fx, double *fy, int64_t n, double limit, double *peak2, int64_t chunk)
+/* _kernels.clip_magnitude: (fx, fy)[i] *= gain (1 leaves every value as it is); then where
+ * fx^2 + fy^2 > limit^2, (fx, fy)[i] *= limit / sqrt(fx^2 + fy^2). Returns the count; *peak2 the largest
+ * squared magnitude before clipping (chunks as next_peak). */
+int64_t sd_clip_magnitude(double *fx, double *fy, int64_t n, double limit, double *peak2, int64_t chunk,
+                          double gain)
 {
     double limit2 = limit * limit, top = 0.0;
     int64_t count = 0;
@@ -237,16 +270,18 @@ int64_t sd_clip_magnitude(double *fx, double *fy, int64_t n, double limit, doubl
         double ctop = -INFINITY;
         int cnan = 0;
         for (int64_t i = s; i < e; i++) {
-            double x = fx[i], y = fy[i];
+            double x = fx[i] * gain, y = fy[i] * gain;
             double m2 = x * x + y * y;
             cnan |= m2 != m2;
             ctop = m2 > ctop ? m2 : ctop;
             if (m2 > limit2) {
                 double f = limit / sqrt(m2);
-                fx[i] = x * f;
-                fy[i] = y * f;
+                x *= f;
+                y *= f;
                 count++;
             }
+            fx[i] = x;
+            fy[i] = y;
         }
         top = next_peak(top, ctop, cnan);
     }

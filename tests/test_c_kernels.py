@@ -72,6 +72,9 @@ def test_slope_kernels_match_numpy(seed, n, specials, chunk, limit2):
         limit = float(np.sqrt(limit2))
         (c, (cx, cy, _)), (ref, (rx, ry, _)) = _both("clip_magnitude", gx, gy, limit)
         assert _same(c, ref) and _same(cx, rx) and _same(cy, ry)
+        for gain in (-1.0, 2.5e-3, -7e300):
+            (c, (cx, cy, _, _)), (ref, (rx, ry, _, _)) = _both("clip_magnitude", gx, gy, limit, gain)
+            assert _same(c, ref) and _same(cx, rx) and _same(cy, ry)
         mask = ref_mask = _both("wall_scan", gx, gy, limit2)[1][0][2]
         if ref_mask is None:
             mask = np.zeros(n, bool)
@@ -156,3 +159,31 @@ def test_encode_with_a_nan_codes_in_numpy():
     assert _same(c, ref) and c[0] == 0 and c[-1] == 255
     out = np.zeros(5000, np.uint8)
     assert _kernels.c_kernels().sd_encode(values.ctypes.data, 5000, 0.0, 1 / 255, 255.0, out.ctypes.data, 1) == -1
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.integers(0, 2 ** 32 - 1), st.integers(3, 40), st.integers(3, 40), st.integers(0, 8),
+       st.sampled_from([1e-4, 0.37, 3.0]), st.sampled_from([1e-4, 0.37, 3.0]), st.data())
+def test_central_band_matches_numpy(seed, rows, cols, specials, dx, dy, data):
+    """Slopes of any band of rows (first, last, inner, all), heights with huge values (differences that
+    overflow to inf, edge formulas that make NaN) and signed zeros: the numpy slopes byte for byte."""
+    from shapedisplay.gradients import central_band
+    rng = np.random.default_rng(seed)
+    h = rng.normal(0, 1e-3, (rows, cols))
+    if specials:
+        h.flat[rng.integers(0, h.size, specials)] = rng.choice([0.0, -0.0, 1e308, -1e308, 5e-324, 1e154], specials)
+    r0 = data.draw(st.integers(0, rows - 1))
+    r1 = data.draw(st.integers(r0 + 1, rows))
+    out = []
+    for use_c in (True, False):
+        gx, gy = np.full((r1 - r0, cols), 7.0), np.full((r1 - r0, cols), 7.0)
+        saved = _kernels._C
+        if not use_c:
+            _kernels._C = False
+        try:
+            with np.errstate(all="ignore"):
+                central_band(h, dx, dy, r0, r1, gx, gy)
+        finally:
+            _kernels._C = saved
+        out.append((gx.tobytes(), gy.tobytes()))
+    assert out[0] == out[1]
