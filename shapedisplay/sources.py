@@ -590,6 +590,7 @@ def load_image(path, size, height_range, *, resolution=None, channel=None, z_uni
             heights *= per
         scale = height_scale(unit, per, 0.0, f"data in {unit}" + (" (integrated slopes)" if slopes is not None
                                                                     else ""))
+    codes = pic.values if integer and suffix in PICTURE_SUFFIXES else None   # picture order: contiguous
     del values
     if mask is not None:
         m = mask
@@ -599,10 +600,13 @@ def load_image(path, size, height_range, *, resolution=None, channel=None, z_uni
     desc_s = f"{path.name} {cols}x{rows} px ({desc}), {w * 1e3:g}x{h * 1e3:g} mm"
     if hr is not None:
         desc_s += f", h {hr[0] * 1e3:g}..{hr[1] * 1e3:g} mm"
-    return HeightField(heights, dx, dy, 0.5 * dx, 0.5 * dy, desc_s,
-                       {"kind": "image", "file": str(path), "size_m": [w, h],
-                        "height_range_m": None if hr is None else list(hr), "scale": scale, "notes": notes,
-                        "picture": desc}, mask)
+    hf = HeightField(heights, dx, dy, 0.5 * dx, 0.5 * dy, desc_s,
+                     {"kind": "image", "file": str(path), "size_m": [w, h],
+                      "height_range_m": None if hr is None else list(hr), "scale": scale, "notes": notes,
+                      "picture": desc}, mask)
+    if codes is not None and codes.dtype.kind == "u":
+        hf.made_from_codes(codes, full, hr)
+    return hf
 
 
 def resolution_option(text) -> float:

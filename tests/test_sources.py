@@ -180,3 +180,26 @@ def test_source_kind_and_option_applicability_live_in_the_library(tmp_path):
     assert check_applicable("p.toml", {"up": None, "size": None}) == "scene"
     assert source_options("k.stl", resolution="0.1mm", up="y") == {"resolution": pytest.approx(1e-4), "up": "y"}
     assert source_options("t.npz") == {}
+
+
+def test_a_picture_source_is_identified_by_its_codes_and_map(tmp_path):
+    """The source digest of a picture hashes its gray codes, the map onto heights and the grid: equal for
+    the same file read twice, different for one changed pixel, another height range or size; a height
+    field made from it with new heights hashes those heights."""
+    g = (np.arange(40 * 30, dtype=np.uint16).reshape(30, 40) * 37) % 65535
+    write_png(tmp_path / "a.png", g)
+    g2 = g.copy()
+    g2[29, 0] += 1                                       # bottom-left pixel: the grid's first row
+    write_png(tmp_path / "b.png", g2)
+    load = lambda name, size="4x3mm", height="0:2mm": sources.load_image(tmp_path / name, size, height)  # noqa: E731
+    a = load("a.png")
+    assert a.sha256() == load("a.png").sha256() and len(a.sha256()) == 64
+    others = {load("b.png").sha256(), load("a.png", height="0:3mm").sha256(), load("a.png", size="4x4mm").sha256()}
+    assert a.sha256() not in others and len(others) == 3
+    remade = a.with_heights(a.heights.copy())
+    plain = sources.from_array(a.heights, a.dx, a.dy)
+    assert remade.sha256() != a.sha256() and remade.sha256() == plain.sha256()
+    with pytest.raises(InputError, match="unsigned integers of the heights' shape"):
+        plain.made_from_codes(g.astype(np.int32), 65535.0, (0.0, 2e-3))
+    with pytest.raises(InputError, match="unsigned integers of the heights' shape"):
+        plain.made_from_codes(g[:5], 65535.0, (0.0, 2e-3))
