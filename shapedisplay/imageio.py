@@ -242,21 +242,29 @@ def _png_gray16(im, path: Path, rows: int, cols: int):
     from . import _kernels
     if _kernels.c_kernels() is None:
         return None
-    parts = []
+    parts = []                                       # (file offset, length) of each IDAT chunk's data
     with open(path, "rb") as fh:
         size = os.fstat(fh.fileno()).st_size
-        fh.seek(tile[2] - 8)
-        while True:
+        at = tile[2] - 8
+        while at + 8 <= size:
+            fh.seek(at)
             head = fh.read(8)
-            if len(head) < 8 or head[4:] != b"IDAT":
+            if head[4:] != b"IDAT":
                 break
             length = int.from_bytes(head[:4], "big")
-            if length + 4 > size - fh.tell():      # a length past the end of the file: truncated
+            if length + 4 > size - at - 8:          # a length past the end of the file: truncated
                 return None
-            parts.append(fh.read(length))
-            fh.seek(4, os.SEEK_CUR)                  # CRC
+            parts.append((at + 8, length))
+            at += 12 + length
+        stream = bytearray(sum(n for _, n in parts))  # read once into one buffer: no joining copy
+        view, filled = memoryview(stream), 0
+        for offset, length in parts:
+            fh.seek(offset)
+            if fh.readinto(view[filled:filled + length]) != length:
+                return None
+            filled += length
     try:
-        data = deflate.zlib_decompress(b"".join(parts), rows * (2 * cols + 1))
+        data = deflate.zlib_decompress(stream, rows * (2 * cols + 1))
     except deflate.DeflateError:
         return None
     return _kernels.png_gray16(data, rows, cols)
