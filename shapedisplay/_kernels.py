@@ -53,7 +53,7 @@ def c_kernels():
                                ("sd_clip_where", [vp, vp, i64, f64, vp]),
                                ("sd_clip_magnitude", [vp, vp, i64, f64, vp, i64, f64]),
                                ("sd_central_band", [vp, i64, i64, i64, i64, f64, f64, vp, vp]),
-                               ("sd_encode", [vp, i64, f64, f64, f64, vp, i64]),
+                               ("sd_encode", [vp, i64, f64, f64, f64, f64, f64, vp, i64]),
                                ("sd_png_gray16", [vp, i64, i64, vp, vp])):
                 fn = getattr(lib, name)
                 fn.argtypes = args
@@ -219,19 +219,27 @@ def minmax_update(a, state=None):
     return lo, hi
 
 
-def encode(values, offset, scale, top, out):
-    """out[i] = clip(rint((values[i] - offset) / scale), 0, top) (integer out: uint8 with top 255 or uint16
-    with top 65535; ``scale`` > 0)."""
+def encode(values, offset, scale, top, out, gain=None, base=0.0):
+    """out[i] = clip(rint((v[i] - offset) / scale), 0, top) (integer out: uint8 with top 255 or uint16 with top
+    65535; ``scale`` > 0) of v = values, or with ``gain`` of v = values * gain + base, computed in the same
+    pass (a channel coded straight from the heights it is a linear map of)."""
     lib = _c_for(values)
     if lib is not None and out.flags.c_contiguous and out.size == values.size \
             and (out.dtype, top) in ((np.uint8, 255.0), (np.uint16, 65535.0)):
-        if lib.sd_encode(values.ctypes.data, values.size, offset, scale, top, out.ctypes.data, out.itemsize) >= 0:
+        g, b = (1.0, 0.0) if gain is None else (gain, base)
+        if lib.sd_encode(values.ctypes.data, values.size, g, b, offset, scale, top, out.ctypes.data,
+                         out.itemsize) >= 0:
             return
         # a NaN: numpy's path codes the whole array as before
     b1, _ = _buffers(values.size)
     for s in _chunks(values.size):
         c = b1[:s.stop - s.start]
-        np.subtract(values[s], offset, out=c)
+        if gain is None:
+            np.subtract(values[s], offset, out=c)
+        else:
+            np.multiply(values[s], gain, out=c)
+            c += base
+            c -= offset
         np.divide(c, scale, out=c)
         np.rint(c, out=c)
         np.clip(c, 0.0, top, out=c)

@@ -441,7 +441,7 @@ def _compile_by_bands(hf, device, mapping, options, kept, band):
 
     # -- pass 1: walls, ranges
     mask, count, peak2 = None, 0, 0.0
-    n_range = fx_range = fy_range = None
+    h_range = n_range = fx_range = fy_range = None
     lat_count, lat_peak = 0, 0.0
     clip_walls = lateral and options.limit_walls
     for r0, r1 in bands:
@@ -460,13 +460,18 @@ def _compile_by_bands(hf, device, mapping, options, kept, band):
             if clip_walls:
                 _kernels.clip_where(fx, fy, limit, m)
         if need_n:
-            n_range = _kernels.minmax_update(forces_n(r0, r1, False), n_range)
+            h_range = _kernels.minmax_update(h[r0:r1].reshape(-1), h_range)
         if lateral:
             cnt, peak = _kernels.clip_magnitude(fx, fy, fmax if fmax > 0 else math.inf, gain=-mapping.lateral_gain)
             lat_count += cnt
             lat_peak = max(lat_peak, peak)
             fx_range = _kernels.minmax_update(fx, fx_range)
             fy_range = _kernels.minmax_update(fy, fy_range)
+    if need_n:
+        # N = h * n_gain + n_base rounds monotonically (and is never -0.0: see _band_rows): its range is the
+        # map of the heights' range, as the range of every sample's N would be
+        ends = sorted(float(v) * mapping.n_gain + mapping.n_base for v in h_range)
+        n_range = (ends[0], ends[1])
     steepest = math.sqrt(peak2)
     if math.isinf(limit) or count == 0:
         walls = WallReport(np.zeros(h.shape, dtype=bool), 0, 0.0, limit, steepest)
@@ -524,7 +529,12 @@ def _compile_by_bands(hf, device, mapping, options, kept, band):
     for r0, r1 in bands:
         out = slice(r0 * cols, r1 * cols)
         if need_n:
-            _encode_into(quant["normal_force"], forces_n(r0, r1, clamp), codes["normal_force"].reshape(-1)[out])
+            q, target = quant["normal_force"], codes["normal_force"].reshape(-1)[out]
+            if clamp or not (q.dtype in _TOP and q.scale > 0):
+                _encode_into(q, forces_n(r0, r1, clamp), target)
+            else:   # N computed inside the coding pass, from the heights
+                _kernels.encode(h[r0:r1].reshape(-1), q.offset, q.scale, float(_TOP[q.dtype]), target,
+                                gain=mapping.n_gain, base=mapping.n_base)
         if lateral:
             fx, fy = forces_lateral(r0, r1, wall_mask)
             _encode_into(quant["lateral_x"], fx, codes["lateral_x"].reshape(-1)[out])

@@ -11,7 +11,7 @@
  * way); a run with nothing above starts a set, numbered in order. A region's first run in raster order
  * holds its first sample and has nothing above it, so its set has the region's lowest number: ordering
  * the roots numbers the regions as scipy.ndimage.label does (raster order of each region's first
- * sample). Each root carries its region's size and bounding box, merged on every union. Memory: 32 bytes
+ * sample). Each root carries its region's size and bounding box, merged on every union. Memory: 24 bytes
  * per set, at most one per run (a first pass counts the runs); 48 bytes per column for two rows of runs.
  *
  * NaN (slopes that overflowed into inf - inf) is handled as numpy and the Python around it handle it
@@ -30,9 +30,9 @@
 #include <emmintrin.h>
 #endif
 
-typedef struct {
-    int64_t parent;
-    int64_t size;
+typedef struct {                                       /* 24 bytes: sd_regions takes under 2^31 samples */
+    int32_t parent;
+    int32_t size;
     int32_t r0, r1, c0, c1;
 } sd_run_t;
 
@@ -58,7 +58,7 @@ static int64_t join(sd_run_t *runs, int64_t a, int64_t b)
         b = t;
     }
     sd_run_t *keep = &runs[a], *gone = &runs[b];
-    gone->parent = a;
+    gone->parent = (int32_t)a;
     keep->size += gone->size;
     if (gone->r0 < keep->r0) keep->r0 = gone->r0;
     if (gone->r1 > keep->r1) keep->r1 = gone->r1;
@@ -69,9 +69,12 @@ static int64_t join(sd_run_t *runs, int64_t a, int64_t b)
 
 /* mask: rows x cols bytes, 0 or 1 (a numpy bool array), C order. Writes the labels of the min(k, n) largest regions to
  * top (largest first; equal sizes in label order) and their inclusive bounds (row_min, row_max,
- * col_min, col_max) to spans (4 per region). Returns n, the number of regions, or -1 if memory runs out. */
+ * col_min, col_max) to spans (4 per region). Returns n, the number of regions, or -1 if memory runs out or
+ * the mask holds 2^31 samples or more. */
 int64_t sd_regions(const uint8_t *mask, int64_t rows, int64_t cols, int64_t k, int64_t *top, int64_t *spans)
 {
+    if (rows > INT32_MAX / (cols > 0 ? cols : 1))
+        return -1;
     int64_t count = 0;
     for (int64_t r = 0; r < rows; r++) {
         const uint8_t *m = mask + r * cols;
@@ -117,7 +120,7 @@ int64_t sd_regions(const uint8_t *mask, int64_t rows, int64_t cols, int64_t k, i
             if (j < pn && ps[j] <= b) {                /* joins the set of the first run above it */
                 id = root_of(runs, pid[j]);
                 sd_run_t *q = &runs[id];
-                q->size += b - a + 1;
+                q->size += (int32_t)(b - a + 1);
                 q->r1 = (int32_t)r;
                 if (a < q->c0) q->c0 = (int32_t)a;
                 if (b > q->c1) q->c1 = (int32_t)b;
@@ -125,7 +128,8 @@ int64_t sd_regions(const uint8_t *mask, int64_t rows, int64_t cols, int64_t k, i
                     id = join(runs, id, pid[q2]);
             } else {                                   /* nothing above: a set of its own */
                 id = next++;
-                runs[id] = (sd_run_t){id, b - a + 1, (int32_t)r, (int32_t)r, (int32_t)a, (int32_t)b};
+                runs[id] = (sd_run_t){(int32_t)id, (int32_t)(b - a + 1), (int32_t)r, (int32_t)r, (int32_t)a,
+                                      (int32_t)b};
             }
             cid[i] = id;
         }
@@ -289,11 +293,12 @@ int64_t sd_clip_magnitude(double *fx, double *fy, int64_t n, double limit, doubl
     return count;
 }
 
-/* _kernels.encode: out[i] = clip(rint((values[i] - offset) / scale), 0, top), top 255 (uint8 out) or 65535
- * (uint16), rint rounding half to even as numpy's. Returns n, or -1 if a quotient is NaN (nothing
+/* _kernels.encode: out[i] = clip(rint((v - offset) / scale), 0, top) of v = values[i] * gain + base (gain 1
+ * and base 0 leave the values as they are but -0.0, which makes the same code as 0.0), top 255 (uint8 out)
+ * or 65535 (uint16), rint rounding half to even as numpy's. Returns n, or -1 if a quotient is NaN (nothing
  * meaningful is written then: the caller codes the array in numpy).
  *
- * Each block of samples is first coded from y = x * (1 / scale), x = values[i] - offset, instead of the
+ * Each block of samples is first coded from y = x * (1 / scale), x = v - offset, instead of the
  * quotient q = x / scale. Both are within 2 and 1 units in the last place of the exact x / scale, so
  * |y - q| < 2^-51 |y|. Clipped to [-1, top + 1] (integers: clipping there before rounding gives the
  * code clipping after rounding gives, rint being monotonic) y is below 2^17, so |y - q| < 2^-34, and y
@@ -309,18 +314,19 @@ int64_t sd_clip_magnitude(double *fx, double *fy, int64_t n, double limit, doubl
 /* Codes of values[0..k) from the product by inv (clipped to [-1, top + 1], rounded, clipped to [0, top]);
  * returns nonzero if one of them must come from the quotient instead (a clipped product within 2^-20 of a
  * half-integer) or a product is NaN. Two samples per SSE2 instruction where the compiler targets it. */
-static int codes_by_product(const double *values, int64_t k, double offset, double inv, double top,
-                            int32_t *codes)
+static int codes_by_product(const double *values, int64_t k, double gain, double base, double offset, double inv,
+                            double top, int32_t *codes)
 {
     double hi = top + 1.0, edge = 0.5 - 0x1p-20;
     int flag = 0;
     int64_t i = 0;
 #if defined(__SSE2__)
-    __m128d off = _mm_set1_pd(offset), r = _mm_set1_pd(inv), lo2 = _mm_set1_pd(-1.0), hi2 = _mm_set1_pd(hi),
+    __m128d g = _mm_set1_pd(gain), b = _mm_set1_pd(base), off = _mm_set1_pd(offset), r = _mm_set1_pd(inv), lo2 = _mm_set1_pd(-1.0), hi2 = _mm_set1_pd(hi),
             m = _mm_set1_pd(6755399441055744.0), zero = _mm_setzero_pd(), top2 = _mm_set1_pd(top),
             sign = _mm_set1_pd(-0.0), edge2 = _mm_set1_pd(edge), bad = _mm_setzero_pd();
     for (; i + 2 <= k; i += 2) {
-        __m128d y = _mm_mul_pd(_mm_sub_pd(_mm_loadu_pd(values + i), off), r);
+        __m128d v = _mm_add_pd(_mm_mul_pd(_mm_loadu_pd(values + i), g), b);
+        __m128d y = _mm_mul_pd(_mm_sub_pd(v, off), r);
         bad = _mm_or_pd(bad, _mm_cmpunord_pd(y, y));
         __m128d c = _mm_min_pd(_mm_max_pd(y, lo2), hi2);            /* as SD_CLAMP for all but NaN */
         __m128d q = _mm_sub_pd(_mm_add_pd(c, m), m);
@@ -331,7 +337,7 @@ static int codes_by_product(const double *values, int64_t k, double offset, doub
     flag = _mm_movemask_pd(bad) != 0;
 #endif
     for (; i < k; i++) {
-        double y = (values[i] - offset) * inv;
+        double y = (values[i] * gain + base - offset) * inv;
         double c = SD_CLAMP(y, -1.0, hi), q = SD_RINT(c);
         flag |= (y != y) | (fabs(c - q) > edge);
         codes[i] = (int32_t)SD_CLAMP(q, 0.0, top);
@@ -341,15 +347,15 @@ static int codes_by_product(const double *values, int64_t k, double offset, doub
 
 /* codes_by_product's codes mended: the code of each sample whose product needs it from the quotient, or
  * of every sample if all; -1 if a quotient is NaN. */
-static int codes_by_quotient(const double *values, int64_t k, double offset, double scale, double inv,
-                             double top, int all, int32_t *codes)
+static int codes_by_quotient(const double *values, int64_t k, double gain, double base, double offset,
+                             double scale, double inv, double top, int all, int32_t *codes)
 {
     double hi = top + 1.0, edge = 0.5 - 0x1p-20;
     for (int64_t i = 0; i < k; i++) {
-        double y = (values[i] - offset) * inv;
+        double x = values[i] * gain + base - offset, y = x * inv;
         double c = SD_CLAMP(y, -1.0, hi), q = SD_RINT(c);
         if (all || y != y || fabs(c - q) > edge) {
-            y = (values[i] - offset) / scale;
+            y = x / scale;
             if (y != y)
                 return -1;
             c = SD_CLAMP(y, -1.0, hi);
@@ -360,8 +366,8 @@ static int codes_by_quotient(const double *values, int64_t k, double offset, dou
     return 0;
 }
 
-int64_t sd_encode(const double *values, int64_t n, double offset, double scale, double top, void *out,
-                  int64_t itemsize)
+int64_t sd_encode(const double *values, int64_t n, double gain, double base, double offset, double scale,
+                  double top, void *out, int64_t itemsize)
 {
     enum { BLOCK = 32 };
     int32_t codes[BLOCK];
@@ -369,8 +375,8 @@ int64_t sd_encode(const double *values, int64_t n, double offset, double scale, 
     int exact = !(inv < INFINITY);
     for (int64_t s = 0; s < n; s += BLOCK) {
         int64_t k = n - s < BLOCK ? n - s : BLOCK;
-        if ((exact || codes_by_product(values + s, k, offset, inv, top, codes))
-                && codes_by_quotient(values + s, k, offset, scale, inv, top, exact, codes) < 0)
+        if ((exact || codes_by_product(values + s, k, gain, base, offset, inv, top, codes))
+                && codes_by_quotient(values + s, k, gain, base, offset, scale, inv, top, exact, codes) < 0)
             return -1;
         if (itemsize == 1)
             for (int64_t i = 0; i < k; i++)

@@ -136,6 +136,12 @@ def test_encode_matches_numpy_on_and_next_to_half_way_points(seed, n, kind, spec
     values, lo, scale = _codes(seed, n, top, specials)
     (_, (_, _, _, _, c)), (_, (_, _, _, _, ref)) = _both("encode", values, lo, scale, top, np.zeros(n, dtype))
     assert _same(c, ref)
+    # coded from heights it is a linear map of: N = h * gain + base
+    gain, base = (1e3, 0.5) if seed % 2 else (-2.5, -1e-3)
+    h = (values - base) / gain
+    (_, (_, _, _, _, c, _, _)), (_, (_, _, _, _, ref, _, _)) = _both("encode", h, lo, scale, top, np.zeros(n, dtype),
+                                                                     gain, base)
+    assert _same(c, ref)
 
 
 def test_encode_ties_go_to_the_even_code_where_the_reciprocal_would_not():
@@ -158,7 +164,8 @@ def test_encode_with_a_nan_codes_in_numpy():
                                                          np.zeros(5000, np.uint8))
     assert _same(c, ref) and c[0] == 0 and c[-1] == 255
     out = np.zeros(5000, np.uint8)
-    assert _kernels.c_kernels().sd_encode(values.ctypes.data, 5000, 0.0, 1 / 255, 255.0, out.ctypes.data, 1) == -1
+    assert _kernels.c_kernels().sd_encode(values.ctypes.data, 5000, 1.0, 0.0, 0.0, 1 / 255, 255.0, out.ctypes.data,
+                                          1) == -1
 
 
 @settings(max_examples=150, deadline=None)
