@@ -54,10 +54,11 @@ def c_kernels():
                                ("sd_clip_magnitude", [vp, vp, i64, f64, vp, i64, f64]),
                                ("sd_central_band", [vp, i64, i64, i64, i64, f64, f64, vp, vp]),
                                ("sd_encode", [vp, i64, f64, f64, f64, f64, f64, vp, i64]),
-                               ("sd_png_gray16", [vp, i64, i64, vp, vp])):
+                               ("sd_png_gray16", [vp, i64, i64, vp, vp]),
+                               ("sd_gray_to_heights", [vp, i64, i64, i64, i64, f64, f64, vp])):
                 fn = getattr(lib, name)
                 fn.argtypes = args
-                fn.restype = i64
+                fn.restype = None if name == "sd_gray_to_heights" else i64
             _C = lib
     return _C or None
 
@@ -258,4 +259,18 @@ def png_gray16(data: bytes, rows: int, cols: int):
     if lib.sd_png_gray16(np.frombuffer(data, dtype=np.uint8).ctypes.data, rows, cols, two_rows.ctypes.data,
                          out.ctypes.data) < 0:
         return None
+    return out
+
+
+def gray_to_heights(gray, step, lo):
+    """``gray * step + lo`` as float64 (C order) of 2-D uint8/uint16 codes whose rows may be in reverse order
+    (a negative row stride), in one pass in C; None where the C kernels are not here or the codes are laid
+    out otherwise (numpy's path then)."""
+    lib = c_kernels()
+    if lib is None or gray.ndim != 2 or gray.dtype not in (np.uint8, np.uint16) or gray.strides[1] != gray.itemsize \
+            or gray.strides[0] % gray.itemsize:
+        return None
+    out = np.empty(gray.shape, dtype=np.float64)
+    lib.sd_gray_to_heights(gray.ctypes.data, gray.shape[0], gray.shape[1], gray.strides[0] // gray.itemsize,
+                           gray.itemsize, step, lo, out.ctypes.data)
     return out

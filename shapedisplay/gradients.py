@@ -259,8 +259,8 @@ def _check_max_slope(max_slope) -> float:
     return v
 
 
-#: Arrays at least this large go through the single-pass numba kernels (:mod:`._kernels`);
-#: smaller ones use numpy, which gives the same results without loading numba.
+#: Arrays at least this large go through the single-pass kernels (:mod:`._kernels`, C where it can be
+#: built); smaller ones use plain numpy, which gives the same results without building anything.
 KERNEL_MIN_SIZE = 1 << 16
 
 

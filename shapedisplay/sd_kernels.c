@@ -457,3 +457,24 @@ int64_t sd_png_gray16(const uint8_t *data, int64_t rows, int64_t cols, uint8_t *
     }
     return 0;
 }
+
+/* sources.gray_to_heights: out[r][c] = (double)codes[r * stride + c] * step + lo for rows x cols codes (uint8
+ * if itemsize is 1, else uint16) whose rows lie `stride` codes apart (negative: rows in reverse order, a
+ * picture read bottom row first); out is C order. The product is rounded, then the sum, as numpy does them
+ * one after the other. */
+void sd_gray_to_heights(const void *codes, int64_t rows, int64_t cols, int64_t stride, int64_t itemsize,
+                        double step, double lo, double *out)
+{
+    for (int64_t r = 0; r < rows; r++) {
+        double *o = out + r * cols;
+        if (itemsize == 1) {
+            const uint8_t *g = (const uint8_t *)codes + r * stride;
+            for (int64_t c = 0; c < cols; c++)
+                o[c] = (double)g[c] * step + lo;
+        } else {
+            const uint16_t *g = (const uint16_t *)codes + r * stride;
+            for (int64_t c = 0; c < cols; c++)
+                o[c] = (double)g[c] * step + lo;
+        }
+    }
+}

@@ -429,8 +429,15 @@ def from_array(heights, dx, dy=None, *, x0=None, y0=None, source: str = "array")
 def gray_to_heights(gray: np.ndarray, full_scale: float, height_range) -> np.ndarray:
     """Map gray values linearly: 0 -> ``lo``, ``full_scale`` -> ``hi`` (metres), float64."""
     lo, hi = height_range
+    step = (hi - lo) / full_scale
+    from .gradients import KERNEL_MIN_SIZE
+    if gray.size >= KERNEL_MIN_SIZE:           # one pass in C, the same values
+        from . import _kernels
+        out = _kernels.gray_to_heights(gray, step, lo)
+        if out is not None:
+            return out
     out = np.array(gray, dtype=np.float64)   # a copy: the caller's array is never scaled in place
-    out *= (hi - lo) / full_scale
+    out *= step
     out += lo
     return out
 

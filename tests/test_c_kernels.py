@@ -194,3 +194,25 @@ def test_central_band_matches_numpy(seed, rows, cols, specials, dx, dy, data):
             _kernels._C = saved
         out.append((gx.tobytes(), gy.tobytes()))
     assert out[0] == out[1]
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
+@pytest.mark.parametrize("flipped", [False, True])
+def test_gray_to_heights_in_c_matches_numpy(dtype, flipped):
+    """Codes to heights in one C pass (rows read bottom first too, as a picture is put on the grid): the
+    values numpy's convert, multiply, add give, byte for byte, with a step and offset that round."""
+    from shapedisplay.sources import gray_to_heights
+    rng = np.random.default_rng(7)
+    top = np.iinfo(dtype).max
+    g = rng.integers(0, top + 1, (300, 257)).astype(dtype)
+    g[0, 0], g[-1, -1] = 0, top
+    codes = g[::-1] if flipped else g
+    c = gray_to_heights(codes, float(top), (-3e-4, 2.1e-3))
+    saved = _kernels._C
+    _kernels._C = False
+    try:
+        ref = gray_to_heights(codes, float(top), (-3e-4, 2.1e-3))
+    finally:
+        _kernels._C = saved
+    assert c.flags.c_contiguous and c.dtype == np.float64 and c.tobytes() == ref.tobytes()
+    assert _kernels.gray_to_heights(g[:, ::2], 1.0, 0.0) is None       # columns apart: numpy's path
