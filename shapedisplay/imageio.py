@@ -185,6 +185,9 @@ def read_picture(path: str | os.PathLike, channel: str | None = None) -> Picture
     path = Path(path)
     if channel is not None and channel not in CHANNELS:
         raise unknown_key("image channel", channel, CHANNELS)
+    pixels = _gray16_png_pixels(path)
+    if pixels is not None:
+        return _channel(_Gray16, path, channel, 16, [], pixels)
     with _open(path) as im:
         cols, rows = im.size
         if cols == 0 or rows == 0:
@@ -194,9 +197,6 @@ def read_picture(path: str | os.PathLike, channel: str | None = None) -> Picture
         notes = []
         if getattr(im, "n_frames", 1) > 1:
             notes.append(f"first of {im.n_frames} frames used")
-        pixels = _png_gray16(im, path, rows, cols)
-        if pixels is not None:
-            return _channel(im, path, channel, depth, notes, pixels)
         from PIL import Image
         pixels, target = _decode_target(im)
         try:
@@ -215,48 +215,75 @@ def read_picture(path: str | os.PathLike, channel: str | None = None) -> Picture
 _DIRECT_MODES = {"L": np.dtype(np.uint8), "I;16": np.dtype("<u2")}
 
 
-def _png_gray16(im, path: Path, rows: int, cols: int):
-    """The pixels of a plain 16-bit grey PNG (one frame, not interlaced, no transparency colour), or None.
+#: Pillow's default ``Image.MAX_IMAGE_PIXELS``: a 16-bit grey PNG larger than this is left to Pillow,
+#: whose header check warns above it and refuses above twice it (see :func:`_open`).
+PILLOW_QUIET_PIXELS = 89_478_485
+#: Chunks that change how a grey PNG's pixels read (transparency colour, animation): such files go to Pillow.
+_PIXEL_CHUNKS = (b"tRNS", b"acTL", b"fcTL", b"fdAT")
+
+
+def _gray16_png_pixels(path: Path):
+    """The pixels of a plain 16-bit grey PNG, read without Pillow, or None (Pillow then reads the file).
 
     Height maps are mostly such files, and decoding them is most of reading
-    them: here the image data is inflated by libdeflate (the ``deflate``
-    package; about twice as fast as the zlib Pillow uses) and unfiltered by
-    the package's C kernels, instead of by Pillow: a 4096x4096 noisy map in
-    0.15 s instead of 0.33 s. Pillow has read the header and the chunks
-    before the image data (lazily, as for any picture); its tile says where
-    the data starts. None for any other picture, where ``deflate`` or the C
-    kernels are missing, or for data these do not take (truncated, corrupt):
-    Pillow then decodes the file as any other, and reports what is wrong.
-    Like Pillow, the chunks' CRCs are not checked; the zlib stream's
-    Adler-32 is.
+    them: here the header and chunks are read directly (no Pillow import),
+    the image data is inflated by libdeflate (the ``deflate`` package;
+    about twice as fast as the zlib Pillow uses) and unfiltered by the
+    package's C kernels: a 4096x4096 noisy map in 0.15 s instead of 0.33 s.
+    Plain: non-interlaced, at most :data:`PILLOW_QUIET_PIXELS` pixels, and
+    before the image data only ancillary chunks with valid CRCs, none of
+    :data:`_PIXEL_CHUNKS`. None for any other file, where ``deflate`` or the
+    C kernels are missing, or for data these do not take (truncated,
+    corrupt): Pillow then decodes the file as any other, and reports what is
+    wrong. Like Pillow, the image data chunks' CRCs are not checked; the zlib
+    stream's Adler-32 is. The size limit is checked from the header before
+    anything is decoded, as for any picture.
     """
-    tile = im.tile[0] if len(im.tile) == 1 else None
-    if (im.format != "PNG" or im.mode != "I;16" or tile is None or tuple(tile[:1]) != ("zip",)
-            or tile[3] != "I;16B" or im.info.get("interlace") or "transparency" in im.info
-            or getattr(im, "n_frames", 1) != 1):
-        return None
+    import struct
+    import zlib
     try:
-        import deflate
-    except ImportError:
+        fh = open(path, "rb")
+    except OSError:
         return None
-    from . import _kernels
-    if _kernels.c_kernels() is None:
-        return None
-    parts = []                                       # (file offset, length) of each IDAT chunk's data
-    with open(path, "rb") as fh:
+    with fh:
         size = os.fstat(fh.fileno()).st_size
-        at = tile[2] - 8
-        while at + 8 <= size:
+        head = fh.read(33)
+        if len(head) < 33 or not head.startswith(PNG_SIGNATURE) or head[8:16] != b"\0\0\0\rIHDR" \
+                or zlib.crc32(head[12:29]) != int.from_bytes(head[29:33], "big"):
+            return None
+        cols, rows, depth, colour, compression, filtering, interlace = struct.unpack(">IIBBBBB", head[16:29])
+        if (depth, colour, compression, filtering, interlace) != (16, 0, 0, 0, 0) or not 0 < rows * cols \
+                <= PILLOW_QUIET_PIXELS:
+            return None
+        check_grid_size(rows, cols, f"image '{path}'")     # before any pixel is decoded
+        parts, at = [], 33                                 # (file offset, length) of each IDAT chunk's data
+        while at + 12 <= size:
             fh.seek(at)
             head = fh.read(8)
-            if head[4:] != b"IDAT":
-                break
-            length = int.from_bytes(head[:4], "big")
-            if length + 4 > size - at - 8:          # a length past the end of the file: truncated
+            length, kind = int.from_bytes(head[:4], "big"), head[4:]
+            if length + 12 > size - at:                    # a length past the end of the file: truncated
                 return None
-            parts.append((at + 8, length))
+            if kind == b"IDAT":
+                parts.append((at + 8, length))
+            elif parts:                                    # the end of the image data
+                break
+            elif not 97 <= kind[0] <= 122 or kind in _PIXEL_CHUNKS or length > 1 << 20:
+                return None                                # critical, changes the pixels, or large: Pillow's
+            else:
+                body = fh.read(length + 4)
+                if zlib.crc32(kind + body[:length]) != int.from_bytes(body[length:], "big"):
+                    return None
             at += 12 + length
-        stream = bytearray(sum(n for _, n in parts))  # read once into one buffer: no joining copy
+        if not parts:
+            return None
+        try:
+            import deflate
+        except ImportError:
+            return None
+        from . import _kernels
+        if _kernels.c_kernels() is None:
+            return None
+        stream = bytearray(sum(n for _, n in parts))      # read once into one buffer: no joining copy
         view, filled = memoryview(stream), 0
         for offset, length in parts:
             fh.seek(offset)
@@ -268,6 +295,11 @@ def _png_gray16(im, path: Path, rows: int, cols: int):
     except deflate.DeflateError:
         return None
     return _kernels.png_gray16(data, rows, cols)
+
+
+class _Gray16:
+    """What :func:`_channel` reads of a Pillow image, for a 16-bit grey PNG read without Pillow."""
+    mode = "I;16"
 
 
 def _decode_target(im):

@@ -326,7 +326,7 @@ def test_grey_pictures_decoded_into_the_array_equal_pillows_pixels(tmp_path, kin
         expected = np.asarray(im.convert("I;16") if im.mode == "I;16B" else im)
         expected = expected[..., 0] if expected.ndim == 3 else expected
         direct = im.mode in imageio._DIRECT_MODES
-    monkeypatch.setattr(imageio, "_png_gray16", lambda *a: None)   # 16-bit grey PNG: see the tests below
+    monkeypatch.setattr(imageio, "_gray16_png_pixels", lambda p: None)   # 16-bit grey PNG: see the tests below
     used = []
     real = imageio._decode_target
 
@@ -401,8 +401,7 @@ def test_sixteen_bit_grey_png_is_unfiltered_as_pillow_does(tmp_path, shape, kind
     filters = rng.integers(0, 5, shape[0]) if kind == "mixed" else [kind] * shape[0]
     p = tmp_path / "g.png"
     p.write_bytes(_gray16_png(g, filters, pieces=1 + shape[0] % 4))
-    with Image.open(p) as im:
-        assert imageio._png_gray16(im, p, *shape) is not None      # the path under test takes this file
+    assert imageio._gray16_png_pixels(p) is not None               # the path under test takes this file
     pic = read_picture(p)
     assert pic.values.dtype == np.uint16 and np.array_equal(pic.values, g)
     assert np.array_equal(_pillow_pixels(p), g) and pic.full_scale == 65535.0 and pic.description == "grey 16-bit"
@@ -414,7 +413,7 @@ def test_sixteen_bit_grey_png_written_by_pillow_reads_the_same_both_ways(tmp_pat
     g = (np.random.default_rng(5).normal(30000, 9000, (64, 70)).clip(0, 65535)).astype(np.uint16)
     write_png(tmp_path / "w.png", g, text={"height_max_m": "0.002"})
     fast = read_picture(tmp_path / "w.png")
-    monkeypatch.setattr(imageio, "_png_gray16", lambda *a: None)
+    monkeypatch.setattr(imageio, "_gray16_png_pixels", lambda p: None)
     slow = read_picture(tmp_path / "w.png")
     assert np.array_equal(fast.values, g) and np.array_equal(slow.values, g) and fast.description == slow.description
 
@@ -439,8 +438,7 @@ def test_corrupt_sixteen_bit_grey_png_is_left_to_pillow_which_refuses_it(tmp_pat
         data[33:37] = struct.pack(">I", 1 << 30)            # the IDAT length
     p = tmp_path / "c.png"
     p.write_bytes(bytes(data))
-    with Image.open(p) as im:
-        assert imageio._png_gray16(im, p, 12, 10) is None
+    assert imageio._gray16_png_pixels(p) is None
     if damage == "length past the end":        # Pillow reads what is there: the whole stream
         assert np.array_equal(read_picture(p).values, g)
         return
@@ -454,6 +452,64 @@ def test_sixteen_bit_grey_png_without_libdeflate_is_decoded_by_pillow(tmp_path, 
     g = np.arange(6 * 9, dtype=np.uint16).reshape(6, 9) * 1111
     write_png(tmp_path / "g.png", g)
     monkeypatch.setitem(sys.modules, "deflate", None)           # import deflate raises ImportError
-    with Image.open(tmp_path / "g.png") as im:
-        assert imageio._png_gray16(im, tmp_path / "g.png", 6, 9) is None
+    assert imageio._gray16_png_pixels(tmp_path / "g.png") is None
     assert np.array_equal(read_picture(tmp_path / "g.png").values, g)
+
+
+def _with_chunk_before_data(png: bytes, kind: bytes, body: bytes, crc_ok=True) -> bytes:
+    chunk = _chunk(kind, body)
+    if not crc_ok:
+        chunk = chunk[:-1] + bytes([chunk[-1] ^ 1])
+    return png[:33] + chunk + png[33:]
+
+
+@pytest.mark.parametrize("case", ["transparency", "animation", "critical chunk", "bad text CRC", "large",
+                                  "interlaced", "no data", "text"])
+def test_other_sixteen_bit_grey_pngs_are_read_by_pillow(tmp_path, monkeypatch, case):
+    """Only plain files take the path without Pillow; every other one reads as Pillow reads it (or is
+    refused as Pillow refuses it). Ancillary chunks with valid CRCs (text) keep a file plain."""
+    import shapedisplay.imageio as imageio
+    g = (np.arange(9 * 11, dtype=np.uint16).reshape(9, 11) * 601)
+    png = _gray16_png(g, [0, 1, 2, 3, 4, 4, 3, 2, 1])
+    if case == "transparency":
+        png = _with_chunk_before_data(png, b"tRNS", struct.pack(">H", 601))
+    elif case == "animation":
+        png = _with_chunk_before_data(png, b"acTL", struct.pack(">II", 1, 0))
+    elif case == "critical chunk":
+        png = _with_chunk_before_data(png, b"ABCD", b"x")
+    elif case == "bad text CRC":
+        png = _with_chunk_before_data(png, b"tEXt", b"k\0v", crc_ok=False)
+    elif case == "large":
+        monkeypatch.setattr(imageio, "PILLOW_QUIET_PIXELS", 9 * 11 - 1)
+    elif case == "interlaced":
+        png = _png_bytes(2, 1, 16, 0, b"\0\0\1\0\2" + b"\0\0\3", interlace=1)
+    elif case == "no data":
+        png = png[:33] + _chunk(b"IEND", b"")
+    else:
+        png = _with_chunk_before_data(png, b"tEXt", b"height_max_m\x000.002")
+    p = tmp_path / "o.png"
+    p.write_bytes(png)
+    assert (imageio._gray16_png_pixels(p) is not None) == (case == "text")
+
+    def outcome():
+        try:
+            pic = read_picture(p)
+        except (FileFormatError, InputError) as exc:
+            return type(exc).__name__
+        return pic.values.dtype, pic.values.tobytes(), pic.full_scale, pic.description, pic.mask is None
+    fast = outcome()
+    monkeypatch.setattr(imageio, "_gray16_png_pixels", lambda p: None)
+    assert fast == outcome()
+    if case in ("text", "large"):
+        assert fast[1] == g.tobytes()
+
+
+def test_sixteen_bit_grey_png_over_the_sample_limit_is_refused_from_its_header(tmp_path, monkeypatch):
+    """The path without Pillow checks the size limit from the header too, before anything is decoded."""
+    import shapedisplay.imageio as imageio
+    monkeypatch.setattr("shapedisplay._kernels.png_gray16", lambda *a: pytest.fail("decoded"))
+    p = tmp_path / "big.png"
+    p.write_bytes(_gray16_png(np.zeros((30, 40), np.uint16), [0] * 30))
+    monkeypatch.setattr("shapedisplay.heightfield.MAX_SAMPLES", 1000)
+    with pytest.raises(InputError, match=r"40 x 30 = 1200 samples .* exceeds the limit of 1000"):
+        imageio._gray16_png_pixels(p)
