@@ -298,51 +298,59 @@ int64_t sd_clip_magnitude(double *fx, double *fy, int64_t n, double limit, doubl
  * or 65535 (uint16), rint rounding half to even as numpy's. Returns n, or -1 if a quotient is NaN (nothing
  * meaningful is written then: the caller codes the array in numpy).
  *
- * Each block of samples is first coded from y = x * (1 / scale), x = v - offset, instead of the
+ * Every sample is first coded from y = x * (1 / scale), x = v - offset, instead of the
  * quotient q = x / scale. Both are within 2 and 1 units in the last place of the exact x / scale, so
  * |y - q| < 2^-51 |y|. Clipped to [-1, top + 1] (integers: clipping there before rounding gives the
  * code clipping after rounding gives, rint being monotonic) y is below 2^17, so |y - q| < 2^-34, and y
- * rounds to q's integer unless a half-integer lies within that of y. In a block of 32 samples where
- * some clipped y lies within 2^-20 of a half-integer, those samples are coded again by division: every
- * code is the quotient's. (Where quotients fall on half-way points exactly, as differences of integer
- * gray levels can, a few blocks in a hundred hold one: smaller blocks mend fewer samples.) Beyond the
+ * rounds to q's integer unless a half-integer lies within that of y. In a group of SD_GROUP samples
+ * where some clipped y lies within 2^-20 of a half-integer, those samples are coded again by division:
+ * every code is the quotient's. (Where quotients fall on half-way points exactly, as differences of
+ * integer gray levels can, a few groups in a hundred hold one: small groups mend few samples.) Beyond the
  * clip bounds y and q (same sign, within a relative 2^-51) clip to the same end. Rounding is
  * (c + 1.5 * 2^52) - 1.5 * 2^52: the nearest integer, ties to even, exact for |c| < 2^51. */
 #define SD_RINT(c) (((c) + 6755399441055744.0) - 6755399441055744.0)
 #define SD_CLAMP(c, lo, hi) ((c) > (lo) ? ((c) < (hi) ? (c) : (hi)) : (lo))
 
+enum { SD_GROUP = 32 };                                 /* samples mended together (see sd_encode) */
+
 /* Codes of values[0..k) from the product by inv (clipped to [-1, top + 1], rounded, clipped to [0, top]);
- * returns nonzero if one of them must come from the quotient instead (a clipped product within 2^-20 of a
- * half-integer) or a product is NaN. Two samples per SSE2 instruction where the compiler targets it. */
-static int codes_by_product(const double *values, int64_t k, double gain, double base, double offset, double inv,
-                            double top, int32_t *codes)
+ * near[g] is set nonzero where a code of group g (samples g * SD_GROUP ..) must come from the quotient
+ * instead (a clipped product within 2^-20 of a half-integer) or a product is NaN. Two samples per SSE2
+ * instruction where the compiler targets it. */
+static void codes_by_product(const double *values, int64_t k, double gain, double base, double offset,
+                             double inv, double top, int32_t *codes, uint8_t *near)
 {
     double hi = top + 1.0, edge = 0.5 - 0x1p-20;
-    int flag = 0;
-    int64_t i = 0;
 #if defined(__SSE2__)
-    __m128d g = _mm_set1_pd(gain), b = _mm_set1_pd(base), off = _mm_set1_pd(offset), r = _mm_set1_pd(inv), lo2 = _mm_set1_pd(-1.0), hi2 = _mm_set1_pd(hi),
-            m = _mm_set1_pd(6755399441055744.0), zero = _mm_setzero_pd(), top2 = _mm_set1_pd(top),
-            sign = _mm_set1_pd(-0.0), edge2 = _mm_set1_pd(edge), bad = _mm_setzero_pd();
-    for (; i + 2 <= k; i += 2) {
-        __m128d v = _mm_add_pd(_mm_mul_pd(_mm_loadu_pd(values + i), g), b);
-        __m128d y = _mm_mul_pd(_mm_sub_pd(v, off), r);
-        bad = _mm_or_pd(bad, _mm_cmpunord_pd(y, y));
-        __m128d c = _mm_min_pd(_mm_max_pd(y, lo2), hi2);            /* as SD_CLAMP for all but NaN */
-        __m128d q = _mm_sub_pd(_mm_add_pd(c, m), m);
-        bad = _mm_or_pd(bad, _mm_cmpgt_pd(_mm_andnot_pd(sign, _mm_sub_pd(c, q)), edge2));
-        q = _mm_min_pd(_mm_max_pd(q, zero), top2);
-        _mm_storel_epi64((__m128i *)(codes + i), _mm_cvttpd_epi32(q));
-    }
-    flag = _mm_movemask_pd(bad) != 0;
+    __m128d g = _mm_set1_pd(gain), b = _mm_set1_pd(base), off = _mm_set1_pd(offset), r = _mm_set1_pd(inv),
+            lo2 = _mm_set1_pd(-1.0), hi2 = _mm_set1_pd(hi), m = _mm_set1_pd(6755399441055744.0),
+            zero = _mm_setzero_pd(), top2 = _mm_set1_pd(top), sign = _mm_set1_pd(-0.0), edge2 = _mm_set1_pd(edge);
 #endif
-    for (; i < k; i++) {
-        double y = (values[i] * gain + base - offset) * inv;
-        double c = SD_CLAMP(y, -1.0, hi), q = SD_RINT(c);
-        flag |= (y != y) | (fabs(c - q) > edge);
-        codes[i] = (int32_t)SD_CLAMP(q, 0.0, top);
+    for (int64_t s = 0; s < k; s += SD_GROUP) {
+        int64_t e = s + SD_GROUP < k ? s + SD_GROUP : k, i = s;
+        int flag = 0;
+#if defined(__SSE2__)
+        __m128d bad = _mm_setzero_pd();
+        for (; i + 2 <= e; i += 2) {
+            __m128d v = _mm_add_pd(_mm_mul_pd(_mm_loadu_pd(values + i), g), b);
+            __m128d y = _mm_mul_pd(_mm_sub_pd(v, off), r);
+            bad = _mm_or_pd(bad, _mm_cmpunord_pd(y, y));
+            __m128d c = _mm_min_pd(_mm_max_pd(y, lo2), hi2);            /* as SD_CLAMP for all but NaN */
+            __m128d q = _mm_sub_pd(_mm_add_pd(c, m), m);
+            bad = _mm_or_pd(bad, _mm_cmpgt_pd(_mm_andnot_pd(sign, _mm_sub_pd(c, q)), edge2));
+            q = _mm_min_pd(_mm_max_pd(q, zero), top2);
+            _mm_storel_epi64((__m128i *)(codes + i), _mm_cvttpd_epi32(q));
+        }
+        flag = _mm_movemask_pd(bad) != 0;
+#endif
+        for (; i < e; i++) {
+            double y = (values[i] * gain + base - offset) * inv;
+            double c = SD_CLAMP(y, -1.0, hi), q = SD_RINT(c);
+            flag |= (y != y) | (fabs(c - q) > edge);
+            codes[i] = (int32_t)SD_CLAMP(q, 0.0, top);
+        }
+        near[s / SD_GROUP] = (uint8_t)flag;
     }
-    return flag;
 }
 
 /* codes_by_product's codes mended: the code of each sample whose product needs it from the quotient, or
@@ -369,20 +377,46 @@ static int codes_by_quotient(const double *values, int64_t k, double gain, doubl
 int64_t sd_encode(const double *values, int64_t n, double gain, double base, double offset, double scale,
                   double top, void *out, int64_t itemsize)
 {
-    enum { BLOCK = 32 };
+    enum { BLOCK = 1024 };
     int32_t codes[BLOCK];
+    uint8_t near[BLOCK / SD_GROUP];
     double inv = 1.0 / scale;
     int exact = !(inv < INFINITY);
     for (int64_t s = 0; s < n; s += BLOCK) {
         int64_t k = n - s < BLOCK ? n - s : BLOCK;
-        if ((exact || codes_by_product(values + s, k, gain, base, offset, inv, top, codes))
-                && codes_by_quotient(values + s, k, gain, base, offset, scale, inv, top, exact, codes) < 0)
-            return -1;
+        if (!exact)
+            codes_by_product(values + s, k, gain, base, offset, inv, top, codes, near);
+        for (int64_t g = 0; g * SD_GROUP < k; g++) {
+            int64_t a = g * SD_GROUP, e = a + SD_GROUP < k ? a + SD_GROUP : k;
+            if ((exact || near[g])
+                    && codes_by_quotient(values + s + a, e - a, gain, base, offset, scale, inv, top, exact,
+                                         codes + a) < 0)
+                return -1;
+        }
+        int64_t i = 0;
+#if defined(__SSE2__)                                  /* codes are within 0..top: packing cannot saturate */
         if (itemsize == 1)
-            for (int64_t i = 0; i < k; i++)
+            for (; i + 16 <= k; i += 16) {
+                __m128i w0 = _mm_packs_epi32(_mm_loadu_si128((const __m128i *)(codes + i)),
+                                             _mm_loadu_si128((const __m128i *)(codes + i + 4)));
+                __m128i w1 = _mm_packs_epi32(_mm_loadu_si128((const __m128i *)(codes + i + 8)),
+                                             _mm_loadu_si128((const __m128i *)(codes + i + 12)));
+                _mm_storeu_si128((__m128i *)((uint8_t *)out + s + i), _mm_packus_epi16(w0, w1));
+            }
+        else {                                         /* 0..65535 as signed 16 bits, then back */
+            __m128i half = _mm_set1_epi32(32768), flip = _mm_set1_epi16(-32768);
+            for (; i + 8 <= k; i += 8) {
+                __m128i w = _mm_packs_epi32(_mm_sub_epi32(_mm_loadu_si128((const __m128i *)(codes + i)), half),
+                                            _mm_sub_epi32(_mm_loadu_si128((const __m128i *)(codes + i + 4)), half));
+                _mm_storeu_si128((__m128i *)((uint16_t *)out + s + i), _mm_xor_si128(w, flip));
+            }
+        }
+#endif
+        if (itemsize == 1)
+            for (; i < k; i++)
                 ((uint8_t *)out)[s + i] = (uint8_t)codes[i];
         else
-            for (int64_t i = 0; i < k; i++)
+            for (; i < k; i++)
                 ((uint16_t *)out)[s + i] = (uint16_t)codes[i];
     }
     return n;
