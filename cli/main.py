@@ -221,8 +221,21 @@ def _numpy_environment() -> None:
     os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
 
 
+def _plain_argparse_words() -> None:
+    """argparse's own words ("usage:", "error:", ...) used as written, without a catalog search per string.
+
+    argparse passes each of its strings through ``gettext``, which looks for
+    a message catalog on disk at every call (a few ``stat`` calls per
+    language setting): about 6 ms of ``shapedisplay --help``. The command
+    speaks English, and Python ships no catalog for these strings.
+    """
+    argparse._ = lambda text: text
+    argparse.ngettext = lambda one, many, n: one if n == 1 else many
+
+
 def main(argv=None) -> int:
     _numpy_environment()
+    _plain_argparse_words()
     argv = list(sys.argv[1:] if argv is None else argv)
     known = {c for commands in COMMAND_MODULES.values() for c in commands}
     parser = build_parser(argv[0] if argv and argv[0] in known else None)   # --help, typos: every command

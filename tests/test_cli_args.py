@@ -249,3 +249,19 @@ def test_the_command_line_asks_numpy_for_no_huge_pages_unless_the_user_chose(env
     out = subprocess.run([sys.executable, "-c", code], env={**base, **env}, capture_output=True, text=True,
                          check=True).stdout.split()
     assert out[-1] == expected
+
+
+def test_argparse_words_are_used_as_written(capsys):
+    """The command line uses argparse's words without a catalog search: the same English, singular and
+    plural as gettext without a catalog gives them."""
+    import argparse
+    import gettext
+
+    from shapedisplay_cli.main import main
+    with pytest.raises(SystemExit) as exit_:
+        main(["play"])
+    assert exit_.value.code == 2
+    assert "the following arguments are required: table, -o/--output" in capsys.readouterr().err
+    for n in (0, 1, 2):
+        assert argparse.ngettext("one %s", "many %s", n) == gettext.NullTranslations().ngettext("one %s", "many %s", n)
+    assert argparse._("usage: ") == "usage: "
