@@ -185,7 +185,7 @@ def main(n: int = 4096) -> int:
 
     base = n * n * 8
     print("                                     wall      CPU (one thread)")
-    print(f"PNG read (16-bit, 'up' filter)      {t_read:6.3f} s  {c_read:6.3f} s")
+    print(f"PNG read (16-bit grey)              {t_read:6.3f} s  {c_read:6.3f} s")
     print(f"load + compile (height+lateral)     {t_ours:6.3f} s  {c_ours:6.3f} s   budget {BUDGET_S} s "
           f"-> CPU {c_ours / BUDGET_S:.2f} of budget")
     print(f"plain-numpy pipeline, same math     {t_naive:6.3f} s  {c_naive:6.3f} s   "

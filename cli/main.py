@@ -268,5 +268,20 @@ def main(argv=None) -> int:
         return 0
 
 
+def entry() -> None:
+    """The ``shapedisplay`` program: :func:`main`, then exit with its status.
+
+    At exit Python collects garbage once more, walking every object numpy
+    and the package made: about 20 ms of a 0.3 s ``play``. The process ends
+    right after, so those objects are frozen first (``gc.freeze``: the last
+    collection leaves them). :func:`main` itself leaves the collector alone,
+    for callers that go on.
+    """
+    code = main()
+    import gc
+    gc.freeze()
+    sys.exit(code)
+
+
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    entry()

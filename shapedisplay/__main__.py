@@ -1,6 +1,4 @@
 """``python -m shapedisplay`` runs the command-line tool."""
-import sys
+from shapedisplay_cli.main import entry
 
-from shapedisplay_cli.main import main
-
-sys.exit(main())
+entry()

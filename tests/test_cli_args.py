@@ -265,3 +265,15 @@ def test_argparse_words_are_used_as_written(capsys):
     for n in (0, 1, 2):
         assert argparse.ngettext("one %s", "many %s", n) == gettext.NullTranslations().ngettext("one %s", "many %s", n)
     assert argparse._("usage: ") == "usage: "
+
+
+@pytest.mark.parametrize("module", ["shapedisplay_cli.main", "shapedisplay"])
+def test_the_program_exits_with_the_commands_status(module):
+    """``entry`` (the installed ``shapedisplay`` program, ``python -m``) exits with main's status: 0, or 2
+    and one line for a usage error."""
+    import subprocess
+    import sys
+    ok = subprocess.run([sys.executable, "-m", module, "--version"], capture_output=True, text=True)
+    bad = subprocess.run([sys.executable, "-m", module, "play"], capture_output=True, text=True)
+    assert ok.returncode == 0 and ok.stdout.startswith("shapedisplay ")
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "required" in bad.stderr
