@@ -216,9 +216,9 @@ class HeightField:
 
     def made_from_codes(self, codes: np.ndarray, full_scale: float, height_range) -> "HeightField":
         """Record that the heights are ``lo + codes * (hi - lo) / full_scale`` (``height_range`` = (lo, hi),
-        ``codes`` the unsigned integer picture as read, row 0 its top edge): :meth:`sha256` then hashes the
-        codes. Returns the height field itself; a height field made from it (:meth:`with_heights`) hashes
-        its heights again."""
+        ``codes`` the unsigned integer picture as read, row 0 its top edge; outside the mask, if any, the
+        ground): :meth:`sha256` then hashes the codes and the mask. Returns the height field itself; a
+        height field made from it (:meth:`with_heights`) hashes its heights again."""
         codes = np.asarray(codes)
         if codes.shape != self.shape or codes.dtype.kind != "u":
             raise InputError(f"`codes` must be unsigned integers of the heights' shape {self.shape} "
