@@ -350,6 +350,21 @@ def test_truncated_grey_png_decoded_into_the_array_is_refused(tmp_path):
 
 
 # ----------------------------------------------------------------- 16-bit grey PNG without Pillow's decoder
+@pytest.fixture
+def small_pictures_too(monkeypatch):
+    """The path without Pillow for the small pictures of these tests (it otherwise starts at
+    gradients.KERNEL_MIN_SIZE pixels, below which Pillow reads them without building the C kernels)."""
+    monkeypatch.setattr("shapedisplay.gradients.KERNEL_MIN_SIZE", 1)
+
+
+def test_small_sixteen_bit_grey_png_is_read_by_pillow(tmp_path):
+    import shapedisplay.imageio as imageio
+    g = np.arange(20 * 30, dtype=np.uint16).reshape(20, 30) * 99
+    write_png(tmp_path / "s.png", g)
+    assert imageio._gray16_png_pixels(tmp_path / "s.png") is None
+    assert np.array_equal(read_picture(tmp_path / "s.png").values, g)
+
+
 def _paeth(a, b, c):
     p = a + b - c
     pa, pb, pc = np.abs(p - a), np.abs(p - b), np.abs(p - c)
@@ -387,7 +402,7 @@ def _pillow_pixels(p):
 
 @pytest.mark.parametrize("shape", [(1, 1), (1, 7), (9, 1), (5, 3), (40, 33)])
 @pytest.mark.parametrize("kind", [0, 1, 2, 3, 4, "mixed"])
-def test_sixteen_bit_grey_png_is_unfiltered_as_pillow_does(tmp_path, shape, kind):
+def test_sixteen_bit_grey_png_is_unfiltered_as_pillow_does(small_pictures_too, tmp_path, shape, kind):
     """Every PNG filter, on pixels that carry and borrow in both bytes, in IDAT chunks cut anywhere: the
     pixels Pillow decodes, without Pillow decoding them."""
     import shapedisplay.imageio as imageio
@@ -407,7 +422,7 @@ def test_sixteen_bit_grey_png_is_unfiltered_as_pillow_does(tmp_path, shape, kind
     assert np.array_equal(_pillow_pixels(p), g) and pic.full_scale == 65535.0 and pic.description == "grey 16-bit"
 
 
-def test_sixteen_bit_grey_png_written_by_pillow_reads_the_same_both_ways(tmp_path, monkeypatch):
+def test_sixteen_bit_grey_png_written_by_pillow_reads_the_same_both_ways(small_pictures_too, tmp_path, monkeypatch):
     """A file Pillow's encoder wrote (its own choice of filters, text chunks before the data)."""
     import shapedisplay.imageio as imageio
     g = (np.random.default_rng(5).normal(30000, 9000, (64, 70)).clip(0, 65535)).astype(np.uint16)
@@ -419,7 +434,7 @@ def test_sixteen_bit_grey_png_written_by_pillow_reads_the_same_both_ways(tmp_pat
 
 
 @pytest.mark.parametrize("damage", ["filter type 5", "truncated", "bad stream", "length past the end"])
-def test_corrupt_sixteen_bit_grey_png_is_left_to_pillow_which_refuses_it(tmp_path, damage):
+def test_corrupt_sixteen_bit_grey_png_is_left_to_pillow_which_refuses_it(small_pictures_too, tmp_path, damage):
     """What the fast path does not take goes to Pillow, whose verdict stands (its errors, or its pixels)."""
     import shapedisplay.imageio as imageio
     g = np.arange(12 * 10, dtype=np.uint16).reshape(12, 10) * 500
@@ -446,7 +461,7 @@ def test_corrupt_sixteen_bit_grey_png_is_left_to_pillow_which_refuses_it(tmp_pat
         read_picture(p)
 
 
-def test_sixteen_bit_grey_png_without_libdeflate_is_decoded_by_pillow(tmp_path, monkeypatch):
+def test_sixteen_bit_grey_png_without_libdeflate_is_decoded_by_pillow(small_pictures_too, tmp_path, monkeypatch):
     import sys
     import shapedisplay.imageio as imageio
     g = np.arange(6 * 9, dtype=np.uint16).reshape(6, 9) * 1111
@@ -465,7 +480,7 @@ def _with_chunk_before_data(png: bytes, kind: bytes, body: bytes, crc_ok=True) -
 
 @pytest.mark.parametrize("case", ["transparency", "animation", "critical chunk", "bad text CRC", "large",
                                   "interlaced", "no data", "text"])
-def test_other_sixteen_bit_grey_pngs_are_read_by_pillow(tmp_path, monkeypatch, case):
+def test_other_sixteen_bit_grey_pngs_are_read_by_pillow(small_pictures_too, tmp_path, monkeypatch, case):
     """Only plain files take the path without Pillow; every other one reads as Pillow reads it (or is
     refused as Pillow refuses it). Ancillary chunks with valid CRCs (text) keep a file plain."""
     import shapedisplay.imageio as imageio
@@ -504,7 +519,7 @@ def test_other_sixteen_bit_grey_pngs_are_read_by_pillow(tmp_path, monkeypatch, c
         assert fast[1] == g.tobytes()
 
 
-def test_sixteen_bit_grey_png_over_the_sample_limit_is_refused_from_its_header(tmp_path, monkeypatch):
+def test_sixteen_bit_grey_png_over_the_sample_limit_is_refused_from_its_header(small_pictures_too, tmp_path, monkeypatch):
     """The path without Pillow checks the size limit from the header too, before anything is decoded."""
     import shapedisplay.imageio as imageio
     monkeypatch.setattr("shapedisplay._kernels.png_gray16", lambda *a: pytest.fail("decoded"))
