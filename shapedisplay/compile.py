@@ -386,12 +386,16 @@ def _band_rows(hf, kept, mapping, options) -> int:
     return band if band < hf.rows else 0
 
 
-def _encode_into(q: Quantization, values: np.ndarray, out: np.ndarray) -> None:
-    """``out[...] = _encode(q, values)`` for a band of a large channel (flat, C-contiguous)."""
+def _encode_into(q: Quantization, values: np.ndarray, out: np.ndarray, gain=None, base=0.0) -> None:
+    """``out[...] = _encode(q, v)`` for a band of a large channel (flat, C-contiguous), v = ``values``, or with
+    ``gain`` v = ``values * gain + base`` (computed in the coding pass where the kernels code it)."""
     if q.dtype in _TOP and q.scale > 0:
         from . import _kernels
-        _kernels.encode(values, q.offset, q.scale, float(_TOP[q.dtype]), out)
+        _kernels.encode(values, q.offset, q.scale, float(_TOP[q.dtype]), out, gain=gain, base=base)
     else:
+        if gain is not None:
+            values = values * gain
+            values += base
         out[...] = q.encode(values)
 
 
@@ -530,11 +534,10 @@ def _compile_by_bands(hf, device, mapping, options, kept, band):
         out = slice(r0 * cols, r1 * cols)
         if need_n:
             q, target = quant["normal_force"], codes["normal_force"].reshape(-1)[out]
-            if clamp or not (q.dtype in _TOP and q.scale > 0):
+            if clamp:
                 _encode_into(q, forces_n(r0, r1, clamp), target)
             else:   # N computed inside the coding pass, from the heights
-                _kernels.encode(h[r0:r1].reshape(-1), q.offset, q.scale, float(_TOP[q.dtype]), target,
-                                gain=mapping.n_gain, base=mapping.n_base)
+                _encode_into(q, h[r0:r1].reshape(-1), target, gain=mapping.n_gain, base=mapping.n_base)
         if lateral:
             fx, fy = forces_lateral(r0, r1, wall_mask)
             _encode_into(quant["lateral_x"], fx, codes["lateral_x"].reshape(-1)[out])
