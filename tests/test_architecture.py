@@ -16,7 +16,8 @@ PACKAGE = Path(__file__).resolve().parent.parent / "shapedisplay"
 
 #: What the runtime and the device link may import: a table file plus these run a device host.
 RUNTIME_SIDE = {"shapedisplay", "shapedisplay.errors", "shapedisplay.units", "shapedisplay.table", "shapedisplay.container",
-                "shapedisplay.devices", "shapedisplay.atomic", "shapedisplay.cbuild"}
+                "shapedisplay.devices", "shapedisplay.atomic",
+                "shapedisplay.extensions"}
 RUNTIME_PACKAGES = ("shapedisplay.runtime", "shapedisplay.link")
 
 

@@ -1,11 +1,14 @@
-"""The compiler's C kernels (``shapedisplay/sd_kernels.c``) against their numpy twins in ``_kernels``, bit for bit.
+"""The compiler's C kernels (``shapedisplay/sd_kernels.c``, compiled at install) against numpy, bit for bit.
 
-Every kernel is run twice on copies of the same input: once through the C
-library, once with it switched off (numpy's chunked path, the reference).
-Outputs are compared as bytes, so NaN, infinities and the sign of zero
-count too; the chunk size is made small so that many chunk boundaries (and
-chunks holding a NaN, whose peak the Python around numpy ignores) are
-crossed.
+Every kernel of ``_kernels`` runs in C; the reference here is numpy's
+arithmetic a chunk at a time (the functions below: what the package did
+before the kernels were compiled with it), run on copies of the same input.
+Outputs are compared as bytes, so NaN, infinities and the sign of zero count
+too; the chunk size is made small so that many chunk boundaries (and chunks
+holding a NaN, whose peak the Python around numpy ignores) are crossed. The
+kernels with another path in their callers (slopes in ``gradients``, codes to
+heights in ``sources``) are compared with that path, the C kernels switched
+off (``_kernels._C = False``).
 """
 from __future__ import annotations
 
@@ -14,28 +17,83 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from shapedisplay import _kernels
-from shapedisplay import cbuild
+from shapedisplay.errors import InputError
 
-pytestmark = [pytest.mark.skipif(cbuild.compiler() is None, reason="needs a C compiler"),
-              pytest.mark.filterwarnings("ignore::RuntimeWarning")]   # numpy's path on inf and NaN
+pytestmark = pytest.mark.filterwarnings("ignore::RuntimeWarning")   # the numpy reference on inf and NaN
 
 SPECIAL = [0.0, -0.0, 1.5, -1.5, 1e-320, -1e-320, 1e154, -1e154, 1e200, 3e307, np.inf, -np.inf, np.nan]
 
 
+# --- the numpy reference: chunks of _kernels.CHUNK samples, as the C kernels take their peaks -------------
+
+def _chunks(n):
+    for i in range(0, n, _kernels.CHUNK):
+        yield slice(i, min(i + _kernels.CHUNK, n))
+
+
+def _magnitude_sq(gx, gy):
+    m2 = np.multiply(gx, gx)
+    m2 += np.multiply(gy, gy)
+    return m2
+
+
+def ref_wall_scan(gx, gy, limit2):
+    count, peak, mask = 0, 0.0, np.zeros(gx.size, dtype=bool)
+    with np.errstate(over="ignore"):
+        for s in _chunks(gx.size):
+            m2 = _magnitude_sq(gx[s], gy[s])
+            peak = max(peak, float(m2.max()))        # a chunk holding a NaN: max(peak, nan) keeps the peak
+            mask[s] = m2 > limit2
+            count += int(np.count_nonzero(mask[s]))
+    return count, peak, mask if count else None
+
+
+def ref_clip_where(fx, fy, limit, mask):
+    over = np.flatnonzero(mask)
+    x, y = fx[over], fy[over]
+    with np.errstate(over="ignore"):
+        f = limit / np.sqrt(_magnitude_sq(x, y))
+    fx[over] = x * f
+    fy[over] = y * f
+    return int(over.size)
+
+
+def ref_clip_magnitude(fx, fy, limit, gain=None):
+    if gain is not None:
+        np.multiply(fx, gain, out=fx)
+        np.multiply(fy, gain, out=fy)
+    count, peak2 = 0, 0.0
+    with np.errstate(over="ignore"):
+        for s in _chunks(fx.size):
+            m2 = _magnitude_sq(fx[s], fy[s])
+            peak2 = max(peak2, float(m2.max()))
+            over = np.flatnonzero(m2 > limit * limit)
+            if over.size:
+                f = limit / np.sqrt(m2[over])
+                fx[s][over] *= f
+                fy[s][over] *= f
+                count += int(over.size)
+    return count, float(np.sqrt(peak2))
+
+
+def ref_encode(values, offset, scale, top, out, gain=None, base=0.0):
+    c = values - offset if gain is None else values * gain + base - offset
+    np.divide(c, scale, out=c)
+    np.rint(c, out=c)
+    np.clip(c, 0.0, top, out=c)
+    out[...] = c
+
+
+REFERENCE = {"wall_scan": ref_wall_scan, "clip_where": ref_clip_where, "clip_magnitude": ref_clip_magnitude,
+             "encode": ref_encode}
+
+
 def _both(name, *args):
-    """(C result, numpy result) of ``_kernels.<name>``, each on fresh copies of the array arguments."""
-    assert _kernels.c_kernels() is not None
+    """(C result, numpy result) of ``_kernels.<name>`` and its reference, each on fresh copies of the arrays."""
     results = []
-    for use_c in (True, False):
-        saved = _kernels._C
-        if not use_c:
-            _kernels._C = False
-        try:
-            copies = [a.copy() if isinstance(a, np.ndarray) else a for a in args]
-            out = getattr(_kernels, name)(*copies)
-        finally:
-            _kernels._C = saved
-        results.append((out, copies))
+    for fn in (getattr(_kernels, name), REFERENCE[name]):
+        copies = [a.copy() if isinstance(a, np.ndarray) else a for a in args]
+        results.append((fn(*copies), copies))
     return results
 
 
@@ -100,13 +158,20 @@ def test_chunks_holding_a_nan_leave_the_peak_as_numpy_does():
         _kernels.CHUNK = saved
 
 
-def test_arrays_the_c_kernels_do_not_take_run_in_numpy():
+def test_arrays_of_other_layouts_are_taken_as_flat_float64():
+    """A strided or float32 array is copied to flat float64 for the C kernels; the in-place ones write back."""
     gx = np.arange(20.0)[::2]                             # not contiguous
     gy = np.ones(10)
-    assert _kernels._c_for(gx, gy) is None
+    assert _kernels._c_for(gx, gy) is None                # the callers with a path of their own take it
     assert _kernels._c_for(np.ones(3, np.float32)) is None
     count, peak, mask = _kernels.wall_scan(gx, gy, 100.0)
-    assert count == 5 and peak == 18.0 ** 2 + 1.0
+    assert count == 5 and peak == 18.0 ** 2 + 1.0 and mask.tolist() == [False] * 5 + [True] * 5
+    fx, fy = np.arange(40.0).reshape(4, 10)[:, ::2], np.zeros((4, 5), np.float32)
+    rx, ry = fx.copy(), fy.astype(np.float64)
+    assert _kernels.clip_magnitude(fx, fy, 10.0) == ref_clip_magnitude(rx.reshape(-1), ry.reshape(-1), 10.0)
+    assert fx.tobytes() == rx.tobytes() and np.array_equal(fy, ry)
+    with pytest.raises(ValueError, match="differ in size"):
+        _kernels.wall_scan(np.ones(3), np.ones(4), 1.0)
 
 
 def _codes(seed, n, top, specials):
@@ -156,16 +221,27 @@ def test_encode_ties_go_to_the_even_code_where_the_reciprocal_would_not():
         assert _same(c, ref) and set(c.tolist()) == {code}
 
 
-def test_encode_with_a_nan_codes_in_numpy():
-    """The C twin reports a NaN quotient (-1) instead of choosing a code for it: numpy codes that array."""
+def test_encode_refuses_a_nan():
+    """The C twin reports a NaN quotient (-1) instead of choosing a code for it: no code, one line (the
+    compiler codes only channels of finite range)."""
     values = np.linspace(0.0, 1.0, 5000)
     values[4321] = np.nan
-    (_, (_, _, _, _, c)), (_, (_, _, _, _, ref)) = _both("encode", values, 0.0, 1 / 255, 255.0,
-                                                         np.zeros(5000, np.uint8))
-    assert _same(c, ref) and c[0] == 0 and c[-1] == 255
+    with pytest.raises(InputError, match="NaN"):
+        _kernels.encode(values, 0.0, 1 / 255, 255.0, np.zeros(5000, np.uint8))
     out = np.zeros(5000, np.uint8)
     assert _kernels.c_kernels().sd_encode(values.ctypes.data, 5000, 1.0, 0.0, 0.0, 1 / 255, 255.0, out.ctypes.data,
                                           1) == -1
+    with pytest.raises(ValueError, match="top 255.0 do not fit uint16"):
+        _kernels.encode(np.zeros(3), 0.0, 1.0, 255.0, np.zeros(3, np.uint16))
+
+
+def test_encode_into_a_strided_array_writes_back():
+    values = np.linspace(-1.0, 2.0, 3001)
+    out = np.zeros((3001, 2), np.uint16)
+    _kernels.encode(values, 0.0, 1 / 65535, 65535.0, out[:, 1])
+    ref = np.zeros(3001, np.uint16)
+    ref_encode(values.copy(), 0.0, 1 / 65535, 65535.0, ref)
+    assert np.array_equal(out[:, 1], ref) and not out[:, 0].any()
 
 
 @settings(max_examples=150, deadline=None)

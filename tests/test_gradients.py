@@ -6,7 +6,6 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from shapedisplay import sources
-from shapedisplay import cbuild
 from shapedisplay.errors import InputError
 from shapedisplay.gradients import (GRADIENT_METHODS, detect_walls, gradient, limit_walls, slope_along,
                                     slope_magnitude)
@@ -191,12 +190,10 @@ def _regions_by_scipy(mask, k):
 
 
 def _regions_both_ways(mask, k):
-    """wall_regions' result by the C count (where a compiler is there) and by scipy's labelling path."""
+    """wall_regions' result by the C count and by scipy's labelling path."""
     from shapedisplay import _kernels, gradients
-    ways = []
-    if cbuild.compiler() is not None:
-        assert _kernels.c_kernels() is not None
-        ways.append(gradients.wall_regions(mask, k))
+    assert _kernels.c_kernels() is not None
+    ways = [gradients.wall_regions(mask, k)]
     saved = _kernels._C
     _kernels._C = False
     try:

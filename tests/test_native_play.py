@@ -22,8 +22,6 @@ from shapedisplay_cli.main import main
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "assets" / "scenes"
 
-pytestmark = pytest.mark.skipif(native.compiler() is None, reason="needs a C compiler")
-
 #: The shipped samples with a stroke across their widgets (mm on the table grid).
 SAMPLES = {
     "phone": ("phone.toml", "62,2 -> 62,70 -> 20,40 @ 30mm/s"),        # handheld stick, several widgets
@@ -117,52 +115,27 @@ def test_auto_plays_other_models_and_off_grid_paths_with_the_python_kernels(tabl
         PathRenderer(table, engine="c", model="karnopp")
 
 
-def test_without_a_c_compiler_auto_uses_the_python_kernels(tables, tmp_path, monkeypatch):
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "empty-cache"))
-    monkeypatch.setenv("CC", "")
-    monkeypatch.setenv("PATH", str(tmp_path / "no-bin"))
-    monkeypatch.setattr(native, "_LIB", None)
-    r = PathRenderer(tables["phone"])
-    assert r.engine == "python" and "no C compiler" in r.note
-    with pytest.raises(InputError, match="no C compiler"):
-        PathRenderer(tables["phone"], engine="c")
-
-
-def test_a_broken_compiler_falls_back_with_the_reason(tables, tmp_path, monkeypatch):
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "empty-cache"))
-    monkeypatch.setenv("CC", "false")
-    monkeypatch.setattr(native, "_LIB", None)
-    r = PathRenderer(tables["phone"], model="jump")
-    assert r.engine == "c"
-    cp = parse_stroke("62,2 -> 62,30 @ 30mm/s", r.tick_rate)
-    res = r.render(cp)
-    assert r.engine == "python" and "building the C runtime" in r.note
-    assert_same_result(res, Renderer(tables["phone"], model="jump").render(cp))
-    monkeypatch.setattr(native, "_LIB", None)
-    with pytest.raises(InputError, match="building the C runtime with 'false' failed"):
-        PathRenderer(tables["phone"], engine="c").render(cp)
-
-
-def test_an_unwritable_cache_or_a_corrupt_library_falls_back_with_the_reason(tables, tmp_path, monkeypatch):
+def test_a_missing_compiled_runtime_falls_back_with_a_reinstall_line(tables, tmp_path, monkeypatch):
+    """The C runtime is compiled at install (shapedisplay._engine): a broken install without it, or with a
+    file that does not load, plays with the Python kernels under auto and is one line under --engine c."""
     table = tables["phone"]
     cp = parse_stroke("62,2 -> 62,30 @ 30mm/s", 10_000.0)
     ref = Renderer(table, model="jump").render(cp)
-    blocker = tmp_path / "file"
-    blocker.write_text("not a folder")
-    monkeypatch.setenv("XDG_CACHE_HOME", str(blocker))        # the cache folder cannot be made under a file
+    monkeypatch.setattr(native, "EXTENSION", "shapedisplay._no_such_engine")
     monkeypatch.setattr(native, "_LIB", None)
+    assert native.unavailable("jump") is None                  # only a model without a C tick is a reason
     r = PathRenderer(table, model="jump")
     assert_same_result(r.render(cp), ref)
-    assert r.engine == "python" and "cannot write its cache directory" in r.note and "XDG_CACHE_HOME" in r.note
+    assert r.engine == "python" and "reinstall shapedisplay" in r.note and "\n" not in r.note
+    with pytest.raises(InputError, match="_no_such_engine.*missing.*reinstall"):
+        PathRenderer(table, engine="c", model="jump").render(cp)
     # a library file that does not load (say, cut short by a full disk): one line naming it
-    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
-    monkeypatch.setattr(native, "_LIB", None)
-    lib = native.library_path()
-    lib.parent.mkdir(parents=True)
-    lib.write_bytes(b"\x7fELF cut short")
+    cut = tmp_path / "engine.so"
+    cut.write_bytes(b"\x7fELF cut short")
+    monkeypatch.setattr(native, "library_path", lambda: cut)
     r = PathRenderer(table, model="jump")
     assert_same_result(r.render(cp), ref)
-    assert r.engine == "python" and str(lib) in r.note and "delete the file" in r.note
+    assert r.engine == "python" and str(cut) in r.note and "reinstall" in r.note
     monkeypatch.setattr(native, "_LIB", None)
 
 
@@ -207,3 +180,23 @@ def test_play_through_the_c_runtime_imports_no_numba_and_no_scipy(tmp_path):
             "print(rc, heavy)\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert "(C runtime)" in out and out.strip().endswith("0 []"), out
+
+
+def test_in_a_checkout_a_library_older_than_its_sources_is_refused(tmp_path, monkeypatch):
+    """An editable install does not rebuild a changed C source by itself: the stale library is refused with
+    the command that rebuilds it (an installed package is never checked)."""
+    from shapedisplay import extensions
+    pkg = tmp_path / "shapedisplay"
+    pkg.mkdir()
+    (tmp_path / ".git").mkdir()
+    lib, src = pkg / "_engine.so", pkg / "sd_new.c"
+    lib.write_bytes(b"")
+    src.write_text("")
+    import os
+    os.utime(lib, (1_000_000, 1_000_000))
+    monkeypatch.setattr(extensions, "PACKAGE", pkg)
+    with pytest.raises(InputError, match="older than shapedisplay/sd_new.c; rebuild it: pip install -e ."):
+        extensions.load_extension(lib, "the compiled C runtime", [src])
+    (tmp_path / ".git").rmdir()                                # not a checkout: loaded (and this file fails)
+    with pytest.raises(InputError, match="loading the compiled C runtime .* failed .*reinstall"):
+        extensions.load_extension(lib, "the compiled C runtime", [src])

@@ -1,11 +1,9 @@
 """The C runtime (``shapedisplay/runtime_c/``) as a shared library, through ctypes, and offline play with it.
 
-:func:`library` compiles the C99 runtime with the system C compiler (``$CC``,
-else ``cc``, ``gcc`` or ``clang``) into a shared library, once per source
-version, in the cache directory (``$XDG_CACHE_HOME/shapedisplay``, by default
-``~/.cache/shapedisplay``), and loads it (:mod:`shapedisplay.cbuild`). Building
-takes about a second; later loads take about a millisecond. The sources ship
-inside the package, so this works from an installed wheel too.
+:func:`library` loads the C99 runtime, compiled when the package is built or
+installed into the extension module ``shapedisplay._engine`` (``setup.py``:
+every ``runtime_c/sd_*.c`` but ``sd_wasm.c``, and ``sd_play_path.c``), with
+ctypes. Nothing is compiled at run time: no C compiler is needed to play.
 
 :func:`render_path` plays a whole cursor path offline through that library
 (one call from Python; the loop is ``sd_play_path.c``, beside this module): the
@@ -21,7 +19,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cbuild import compiler, load_shared, shared_library_path
 from ..errors import InputError
 from .layouts import OUTPUTS
 from .result import RenderResult
@@ -29,6 +26,7 @@ from .settings import RenderSettings, audio_length
 
 #: The C runtime sources, shipped inside the package (``runtime-c/`` in a checkout links here).
 RUNTIME_C = Path(__file__).resolve().parent.parent / "runtime_c"
+#: The runtime's model-independent sources (``setup.py`` builds every ``runtime_c/sd_*.c`` but ``sd_wasm.c``).
 SOURCES = ("sd_pad.c", "sd_exact.c", "sd_render.c", "sd_image.c")
 #: The offline loop over a path (uses only ``sd_runtime.h``), built into the same library.
 PLAY_SOURCE = Path(__file__).resolve().parent / "sd_play_path.c"
@@ -43,27 +41,29 @@ PLAY_STATUS = {-30: "more audio than expected", -31: "more stick-slip events tha
 #: The per-tick outputs (fields of ``sd_outputs_t``) a :class:`RenderResult` keeps.
 RESULT_COLUMNS = ("vx", "vy", "normal_force", "friction_force", "state", "lateral_x", "lateral_y", "skin_stretch")
 
+#: The extension module the C runtime is compiled into (``setup.py``).
+EXTENSION = "shapedisplay._engine"
+
 _LIB = None
 
 
-def _sources() -> list[Path]:
-    return [*(RUNTIME_C / n for n in SOURCES), PLAY_SOURCE]
-
-
 def library_path() -> Path:
-    """The file the library of the current sources is built into (it may not exist yet)."""
-    try:
-        return shared_library_path("sd_runtime", _sources(), sorted(RUNTIME_C.glob("*.h")))
-    except InputError as exc:
-        raise InputError(f"the C runtime's {exc}; use the Python engine") from None
+    """The file of the compiled C runtime (the extension module :data:`EXTENSION`).
+
+    Raises :class:`InputError` where it is missing (a broken install).
+    """
+    from ..extensions import extension_path
+    return extension_path(EXTENSION, "the compiled C runtime")
 
 
 def library() -> ctypes.CDLL:
-    """Build (once per source version) and load the C runtime as a shared library."""
+    """Load the compiled C runtime (once per process) with its functions' argument types declared."""
     global _LIB
     if _LIB is not None:
         return _LIB
-    lib = load_shared(library_path(), _sources(), RUNTIME_C, hint="; use the Python engine")
+    from ..extensions import load_extension
+    sources = [*(p for p in sorted(RUNTIME_C.glob("sd_*.[ch]")) if p.name != "sd_wasm.c"), PLAY_SOURCE]
+    lib = load_extension(library_path(), "the compiled C runtime", sources)
     vp, c_int64 = ctypes.c_void_p, ctypes.c_int64
     lib.sd_renderer_size.restype = ctypes.c_size_t
     lib.sd_image_size.restype = ctypes.c_size_t
@@ -82,18 +82,13 @@ def library() -> ctypes.CDLL:
 
 
 def unavailable(model_name: str) -> str | None:
-    """Why the C runtime cannot play ``model_name`` here (no C tick, no compiler), or None if it can.
+    """Why the C runtime cannot play ``model_name`` (it has no C tick for it), or None if it can.
 
-    Cheap: builds nothing (a library already built needs no compiler).
+    Cheap: loads nothing. A missing compiled runtime (a broken install) is
+    not a reason here: :func:`library` raises :class:`InputError` for it.
     """
     if model_name not in C_MODELS:
         return f"model '{model_name}' has no C tick (the C runtime has {', '.join(C_MODELS)})"
-    try:
-        built = library_path().is_file()
-    except InputError as exc:
-        return str(exc)
-    if not built and not compiler():
-        return "no C compiler (cc, gcc or clang, or $CC) to build the C runtime"
     return None
 
 
@@ -126,7 +121,7 @@ def render_path(table, settings: RenderSettings, cursor) -> RenderResult:
     None). A cursor path off the tick grid is resampled to the tick rate.
     Raises :class:`PathPlayError` where the runtime's fixed buffers would play
     differently (then use the Python engine), :class:`InputError` if the C
-    runtime cannot be built or refuses the settings.
+    runtime is missing or refuses the settings.
     """
     from .cursor import CursorPath
     if settings.model.name not in C_MODELS:
