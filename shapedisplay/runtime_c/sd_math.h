@@ -24,6 +24,7 @@
 #ifdef SD_SINGLE
 #define SD_SQRT sqrtf
 #define SD_EXP expf
+#define SD_POW powf
 #define SD_LOG logf
 #define SD_SIN sinf
 #define SD_COS cosf
@@ -48,6 +49,7 @@
 #else
 #define SD_SQRT sqrt
 #define SD_EXP exp
+#define SD_POW pow
 #define SD_LOG log
 #define SD_SIN sin
 #define SD_COS cos

@@ -67,6 +67,11 @@ int sd_jump_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd
 int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
                   sd_real mus, sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev);
 
+/* The Imaizumi pad with Stribeck friction on a vibrating contactor, plain curve and pre-maximum variant
+ * (pads.stribeck_tick; sd_stribeck.c). */
+int sd_stribeck_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
+                     sd_real mus, sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev);
+
 /* The tick function of model id SD_MODEL_*, or NULL if the C runtime does not implement it. */
 sd_tick_fn sd_model_tick(int model);
 
