@@ -23,7 +23,8 @@ from shapedisplay.devices import BurstParams, FrictionParams, PadParams, load_de
 ROOT = Path(__file__).resolve().parent.parent
 CDIR = ROOT / "shapedisplay" / "runtime_c"
 CFLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-pedantic", "-Werror", "-ffp-contract=off"]
-LIB = ("sd_pad.c", "sd_exact.c", "sd_render.c", "sd_image.c", "sd_stribeck.c")      # the runtime library (no host tool)
+LIB = ("sd_pad.c", "sd_exact.c", "sd_render.c", "sd_image.c", "sd_stribeck.c", "sd_karnopp.c",
+       "sd_baselines.c")      # the runtime library (no host tool)
 
 
 def _cc():

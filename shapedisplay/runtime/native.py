@@ -27,7 +27,7 @@ from .settings import RenderSettings, audio_length
 #: The C runtime sources, shipped inside the package (``runtime-c/`` in a checkout links here).
 RUNTIME_C = Path(__file__).resolve().parent.parent / "runtime_c"
 #: The runtime's model-independent sources (``setup.py`` builds every ``runtime_c/sd_*.c`` but ``sd_wasm.c``).
-SOURCES = ("sd_pad.c", "sd_exact.c", "sd_render.c", "sd_image.c", "sd_stribeck.c")
+SOURCES = ("sd_pad.c", "sd_exact.c", "sd_render.c", "sd_image.c", "sd_stribeck.c", "sd_karnopp.c", "sd_baselines.c")
 #: The offline loop over a path (uses only ``sd_runtime.h``), built into the same library.
 PLAY_SOURCE = Path(__file__).resolve().parent / "sd_play_path.c"
 #: Models with a C tick (``sd_model_tick``); ids are shared with the Python registry.

@@ -418,6 +418,10 @@ static void derive(const sd_renderer_t *R, const sd_real *vals, sd_real vx, sd_r
 static const sd_tick_fn TICKS[SD_NMODEL] = {
     [SD_MODEL_EXACT] = sd_exact_tick,
     [SD_MODEL_JUMP] = sd_jump_tick,
+    [SD_MODEL_KARNOPP] = sd_karnopp_tick,
+    [SD_MODEL_EULER] = sd_euler_tick,
+    [SD_MODEL_RK4] = sd_rk4_tick,
+    [SD_MODEL_TANH] = sd_tanh_tick,
     [SD_MODEL_STRIBECK] = sd_stribeck_tick,
 };
 

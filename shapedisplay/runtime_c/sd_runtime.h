@@ -72,6 +72,20 @@ int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, s
 int sd_stribeck_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
                      sd_real mus, sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev);
 
+/* The modified Karnopp virtual spring, every event located inside the tick (pads.karnopp_tick; sd_karnopp.c). */
+int sd_karnopp_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
+                    sd_real mus, sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev);
+
+/* The comparison baselines of the accuracy and stability reports (sd_baselines.c): the Konyo pad with
+ * tanh-regularised Coulomb friction (pads.tanh_tick) and one explicit step per tick, forward Euler
+ * (pads.euler_tick) or RK4 (pads.rk4_tick), which set the state's `diverged` when they blow up. */
+int sd_tanh_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
+                 sd_real mus, sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev);
+int sd_euler_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
+                  sd_real mus, sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev);
+int sd_rk4_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
+                sd_real mus, sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev);
+
 /* The tick function of model id SD_MODEL_*, or NULL if the C runtime does not implement it. */
 sd_tick_fn sd_model_tick(int model);
 
