@@ -62,7 +62,6 @@
 #define ST_PREMAX_MIN R(1e-12)
 #endif
 
-static inline sd_real fabs_(sd_real x) { return SD_FABS(x); }
 /* e^x, 0 below ST_EXP_LO (as the Python kernels' own exponential: no subnormal results) */
 static inline sd_real st_exp(sd_real x) { return x < ST_EXP_LO ? R(0.0) : SD_EXP(x); }
 static inline int finite_(sd_real x) { return x - x == R(0.0); }
@@ -1188,26 +1187,26 @@ static int plain_tick(sd_pad_state_t *S, const st_par_t *P, sd_real t0, sd_real 
 }
 
 /* ================================================================ pre-maximum variant */
-/* mu and dmu/d|vr| of the pre-maximum curve (pads.stribeck_mu, variant 1) */
-static void mu_premax(const sd_pad_params_t *p, sd_real vr_abs, sd_real W, sd_real mus, sd_real muk, sd_real *mu,
-                      sd_real *dmu)
+/* W mu and W dmu/d|vr| of the pre-maximum curve (pads.stribeck_mu, variant 1, times W): written without
+ * |vr| / W outside the products, so that a vanishing (subnormal) load stays finite */
+static void mu_premax(const sd_pad_params_t *p, sd_real vr_abs, sd_real W, sd_real mus, sd_real muk, sd_real *muW,
+                      sd_real *dmuW)
 {
     sd_real u, e;
     if (W <= R(0.0)) {
-        *mu = R(0.0);
-        *dmu = R(0.0);
+        *muW = R(0.0);
+        *dmuW = R(0.0);
         return;
     }
     u = vr_abs / W;
     if (u < p->stribeck_d) {
-        *mu = p->stribeck_p * u;
-        *dmu = p->stribeck_p / W;
+        *muW = p->stribeck_p * vr_abs;
+        *dmuW = p->stribeck_p;
         return;
     }
-    u = u - p->stribeck_d;
-    e = SD_EXP(-p->stribeck_a * u);
-    *mu = muk + (mus - muk) * e + p->stribeck_b * u;
-    *dmu = (-(mus - muk) * p->stribeck_a * e + p->stribeck_b) / W;
+    e = SD_EXP(-p->stribeck_a * (u - p->stribeck_d));
+    *muW = W * (muk + (mus - muk) * e) + p->stribeck_b * (vr_abs - p->stribeck_d * W);
+    *dmuW = -(mus - muk) * p->stribeck_a * e + p->stribeck_b;
 }
 
 static inline sd_real contactor_v(const st_par_t *P, sd_real t)
@@ -1220,23 +1219,23 @@ static long premax_slip(const st_par_t *P, const sd_pad_params_t *p, sd_real *u_
                         sd_real *F_out, sd_real V, sd_real W, sd_real mus, sd_real muk, sd_real ta, sd_real dur)
 {
     sd_real m = P->m, k = P->k, c = P->c, u = *u_io, du = *du_io, s = *s_io, t = ta, tend = ta + dur, F = R(0.0);
-    sd_real vr0, mu, dmu;
+    sd_real vr0, muW, dmuW;
     long it;
     vr0 = du + V - contactor_v(P, t);
-    mu_premax(p, SD_FABS(vr0), W, mus, muk, &mu, &dmu);
+    mu_premax(p, SD_FABS(vr0), W, mus, muk, &muW, &dmuW);
     for (it = 0; t < tend && it < SD_MAX_EVENTS_PER_TICK; it++) {
-        sd_real F0 = -sd_sgn(vr0) * mu * W, ceff = c + dmu * W, hs = py_min(P->substep, tend - t), ueq, y1, v1, vr1;
+        sd_real F0 = -sd_sgn(vr0) * muW, ceff = c + dmuW, hs = py_min(P->substep, tend - t), ueq, y1, v1, vr1;
         if (ceff < R(0.0)) hs = py_min(hs, R(0.5) * m / (-ceff));
         if (hs < ST_PREMAX_MIN * py_max(R(1.0), SD_FABS(t))) hs = tend - t;
-        ueq = (F0 - dmu * W * (V - contactor_v(P, t + R(0.5) * hs) - vr0)) / k;
+        ueq = (F0 - dmuW * (V - contactor_v(P, t + R(0.5) * hs) - vr0)) / k;
         osc_any(m, ceff, k, u - ueq, du, hs, &y1, &v1);
         u = y1 + ueq;
         du = v1;
         t += hs;
         vr1 = du + V - contactor_v(P, t);
-        mu_premax(p, SD_FABS(vr1), W, mus, muk, &mu, &dmu);
+        mu_premax(p, SD_FABS(vr1), W, mus, muk, &muW, &dmuW);
         if (vr1 != R(0.0)) {
-            F = -sd_sgn(vr1) * mu * W;
+            F = -sd_sgn(vr1) * muW;
             s = -sd_sgn(vr1);
         } else {
             F = F0;
