@@ -90,10 +90,78 @@ CASES = {
 }
 
 
+#: The pad models with a C tick checked here (stribeck: tests/test_c_stribeck.py).
+PAD_MODELS = ["jump", "exact", "karnopp", "tanh", "euler", "rk4"]
+
+
+@pytest.fixture(scope="module")
+def sd_lib(tmp_path_factory):
+    """The runtime library as a shared object, for calling the pad ticks directly (ctypes)."""
+    import ctypes
+    lib_path = tmp_path_factory.mktemp("c-runtime-lib") / "libsd.so"
+    cmd = [_cc(), *CFLAGS, "-shared", "-fPIC", "-I", str(CDIR), *[str(CDIR / n) for n in LIB], "-lm",
+           "-o", str(lib_path)]
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    lib = ctypes.CDLL(str(lib_path))
+    lib.sd_model_tick.restype = ctypes.c_void_p
+    lib.sd_model_tick.argtypes = [ctypes.c_int]
+    lib.sd_pad_prepare.argtypes = [ctypes.c_void_p, ctypes.c_char_p]
+    return lib
+
+
+def pad_state_run(lib, model, t, V, N, mus, muk, gain):
+    """The C tick of ``model`` over per-tick inputs, called directly (as ``sd_vectors pad``): the final
+    pad state (a layouts.PAD_STATE record: x, v, f, diverged, diverged_at, truncated, ...) and the
+    per-tick pad velocity."""
+    import ctypes
+
+    from shapedisplay.runtime import pads
+    d = ctypes.c_double
+    tick_t = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_void_p, d, d, d, d, d, d, d,
+                              ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_int)
+    ptr = lib.sd_model_tick(model.model_id)
+    assert ptr, f"model {model.name} has no C tick"
+    tick = tick_t(ptr)
+    P = ctypes.create_string_buffer(4096)            # sd_pad_t: the parameters and derived constants
+    lib.sd_pad_prepare(P, model.params.tobytes())
+    S = pads.new_state()                              # the bytes of sd_pad_t's state (tests/test_layouts.py)
+    v = np.empty(t.size)
+    v[0] = S[0]["v"]
+    n_ev = 0
+    for i in range(1, t.size):                        # no event buffer: events are counted, not stored
+        n_ev = tick(S.ctypes.data, P, t[i - 1], t[i] - t[i - 1], V[i], N[i], mus[i], muk[i], gain[i],
+                    None, None, 0, n_ev)
+        v[i] = S[0]["v"]
+    return S[0], v, n_ev
+
+
+def _assert_pad_bit_exact(exe, lib, tmp_path, model, t, V, N, mus, muk, gain):
+    """C against numba over one input vector, bit for bit: per-tick friction, phase, stretch, velocity,
+    the events and the final state (divergence flag and time included). Returns the numba state and
+    event times."""
+    S, f, st, x, v, wf, wd, et, ea = run_kernel(model, t, V, N, mus, muk, gain)
+    cf, cst, cx, cet, cea = pad_vectors(exe, tmp_path, model, t, V, N, mus, muk, gain)
+    np.testing.assert_array_equal(cet, et)
+    np.testing.assert_array_equal(cea, ea)
+    np.testing.assert_array_equal(cst, st)
+    np.testing.assert_array_equal(cx, x)
+    np.testing.assert_array_equal(cf, f)
+    cS, cv, c_nev = pad_state_run(lib, model, t, V, N, mus, muk, gain)
+    np.testing.assert_array_equal(cv, v)
+    assert c_nev == et.size
+    assert (cS["diverged"], cS["diverged_at"]) == (S["diverged"], S["diverged_at"])
+    # every field, but the exact model's work terms and memo: its C tick computes no work and keeps no memo
+    names = [k for k in S.dtype.names if model.name != "exact" or not k.startswith(("work_", "memo_"))]
+    assert [cS[k].tobytes() for k in names] == [S[k].tobytes() for k in names], \
+        {k: (cS[k], S[k]) for k in names if cS[k].tobytes() != S[k].tobytes()}
+    return S, et
+
+
 @pytest.mark.parametrize("case", list(CASES))
 @pytest.mark.parametrize("rate", [1000.0, 10000.0, 96000.0])
-@pytest.mark.parametrize("name", ["jump", "exact"])
-def test_pad_kernel_bit_exact(sd_vectors, tmp_path, case, rate, name):
+@pytest.mark.parametrize("name", PAD_MODELS)
+def test_pad_kernel_bit_exact(sd_vectors, sd_lib, tmp_path, case, rate, name):
     spec = dict(CASES[case])
     model = _jump(spec.pop("pad", None), spec.pop("friction", None), spec.pop("max_stick", 0.0), name=name)
     n = int(0.2 * rate) + 1
@@ -112,15 +180,54 @@ def test_pad_kernel_bit_exact(sd_vectors, tmp_path, case, rate, name):
     N = np.broadcast_to(np.asarray(N, float), (n,)).copy()
     fr = model.device.friction
     mus, muk, gain = np.full(n, fr.mu_s), np.full(n, fr.mu_k), 1.0 + 0.5 * (rng.random(n) < 0.1)
-    S, f, st, x, v, wf, wd, et, ea = run_kernel(model, t, V, N, mus, muk, gain)
-    cf, cst, cx, cet, cea = pad_vectors(sd_vectors, tmp_path, model, t, V, N, mus, muk, gain)
-    np.testing.assert_array_equal(cet, et)
-    np.testing.assert_array_equal(cea, ea)
-    np.testing.assert_array_equal(cst, st)
-    np.testing.assert_array_equal(cx, x)
-    np.testing.assert_array_equal(cf, f)
-    if case.startswith("published"):
+    S, et = _assert_pad_bit_exact(sd_vectors, sd_lib, tmp_path, model, t, V, N, mus, muk, gain)
+    if case.startswith("published") and name in ("jump", "exact", "tanh"):
         assert et.size > 10          # the vector exercises stick-slip, not just sticking
+    if name in ("euler", "rk4") and rate < 96000.0 and case.startswith("published"):
+        assert S["diverged"] == 1    # the explicit baselines blow up on the Konyo pad (and C with them)
+
+
+#: Vectors of the karnopp model and the baselines where the shared CASES say little: a slow finger
+#: below v_T (a sawtooth of events inside every tick), slides and reversals, and a heavier pad
+#: (m = 0.1 g, omega_n = 4.5 krad/s, zeta = 0.56) on which the explicit steps stay stable at 10 kHz but
+#: blow up at 1 kHz. (model, speed, normal force, pad, rates, least events, diverges)
+_HEAVY = PadParams(1e-4, 2000.0, 0.5)
+OWN_CASES = {
+    "karnopp, slow finger below v_T": ("karnopp", 0.004, 0.2, None, (1000.0, 10000.0, 96000.0), 20, False),
+    "karnopp, stick-slip at 10 mm/s": ("karnopp", 0.01, 0.2, None, (1000.0, 10000.0, 96000.0), 50, False),
+    "karnopp, slides, slow again, reversals": ("karnopp", "segments", 0.2, None, (1000.0, 10000.0), 8, False),
+    "euler, heavy pad": ("euler", 0.05, 2.0, _HEAVY, (10000.0, 96000.0), 30, False),
+    "rk4, heavy pad": ("rk4", 0.05, 2.0, _HEAVY, (10000.0, 96000.0), 30, False),
+    "tanh, heavy pad": ("tanh", 0.05, 2.0, _HEAVY, (1000.0, 10000.0), 30, False),
+    "euler, heavy pad, reversals and N ramp": ("euler", "sine", "ramp", _HEAVY, (10000.0,), 10, False),
+    "rk4, heavy pad, reversals and N ramp": ("rk4", "sine", "ramp", _HEAVY, (10000.0,), 5, False),
+    "euler, heavy pad at 1 kHz diverges": ("euler", 0.05, 2.0, _HEAVY, (1000.0,), 1, True),
+    "rk4, heavy pad at 1 kHz diverges": ("rk4", 0.05, 2.0, _HEAVY, (1000.0,), 1, True),
+}
+
+
+@pytest.mark.parametrize("case, rate", [(c, r) for c, spec in OWN_CASES.items() for r in spec[4]])
+def test_pad_kernel_bit_exact_own_cases(sd_vectors, sd_lib, tmp_path, case, rate):
+    name, V, N, pad, _, least, diverges = OWN_CASES[case]
+    model = _jump(pad, name=name)
+    n = int(0.2 * rate) + 1
+    t = np.arange(n) / rate
+    if V == "segments":              # on 1 ms boundaries: slow, sliding, reversed slow, reversed fast, slow
+        V = np.select([t < 0.04, t < 0.08, t < 0.12, t < 0.16], [0.005, 0.03, -0.008, -0.02], 0.004)
+    elif V == "sine":
+        V = 0.05 * np.sin(2 * np.pi * 7.0 * t)
+    if N == "ramp":
+        N = 0.5 + 4.0 * (t / t[-1])
+    V = np.broadcast_to(np.asarray(V, float), (n,)).copy()
+    N = np.broadcast_to(np.asarray(N, float), (n,)).copy()
+    fr = model.device.friction
+    rng = np.random.default_rng(7)
+    mus, muk, gain = np.full(n, fr.mu_s), np.full(n, fr.mu_k), 1.0 + 0.5 * (rng.random(n) < 0.1)
+    S, et = _assert_pad_bit_exact(sd_vectors, sd_lib, tmp_path, model, t, V, N, mus, muk, gain)
+    assert et.size >= least
+    assert S["diverged"] == int(diverges)
+    if diverges:
+        assert 0.0 < S["diverged_at"] <= t[-1]
 
 
 def test_restick_closed_form_matches_python(sd_vectors, tmp_path):
@@ -358,14 +465,14 @@ def test_table_from_c_header_export(tmp_path, dtype, sparse, kmu):
 
 
 def test_c_renderer_init_refuses_bad_parameters(sd_vectors, tmp_path):
-    """sd_renderer_init validates before binding: mu_k > mu_s, a 50 Hz tick, no pad mass, a model with no C tick."""
+    """sd_renderer_init validates before binding: mu_k > mu_s, a 50 Hz tick, no pad mass, a model id with no C tick."""
     table = widget_table("uint16", kmu=0.0)
     r = Renderer(table, model="jump", tick_rate=10_000.0)
     good = render_payload(r, [0.0, 1e-4], [0.0, 0.0])
     size = RENDER_CONFIG.itemsize
     cfg = np.frombuffer(good[:size], RENDER_CONFIG).copy()
     for field, value in (("mu_k", 0.9), ("tick_rate", 50.0), (("pad", "mass"), 0.0),
-                         ("model", MODEL_IDS["tanh"])):      # tanh has no C tick
+                         ("model", len(MODEL_IDS))):      # no such model: sd_model_tick gives NULL
         bad = cfg.copy()
         if isinstance(field, tuple):
             bad[field[0]][field[1]] = value
