@@ -44,9 +44,6 @@ def register(sub) -> None:
                    help="pace the pty to this line rate (bit/s, 8N1); 0 = memory speed (default)")
     q.add_argument("--memory", default="256 KiB", help="table memory, e.g. '64 KiB' (default 256 KiB)")
     q.add_argument("--model", default="jump", help="renderer model (default jump)")
-    q.add_argument("--engine", default="python", choices=("python", "c"),
-                   help="render with the Python runtime (default) or the C99 runtime of runtime-c/ "
-                        "(built with the system C compiler)")
     q.add_argument("--tick-rate", "--rate", dest="tick_rate", default="10 kHz",
                    help="renderer tick rate (default 10 kHz; --rate is the same option)")
     q.add_argument("--stream-rate", default="1 kHz", help="cursor sample rate (default 1 kHz)")
@@ -168,12 +165,7 @@ def run_emulate(args) -> int:
     cfg = EmulatorConfig.from_text(memory=args.memory, tick_rate=args.tick_rate, stream_rate=args.stream_rate,
                                    queue=args.queue, model=args.model, renderer=not args.no_renderer,
                                    baud=args.baud)
-    engine = None
-    if args.engine == "c" and not args.no_renderer:
-        from shapedisplay.link.c_engine import CEngine, library
-        library()                      # build once, up front: one-line error if it cannot be built
-        engine = CEngine
-    emu = DeviceEmulator(cfg, engine_factory=engine)
+    emu = DeviceEmulator(cfg)
     emu.prepare()                      # compile the renderer before the port is announced
     port = emu.open_pty(link=args.link)
     if args.port_file:

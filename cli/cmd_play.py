@@ -40,9 +40,6 @@ def register(sub) -> None:
     p.add_argument("--ahap-envelope", default="on", choices=("on", "off"),
                    help="off: transients only, no envelope curves (Core Haptics scales every event by them)")
     p.add_argument("--drive-csv", help="write the drive at the audio rate as CSV t_s,drive")
-    p.add_argument("--engine", default="auto", choices=("auto", "c", "python"),
-                   help="auto (default): the C runtime for models exact and jump when a C compiler is there "
-                        "(built once, about a second), else the compiled Python kernels; same output either way")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=run)
 
@@ -54,7 +51,7 @@ def run(args) -> int:
     from shapedisplay.devices import load_device
     from shapedisplay.errors import InputError
     from shapedisplay.runtime.cursor import load_force_csv, load_trace_csv, parse_stroke
-    from shapedisplay.runtime.play import PathRenderer
+    from shapedisplay.runtime.renderer import Renderer
     from shapedisplay.sinks import SAMPLE_FORMATS, check_plot_path, play_to_files
     from shapedisplay.errors import unknown_key
     from shapedisplay.table import FrictionTable
@@ -76,8 +73,8 @@ def run(args) -> int:
     rate = parse_quantity(args.tick_rate, "Hz", "tick_rate") if args.tick_rate else None
     arate = parse_quantity(args.audio_rate, "Hz", "--audio-rate") if args.audio_rate else None
     msp = parse_quantity(args.max_stick_period, "s", "--max-stick-period") if args.max_stick_period else None
-    r = PathRenderer(table, engine=args.engine, device=device, model=args.model, tick_rate=rate, audio_rate=arate,
-                     burst_policy=args.burst_policy, max_stick_period=msp)
+    r = Renderer(table, device=device, model=args.model, tick_rate=rate, audio_rate=arate,
+                 burst_policy=args.burst_policy, max_stick_period=msp)
     if args.stroke is not None:
         cursor = parse_stroke(args.stroke, r.tick_rate)
     elif args.cursor_csv is not None:
@@ -94,14 +91,14 @@ def run(args) -> int:
                         table_checksum=table.checksum(), ahap=args.ahap, drive_csv=args.drive_csv,
                         ahap_envelope=args.ahap_envelope == "on", description=f"{args.table}: {source}")
     s = res.summary()
-    s["engine"] = r.engine
-    if r.note and args.model in ("exact", "jump"):     # the C runtime was expected to play: say why not
-        print(f"shapedisplay play: note: played with the Python kernels: {r.note}", file=sys.stderr)
+    if s["events_dropped"]:
+        print(f"shapedisplay play: warning: {s['events_dropped']} bursts sounded while more than half of the "
+              "engine's event ring was still sounding; their audio is missing (the trace keeps the events)",
+              file=sys.stderr)
     if args.json:
         print(json.dumps(s, indent=2))
     else:
-        engine = "C runtime" if r.engine == "c" else "Python kernels"
-        print(f"{s['model']} at {s['tick_rate_hz']:g} Hz ({engine}): {s['ticks']} ticks over {s['duration_s']:.4g} s, "
+        print(f"{s['model']} at {s['tick_rate_hz']:g} Hz: {s['ticks']} ticks over {s['duration_s']:.4g} s, "
               f"{s['events']} stick-slip events, max friction {s['max_friction_n']:.4g} N, "
               f"slip {100 * s['slip_fraction']:.1f} % of the time")
         print(f"audio: {s['audio_samples']} samples at {s['audio_rate_hz']:g} Hz ({args.sample_format}) -> {args.output}; "

@@ -13,6 +13,7 @@ bounded outputs and to its tolerance floor.
 from __future__ import annotations
 
 import math
+import shutil
 import subprocess
 
 import numpy as np
@@ -322,3 +323,100 @@ def test_single_precision_build_finite_bounded_and_near_the_double(sd_single, sd
     out = _c_run(sd_single, tmp_path, model, t, V, N)
     _assert_finite_and_within_the_curve(out, V, N, 9.0, 1.25e-3, rel=1e-5)
     assert _c_truncated(sd_single, tmp_path, model, t, V, N) == 0
+
+
+# ------------------------------------------------------------------ Cortex-M4F instruction counts
+_M4_BENCH = r"""
+#include <math.h>
+#include <string.h>
+#include "sd_runtime.h"
+#include "m4/m4.h"
+static const double PRM[] = {%(params)s};
+static uint32_t counts[%(n)d + 1];
+static sd_real ev_t[4096], ev_a[4096];
+int main(void)
+{
+    static char cmd[256];
+    char *out = cmd;
+    sd_pad_params_t prm;
+    sd_pad_t P;
+    sd_pad_state_t S;
+    int i = 0, n_ev = 0, k;
+    int32_t fd;
+#define F_F64(name) prm.name = (sd_real)PRM[i++];
+#define F_I64(name) prm.name = (int64_t)PRM[i++];
+#define F(kind, name) F_##kind(name)
+    SD_FIELDS_PAD_PARAMS(F)
+    sd_pad_prepare(&P, &prm);
+    sd_pad_reset(&S);
+    if (m4_cmdline(cmd, sizeof cmd) != 0) return 2;
+    while (*out && *out != ' ') out++;          /* argv[1]: the output file */
+    while (*out == ' ') out++;
+    for (k = 1; k <= %(n)d; k++) {
+        sd_real t0 = (sd_real)(k - 1) / (sd_real)%(rate)d, h = (sd_real)1 / (sd_real)%(rate)d;
+        m4_count_start();
+        n_ev = sd_stribeck_tick(&S, &P, t0, h, (sd_real)%(V)r, (sd_real)1, (sd_real)2.1, (sd_real)1.4, (sd_real)1,
+                                ev_t, ev_a, 4096, n_ev);
+        counts[k - 1] = m4_count_read();
+    }
+    m4_count_start();
+    counts[%(n)d] = m4_count_read();
+    fd = m4_open(out, 1);
+    if (fd < 0) return 2;
+    m4_write(fd, counts, 4 * (%(n)d + 1));
+    m4_write(fd, &n_ev, 4);
+    m4_close(fd);
+    return 0;
+}
+"""
+
+
+def _c_double(v):
+    v = float(v)
+    return repr(v) if math.isfinite(v) else ("HUGE_VAL" if v > 0 else "-HUGE_VAL")
+
+
+def _m4_stribeck_counts(tmp_path, model, rate, seconds, V, precision="single"):
+    """Instructions per sd_stribeck_tick on the Cortex-M4F (QEMU mps2-an386, -icount), the tick alone."""
+    from runtime_vectors import COUNTS_PER_INSTRUCTION, ICOUNT_SHIFT, QEMU_M4
+    n = int(round(seconds * rate))
+    fields = [model.params[name] for name in model.params.dtype.names]
+    src = tmp_path / "bench_stribeck.c"
+    src.write_text(_M4_BENCH % dict(params=", ".join(_c_double(v) for v in fields), n=n, rate=int(rate), V=V))
+    elf = tmp_path / "bench_stribeck.elf"
+    flags = ["-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "--specs=nano.specs",
+             "-nostartfiles"]
+    cmd = ["arm-none-eabi-gcc", *flags, *CFLAGS, *(SINGLE if precision == "single" else []), "-I", str(CDIR),
+           "-T", str(CDIR / "m4" / "mps2.ld"), str(CDIR / "m4" / "startup.c"), str(src), str(CDIR / "sd_pad.c"),
+           str(CDIR / "sd_stribeck.c"), "-lm", "-o", str(elf)]
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    fout = tmp_path / "counts.bin"
+    run = [*QEMU_M4, "-icount", f"shift={ICOUNT_SHIFT}", "-semihosting-config",
+           f"enable=on,target=native,arg=bench,arg={fout}", "-kernel", str(elf)]
+    res = subprocess.run(run, capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr[-500:]
+    raw = fout.read_bytes()
+    c = np.frombuffer(raw[:4 * (n + 1)], "<u4").astype(np.float64)
+    assert (c < 0xFFFFF0).all(), "a tick ran past the 24-bit SysTick range"
+    n_ev = int(np.frombuffer(raw[4 * (n + 1):], "<i4")[0])
+    return (c[:-1] - c[-1]) / COUNTS_PER_INSTRUCTION, n_ev
+
+
+@pytest.mark.skipif(any(shutil.which(t) is None for t in ("arm-none-eabi-gcc", "qemu-system-arm")),
+                    reason="no arm-none-eabi-gcc / qemu-system-arm (scripts/install-system-deps.sh --with-toolchains)")
+@pytest.mark.parametrize("variant,tol", [("stribeck", None), ("stribeck", 1e-4), ("premax", None)])
+def test_m4_stribeck_instructions_per_tick(tmp_path, variant, tol):
+    """The contactor stroke (9 Hz, 1.25 mm, 0.1 m/s, W = 1 N) at 10 kHz on the Cortex-M4F, single precision:
+    instructions per sd_stribeck_tick (the pad tick alone), deterministic, the same events as the host's
+    single-precision build."""
+    opts = dict(contactor_hz=9.0, contactor_amplitude_m=1.25e-3, variant=variant)
+    if tol is not None:
+        opts["tolerance"] = tol
+    model = _model(**opts)
+    a, n_ev = _m4_stribeck_counts(tmp_path, model, 10_000, 0.25, 0.1)
+    b, _ = _m4_stribeck_counts(tmp_path, model, 10_000, 0.25, 0.1)
+    np.testing.assert_array_equal(a, b)
+    print(f"\n[m4] stribeck {variant} tol={tol} 10 kHz: {n_ev} events, instructions per tick mean {a.mean():.0f} "
+          f"median {np.median(a):.0f} max {a.max():.0f}")
+    assert n_ev >= 2 and (a > 0).all()

@@ -10,9 +10,8 @@
   the host's actuator-stream mode and the C engine;
 * :mod:`.emulator` — :class:`~.emulator.DeviceEmulator`, firmware behaviour
   on a pseudo-terminal (transport, upload, queue, fault injection), rendering
-  through :mod:`.engine`;
-* :mod:`.c_engine` — the emulator's optional engine running the C99
-  runtime of ``shapedisplay/runtime_c/`` through ctypes.
+  through :mod:`.engine` (the C engine's ticks, through
+  :class:`~shapedisplay.runtime.Renderer`).
 
 Nothing here opens a port or imports pyserial at import time.
 """

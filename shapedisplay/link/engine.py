@@ -2,8 +2,8 @@
 
 One engine for every place that renders a stream the way the firmware does:
 the emulated device (:mod:`.emulator`), the host's actuator-stream mode
-(``shapedisplay device play --mode actuator``), and the C engine
-(:mod:`.c_engine`, same interface, ticks in C). Between two cursor samples
+(``shapedisplay device play --mode actuator``); the ticks are the C engine's
+(:class:`~shapedisplay.runtime.Renderer`), as on the firmware. Between two cursor samples
 the cursor moves linearly over ``tick_rate_hz // stream_rate_hz`` ticks
 (:func:`step_period`); force input integrates ``v = alpha f`` per sample
 (:func:`force_to_position`). No transport, no fault injection: those are the

@@ -255,7 +255,7 @@ def _run_pad(p, model_name, rate, duration, stribeck=False, substep_s=None):
         state["f"] = -sgn * mu * p["N"]
     else:
         V[0] = 0.0
-    S, f, st, x, v, wf, wd, et, ea = run_kernel(model, t, V, p["N"] * ones, p["mu_s"] * ones, p["mu_k"] * ones,
+    S, f, st, x, v, et, ea = run_kernel(model, t, V, p["N"] * ones, p["mu_s"] * ones, p["mu_k"] * ones,
                                                 ones, state=state)
     return {"f": f, "x": x, "v": v, "state": st, "events": int(et.size), "blow": float(S["diverged"]),
             "blow_t": float(S["diverged_at"]), "ev_a": ea}

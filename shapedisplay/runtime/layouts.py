@@ -1,11 +1,10 @@
-"""Memory layouts shared by the numba kernels and the C runtime, each defined once.
+"""Memory layouts shared by the Python binding and the C engine, each defined once.
 
-Every block of numbers a kernel reads or keeps between ticks is a numpy
+Every block of numbers the engine reads or keeps between ticks is a numpy
 structured dtype with named fields (``align=True``, so the fields sit where a
-C compiler puts the members of the same struct). A kernel receives a record
-(one element of a structured array: ``rec = arr[0]``) and reads ``st.x``,
-``prm.stiffness``; numba compiles field access to a load at a fixed offset
-and caches such functions on disk like any other.
+C compiler puts the members of the same struct): Python builds parameters and
+settings as records and reads the engine's state and outputs through views
+of the same memory.
 
 The C side is derived from the same definitions: :func:`c_header` writes
 ``runtime_c/sd_layout.h`` (structs and enums; ``make generate``),
@@ -28,7 +27,7 @@ dtype               C struct              what it holds
 Numberings shared with C (enums in ``sd_layout.h``): :class:`Slot` (table
 channels the renderer reads, :data:`SLOTS` order), :class:`Policy` (burst
 overlap policies) and the model ids (position in
-:data:`shapedisplay.runtime.models.MODELS`, see :mod:`.dispatch`).
+:data:`shapedisplay.runtime.models.MODELS`).
 """
 from __future__ import annotations
 
@@ -171,6 +170,9 @@ OUTPUTS = _layout("OUTPUTS", [
     ("drive", f8, "burst drive at the tick time, in [-1, 1]"),
     ("audio_samples", f8, "audio samples written for the tick"),
     ("pad_speed", f8, "surface speed along the pad axis, m/s"),
+    ("mu_s", f8, "static friction coefficient of the tick (device, table scale and slope term)"),
+    ("mu_k", f8, "kinetic friction coefficient of the tick"),
+    ("burst_gain", f8, "burst-gain multiplier of the tick (table channel, 1 if absent)"),
 ])
 
 BURST_STATE = _layout("BURST_STATE", [

@@ -2,9 +2,15 @@
 
 ``MODELS`` maps a name to a model class, the way ``scipy.integrate.solve_ivp``
 maps ``method`` names to ``OdeSolver`` classes. A model class only validates
-and packs its parameters and names its numba kernel (see :mod:`.pads`); the
+and packs its parameters (a :data:`~.layouts.PAD_PARAMS` record, the C
+engine's ``sd_pad_params_t``); its tick is the C engine's (``sd_model_tick``,
+the model id is the position in :data:`MODELS`): ``sd_exact.c``,
+``sd_pad.c`` (jump), ``sd_karnopp.c``, ``sd_stribeck.c`` and
+``sd_baselines.c`` (euler, rk4, tanh: the deliberately naive integrators the
+reports compare against). The
 :class:`~shapedisplay.runtime.renderer.Renderer` owns the bookkeeping
-(state, counters, buffers, checks).
+(state, counters, buffers, checks); :func:`run_kernel` runs a model alone
+over per-tick inputs.
 
 ==========  ==================================================================
 name        model
@@ -38,22 +44,6 @@ from ..units import parse_quantity
 from .layouts import PAD_PARAMS, PAD_STATE, record
 
 
-class Kernel:
-    """A model's numba tick function in :mod:`.pads`, named here and imported on first use.
-
-    Naming the kernel rather than importing it keeps numba out of everything
-    that only reads a model's parameters: a play through the C runtime loads
-    no numba. ``SomeModel.kernel`` is the compiled function itself.
-    """
-
-    def __init__(self, name: str):
-        self.__name__ = name
-
-    def __get__(self, obj, cls=None):
-        from . import pads
-        return getattr(pads, self.__name__)
-
-
 def _extra_q(device: DeviceProfile, section: str, key: str, unit: str, default: float, bare_ok=False) -> float:
     sec = device.extra.get(section, {}) or {}
     if key not in sec:
@@ -62,26 +52,14 @@ def _extra_q(device: DeviceProfile, section: str, key: str, unit: str, default: 
 
 
 class PadModel:
-    """Base class: validated parameters packed for the numba kernels.
+    """Base class: validated parameters packed for the C engine's ticks.
 
-    Subclasses set ``name``, ``kernel`` (their tick function in
-    :mod:`.pads`), ``needs`` (table channels the model cannot run without)
-    and may extend :meth:`pack`. The model id is the position in
-    :data:`MODELS` (shared with the C runtime's ``SD_MODEL_*``).
+    Subclasses set ``name``, ``needs`` (table channels the model cannot run
+    without) and may extend :meth:`pack`. The model id is the position in
+    :data:`MODELS` (the C engine's ``SD_MODEL_*``).
     """
 
     name = "base"
-    #: The numba tick function (signature in :mod:`.pads`).
-    kernel = None
-    #: Stuck ticks run inline in the offline loop (a pad with ``stiffness``/``damping`` whose tick starts
-    #: with :func:`pads._stuck_whole_tick`): None, "with_work" or "without_work" (friction/damper work).
-    stick_fast_path: str | None = None
-    #: The kernel's form for the offline loops (``run_ticks``, ``render_ticks``), if it has one: the names
-    #: in :mod:`.pads` of ``constants(prm)``, the pad's constants, computed once per run, and of
-    #: ``tick(st, prm, t0, h, V, N, mus, muk, gain, ev_t, ev_a, n_ev, constants, work)``, the kernel's
-    #: arithmetic from them (``work`` False: the tick's friction and damper work are not computed; the
-    #: render keeps neither). None: the loops call :attr:`kernel`.
-    prepared_kernel: tuple[str, str] | None = None
     needs: tuple = ()      # N comes from ``normal_force`` or, if not stored, the header's constant
     #: True if the pad mass/stiffness/damping of the device are used.
     uses_pad = True
@@ -94,33 +72,13 @@ class PadModel:
             self.device.pad.validate()
         if options:
             raise InputError(f"model '{self.name}' takes no options (got {sorted(options)})")
-        #: The parameters in a one-element PAD_PARAMS array (what the compiled kernels take from Python:
-        #: numba unboxes an array far faster than a bare record) and its record view.
+        #: The parameters in a one-element PAD_PARAMS array (the C engine's sd_pad_params_t) and its record.
         self.param_block = np.array([self.pack()], dtype=PAD_PARAMS)
         self.params = self.param_block[0]
-        #: The same bytes as float64 (what :func:`run_kernel` passes: numba checks the type of a plain
-        #: float64 array faster than that of a structured one).
-        self._param_f8 = self.param_block.view(np.float64)
-
-    @functools.cached_property
-    def _fresh_state(self) -> np.ndarray:
-        """A fresh state (:meth:`new_state`), copied by :func:`run_kernel` at every run (made on first use:
-        it imports the kernels, which a model used only for its parameters never needs)."""
-        return self.new_state()
-
-    @functools.cached_property
-    def _fresh_state_f8(self) -> np.ndarray:
-        """The float64 view of :attr:`_fresh_state` (what :func:`run_kernel` passes)."""
-        return self._fresh_state.view(np.float64)
-
-    @functools.cached_property
-    def _fresh_state_bytes(self) -> bytes:
-        """The bytes of :attr:`_fresh_state` (what :func:`run_kernel` starts each run from)."""
-        return self._fresh_state.tobytes()
 
     @functools.cached_property
     def model_id(self) -> int:
-        """Position in :data:`MODELS` (the kernel number of :mod:`.dispatch` and of ``SD_MODEL_*`` in C)."""
+        """Position in :data:`MODELS` (``SD_MODEL_*`` in C)."""
         return MODEL_IDS[self.name]
 
     def pack(self) -> np.void:
@@ -130,9 +88,8 @@ class PadModel:
                       burst_gain=d.burst.gain, max_stick_period=d.burst.max_stick_period_s, substep=1.0)[0]
 
     def new_state(self) -> np.ndarray:
-        """A fresh state: a one-element :data:`~.layouts.PAD_STATE` array."""
-        from . import pads
-        return pads.new_state()
+        """A fresh state (one-element :data:`~.layouts.PAD_STATE` array): stuck, spring relaxed."""
+        return record(PAD_STATE, s=1.0)
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}(device={self.device.name!r})"
@@ -149,9 +106,6 @@ class ExactModel(PadModel):
     """
 
     name = "exact"
-    kernel = Kernel("exact_tick")
-    stick_fast_path = "with_work"
-    prepared_kernel = ("exact_constants", "exact_tick_prepared")
 
 
 class JumpModel(PadModel):
@@ -161,7 +115,7 @@ class JumpModel(PadModel):
     breakaway is the exact threshold crossing (linear in time). Slip is not
     integrated: the pad jumps to the re-stick stretch given by the closed-form
     damped overshoot evaluated at ``t_pi = pi / omega_d`` plus one Newton
-    correction for the pad velocity ``V`` (:func:`pads.jump_restick`); for
+    correction for the pad velocity ``V`` (``sd_pad.c``); for
     ``V -> 0``::
 
         f_restick = mu_k N - (mu_s - mu_k) N exp(-zeta pi / sqrt(1 - zeta^2))
@@ -186,8 +140,6 @@ class JumpModel(PadModel):
     """
 
     name = "jump"
-    kernel = Kernel("jump_tick")
-    stick_fast_path = "without_work"
     #: Stated bound: relative period error <= BOUND_PER_R * r for r <= BOUND_R_MAX, zeta <= BOUND_ZETA_MAX.
     BOUND_PER_R = 0.02
     BOUND_R_MAX = 0.25
@@ -206,7 +158,6 @@ class KarnoppModel(PadModel):
     """
 
     name = "karnopp"
-    kernel = Kernel("karnopp_tick")
     uses_pad = False
 
     def pack(self) -> np.ndarray:
@@ -226,7 +177,7 @@ class KarnoppModel(PadModel):
 MIN_SUBSTEP_S = 1e-9
 #: Local error allowed per Stribeck slip step, relative to the pad's scales (stretch ``mu_s W / k``, speed
 #: ``|V| + A omega + mu_s W / sqrt(k m)``): the default, and the range ``[stribeck] tolerance`` or the
-#: ``tolerance`` option may set. From ``pads.STRIBECK_EXP_MIN_TOL`` up the slip runs by exponential
+#: ``tolerance`` option may set. From 3e-9 up (``sd_stribeck.c``) the slip runs by exponential
 #: Rosenbrock steps, below it by Taylor steps.
 STRIBECK_TOLERANCE = 1e-13
 STRIBECK_TOLERANCE_RANGE = (1e-14, 1e-3)
@@ -277,7 +228,6 @@ class StribeckModel(PadModel):
     """
 
     name = "stribeck"
-    kernel = Kernel("stribeck_tick")
 
     def __init__(self, device=None, variant="stribeck", contactor_hz=None, contactor_amplitude_m=None,
                  substep_s=None, tolerance=None):
@@ -346,7 +296,7 @@ class TanhModel(PadModel):
     """Konyo pad with tanh-regularised Coulomb friction (an option to compare against ``exact``).
 
     No stick state: the sign function is replaced by a smooth friction law
-    (:func:`pads.tanh_friction`) peaking at ``mu_s N`` at slip speed ``eps``
+    (``sd_baselines.c``) peaking at ``mu_s N`` at slip speed ``eps``
     and falling to ``mu_k N``, integrated by linearly implicit exponential
     substeps. Its costs, shown by ``tests/test_runtime_pads.py``: creep below
     breakaway (the pad slips at ``|w| < eps`` while "stuck", so the spring
@@ -367,7 +317,6 @@ class TanhModel(PadModel):
     """
 
     name = "tanh"
-    kernel = Kernel("tanh_tick")
 
     def __init__(self, device=None, eps_m_s=1e-4, substep_s=1e-6):
         for name, val in (("eps_m_s", eps_m_s), ("substep_s", substep_s)):
@@ -388,14 +337,12 @@ class EulerModel(PadModel):
     """Forward Euler, one step per tick. Diverges on the Konyo pad unless h < 2 zeta/omega_n (~5 us)."""
 
     name = "euler"
-    kernel = Kernel("euler_tick")
 
 
 class Rk4Model(PadModel):
     """Classical RK4, one step per tick. Diverges on the Konyo pad unless h < 2.8/omega_n (~63 us)."""
 
     name = "rk4"
-    kernel = Kernel("rk4_tick")
 
 
 #: Registry: model name -> class. A new model is one class plus one line here (append: the
@@ -411,32 +358,6 @@ MODELS: dict[str, type[PadModel]] = {
 }
 #: Model ids: position in :data:`MODELS`.
 MODEL_IDS = {name: i for i, name in enumerate(MODELS)}
-
-
-def registry_entries() -> tuple:
-    """``(name, kernel function name, stick fast path, prepared kernel)`` per model in id order: what
-    :mod:`.dispatch` is generated from."""
-    return tuple((name, _kernel_name(cls), cls.stick_fast_path, cls.prepared_kernel) for name, cls in MODELS.items())
-
-
-def _kernel_name(cls) -> str:
-    """The name of ``cls``'s kernel in :mod:`.pads`, without importing it."""
-    for c in cls.__mro__:
-        if "kernel" in vars(c):
-            k = vars(c)["kernel"]
-            return k.__name__
-    raise ModelError(f"model class {cls.__name__} names no kernel")
-
-
-@functools.cache
-def check_dispatch() -> None:
-    """Refuse to run kernels when :mod:`.dispatch` was generated from another registry than :data:`MODELS`
-    (checked once per process)."""
-    from . import dispatch      # generated from MODELS (imported here so `make generate` never needs it)
-    if dispatch.REGISTRY != registry_entries():
-        raise ModelError("shapedisplay/runtime/dispatch.py was generated from another model registry than "
-                         "runtime.models.MODELS; regenerate it with `make generate`")
-
 
 
 def get_model(model, device: DeviceProfile | None = None, **options) -> PadModel:
@@ -467,9 +388,6 @@ class PadResult:
         Friction force on the pad, N.
     state : ndarray (n,), int8
         0 stick, 1 slip.
-    work_friction, work_damping : ndarray (n,)
-        Work done by friction on the pad and energy dissipated by the damper
-        during each tick, J (exact model; zero for others).
     event_time, event_amplitude : ndarray (n_events,)
         Stick-to-slip times (s) and burst amplitudes ``B |k x|`` at breakaway.
     model : str
@@ -483,8 +401,6 @@ class PadResult:
     v: np.ndarray
     friction_force: np.ndarray
     state: np.ndarray
-    work_friction: np.ndarray
-    work_damping: np.ndarray
     event_time: np.ndarray
     event_amplitude: np.ndarray
     model: str
@@ -492,66 +408,52 @@ class PadResult:
     diverged_at: float | None = None
 
 
-def run_kernel(model: PadModel, t, V, N, mus, muk, gain, state=None, out=None):
-    """Run ``model`` over per-tick inputs (arrays of shape (n,)); grow the event buffer as needed.
+def run_kernel(model: PadModel, t, V, N, mus, muk, gain, state=None):
+    """Run ``model``'s C tick over per-tick inputs (``sd_pad_run``; no table, no bursts).
 
-    ``state`` (optional) is the initial :data:`~.layouts.PAD_STATE` (record or one-element array).
-    ``out`` (optional) is a float64 ``(6, n)`` array with C-contiguous rows to write the per-tick
-    outputs into (a caller keeping all its per-tick arrays in one block passes rows of it).
-    Returns ``(state, friction, phase, x, v, wf, wd, ev_t, ev_a)``, ``state`` the final record. The six
-    per-tick arrays are rows of one block (one large allocation faults its pages in far faster than
-    six separate ones; with the tick loop at ~100 M ticks/s, fresh memory is most of the cost); the
-    events and the state usually live in the same block (``(9, n)``: rows 6 and 7, row 8), ``out``
-    or a path with more events than ticks gives them arrays of their own.
+    Tick ``i`` runs from ``t[i-1]`` to ``t[i]`` with the inputs ``V[i]`` (m/s), ``N[i]`` (N), ``mus[i]``,
+    ``muk[i]`` and ``gain[i]`` (tick 0 has zero length and reports the initial state); ``mus``, ``muk`` and
+    ``gain`` may also hold one value for every tick (shape (1,)). ``state`` (optional) is the initial
+    :data:`~.layouts.PAD_STATE` (record or one-element array; default :meth:`PadModel.new_state`).
+
+    Returns ``(state, friction, phase, x, v, ev_t, ev_a)``: the final state record, then per tick the
+    friction force on the pad (N), the phase (0 stick, 1 slip), the stretch (m) and the pad velocity (m/s)
+    at the tick's end (rows of one float64 block), and the stick-to-slip events (times s, burst amplitudes).
+    A model that diverges (the explicit baselines) says so in ``state["diverged"]``; one that reaches its
+    cap on phase changes in a tick raises :class:`ModelError`.
     """
-    # Short paths (a few hundred ticks) cost about as much in this Python wrapper as in the compiled
-    # loop: one generated call (dispatch.run_block) writes the per-tick rows, the events and the final
-    # state into one block and returns two integers (numba turns every array it returns into a Python
-    # object); the state and the events are read from the block. dispatch.run_block_grow takes the paths
-    # that do not fit (a caller's ``out``, more events than ticks, fewer ticks than the state has words).
-    # The registry check runs once, when the dispatch module is first used.
-    init = model._fresh_state_f8 if state is None else np.array(state, dtype=PAD_STATE).reshape(1).view(np.float64)
-    n = t.shape[0]
-    D = _DISPATCH[0] if _DISPATCH else _checked_dispatch()
-    if out is None and n >= D.STATE_WORDS:
-        block = np.empty((9, n))
-        n_ev, truncated = D.run_block(model.model_id, init, model._param_f8, t, V, N, mus, muk, gain, block)
-        if truncated > 0:
-            raise _cap_error(model, truncated)
-        if n_ev <= n:
-            # rows taken by index: numpy makes six views by index in about 60 % of the time of unpacking
-            # the block; a state record read with frombuffer costs a fraction of a view to PAD_STATE
-            return (np.frombuffer(block, PAD_STATE, 1, 64 * n)[0], block[0], block[1], block[2], block[3],
-                    block[4], block[5], block[6, :n_ev], block[7, :n_ev])
-        block = block[:6]
-    else:
-        block = np.empty((6, n)) if out is None else out
-    S, ev, truncated = D.run_block_grow(model.model_id, init, model._param_f8, t, V, N, mus, muk, gain, block,
-                                        n // 8 + 1024)
-    if truncated > 0:
-        raise _cap_error(model, truncated)
-    return S[0], block[0], block[1], block[2], block[3], block[4], block[5], ev[0], ev[1]
-
-
-def _cap_error(model, truncated):
-    return ModelError(f"model '{model.name}' reached its cap on phase changes in one tick "
-                      f"({truncated} ticks cut); inputs are outside the model's range")
-
-
-def _dispatch():
-    """The generated dispatch module (imported on first use: it compiles or loads every kernel)."""
-    from . import dispatch
-    return dispatch
-
-
-#: The dispatch module once imported and checked (an import statement per run_kernel call costs ~0.7 us)
-_DISPATCH: list = []
-
-
-def _checked_dispatch():
-    check_dispatch()
-    _DISPATCH.append(_dispatch())
-    return _DISPATCH[0]
+    from .native import RUN_UNKNOWN_MODEL, library
+    lib = library()
+    n = int(np.shape(t)[0])
+    rows = [np.ascontiguousarray(a, dtype=np.float64) for a in (t, V, N, mus, muk, gain)]
+    for name, a in zip(("t", "V", "N"), rows[:3]):
+        if a.shape != (n,):
+            raise InputError(f"`{name}` must have shape ({n},) (got {a.shape})")
+    ones = []
+    for name, a in zip(("mus", "muk", "gain"), rows[3:]):
+        if a.shape not in ((n,), (1,)) or (a.shape == (1,) and n == 0):
+            raise InputError(f"`{name}` must have shape ({n},) or (1,) (got {a.shape})")
+        ones.append(int(a.shape[0] != n))
+    init = model.new_state() if state is None else np.array(state, dtype=PAD_STATE).reshape(1)
+    out = np.empty((4, n))
+    cap = n // 8 + 1024
+    while True:
+        S = init.copy()
+        ev = np.empty((2, cap))
+        n_ev = lib.sd_pad_run(model.model_id, model.param_block.ctypes.data, S.ctypes.data,
+                              rows[0].ctypes.data, n, *(a.ctypes.data for a in rows[1:]), *ones,
+                              *(r.ctypes.data for r in out),
+                              ev[0].ctypes.data, ev[1].ctypes.data, cap)
+        if n_ev == RUN_UNKNOWN_MODEL:
+            raise ModelError(f"the C engine has no tick for model '{model.name}' (id {model.model_id})")
+        if n_ev <= cap:
+            break
+        cap = int(n_ev) + 64
+    st = S[0]
+    if st["truncated"] > 0:
+        raise ModelError(f"model '{model.name}' reached its cap on phase changes in one tick "
+                         f"({int(st['truncated'])} ticks cut); inputs are outside the model's range")
+    return st, out[0], out[1], out[2], out[3], ev[0, :n_ev], ev[1, :n_ev]
 
 
 def _as_ticks(value, n, field):
@@ -616,15 +518,14 @@ def simulate_pad(model="exact", V=0.05, N=2.0, pad: PadParams | None = None,
     if np.any(Na < 0):
         raise InputError(f"`N` must be >= 0 N (got min {Na.min()})")
     t = np.arange(n, dtype=np.float64) / rate
-    ones = np.ones(n)
-    S, f, st, x, v, wf, wd, et, ea = run_kernel(m, t, Va, Na, dev.friction.mu_s * ones,
-                                             dev.friction.mu_k * ones, ones)
+    S, f, st, x, v, et, ea = run_kernel(m, t, Va, Na, np.array([dev.friction.mu_s]), np.array([dev.friction.mu_k]),
+                                        np.ones(1))
     div = None
     if S["diverged"] != 0:
         div = float(S["diverged_at"])
         if on_divergence == "raise":
             raise ModelError(divergence_message(m, rate, div))
-    return PadResult(t, x, v, f, st.astype(np.int8), wf, wd, et, ea, m.name, rate, div)
+    return PadResult(t, x, v, f, st.astype(np.int8), et, ea, m.name, rate, div)
 
 
 def divergence_message(model: PadModel, rate: float, when: float) -> str:

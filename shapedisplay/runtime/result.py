@@ -1,4 +1,4 @@
-"""The result of an offline render, whichever engine played it (numba kernels or the C runtime)."""
+"""The result of an offline render."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -20,16 +20,12 @@ class RenderResult:
     audio : (n_audio,), float64 in [-1, 1] at ``audio_rate`` Hz, first sample at ``t[0]``
     clipped : int, audio samples limited to full scale
     model : str; ``tick_rate`` : Hz; ``burst_policy`` : str
-    mu_s : (n,), the static friction coefficient of each tick (None when the C runtime played the path)
+    mu_s : (n,), the static friction coefficient of each tick
+    events_dropped : int, events the engine's event ring could not hold while they sounded: their bursts are
+        missing from ``audio`` (``event_time`` keeps them); 0 unless thousands of bursts sound at once
 
-    :meth:`~.renderer.Renderer.render` returns ``t``, ``x`` and ``y`` as read-only views of the cursor path's
-    own rows (of the path resampled to the tick rate if it was not on the tick grid; converted to float64 if
-    it held another type), not copies. Copy them (``np.array(result.t)``) to write into them.
-
-    A row that holds one value on every tick (``mu_s`` where the friction coefficients do not vary along
-    the path, ``lateral_x``/``lateral_y`` of a table without them, ``vy`` on a path along x) may be a
-    read-only view of that value (stride 0) rather than n stored copies: read it as any array; copy it
-    (``np.array(result.vy)``) to write into it.
+    ``t``, ``x`` and ``y`` are those of the path played: resampled onto the tick grid
+    ``t[0] + k / tick_rate`` if the path was not on it.
     """
 
     t: np.ndarray
@@ -52,6 +48,7 @@ class RenderResult:
     tick_rate: float
     burst_policy: str = "retrigger"
     mu_s: np.ndarray = field(default=None, repr=False)
+    events_dropped: int = 0
 
     @property
     def duration(self) -> float:
@@ -70,6 +67,7 @@ class RenderResult:
             "audio_samples": int(self.audio.size),
             "audio_rate_hz": self.audio_rate,
             "clipped": int(self.clipped),
+            "events_dropped": int(self.events_dropped),
             "peak": float(np.max(np.abs(self.audio), initial=0.0)),
         }
 

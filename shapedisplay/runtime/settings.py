@@ -1,9 +1,8 @@
 """What a renderer plays with: its settings from a table, a device and the options, validated once.
 
-Both engines of an offline render take their settings from here: the
-compiled Python kernels (:class:`~.renderer.Renderer`) and the C runtime
-(:mod:`.native`). This module imports neither numba nor the C library, so a
-play through the C runtime never loads numba.
+:class:`~.renderer.Renderer` takes its settings from here, and so do the
+studio's payload and the binary table image. This module does not load the C
+engine: settings are validated before anything is played.
 
 The settings are one :data:`~.layouts.RENDER_CONFIG` record (the C
 runtime's ``sd_config_t``, byte for byte): device friction, the table's

@@ -231,6 +231,9 @@ typedef struct {
     sd_real drive;                  /* burst drive at the tick time, in [-1, 1] */
     sd_real audio_samples;          /* audio samples written for the tick */
     sd_real pad_speed;              /* surface speed along the pad axis, m/s */
+    sd_real mu_s;                   /* static friction coefficient of the tick (device, table scale and slope term) */
+    sd_real mu_k;                   /* kinetic friction coefficient of the tick */
+    sd_real burst_gain;             /* burst-gain multiplier of the tick (table channel, 1 if absent) */
 } sd_outputs_t;
 #define SD_FIELDS_OUTPUTS(X) \
     X(F64, t) \
@@ -247,7 +250,10 @@ typedef struct {
     X(F64, events) \
     X(F64, drive) \
     X(F64, audio_samples) \
-    X(F64, pad_speed)
+    X(F64, pad_speed) \
+    X(F64, mu_s) \
+    X(F64, mu_k) \
+    X(F64, burst_gain)
 
 /* BURST_STATE */
 typedef struct {

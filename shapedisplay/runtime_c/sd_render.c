@@ -360,6 +360,24 @@ static long synth(sd_burst_state_t *B, const sd_real *ev_t, const sd_real *ev_a,
     return clipped;
 }
 
+
+/* Offline burst audio of a sorted event list (the renderer's burst state and carrier, without a table):
+ * n samples at times t_start + j / rate into out (the envelope alone when envelope_only); returns the
+ * samples limited to [-1, 1]. */
+long sd_render_events(const sd_real *ev_t, const sd_real *ev_a, long n_ev, sd_real t_start, sd_real rate,
+                      int64_t n, sd_real carrier, sd_real rise, sd_real decay, int policy, int envelope_only,
+                      sd_real *out)
+{
+    sd_burst_state_t B;
+    int64_t j;
+    memset(&B, 0, sizeof B);
+    B.cj = -1;
+    B.rc = SD_COS(SD_R(2.0) * SD_PI * carrier / rate);     /* as sd_renderer_init: w / rate */
+    B.rs = SD_SIN(SD_R(2.0) * SD_PI * carrier / rate);
+    if (!envelope_only) return synth(&B, ev_t, ev_a, n_ev, t_start, rate, 0, n, carrier, rise, decay, policy, out);
+    for (j = 0; j < n; j++) out[j] = envelope_at(&B, ev_t, ev_a, n_ev, t_start + (sd_real)j / rate, rise, decay, policy);
+    return 0;
+}
 #endif
 
 /* ------------------------------------------------------------------ per-tick inputs */
@@ -383,11 +401,9 @@ static void axis_speed(sd_real vx, sd_real vy, sd_real *ax, sd_real *ay, sd_real
     *ay = -dy;
 }
 
-static void derive(const sd_renderer_t *R, const sd_real *vals, sd_real vx, sd_real vy, sd_real speed, sd_real *N_out,
-                   sd_real *mus_out, sd_real *muk_out, sd_real *gain_out)
+void sd_derive(const sd_table_t *T, const sd_config_t *C, const sd_real *vals, sd_real vx, sd_real vy, sd_real speed,
+               sd_real *N_out, sd_real *mus_out, sd_real *muk_out, sd_real *gain_out)
 {
-    const sd_table_t *T = R->table;
-    const sd_config_t *C = &R->cfg;
     sd_real N = T->slot[SD_SLOT_NORMAL_FORCE] ? vals[SD_SLOT_NORMAL_FORCE] : C->normal_force_constant, fs, mus, muk, gain;
     if (N < SD_R(0.0)) N = SD_R(0.0);
     fs = T->slot[SD_SLOT_FRICTION_SCALE] ? vals[SD_SLOT_FRICTION_SCALE] : SD_R(1.0);
@@ -681,7 +697,7 @@ sd_real sd_renderer_step(sd_renderer_t *R, sd_real x, sd_real y)
     }
     axis_speed(vx, vy, &R->run.ax, &R->run.ay, &V);
     sd_sample_slots(R->table, xm, ym, vals);
-    derive(R, vals, vx, vy, SD_FABS(V), &N, &mus, &muk, &gain);
+    sd_derive(R->table, &R->cfg, vals, vx, vy, SD_FABS(V), &N, &mus, &muk, &gain);
     /* forget bursts that have finished (and that the burst state no longer needs) */
     dur = R->cfg.rise_s + R->cfg.decay_s;
     done = R->cfg.policy == SD_ADD ? (long)R->bursts.i_out : (long)R->bursts.i_in;
@@ -748,6 +764,9 @@ sd_real sd_renderer_step(sd_renderer_t *R, sd_real x, sd_real y)
     R->out.vx = vx;
     R->out.vy = vy;
     R->out.pad_speed = V;
+    R->out.mu_s = mus;
+    R->out.mu_k = muk;
+    R->out.burst_gain = gain;
     R->out.normal_force = N;
     R->out.friction_force = f;
     R->out.state = R->pad.phase;

@@ -126,6 +126,19 @@ sd_real sd_channel_value(const sd_channel_t *ch, long idx);
 long sd_cell_index(const sd_table_t *T, long r, long c);
 void sd_sample_slots(const sd_table_t *T, sd_real x, sd_real y, sd_real *out);
 sd_real sd_envelope(sd_real tau, sd_real rise, sd_real decay);
+/* A tick's model inputs from the slot values sampled at the cursor (vals[SD_NSLOT]; a slot the table does
+ * not store is read from the settings): normal force N >= 0, static and kinetic coefficients (table scale
+ * or forces, plus the one-sided slope term along the motion (vx, vy) at `speed`; mu_k <= mu_s) and the
+ * burst-gain multiplier. */
+void sd_derive(const sd_table_t *T, const sd_config_t *C, const sd_real *vals, sd_real vx, sd_real vy, sd_real speed,
+               sd_real *N_out, sd_real *mus_out, sd_real *muk_out, sd_real *gain_out);
+#ifndef SD_SINGLE
+/* Offline burst audio of sorted events (times s, peak amplitudes) with the renderer's bursts and carrier:
+ * n samples at t_start + j / rate into out, or the envelope alone (envelope_only); returns samples clipped. */
+long sd_render_events(const sd_real *ev_t, const sd_real *ev_a, long n_ev, sd_real t_start, sd_real rate,
+                      int64_t n, sd_real carrier, sd_real rise, sd_real decay, int policy, int envelope_only,
+                      sd_real *out);
+#endif
 
 /* ------------------------------------------------------------------ renderer */
 #ifndef SD_EVENT_RING
