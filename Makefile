@@ -8,7 +8,9 @@ OUT    := out
 
 .PHONY: install test demo bench report generate docs-images clean
 
-$(STAMP): pyproject.toml scripts/install-system-deps.sh
+# the C engine and kernels are compiled by the install: a changed C source or setup.py installs again
+ENGINE_SRC := setup.py $(wildcard shapedisplay/runtime_c/sd_*.[ch] shapedisplay/runtime/sd_*.c shapedisplay/sd_kernels.c)
+$(STAMP): pyproject.toml scripts/install-system-deps.sh $(ENGINE_SRC)
 	sh scripts/install-system-deps.sh --with-xvfb --with-studio --with-toolchains
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q -e '.[all,test]'
