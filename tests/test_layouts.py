@@ -1,4 +1,4 @@
-"""Kernel layouts: one definition (numpy dtypes) for numba, ctypes and the C structs; generated files current."""
+"""Engine layouts: one definition (numpy dtypes) for the binding's views, ctypes and the C structs; the header current."""
 from __future__ import annotations
 
 import ctypes
@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from shapedisplay.runtime import codegen, dispatch, layouts, pads, renderer
+from shapedisplay.runtime import codegen, layouts, renderer
 from shapedisplay.runtime.layouts import BURST_POLICIES, LAYOUTS, SLOTS, ctypes_struct
-from shapedisplay.runtime.models import MODEL_IDS, MODELS, registry_entries
+from shapedisplay.runtime.models import MODEL_IDS, MODELS
 
 CDIR = Path(layouts.__file__).resolve().parent.parent / "runtime_c"
 
@@ -35,8 +35,8 @@ def _members(dt: np.dtype, prefix=""):
     return out
 
 
-def test_generated_files_are_current():
-    """dispatch.py, sd_layout.h and every KERNEL_SOURCES_SHA256 line match `make generate`."""
+def test_generated_header_is_current():
+    """runtime_c/sd_layout.h is what `make generate` writes from the layouts and the model registry."""
     assert codegen.stale_files() == []
 
 
@@ -83,8 +83,8 @@ def test_c_structs_and_enums_match_python(tmp_path):
     for slot in SLOTS:
         lines.append(f'    printf("enum slot_{slot} %d\\n", (int)SD_SLOT_{slot.upper()});')
     lines.append('    printf("enum nslot %d\\n", (int)SD_NSLOT);')
-    lines.append('    printf("tick exact %d\\n", sd_model_tick(SD_MODEL_EXACT) == sd_exact_tick);')
-    lines.append('    printf("tick jump %d\\n", sd_model_tick(SD_MODEL_JUMP) == sd_jump_tick);')
+    for model in MODELS:           # every model of the registry has its C tick under its own id
+        lines.append(f'    printf("tick {model} %d\\n", sd_model_tick(SD_MODEL_{model.upper()}) == sd_{model}_tick);')
     lines += ["    return 0;", "}"]
     src = tmp_path / "layout_probe.c"
     src.write_text("\n".join(lines) + "\n")
@@ -111,37 +111,16 @@ def test_c_structs_and_enums_match_python(tmp_path):
     assert {p: enums[("enum", f"policy_{p}")] for p in BURST_POLICIES} == BURST_POLICIES
     assert [enums[("enum", f"slot_{s}")] for s in SLOTS] == list(range(len(SLOTS)))
     assert enums[("enum", "nslot")] == len(SLOTS)
-    assert enums[("tick", "exact")] == 1 and enums[("tick", "jump")] == 1
+    assert {m: enums[("tick", m)] for m in MODELS} == {m: 1 for m in MODELS}
 
 
-def test_model_ids_are_registry_positions_and_dispatch_follows_the_registry():
+def test_model_ids_are_registry_positions():
     assert list(MODEL_IDS.values()) == list(range(len(MODELS)))
-    assert dispatch.REGISTRY == registry_entries()
     for name, cls in MODELS.items():
-        assert getattr(pads, cls.kernel.__name__) is cls.kernel, name
         assert cls().model_id == MODEL_IDS[name]
 
 
-def test_a_new_registry_line_gets_its_own_branches():
-    """Adding a model needs no hand-written branch: the dispatch source is generated from the registry."""
-    extra = registry_entries() + (("mine", "mine_tick", None, None),)
-    src = codegen.dispatch_source(extra)
-    i = len(extra) - 1
-    assert src.count("pads.mine_tick(") == 3                      # model_tick, run_ticks and render_ticks
-    assert f"    if model == {i}:\n        return pads.mine_tick(" in src
-    fast = registry_entries() + (("mine", "mine_tick", "with_work", None),)
-    assert codegen.dispatch_source(fast).count("st.x = x\n            n_ev = pads.mine_tick(") == 2
-    # a prepared form: its constants once per loop, the kernel form in both loops (work terms on the render's
-    # last tick only), the plain kernel for one tick
-    prep = registry_entries() + (("mine", "mine_tick", "with_work", ("mine_constants", "mine_prepared")),)
-    src = codegen.dispatch_source(prep)
-    assert src.count("pc = pads.mine_constants(prm)\n") == 2                   # run_ticks, render_ticks
-    assert src.count("st, prm, t[i - 1], h, Vi, N[i], mus[i], muk[i], gain[i], ev_t, ev_a, n_ev, pc, True)") == 2  # exact's, mine's
-    assert src.count("gain[unsigned(i) & mg], ev_t, ev_a, n_ev, pc, i == n - 1)") == 2   # exact's, mine's
-    assert src.count("pads.mine_tick(") == 1
-
-
-def test_policy_and_slot_numbers_used_by_kernels():
+def test_policy_and_slot_numbers_shared_with_c():
     assert [int(layouts.Policy[p.upper()]) for p in BURST_POLICIES] == list(BURST_POLICIES.values())
     assert [int(layouts.Slot[s.upper()]) for s in SLOTS] == list(range(len(SLOTS)))
     assert renderer.OUT_NAMES == layouts.OUTPUTS.names
@@ -151,7 +130,7 @@ def test_javascript_wrapper_numbers_models_policies_and_outputs_as_c():
     """sd_wasm.js passes model and policy numbers to the WebAssembly build and names its outputs."""
     import json
     import re
-    from shapedisplay.link.c_engine import C_MODELS
+    from shapedisplay.runtime.native import C_MODELS
     js = (CDIR / "wasm" / "sd_wasm.js").read_text()
 
     def const(name):
