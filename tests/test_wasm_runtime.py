@@ -10,7 +10,8 @@ import subprocess
 import numpy as np
 import pytest
 
-from shapedisplay.runtime import wasm
+from shapedisplay.runtime import Renderer, wasm
+from shapedisplay.runtime.layouts import OUTPUTS
 from shapedisplay.runtime.models import MODEL_IDS
 
 from runtime_vectors import (CASES, WasmRunner, assert_within_derived_bounds, assert_within_float_bounds, case_setup,
@@ -71,6 +72,56 @@ def test_wasm_refuses_damaged_images_and_swaps_tables():
     assert w.call("sd_wasm_audio_count") in (4, 5, 6)          # 44.1 kHz at 10 kHz ticks
     assert w.call("sd_wasm_counter", 1) > 5 and np.count_nonzero(drive) > 50
     assert w.call("sd_wasm_param", 5) == r.device.friction.mu_s
+
+
+def _pad_block(runner, block) -> None:
+    """Write a PAD_PARAMS block (doubles, field order) where sd_wasm_pad_block says."""
+    ptr = runner.call("sd_wasm_pad_block", len(block))
+    assert ptr and ptr % 8 == 0
+    runner.write(ptr, np.asarray(block, "<f8").tobytes())
+
+
+@pytest.mark.parametrize("model", ["karnopp", "stribeck"])
+def test_wasm_plays_models_from_the_pad_block(model):
+    """karnopp and stribeck read pad fields the image does not carry: configured with the block the studio
+    sends (studio.wasm.model_blocks), the module plays as the host C runtime (Renderer) does; without one,
+    or with a damaged one, configure refuses and the playing model stays."""
+    from shapedisplay.runtime.cursor import CursorPath
+    from shapedisplay.runtime.layouts import PAD_PARAMS
+    from shapedisplay.studio.wasm import model_blocks
+    import base64
+    table, r, x, y, img = case_setup("uint16", "teleports", "retrigger", 10_000.0, 48_000.0, model, seconds=0.2)
+    block = np.frombuffer(base64.b64decode(model_blocks(r.device)[model]["pad"]), "<f8").copy()
+    assert block.size == len(PAD_PARAMS.names)
+    w = WasmRunner(wasm.MODULE)
+    assert w.load(img) == 0
+    mid, jump = MODEL_IDS[model], MODEL_IDS["jump"]
+    assert w.call("sd_wasm_configure", mid, 0, 10_000.0, 48_000.0) == -1        # the image has no such block
+    assert w.call("sd_wasm_pad_block", block.size - 1) == 0                      # a block of another length
+    for i, bad in ((0, np.nan), (PAD_PARAMS.names.index("stribeck_variant"), 0.5)):
+        damaged = block.copy()
+        damaged[i] = bad
+        _pad_block(w, damaged)
+        assert w.call("sd_wasm_configure", mid, 0, 10_000.0, 48_000.0) == -3
+    _pad_block(w, block)
+    assert w.call("sd_wasm_configure", mid, 0, 10_000.0, 48_000.0) == 0
+    assert w.call("sd_wasm_configure", mid, 1, 10_000.0, 48_000.0) == 0          # the block stays for its model
+    assert w.call("sd_wasm_configure", jump, 0, 10_000.0, 48_000.0) == 0         # exact, jump: no block needed
+    assert w.call("sd_wasm_configure", mid, 0, 10_000.0, 48_000.0) == 0
+    assert w.load(img) == 0                                                      # a swap keeps model and block
+    w.call("sd_wasm_reset", 0.0)
+    f, st, ev = [], [], 0
+    for xi, yi in zip(x, y):
+        w.call("sd_wasm_step", float(xi), float(yi))
+        o = np.frombuffer(w.read(w.call("sd_wasm_outputs"), OUTPUTS.itemsize), OUTPUTS)[0]
+        f.append(o["friction_force"])
+        st.append(o["state"])
+        ev += int(o["events"])
+    ref = r.render(CursorPath(np.arange(len(x)) / 10_000.0, x, y, 10_000.0))
+    exact = Renderer(table, model="exact").render(CursorPath(np.arange(len(x)) / 10_000.0, x, y, 10_000.0))
+    assert ev == ref.event_time.size and ev >= 3 and np.array_equal(st, ref.state)
+    assert np.max(np.abs(np.array(f) - ref.friction_force)) <= 1e-9          # musl's libm against glibc's
+    assert np.max(np.abs(np.array(f) - exact.friction_force)) > 1e-2               # not exact's friction
 
 
 @pytest.mark.skipif(shutil.which("node") is None, reason="node is optional: runs sd_wasm.js outside a browser")

@@ -8,11 +8,20 @@
  *                                the active table's bytes, so a bad image leaves the playing table intact
  *   sd_wasm_load(ptr, size)      validate and bind the image written at ptr (sd_image_load). On
  *                                success it becomes the active table (the first one's settings become
- *                                the configuration; later ones keep model, policy and rates) and the
- *                                renderer restarts; on failure the previous table keeps playing.
+ *                                the configuration; later ones keep model, policy, rates and a pad block
+ *                                given to configure) and the renderer restarts; on failure the previous
+ *                                table keeps playing.
  *   sd_wasm_scratch(bytes)       scratch memory after the active image, for sd_wasm_run's arrays
  *                                (valid until the next sd_wasm_stage)
- *   sd_wasm_configure(model, policy, tick_rate, audio_rate)   override settings; restart
+ *   sd_wasm_pad_block(n)         where to write the pad parameters of the next sd_wasm_configure: n doubles,
+ *                                the fields of sd_pad_params_t in order (PAD_PARAMS in layouts.py, as the Python
+ *                                model derives them: shapedisplay.studio.wasm.table_payload); 0 if n is not
+ *                                SD_NPAD. The image carries only the basic pad parameters: models other than
+ *                                exact and jump play from such a block.
+ *   sd_wasm_configure(model, policy, tick_rate, audio_rate)   override settings and restart; with the pad
+ *                                parameters written after sd_wasm_pad_block if it was called since the last
+ *                                configure, else the present ones (the image's, or the last block given for
+ *                                this model: SD_ERR_ARG for a model other than exact and jump without one)
  *   sd_wasm_set(index, value)    override one stored setting (SD_IP_* index); restart
  *   sd_wasm_step(x, y)           one tick at cursor (x, y) m; returns the drive
  *   sd_wasm_run(xy, n, outs, audio, cap)   n ticks from xy[2n]; per-tick outputs to outs[n][15]
@@ -43,6 +52,13 @@ static sd_renderer_t R;
 static sd_config_t cfg;
 static int loaded, ready;
 static double samples[SD_NSLOT];
+
+/* the pad parameters as a block of doubles, one per field of sd_pad_params_t (integers as exact doubles) */
+#define SD_COUNT_FIELD(kind, name) +1
+#define SD_NPAD (0 SD_FIELDS_PAD_PARAMS(SD_COUNT_FIELD))
+static double pad_in[SD_NPAD];
+static int pad_given;       /* sd_wasm_pad_block called since the last configure */
+static int pad_model = -1;  /* the model whose block cfg.pad holds (-1: the image's parameters) */
 #ifdef SD_SINGLE
 static double out_d[SD_NOUT], audio_d[SD_AUDIO_BLOCK_MAX], ev_t_d[SD_EVENT_RING], ev_a_d[SD_EVENT_RING];
 
@@ -103,6 +119,7 @@ EXPORT(sd_wasm_load) int sd_wasm_load(uint32_t ptr, uint32_t size)
     } else {                                       /* a table swapped into a running player */
         sd_config_t keep = cfg;
         sd_image_config(&img, &cfg);
+        if (pad_model >= 0) cfg.pad = keep.pad;
         cfg.model = keep.model;
         cfg.policy = keep.policy;
         cfg.tick_rate = keep.tick_rate;
@@ -112,9 +129,42 @@ EXPORT(sd_wasm_load) int sd_wasm_load(uint32_t ptr, uint32_t size)
     return restart();
 }
 
+EXPORT(sd_wasm_pad_block) uint32_t sd_wasm_pad_block(int32_t n)
+{
+    if (n != SD_NPAD) return 0;
+    pad_given = 1;
+    return (uint32_t)(uintptr_t)pad_in;
+}
+
+/* cfg.pad from the block, field by field; SD_ERR_PARAM (nothing changed) for a NaN, or for an integer
+ * field that is not a whole number within +-2^53 */
+static int take_pad_block(void)
+{
+    sd_pad_params_t p;
+    int k = 0;
+#define SD_TAKE_F64(name) if (pad_in[k] != pad_in[k]) return SD_ERR_PARAM; p.name = (sd_real)pad_in[k++];
+#define SD_TAKE_I64(name) if (!(pad_in[k] >= -9007199254740992.0 && pad_in[k] <= 9007199254740992.0) \
+        || pad_in[k] != (double)(int64_t)pad_in[k]) return SD_ERR_PARAM; p.name = (int64_t)pad_in[k++];
+#define SD_TAKE(kind, name) SD_TAKE_##kind(name)
+    SD_FIELDS_PAD_PARAMS(SD_TAKE)
+#undef SD_TAKE
+#undef SD_TAKE_I64
+#undef SD_TAKE_F64
+    cfg.pad = p;
+    return SD_OK;
+}
+
 EXPORT(sd_wasm_configure) int sd_wasm_configure(int model, int policy, double tick_rate, double audio_rate)
 {
+    int given = pad_given, rc;
+    pad_given = 0;
     if (!loaded) return SD_ERR_ARG;
+    if (given) {
+        if ((rc = take_pad_block()) != SD_OK) return rc;
+        pad_model = model;
+    } else if (model != SD_MODEL_EXACT && model != SD_MODEL_JUMP && model != pad_model) {
+        return SD_ERR_ARG;                         /* the image does not carry this model's parameters */
+    }
     cfg.model = model;
     cfg.policy = policy;
     cfg.tick_rate = (sd_real)tick_rate;

@@ -5,6 +5,9 @@
 //   const rt = await SdRuntime.create(moduleOrBytes);   // WebAssembly.Module, or the .wasm bytes
 //   rt.loadTable(imageBytes);          // binary table image (export --format bin); throws on a bad image
 //   rt.configure({model: "jump", policy: "retrigger", tickRate: 10000, audioRate: 48000});
+//   rt.configure({model: "karnopp", pad});   // pad: the model's parameters, PAD_FIELDS order (the image
+//                                      // carries only mass, stiffness, damping, burst gain and stick limit;
+//                                      // karnopp and stribeck need a block: shapedisplay.studio.wasm.table_payload)
 //   const drive = rt.step(x, y);       // one tick, cursor in metres
 //   rt.audio();                        // Float64Array view: the last tick's audio samples
 //   rt.outputs();                      // {t, x, y, vx, vy, normal_force, ...} of the last tick
@@ -17,10 +20,11 @@
 // Real-time rule: loadTable/configure may grow memory; step/run never allocate.
 
 // model ids and burst policies as in sd_layout.h (SD_MODEL_*, SD_RETRIGGER..): tests/test_layouts.py checks
-export const MODELS = {exact: 0, jump: 1};
+export const MODELS = {exact: 0, jump: 1, karnopp: 2, stribeck: 3};
 export const POLICIES = {retrigger: 0, add: 1, max: 2};
 export const OUT_NAMES = ["t", "x", "y", "vx", "vy", "normal_force", "friction_force", "state", "lateral_x",
-                          "lateral_y", "skin_stretch", "events", "drive", "audio_samples", "pad_speed"];
+                          "lateral_y", "skin_stretch", "events", "drive", "audio_samples", "pad_speed", "mu_s",
+                          "mu_k", "burst_gain"];
 // table channels in the runtime's slot order (SD_SLOT_*)
 export const SLOTS = ["normal_force", "friction_scale", "burst_gain", "grad_x", "grad_y", "lateral_x", "lateral_y",
                       "skin_stretch", "breakaway_force", "kinetic_force"];
@@ -28,6 +32,11 @@ export const SLOTS = ["normal_force", "friction_scale", "burst_gain", "grad_x", 
 export const PARAMS = ["pad_mass_kg", "pad_stiffness_n_per_m", "pad_damping_ns_per_m", "burst_gain",
                        "max_stick_period_s", "mu_s", "mu_k", "slope_friction_gain", "skin_stretch_target_m",
                        "tick_rate_hz", "audio_rate_hz", "burst_carrier_hz", "burst_rise_s", "burst_decay_s"];
+// fields of sd_pad_params_t in order (PAD_PARAMS in shapedisplay/runtime/layouts.py): configure's `pad`
+export const PAD_FIELDS = ["mass", "stiffness", "damping", "burst_gain", "max_stick_period", "substep",
+                           "karnopp_spring", "karnopp_v_threshold", "stribeck_a", "stribeck_b", "stribeck_p",
+                           "stribeck_d", "stribeck_variant", "stribeck_tol", "contactor_amplitude",
+                           "contactor_omega", "tanh_eps"];
 const ERRORS = {
   "-1": "bad argument or no table loaded", "-2": "table unusable (no normal_force channel?)",
   "-3": "setting out of range", "-10": "image size wrong (truncated?)", "-11": "not a table image",
@@ -36,8 +45,9 @@ const ERRORS = {
 };
 
 export class SdError extends Error {
-  constructor(what, code) {
-    super(`${what}: ${ERRORS[String(code)] || "error"} (code ${code})`);
+  // why: what went wrong, when it says more than the code's meaning
+  constructor(what, code, why) {
+    super(`${what}: ${why || ERRORS[String(code)] || "error"} (code ${code})`);
     this.code = code;
   }
 }
@@ -74,13 +84,33 @@ export class SdRuntime {
     if (rc !== 0) throw new SdError("renderer settings", rc);
   }
 
-  configure({model = "jump", policy = "retrigger", tickRate, audioRate} = {}) {
-    if (!(model in MODELS)) throw new SdError(`model ${model}`, -3);
-    if (!(policy in POLICIES)) throw new SdError(`policy ${policy}`, -3);
+  // pad: the model's pad parameters (PAD_FIELDS.length numbers, PAD_FIELDS order), or none: the
+  // present ones (the image's, or the block last given for this model)
+  configure({model = "jump", policy = "retrigger", tickRate, audioRate, pad} = {}) {
+    if (!Object.hasOwn(MODELS, model)) {
+      throw new SdError("configure", -3, `model must be one of ${Object.keys(MODELS).join(", ")} (got ${model})`);
+    }
+    if (!Object.hasOwn(POLICIES, policy)) throw new SdError(`policy ${policy}`, -3);
+    if (pad !== undefined && pad !== null && pad.length !== PAD_FIELDS.length) {
+      throw new SdError("configure", -1, `pad must hold ${PAD_FIELDS.length} numbers, PAD_FIELDS order (got ${pad.length})`);
+    }
     const tr = tickRate ?? this.param("tick_rate_hz");
     const ar = audioRate ?? this.param("audio_rate_hz");
+    if (pad !== undefined && pad !== null) {
+      const ptr = this.x.sd_wasm_pad_block(pad.length);
+      if (!ptr) throw new SdError("pad block", -1);
+      this._f64(ptr, pad.length).set(pad);
+    }
     const rc = this.x.sd_wasm_configure(MODELS[model], POLICIES[policy], tr, ar);
-    if (rc !== 0) throw new SdError("configure", rc);
+    if (rc === -1 && this._hasTable && (pad === undefined || pad === null)) {
+      throw new SdError("configure", -1, `model ${model} needs its pad parameters (pad, PAD_FIELDS order): ` +
+                        "the table image carries only those of exact and jump");
+    }
+    if (rc === -3 && pad !== undefined && pad !== null) {
+      throw new SdError("configure", rc, `model ${model}: the rates or a pad parameter out of range ` +
+                        "(a NaN, a fractional stribeck_variant)");
+    }
+    if (rc !== 0) throw new SdError(`configure ${model}`, rc);
   }
 
   audioCap() { return this.x.sd_wasm_audio_cap(); }   // most audio samples one tick writes
