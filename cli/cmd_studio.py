@@ -18,7 +18,9 @@ def register(sub) -> None:
                    help="allow --host to be a non-loopback address (prints a warning)")
     p.add_argument("--no-browser", action="store_true", help="do not open a browser")
     p.add_argument("--out", help="output folder for exports (default: studio-out beside the source)")
-    p.add_argument("--model", default="exact", help="pad model the page plays: exact | jump (default exact)")
+    p.add_argument("--model", default="exact",
+                   help="pad model the page starts with: exact | jump | karnopp | stribeck (default exact; "
+                        "the page's model selector switches between them)")
     g = p.add_argument_group("image and mesh sources")
     g.add_argument("--size", help="image: physical width x height, e.g. 60x4mm")
     g.add_argument("--height", help="image: heights of gray 0 and full scale, e.g. 0:2mm")
@@ -27,13 +29,10 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from shapedisplay.errors import InputError
     from shapedisplay.sources import source_options
     from shapedisplay.studio.server import serve
 
     opts = source_options(args.source, size=args.size, height=args.height, resolution=args.resolution)
-    if args.model not in ("exact", "jump"):
-        raise InputError(f"`--model` must be exact or jump for the page's C runtime (got {args.model!r})")
     serve(args.source, device=args.device, port=args.port, host=args.host, allow_remote=args.allow_remote,
           open_browser=not args.no_browser, out_dir=args.out, source_options=opts, model=args.model)
     return 0

@@ -88,6 +88,33 @@ def test_runtime_gets_the_tables_binary_image(studio):
     assert layout["tick_rate"] == 10000.0 and layout["audio_rate"] == 48000.0 and layout["model"] == "exact"
 
 
+def test_runtime_sends_each_offered_models_pad_parameters(studio):
+    """Every model the page offers comes with its whole PAD_PARAMS block as the Python model derives it."""
+    import base64
+
+    from shapedisplay.runtime import Renderer
+    from shapedisplay.runtime.layouts import PAD_PARAMS
+    from shapedisplay.runtime.models import MODEL_IDS, get_model
+    from shapedisplay.runtime.native import C_MODELS
+    status, body = studio.get("/api/runtime")
+    n = int.from_bytes(body[:4], "little")
+    layout = json.loads(body[4:4 + n])                       # plain JSON: no Infinity or NaN tokens
+    assert layout["pad_fields"] == list(PAD_PARAMS.names)
+    assert list(layout["models"]) == list(C_MODELS)
+    table = FrictionTable.from_bytes(studio.get("/api/table")[1])
+    device = Renderer(table).device
+    for name, entry in layout["models"].items():
+        assert entry["id"] == MODEL_IDS[name] and "error" not in entry
+        block = np.frombuffer(base64.b64decode(entry["pad"]), "<f8")
+        want = get_model(name, device).params
+        assert block.tolist() == [float(want[f]) for f in PAD_PARAMS.names], name
+    blocks = {m: np.frombuffer(base64.b64decode(e["pad"]), "<f8") for m, e in layout["models"].items()}
+    k = PAD_PARAMS.names.index("karnopp_spring")
+    assert blocks["karnopp"][k] > 0 and blocks["exact"][k] == 0
+    assert np.isinf(blocks["stribeck"][PAD_PARAMS.names.index("substep")])      # why the blocks are not JSON
+    assert studio.wait_state(lambda st: True)["runtime"]["models"] == list(C_MODELS)
+
+
 def test_wasm_module_has_no_imports(studio):
     status, body = studio.get("/api/runtime.wasm")
     assert status == 200 and body[:4] == b"\0asm"
@@ -186,6 +213,9 @@ def test_cli_refusals_are_one_line(tmp_path):
     assert r.returncode == 2 and "no such file" in r.stderr
     r = _cli(str(PHONE), "--no-browser", "--size", "10x10mm")
     assert r.returncode == 2 and "--size" in r.stderr
+    r = _cli(str(PHONE), "--no-browser", "--model", "tanh")
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert "`--model` must be one of exact, jump, karnopp, stribeck" in r.stderr and "tanh" in r.stderr
 
 
 def test_check_host():

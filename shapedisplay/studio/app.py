@@ -127,7 +127,7 @@ class Studio:
             lay = prep["layout"]
             d["ranges"] = prep["ranges"]
             d["runtime"] = {"tick_rate": lay["tick_rate"], "audio_rate": lay["audio_rate"], "model": self.model,
-                            "cursor_gain": lay["cursor_gain"]}
+                            "models": list(lay["models"]), "cursor_gain": lay["cursor_gain"]}
         d["last_change"] = self.last_change
         d["export_formats"] = formats()
         return d

@@ -43,6 +43,9 @@ def serve(source, device=None, port: int | None = None, host: str = LOOPBACK, al
     require("watchfiles", "studio", "the studio")
     from .app import build_app
     from .session import Session
+    from .wasm import check_model
+
+    check_model(model)
 
     host = check_host(host, allow_remote)
     session = Session(Path(source), device=device, out_dir=out_dir, source_options=source_options or {})

@@ -8,14 +8,19 @@ in JavaScript.
 
 :func:`table_payload` gives the module a table: its binary image
 (``shapedisplay export --format bin``, validated and bound in place by
-``sd_image_load``) and the rates, policy and model the Python
-:class:`~shapedisplay.runtime.Renderer` resolves for it.
+``sd_image_load``), the rates, policy and model the Python
+:class:`~shapedisplay.runtime.Renderer` resolves for it, and the pad
+parameters of every model the page offers (:data:`~shapedisplay.runtime.native.C_MODELS`)
+as the Python model classes derive them: the image carries only the basic pad
+parameters, so the page hands a model's whole block to the module when it
+switches to it (``sd_wasm_pad_block``, then ``sd_wasm_configure``).
 """
 from __future__ import annotations
 
+import base64
 import sys
 
-from ..errors import InputError, MissingDependencyError
+from ..errors import InputError, MissingDependencyError, ShapeDisplayError
 
 _MODULE: bytes | None = None
 
@@ -47,15 +52,22 @@ def table_payload(table, model: str = "exact") -> tuple[dict, bytes]:
         :class:`~shapedisplay.runtime.Renderer` resolves them for this table
         (the one place they are validated); ``out_names`` (the renderer's
         per-tick outputs, in C order); ``cursor_gain`` (m/(N s), the device's
-        alpha); ``bytes`` (image length).
+        alpha); ``bytes`` (image length); ``models``: for each model the page
+        offers, in :data:`~shapedisplay.runtime.native.C_MODELS` order,
+        ``{"id": C model id, "pad": base64}`` with ``pad`` the model's
+        :data:`~shapedisplay.runtime.layouts.PAD_PARAMS` record for this
+        table's device (``get_model(name, device).params``) as little-endian
+        float64, one per field in field order (integers as whole numbers;
+        ``substep`` may be inf, which JSON cannot hold), or ``{"id": ...,
+        "error": message}`` for a model that refuses the device;
+        ``pad_fields`` (the field names).
     image : bytes
         The flat binary table image (:func:`shapedisplay.runtime.image.to_image`).
     """
-    from ..link.c_engine import C_MODELS
     from ..runtime import Renderer
     from ..runtime.image import SLOTS, to_image
-    if model not in C_MODELS:
-        raise InputError(f"the page's C runtime plays models {sorted(C_MODELS)} (got {model!r})")
+    from ..runtime.layouts import PAD_PARAMS
+    check_model(model)
     py = Renderer(table, model=model)
     image = to_image(table, py.device)
     g = table.grid
@@ -63,5 +75,32 @@ def table_payload(table, model: str = "exact") -> tuple[dict, bytes]:
               "channels": [{"name": n, "slot": s} for s, n in enumerate(SLOTS) if n in table.channels],
               "tick_rate": py.tick_rate, "audio_rate": py.audio_rate, "policy": py.burst_policy,
               "model": model, "cursor_gain": float(py.device.cursor_gain),
-              "bytes": len(image)}
+              "bytes": len(image), "models": model_blocks(py.device), "pad_fields": list(PAD_PARAMS.names)}
     return layout, image
+
+
+def check_model(model: str) -> str:
+    """``model`` if the page offers it (:data:`~shapedisplay.runtime.native.C_MODELS`), else an error."""
+    from ..runtime.native import C_MODELS
+    if model not in C_MODELS:
+        raise InputError(f"`model` must be one of {', '.join(C_MODELS)} for the page's C runtime (got {model!r})")
+    return model
+
+
+def model_blocks(device) -> dict:
+    """Each offered model's id and pad parameters for ``device`` (see :func:`table_payload`)."""
+    import numpy as np
+
+    from ..runtime.layouts import PAD_PARAMS
+    from ..runtime.models import MODEL_IDS, get_model
+    from ..runtime.native import C_MODELS
+    out = {}
+    for name in C_MODELS:
+        try:
+            params = get_model(name, device).params
+        except ShapeDisplayError as exc:       # this device's pad cannot play the model: say why in the page
+            out[name] = {"id": MODEL_IDS[name], "error": str(exc)}
+            continue
+        block = np.array([float(params[f]) for f in PAD_PARAMS.names], "<f8")
+        out[name] = {"id": MODEL_IDS[name], "pad": base64.b64encode(block.tobytes()).decode("ascii")}
+    return out

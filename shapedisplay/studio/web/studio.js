@@ -16,6 +16,7 @@ const studio = window.studio = {
   state: null, module: null, hover: null, layout: null, payload: null, tableGeneration: null,
   ctx: null, node: null, lastStroke: null, lastPointer: [], swaps: [], pending: null, dirty: false,
   errorLine: null, readoutValues: {}, hoverPos: null,
+  playingModel: null,          // the pad model the worklet plays (null: no audio yet, or it refused the model)
   shownGeneration: null,       // the table generation of the last state shown whole (view, editor text, error)
 };
 
@@ -39,7 +40,17 @@ async function fetchRuntime() {
   const buf = await (await fetchOk("/api/runtime")).arrayBuffer();
   const n = new DataView(buf).getUint32(0, true);
   const layout = JSON.parse(new TextDecoder().decode(new Uint8Array(buf, 4, n)));
+  for (const m of Object.values(layout.models)) if (m.pad) m.pad = padBlock(m.pad);
   return {layout, payload: buf.slice(4 + n)};
+}
+
+// A model's pad parameters as the layout sends them (base64 of little-endian float64) -> Float64Array.
+function padBlock(b64) {
+  const bytes = atob(b64), d = new DataView(new ArrayBuffer(bytes.length));
+  for (let i = 0; i < bytes.length; i++) d.setUint8(i, bytes.charCodeAt(i));
+  const out = new Float64Array(bytes.length / 8);
+  for (let i = 0; i < out.length; i++) out[i] = d.getFloat64(8 * i, true);
+  return out;
 }
 
 // Bind the table image to the read-out instance (the same lookup the renderer uses).
@@ -148,11 +159,42 @@ async function swapTable(st) {
   const {layout, payload} = await fetchRuntime();
   studio.layout = layout; studio.payload = payload;
   bindHover(layout, payload);
+  fillModels(layout);
   const playing = studio.node ? postTable(studio.node, layout, payload) : Promise.resolve(null);
   if (first) fillChannels(st);
   await Promise.all([(viewed || showMap(st)).then(() => { swap.t_view = now(); drawOverlay(); rehover(); }),
                      playing.then(() => { swap.t_playing = studio.node ? now() : null; })]);
   $("status").textContent = `table ${gen} · compiled in ${(st.compile_seconds * 1e3).toFixed(0)} ms`;
+}
+
+// The model selector: the models the layout offers (one a device cannot play is shown disabled, with
+// the reason); the choice is kept across tables, the server's model the first time.
+function fillModels(layout) {
+  const sel = $("model");
+  const keep = sel.value || layout.model;
+  sel.innerHTML = "";
+  for (const [name, m] of Object.entries(layout.models)) {
+    const o = document.createElement("option");
+    o.value = name; o.textContent = name;
+    if (m.error) { o.disabled = true; o.title = m.error; }
+    sel.appendChild(o);
+  }
+  sel.value = keep in layout.models ? keep : layout.model;
+}
+
+// Play the selected model: the worklet reconfigures the C runtime on the same table (a restart).
+async function chooseModel() {
+  const model = $("model").value;
+  if (!studio.node) return;
+  const r = await postAndWait(studio.node, {type: "model", model},
+                              (d) => d.type === "model-ready" && d.model === model);
+  showPlaying(r);
+}
+
+function showPlaying(r) {
+  studio.playingModel = r.rc === 0 ? r.model : null;
+  if (r.rc !== 0) $("status").textContent = `cannot play: ${r.error}`;
+  else $("status").textContent = `playing model ${r.model}`;
 }
 
 function fillChannels(st) {
@@ -228,17 +270,24 @@ async function save() {
 }
 
 // ------------------------------------------------------------------ audio (the C runtime in a worklet)
-function postTable(node, layout, payload) {
+function postAndWait(node, msg, isReply) {
   return new Promise((resolve) => {
     const done = (e) => {
-      if (e.data.type === "table-ready" && e.data.generation === layout.generation) {
+      if (isReply(e.data)) {
         node.port.removeEventListener("message", done);
         resolve(e.data);
       }
     };
     node.port.addEventListener("message", done);
-    node.port.postMessage({type: "table", layout, payload: payload.slice(0)});
+    node.port.postMessage(msg);
   });
+}
+
+async function postTable(node, layout, payload) {
+  const r = await postAndWait(node, {type: "table", layout, payload: payload.slice(0), model: $("model").value},
+                              (d) => d.type === "table-ready" && d.generation === layout.generation);
+  showPlaying(r);
+  return r;
 }
 
 async function makeNode(ctx, extra) {
@@ -340,7 +389,7 @@ function showStroke(s) {
   drawOverlay();
   $("dl-csv").disabled = false; $("dl-wav").disabled = false;
   const dur = s.ticks / s.tickRate;
-  $("stroke-info").textContent = `${s.ticks} ticks (${dur.toFixed(3)} s) at ${s.tickRate} Hz, ` +
+  $("stroke-info").textContent = `${s.model}: ${s.ticks} ticks (${dur.toFixed(3)} s) at ${s.tickRate} Hz, ` +
     `${s.event_time.length} stick-slip events, ${s.audio.length} audio samples` +
     (s.clipped ? `, ${s.clipped} clipped` : "") + (s.lost ? `, ${s.lost} ticks beyond the recording limit` : "");
 }
@@ -410,8 +459,9 @@ function widgetSpans(s, widgets) {
 // The recorded cursor trace: one row per tick, as `shapedisplay play --trace` reads it.
 studio.traceCSV = function (s) {
   s = s || studio.lastStroke;
-  const rows = [`# shapedisplay studio stroke: ${s.ticks} ticks at ${s.tickRate} Hz, table ${s.generation}`,
-                `# replay: shapedisplay play TABLE --cursor-csv stroke.csv --rate ${s.tickRate}Hz -o stroke.wav`, "t,x_m,y_m"];
+  const rows = [`# shapedisplay studio stroke: ${s.ticks} ticks at ${s.tickRate} Hz, table ${s.generation}, model ${s.model}`,
+                `# replay: shapedisplay play TABLE --model ${s.model} --cursor-csv stroke.csv --rate ${s.tickRate}Hz -o stroke.wav`,
+                "t,x_m,y_m"];
   for (let i = 0; i < s.ticks; i++) rows.push(`${s.t[i]},${s.x[i]},${s.y[i]}`);
   return rows.join("\n") + "\n";
 };
@@ -447,6 +497,7 @@ studio.renderOffline = async function (xs, ys) {
   const node = new AudioWorkletNode(ctx, "sd-renderer", {
     numberOfInputs: 0, outputChannelCount: [1],
     processorOptions: {module: studio.module, layout: studio.layout, payload: studio.payload.slice(0),
+                       model: $("model").value,
                        script: {x: Float64Array.from(xs), y: Float64Array.from(ys)}}});
   node.connect(ctx.destination);
   let got;
@@ -518,6 +569,7 @@ function init() {
   });
   wrap.addEventListener("pointerup", (e) => pointer("up", e));
   $("channel").addEventListener("change", () => showMap().then(drawOverlay));
+  $("model").addEventListener("change", chooseModel);
   $("mode").addEventListener("change", () => studio.node && studio.node.port.postMessage({type: "mode", mode: $("mode").value}));
   $("feel").addEventListener("click", startFeel);
   $("save").addEventListener("click", save);

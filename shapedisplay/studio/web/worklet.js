@@ -14,6 +14,9 @@
 // a stroke runs from "down" to "up".
 // Scripted strokes ({type: "script", x: Float64Array, y: Float64Array}) give one position per
 // tick: the offline test and benchmark path (OfflineAudioContext).
+// The pad model ({type: "model", model}, or `model` with a table) is one the layout offers:
+// layout.models[model].pad holds its parameters (decoded to a Float64Array by the page), handed
+// to the C runtime with the configuration; switching restarts the renderer on the same table.
 
 import {SdRuntime, OUT_NAMES} from "/static/sd_wasm.js?token={{TOKEN}}";
 
@@ -37,6 +40,8 @@ class StudioRenderer extends AudioWorkletProcessor {
     this.ringCount = 0;
     this.rec = null;
     this.lastMeter = 0;
+    this.model = o.model || null;     // the pad model played (null: the layout's)
+    this.layout = null;
     this.port.onmessage = (e) => this.onMessage(e.data);
     // Offline renders hand everything over at construction: nothing waits on a message.
     if (o.module) {
@@ -51,7 +56,12 @@ class StudioRenderer extends AudioWorkletProcessor {
       this.rt = SdRuntime.fromModule(m.module);
       this.port.postMessage({type: "module-ready"});
     } else if (m.type === "table") {
+      if (m.model) this.model = m.model;
       this.bind(m.layout, m.payload);
+    } else if (m.type === "model") {
+      this.model = m.model;
+      if (this.layout) this.useModel("model changed");
+      this.port.postMessage({type: "model-ready", model: m.model, rc: this.rc, error: this.error});
     } else if (m.type === "cursor") {
       this.points.push(m);
     } else if (m.type === "mode") {
@@ -62,16 +72,33 @@ class StudioRenderer extends AudioWorkletProcessor {
     }
   }
 
+  // Configure the renderer for this.model on the bound table (a restart); rc 0 or the error.
+  useModel(reason) {
+    const layout = this.layout, name = this.model || layout.model, entry = layout.models[name];
+    this.rc = 0; this.error = null;
+    if (this.touching) this.endStroke(reason);
+    try {
+      if (!entry) throw new Error(`model ${name}: the page offers ${Object.keys(layout.models).join(", ")}`);
+      if (entry.error) throw new Error(`model ${name}: ${entry.error}`);
+      this.rt.configure({model: name, policy: layout.policy, tickRate: layout.tick_rate,
+                         audioRate: layout.audio_rate, pad: entry.pad});
+    } catch (err) {
+      this.rc = err.code || -1; this.error = String(err.message || err);
+    }
+    this.ready = this.rc === 0;
+    this.playing = this.ready ? name : null;
+  }
+
   // Load a table image (shapedisplay.studio.wasm.table_payload) and (re)start the renderer on it.
   bind(layout, payload) {
-    let rc = 0;
+    this.layout = layout;
     try {
       this.rt.loadTable(new Uint8Array(payload));
-      this.rt.configure({model: layout.model, policy: layout.policy, tickRate: layout.tick_rate,
-                         audioRate: layout.audio_rate});
+      this.useModel("table swapped");
     } catch (err) {
-      rc = err.code || -1;
+      this.rc = err.code || -1; this.error = String(err.message || err); this.ready = false;
     }
+    const rc = this.rc;
     const w = this.rt.x;
     this.w = w;
     const g = layout.grid;
@@ -94,10 +121,9 @@ class StudioRenderer extends AudioWorkletProcessor {
         audio: new Float32Array(MAX_TICKS * 8), ticks: 0, events: 0, samples: 0, lost: 0,
       };
     }
-    if (this.touching) this.endStroke("table swapped");
-    this.ready = rc === 0;
     this.generation = layout.generation;
-    this.port.postMessage({type: "table-ready", generation: layout.generation, rc: rc});
+    this.port.postMessage({type: "table-ready", generation: layout.generation, rc: rc, error: this.error,
+                           model: this.playing});
   }
 
   startStroke(tInput, x, y) {
@@ -115,7 +141,7 @@ class StudioRenderer extends AudioWorkletProcessor {
     const r = this.rec;
     const n = r.ticks, ne = r.events, ns = r.samples;
     this.port.postMessage({
-      type: "stroke", reason: reason, generation: this.generation, ticks: n, lost: r.lost,
+      type: "stroke", reason: reason, generation: this.generation, model: this.playing, ticks: n, lost: r.lost,
       tickRate: this.tickRate, clipped: this.w.sd_wasm_counter(0),
       t: r.t.slice(0, n), x: r.x.slice(0, n), y: r.y.slice(0, n), normal_force: r.n.slice(0, n),
       friction_force: r.f.slice(0, n), state: r.state.slice(0, n), drive: r.drive.slice(0, n),
