@@ -93,7 +93,8 @@ def test_graph_sees_lazy_and_relative_imports():
     """The walker itself: it finds a function-level relative import and a package-level one."""
     g = import_graph()
     assert "shapedisplay.runtime.renderer" in g["shapedisplay.viewer.model"]      # lazy, inside a function
-    assert "shapedisplay.runtime.pads" in g["shapedisplay.runtime.models"]        # from . import pads
+    assert "shapedisplay.runtime.native" in g["shapedisplay.runtime.models"]      # from .native import ..., lazy
+    assert "shapedisplay.link.protocol" in g["shapedisplay.link.engine"]          # from . import protocol
     assert "shapedisplay.scene.fields" in g["shapedisplay.scene.widgets"]
 
 
