@@ -2,8 +2,9 @@
 
 The phone scene's header compiles strictly (C99, -Wall -Wextra -pedantic
 -Werror); the C runtime, bound from the header alone (no -D flags), plays
-both states of the Wi-Fi toggle bit for bit as the Python renderer plays
-the table switched with ``select_state``; the JSON export carries the same
+both states of the Wi-Fi toggle bit for bit as the host's Renderer plays
+the table switched with ``select_state`` (the header and its toggle switch
+carry everything the image does); the JSON export carries the same
 states and widget map.
 """
 import json
@@ -45,7 +46,7 @@ def phone_player(phone, tmp_path_factory):
     header = export_c(phone, d / "phone.h", name="sd_table")
     exe = d / "sd_play_header"
     cmd = [_cc(), *STRICT, f'-DSD_TABLE_HEADER="{header}"', "-I", str(CDIR), str(CDIR / "tool_play_header.c"),
-           str(CDIR / "sd_render.c"), str(CDIR / "sd_pad.c"), str(CDIR / "sd_exact.c"), "-lm", "-o", str(exe)]
+           *(str(p) for p in sorted(CDIR.glob("sd_*.c")) if p.name != "sd_wasm.c"), "-lm", "-o", str(exe)]
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=180)
     assert res.returncode == 0, res.stderr
     return exe, header
