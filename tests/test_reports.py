@@ -487,7 +487,7 @@ def test_stuck_floor_runs_the_model_on_ticks_that_all_stay_stuck():
     for n in (2, 9001, 100_001):
         model, inputs = stuck_path(n)
         assert model.name == "jump"
-        _, f, phase, x, _, _, _, ev_t, _ = run_kernel(model, *inputs)
+        _, f, phase, x, _, ev_t, _ = run_kernel(model, *inputs)
         assert ev_t.size == 0 and not phase.any() and np.all(np.abs(f) < 1e-3 * inputs[2] * inputs[3])
     assert stuck_floor(9001, runs=1, min_batch_s=0.001) > 0.0
 
