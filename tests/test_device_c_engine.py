@@ -1,10 +1,9 @@
-"""The emulator rendering with the C runtime (ctypes): same samples as the Python renderer, over a pty."""
+"""The emulated device takes the binary table image (export --format bin) as firmware does: upload, play, CLI."""
 import numpy as np
 import pytest
 
 pytest.importorskip("serial")
 
-from shapedisplay.link.c_engine import CEngine, CRenderer
 from shapedisplay.link.emulator import DeviceEmulator, EmulatorConfig
 from shapedisplay.link.engine import render_stream
 from shapedisplay.link.host import DeviceLink
@@ -12,45 +11,11 @@ from shapedisplay.runtime import Renderer
 from test_device_render import f32, tent_table
 
 
-@pytest.fixture(scope="module", autouse=True)
-def private_cache(tmp_path_factory):
-    """Build the shared library into a temporary cache, not the user's."""
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("XDG_CACHE_HOME", str(tmp_path_factory.mktemp("cache")))
-        yield
-
-
-@pytest.mark.parametrize("model", ["jump", "exact"])
-def test_c_renderer_steps_like_python(model):
-    table = tent_table()
-    x = np.concatenate([np.linspace(0.0, 0.06, 3000), np.linspace(0.06, 0.02, 1500)])
-    c = render_stream(CRenderer(table, model=model, tick_rate=10_000.0), x, None, 10)
-    py = render_stream(Renderer(table, model=model, tick_rate=10_000.0), x, None, 10)
-    assert np.count_nonzero(py) > 1000
-    np.testing.assert_array_equal(c, py)
-
-
-def test_emulator_with_c_engine_over_pty(tmp_path):
-    table = tent_table()
-    emu = DeviceEmulator(EmulatorConfig(model="jump"), engine_factory=CEngine)
-    emu.start()
-    try:
-        with DeviceLink(emu.port, timeout=2.0) as link:
-            link.upload(table.save(tmp_path / "t.npz").read_bytes())
-            x = np.linspace(0.003, 0.057, 300)
-            rep = link.stream(x, paced=False, monitor=True)
-            assert rep.rendered == 300 and rep.missing_outputs == 0
-        host = render_stream(Renderer(table, model="jump", tick_rate=10_000.0), f32(x), None, 10)
-        np.testing.assert_array_equal(rep.outputs, f32(host))
-    finally:
-        emu.close()
-
-
 def test_emulator_takes_a_binary_table_image(tmp_path):
     """An upload may be the binary table image (export --format bin): same samples as the .npz."""
     from shapedisplay.runtime.image import to_image
     table = tent_table()
-    emu = DeviceEmulator(EmulatorConfig(model="jump"), engine_factory=CEngine)
+    emu = DeviceEmulator(EmulatorConfig(model="jump"))
     emu.start()
     try:
         with DeviceLink(emu.port, timeout=2.0) as link:
@@ -59,19 +24,20 @@ def test_emulator_takes_a_binary_table_image(tmp_path):
             rep = link.stream(x, paced=False, monitor=True)
             assert rep.rendered == 300 and rep.missing_outputs == 0
         host = render_stream(Renderer(table, model="jump", tick_rate=10_000.0), f32(x), None, 10)
+        assert np.count_nonzero(host) > 300                      # bursts were played
         np.testing.assert_array_equal(rep.outputs, f32(host))
     finally:
         emu.close()
 
 
-def test_cli_emulate_with_c_engine(tmp_path, capsys):
+def test_cli_emulate_plays_an_uploaded_image(tmp_path, capsys):
     import os
     import subprocess
     import sys
     import time
     from shapedisplay_cli.main import main
     port_file = tmp_path / "port"
-    proc = subprocess.Popen([sys.executable, "-m", "shapedisplay_cli.main", "device", "emulate", "--engine", "c",
+    proc = subprocess.Popen([sys.executable, "-m", "shapedisplay_cli.main", "device", "emulate",
                              "--stop-after", "60", "--port-file", str(port_file)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=dict(os.environ))
     try:
