@@ -1,0 +1,383 @@
+"""The playing engine against the last release, measured in one run: whole-process plays, offline renders, reports.
+
+Compares this tree ("new": ``.venv/bin/python``, ``.venv/bin/shapedisplay``)
+with a checkout of the last released state ("old": commit 59ad372 with its own
+``.venv``), one command of each per round (old, new, old, new, ...), so a
+change of machine load hits both sides alike:
+
+a. first play, whole process: ``shapedisplay play phone.npz --stroke
+   "62,2 -> 62,156 @ 30mm/s" --model exact --tick-rate 10kHz -o OUT.wav``
+   with cold caches: every run gets fresh, empty ``NUMBA_CACHE_DIR`` (numba's
+   compiled kernels) and ``XDG_CACHE_HOME`` (where the old release built its
+   C runtime library, ``$XDG_CACHE_HOME/shapedisplay``);
+b. warm play: the same command with the ordinary caches (numba's
+   ``__pycache__`` beside each tree's sources, ``~/.cache``), filled by one
+   untimed run;
+c. offline render in the process: ``Renderer(table, model=m).render(cursor)``
+   (``shapedisplay.runtime.renderer``: numba in the old release, the C runtime
+   now) and the renderer ``play`` uses (the old release's ``PathRenderer``,
+   engine "auto", whose engine is printed; the new ``Renderer``) for the models
+   exact, jump, karnopp and stribeck, a 5 s stroke (``parse_stroke("62,2 ->
+   62,152 @ 30mm/s", 10 kHz)``, 50 001 ticks); one warm-up render, then only
+   ``render`` is timed (the renderer is built once; the ordinary caches);
+d. ``shapedisplay report accuracy --quick`` and ``report stability --quick``
+   (``--no-plots``): whole-process wall time, and from ``accuracy.json`` the
+   renderer's CPU time per simulated second summed per model over the
+   settings both sides ran;
+e. WebAssembly against native: not measured here. ``bench_c_runtime.py``
+   measures no WebAssembly and ``bench_studio.py`` measures the AudioWorklet
+   only inside its ``main()`` (a live studio in Chromium), with no function to
+   import; ``benchmarks/bench_wasm.py`` compares wasmtime with native C.
+
+Each table comes from ``assets/scenes/phone.toml`` compiled by its own side's
+``shapedisplay compile`` (if one side cannot compile, both play the other's).
+Every figure is min / median / max over the runs, wall time; the ratio is
+old median / new median, so **a ratio above 1 means the new code is faster**.
+Whole-process rows also give the ratio of the median CPU time (user + system
+of the child), which a loaded machine inflates less than wall time.
+
+The tree under test may change while this runs: every run is a new process,
+and a run that fails prints its last error line and the benchmark goes on
+(its row then shows ``failed``).
+
+Set up the baseline once::
+
+    git clone /work/main /tmp/sd-base && git -C /tmp/sd-base checkout 59ad372
+    cd /tmp/sd-base && python3 -m venv .venv && .venv/bin/pip install -q -e '.[all]'
+
+Run (standard library only, any Python 3.9+)::
+
+    python benchmarks/bench_engine.py --baseline /tmp/sd-base
+    python benchmarks/bench_engine.py --baseline /tmp/sd-base --skip-reports   # about a minute
+
+The reports take minutes each (about 3 min for ``accuracy --quick`` on a busy
+2-core machine); ``--report-rounds`` defaults to 1.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+PLAY_STROKE = "62,2 -> 62,156 @ 30mm/s"
+RENDER_STROKE = "62,2 -> 62,152 @ 30mm/s"        # 150 mm at 30 mm/s: 5 s, 50 001 ticks at 10 kHz
+RENDER_MODELS = ("exact", "jump", "karnopp", "stribeck")
+TIMEOUT_S = 1800                                   # one process; a report on a loaded machine takes minutes
+
+# Run by each side's python: one JSON line per (class, model), the render times in seconds or the error.
+RENDER_SCRIPT = r"""
+import json, sys, time
+import shapedisplay.runtime.renderer as renderer
+from shapedisplay.runtime.cursor import parse_stroke
+from shapedisplay.table import FrictionTable
+
+try:                                     # the old release plays through PathRenderer (engine "auto")
+    from shapedisplay.runtime.play import PathRenderer
+except ImportError:                      # the C runtime's Renderer is what play calls
+    PathRenderer = None
+
+table_path, repeats, stroke, models = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4].split(",")
+table = FrictionTable.load(table_path)
+cursor = parse_stroke(stroke, 10_000.0)
+
+
+def timed(make):
+    try:
+        r = make()
+        r.render(cursor)                                   # warm-up: compiles, fills caches
+        times = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            r.render(cursor)
+            times.append(time.perf_counter() - t0)
+        engine = getattr(r, "engine", None)
+        return {"times": times, "engine": f"{type(r).__name__}, engine {engine}" if engine else type(r).__name__}
+    except Exception as exc:                               # a model the tree cannot play: report it, go on
+        text = f"{type(exc).__name__}: {exc}"
+        return {"error": text.splitlines()[0] if text.strip() else type(exc).__name__}
+
+
+play_class = PathRenderer or renderer.Renderer
+for m in models:
+    for name, make in (("Renderer", lambda: renderer.Renderer(table, model=m, tick_rate=10_000.0)),
+                       ("play", lambda: play_class(table, model=m, tick_rate=10_000.0))):
+        print(json.dumps({"cls": name, "model": m, **timed(make)}), flush=True)
+"""
+
+
+@dataclass
+class Side:
+    """One tree under test: its root and virtual environment."""
+    name: str                   # "old" or "new"
+    root: Path
+
+    @property
+    def python(self) -> str:
+        return str(self.root / ".venv" / "bin" / "python")
+
+    @property
+    def cli(self) -> str:
+        return str(self.root / ".venv" / "bin" / "shapedisplay")
+
+
+@dataclass
+class Row:
+    """Samples of one measurement, per side."""
+    label: str
+    wall: dict = field(default_factory=lambda: {"old": [], "new": []})
+    cpu: dict = field(default_factory=lambda: {"old": [], "new": []})
+    failures: dict = field(default_factory=lambda: {"old": [], "new": []})
+    note: str = ""
+
+
+def last_error_line(text: str) -> str:
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
+    return lines[-1] if lines else "(no output)"
+
+
+def run(side: Side, argv: list, env: dict, cwd: Path):
+    """Run one process; return (wall s, cpu s, stdout) or raise RuntimeError with the failure line."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    try:
+        p = subprocess.run(argv, env={**os.environ, **env}, cwd=cwd, capture_output=True, text=True,
+                           timeout=TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        raise RuntimeError(f"timed out after {TIMEOUT_S} s") from None
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    if p.returncode != 0:
+        raise RuntimeError(f"exit {p.returncode}: {last_error_line(p.stderr or p.stdout)}")
+    return wall, cpu, p.stdout
+
+
+def fresh_caches(work: Path) -> dict:
+    d = Path(tempfile.mkdtemp(prefix="cache-", dir=work))
+    return {"NUMBA_CACHE_DIR": str(d / "numba"), "XDG_CACHE_HOME": str(d / "xdg")}
+
+
+def record(row: Row, side: Side, fn):
+    """Add one timed sample of ``fn()`` -> (wall, cpu, stdout) to ``row``; print a failure and go on."""
+    try:
+        wall, cpu, out = fn()
+    except RuntimeError as exc:
+        row.failures[side.name].append(str(exc))
+        print(f"  {side.name:3} {row.label}: FAILED {exc}", flush=True)
+        return None
+    row.wall[side.name].append(wall)
+    row.cpu[side.name].append(cpu)
+    return out
+
+
+def play_argv(side: Side, table: Path, out: Path) -> list:
+    return [side.cli, "play", str(table), "--stroke", PLAY_STROKE, "--model", "exact", "--tick-rate", "10kHz",
+            "-o", str(out)]
+
+
+def compile_tables(sides, work: Path) -> dict:
+    """phone.npz per side, compiled by that side; a side that cannot compile borrows the other's."""
+    tables, errors = {}, {}
+    for s in sides:
+        out = work / f"phone-{s.name}.npz"
+        try:
+            run(s, [s.cli, "compile", str(s.root / "assets" / "scenes" / "phone.toml"), "-o", str(out)],
+                fresh_caches(work), work)
+            tables[s.name] = out
+        except RuntimeError as exc:
+            errors[s.name] = str(exc)
+            print(f"  {s.name:3} compile phone.toml: FAILED {exc}", flush=True)
+    for s in sides:
+        if s.name not in tables and tables:
+            other = next(iter(tables.values()))
+            print(f"  {s.name:3} plays {other.name} (compiled by the other side)")
+            tables[s.name] = other
+    return tables
+
+
+def measure_plays(sides, tables, work: Path, cold_runs: int, warm_runs: int) -> tuple:
+    cold = Row(f"a. first play, cold caches (n={cold_runs})")
+    warm = Row(f"b. warm play (n={warm_runs})")
+    print("a. first play, cold caches", flush=True)
+    for _ in range(cold_runs):
+        for s in sides:
+            env = fresh_caches(work)
+            record(cold, s, lambda: run(s, play_argv(s, tables[s.name], work / f"{s.name}.wav"), env, work))
+    print("b. warm play", flush=True)
+    warm_env = {s.name: {} for s in sides}                # the ordinary caches (numba's __pycache__, ~/.cache)
+    for s in sides:                                        # fill them (untimed)
+        try:
+            run(s, play_argv(s, tables[s.name], work / f"{s.name}.wav"), warm_env[s.name], work)
+        except RuntimeError as exc:
+            print(f"  {s.name:3} warm-up play: FAILED {exc}", flush=True)
+    for _ in range(warm_runs):
+        for s in sides:
+            record(warm, s, lambda: run(s, play_argv(s, tables[s.name], work / f"{s.name}.wav"),
+                                        warm_env[s.name], work))
+    return [cold, warm], warm_env
+
+
+def measure_renders(sides, tables, work: Path, warm_env: dict, rounds: int, repeats: int) -> list:
+    print(f"c. offline render, {rounds} processes x {repeats} renders per side", flush=True)
+    what = {"Renderer": "Renderer", "play": "play's renderer"}
+    rows = {(cls, m): Row(f"c. {m} 5 s at 10 kHz, {what[cls]}") for m in RENDER_MODELS for cls in what}
+    engines: dict = {}
+    for _ in range(rounds):
+        for s in sides:
+            argv = [s.python, "-c", RENDER_SCRIPT, str(tables[s.name]), str(repeats), RENDER_STROKE,
+                    ",".join(RENDER_MODELS)]
+            try:
+                out = run(s, argv, warm_env[s.name], work)[2]
+            except RuntimeError as exc:
+                print(f"  {s.name:3} c. render process: FAILED {exc}", flush=True)
+                for row in rows.values():
+                    row.failures[s.name].append(f"render process: {exc}")
+                continue
+            for line in out.splitlines():
+                try:
+                    r = json.loads(line)
+                except ValueError:                         # not ours (a library printing to stdout)
+                    continue
+                key = (r["cls"], r["model"])
+                row = rows[key]
+                if "error" in r:
+                    row.failures[s.name].append(r["error"])
+                    print(f"  {s.name:3} {row.label}: FAILED {r['error']}", flush=True)
+                else:
+                    row.wall[s.name].extend(r["times"])
+                    if r["cls"] == "play":
+                        engines.setdefault((key, s.name), set()).add(r["engine"])
+    for key, row in rows.items():
+        row.note = "; ".join(f"{n}: {'/'.join(sorted(engines[key, n]))}" for n in ("old", "new")
+                             if (key, n) in engines)
+    return [rows[k] for k in sorted(rows, key=lambda k: (RENDER_MODELS.index(k[1]), k[0] != "Renderer"))]
+
+
+def accuracy_timings(path: Path) -> dict:
+    """{(case, setting label): (model, renderer CPU s per simulated s)} of the settings that ran."""
+    data = json.loads(path.read_text())
+    return {(c["name"], st["label"]): (st["model"], st["cpu_s_per_sim_s"])
+            for c in data["cases"] for st in c["settings"]
+            if st.get("family") == "renderer" and st.get("status") == "ok" and st.get("cpu_s_per_sim_s") is not None}
+
+
+def measure_reports(sides, work: Path, warm_env: dict, rounds: int) -> list:
+    rows = []
+    timings = {"old": [], "new": []}
+    for kind in ("accuracy", "stability"):
+        row = Row(f"d. report {kind} --quick, whole process (n={rounds})")
+        print(f"d. report {kind} --quick", flush=True)
+        for _ in range(rounds):
+            for s in sides:
+                out_dir = Path(tempfile.mkdtemp(prefix=f"{kind}-{s.name}-", dir=work))
+                argv = [s.cli, "report", kind, "--quick", "--no-plots", "--no-progress", "-o", str(out_dir)]
+                if record(row, s, lambda: run(s, argv, warm_env[s.name], work)) is not None and kind == "accuracy":
+                    try:
+                        timings[s.name].append(accuracy_timings(out_dir / "accuracy.json"))
+                    except (OSError, ValueError, KeyError) as exc:
+                        print(f"  {s.name:3} accuracy.json unreadable: {exc}", flush=True)
+        rows.append(row)
+    runs = timings["old"] + timings["new"]
+    if timings["old"] and timings["new"]:
+        common = set.intersection(*(set(t) for t in runs))
+        models = sorted({runs[0][k][0] for k in common})
+        for m in models:
+            keys = [k for k in common if runs[0][k][0] == m]
+            row = Row(f"d. accuracy: {m} render CPU s per sim s, sum of {len(keys)} settings")
+            for name in ("old", "new"):
+                row.wall[name] = [sum(t[k][1] for k in keys) for t in timings[name]]
+            rows.insert(-1, row)
+    return rows
+
+
+def fmt(s: float) -> str:
+    return f"{s * 1e3:.1f} ms" if s < 1 else f"{s:.2f} s"
+
+
+def spread(values: list, failures: list) -> str:
+    if not values:
+        return "failed" if failures else "-"
+    return f"{fmt(min(values))} / {fmt(statistics.median(values))} / {fmt(max(values))}"
+
+
+def ratio(old: list, new: list) -> str:
+    if not old or not new:
+        return "n/a"
+    return f"{statistics.median(old) / statistics.median(new):.2f}"
+
+
+def print_table(rows: list) -> None:
+    print()
+    print("ratio = old median / new median (wall time): > 1 means the new code is faster; "
+          "cpu = the same ratio of CPU time (user + system) for whole-process rows")
+    head = f"{'measurement':58} {'old min / median / max':32} {'new min / median / max':32} {'old/new':>7} {'cpu':>6}"
+    print(head)
+    print("-" * len(head))
+    for r in rows:
+        cpu = ratio(r.cpu["old"], r.cpu["new"]) if r.cpu["old"] or r.cpu["new"] else ""
+        print(f"{r.label:58} {spread(r.wall['old'], r.failures['old']):32} "
+              f"{spread(r.wall['new'], r.failures['new']):32} {ratio(r.wall['old'], r.wall['new']):>7} {cpu:>6}")
+        if r.note:
+            print(f"{'':4}{r.note}")
+    failed = [(r, n, f) for r in rows for n in ("old", "new") for f in dict.fromkeys(r.failures[n])]
+    if failed:
+        print("\nfailures (distinct):")
+        for r, n, f in failed:
+            print(f"  {n} {r.label}: {f}")
+    print("e. WebAssembly vs native: skipped (bench_c_runtime.py measures no WebAssembly; bench_studio.py has "
+          "no importable measuring function; see benchmarks/bench_wasm.py)")
+
+
+def describe(side: Side) -> str:
+    def git(*args):
+        p = subprocess.run(["git", "-C", str(side.root), *args], capture_output=True, text=True)
+        return p.stdout.strip()
+    dirty = " + uncommitted changes" if git("status", "--porcelain", "--untracked-files=no") else ""
+    return f"{side.name}: {side.root} at {git('rev-parse', '--short', 'HEAD') or '?'}{dirty}"
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--baseline", required=True, type=Path, help="checkout of the old commit with its own .venv")
+    ap.add_argument("--current", type=Path, default=ROOT, help="tree under test (default: this repository)")
+    ap.add_argument("--cold-runs", type=int, default=3, help="cold first plays per side (default 3)")
+    ap.add_argument("--warm-runs", type=int, default=5, help="warm plays per side (default 5)")
+    ap.add_argument("--render-rounds", type=int, default=2, help="render processes per side (default 2)")
+    ap.add_argument("--render-repeats", type=int, default=3, help="timed renders per process and model (default 3)")
+    ap.add_argument("--report-rounds", type=int, default=1, help="runs of each report per side (default 1)")
+    ap.add_argument("--skip-reports", action="store_true", help="skip d. (the reports take minutes)")
+    args = ap.parse_args()
+
+    sides = [Side("old", args.baseline.resolve()), Side("new", args.current.resolve())]
+    for s in sides:
+        if not Path(s.cli).exists():
+            ap.error(f"{s.name}: {s.cli} does not exist (create {s.root / '.venv'} first)")
+        print(describe(s))
+    print(f"load average at start: {' '.join(f'{v:.2f}' for v in os.getloadavg())} on {os.cpu_count()} cores")
+
+    with tempfile.TemporaryDirectory(prefix="sd-bench-engine-") as d:
+        work = Path(d)
+        tables = compile_tables(sides, work)
+        if len(tables) < 2:
+            print("no side could compile phone.toml: nothing to play")
+            return 1
+        rows, warm_env = measure_plays(sides, tables, work, args.cold_runs, args.warm_runs)
+        rows += measure_renders(sides, tables, work, warm_env, args.render_rounds, args.render_repeats)
+        if not args.skip_reports:
+            rows += measure_reports(sides, work, warm_env, args.report_rounds)
+    print_table(rows)
+    print(f"load average at end: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
