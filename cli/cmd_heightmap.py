@@ -42,7 +42,6 @@ def register(subparsers) -> None:
     g.add_argument("--supersample-mode", help="reduce sub-samples by mean (default) or max")
     g.add_argument("--background", help="height where the mesh does not reach (default 0mm)")
     g.add_argument("--margin", help="background border around the footprint (default 0mm)")
-    g.add_argument("--method", help="rasteriser: numba (default) or numpy (same answer)")
     p.add_argument("--base-thickness", default="1mm",
                    help="for .stl/.ply output: solid base below the lowest point (default 1mm)")
     p.add_argument("--surface-only", action="store_true",
@@ -83,7 +82,7 @@ def run(args) -> int:
     return 0
 
 
-_MESH_EXTRA = ("samples", "grid", "supersample", "supersample_mode", "background", "margin", "method")
+_MESH_EXTRA = ("samples", "grid", "supersample", "supersample_mode", "background", "margin")
 
 
 def _load(args, src, mesh):

@@ -1,18 +1,17 @@
-"""Single-pass kernels for the compiler's large-array work, in C (compiled at install) or in numpy chunks.
+"""Kernels for the compiler's large-array work, in C (compiled at install) or in numpy chunks.
 
-Each kernel walks flat float64 arrays once. The slope kernels
-(:func:`wall_scan`, :func:`clip_where`, :func:`clip_magnitude`),
-:func:`encode`, :func:`png_gray16` and :func:`gray_to_heights` run in C:
-``sd_kernels.c`` (beside this module), compiled when the package is built or
-installed into the extension module ``shapedisplay._kernels_c`` (``setup.py``)
-and loaded with ctypes (:func:`c_kernels`, about a millisecond). They do the
-IEEE operations numpy's whole-array and chunked arithmetic does, in the same
-order on the same samples, built without fused multiply-adds, so the same
-values bit for bit (``tests/test_c_kernels.py`` compares them with numpy), in
-one loop. :func:`minmax` has no C twin: numpy does that work a chunk of
+The slope kernels (:func:`wall_scan`, :func:`clip_where`,
+:func:`clip_magnitude`), :func:`encode`, :func:`png_gray16` and
+:func:`gray_to_heights` walk flat arrays once; :func:`zbuffer` rasterises a
+triangle mesh (:mod:`.raster`). They run in C: ``sd_kernels.c`` (beside this
+module), compiled when the package is built or installed into the extension
+module ``shapedisplay._kernels_c`` (``setup.py``) and loaded with ctypes
+(:func:`c_kernels`, about a millisecond). The array kernels do the IEEE
+operations numpy's whole-array and chunked arithmetic does, in the same order
+on the same samples, built without fused multiply-adds, so the same values
+bit for bit (``tests/test_c_kernels.py`` compares them with numpy), in one
+loop. :func:`minmax` has no C twin: numpy does that work a chunk of
 :data:`CHUNK` samples at a time, so its temporaries stay in the CPU cache.
-Not numba: loading numba and its cached kernels costs a compile process about
-0.6 s of start-up, more than these passes take on a 4096x4096 map.
 """
 from __future__ import annotations
 
@@ -54,7 +53,8 @@ def c_kernels():
                            ("sd_central_band", [vp, i64, i64, i64, i64, f64, f64, vp, vp]),
                            ("sd_encode", [vp, i64, f64, f64, f64, f64, f64, vp, i64]),
                            ("sd_png_gray16", [vp, i64, i64, vp, vp]),
-                           ("sd_gray_to_heights", [vp, i64, i64, i64, i64, f64, f64, vp])):
+                           ("sd_gray_to_heights", [vp, i64, i64, i64, i64, f64, f64, vp]),
+                           ("sd_zbuffer", [vp, i64, vp, i64, vp, i64, i64, f64])):
             fn = getattr(lib, name)
             fn.argtypes = args
             fn.restype = None if name == "sd_gray_to_heights" else i64
@@ -220,3 +220,22 @@ def gray_to_heights(gray, step, lo):
     lib.sd_gray_to_heights(gray.ctypes.data, gray.shape[0], gray.shape[1], gray.strides[0] // gray.itemsize,
                            gray.itemsize, step, lo, out.ctypes.data)
     return out
+
+
+def zbuffer(vertices, faces, zbuf, tol):
+    """Max z-buffer of the triangles ``faces`` of ``vertices`` into ``zbuf`` in place (see :mod:`.raster`).
+
+    ``vertices`` (n, 3) float64 and ``faces`` (m, 3) int64, both C-contiguous,
+    ``zbuf`` (rows, cols) C-contiguous float64, ``tol`` the edge tolerance in
+    samples. One pass over the triangles in C, each over the samples of its
+    bounding box clipped to the grid.
+    """
+    for a, dtype in ((vertices, np.float64), (faces, np.int64), (zbuf, np.float64)):
+        if not (a.flags.c_contiguous and a.dtype == dtype and a.ndim == 2):
+            raise ValueError(f"zbuffer takes C-contiguous 2-D {np.dtype(dtype)} arrays (got {a.dtype} {a.shape})")
+    if vertices.shape[1] != 3 or faces.shape[1] != 3:
+        raise ValueError(f"zbuffer takes vertices (n, 3) and faces (m, 3) (got {vertices.shape}, {faces.shape})")
+    rows, cols = zbuf.shape
+    if c_kernels().sd_zbuffer(vertices.ctypes.data, len(vertices), faces.ctypes.data, len(faces),
+                              zbuf.ctypes.data, rows, cols, tol) < 0:
+        raise ValueError(f"`faces` index outside 0..{len(vertices) - 1}")

@@ -349,7 +349,7 @@ def default_units(path) -> str:
 
 
 def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units=None, background=0.0,
-                        supersample=1, *, supersample_mode="mean", margin=0.0, method="numba", size=None,
+                        supersample=1, *, supersample_mode="mean", margin=0.0, size=None,
                         height_range=None) -> HeightField:
     """Project the top surface of a mesh onto a regular height field.
 
@@ -376,8 +376,6 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units=None, ba
         Reduction of sub-samples.
     margin : float (metres) or str
         Background border added around the footprint.
-    method : {"numba", "numpy"}
-        Rasteriser backend (:data:`shapedisplay.raster.METHODS`); same answer.
     size : float, (width, height) (metres) or str, optional
         Scale the model: one length scales it uniformly (x, y and heights)
         so that the longer side of its footprint has that length; a pair
@@ -423,8 +421,6 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units=None, ba
     k = int(supersample)
     if supersample_mode not in SUPERSAMPLE_MODES:
         raise unknown_key("supersample mode", supersample_mode, SUPERSAMPLE_MODES)
-    if method not in raster.METHODS:
-        raise unknown_key("rasteriser method", method, raster.METHODS)
     rot = up_rotation(up)
     if size is not None:
         size = _mesh_size(size)
@@ -522,7 +518,7 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units=None, ba
     g[:, 0] = (px - ox) / sdx
     g[:, 1] = (py - oy) / sdy
     g[:, 2] = pz - lo[2]
-    zbuf = raster.rasterize_mesh(g, faces, rows * k, cols * k, method=method)
+    zbuf = raster.rasterize_mesh(g, faces, rows * k, cols * k)
     covered = np.isfinite(zbuf)
     zbuf[~covered] = bg
     if k > 1:

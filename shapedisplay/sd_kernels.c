@@ -512,3 +512,80 @@ void sd_gray_to_heights(const void *codes, int64_t rows, int64_t cols, int64_t s
         }
     }
 }
+
+/* raster.rasterize_mesh: max z-buffer of the triangles faces (m x 3 vertex indices) of vert (n x 3, grid
+ * units: u = column, v = row, z), into zbuf (rows x cols, filled by the caller). A sample takes a
+ * triangle's height where its three edge functions are each at least -tol times that edge's length (inside
+ * or within tol samples of the edge); the height is interpolated from the first vertex and clamped to the
+ * triangle's own range; triangles of zero projected area cover nothing. Returns 0, or -1 for a face index
+ * outside 0..n-1. Per triangle: the samples of its bounding box clipped to the grid. */
+int64_t sd_zbuffer(const double *vert, int64_t n, const int64_t *faces, int64_t m, double *zbuf, int64_t rows,
+                   int64_t cols, double tol)
+{
+    for (int64_t t = 0; t < m; t++) {
+        int64_t i = faces[3 * t], j = faces[3 * t + 1], k = faces[3 * t + 2];
+        if (i < 0 || j < 0 || k < 0 || i >= n || j >= n || k >= n)
+            return -1;
+        double ax = vert[3 * i], ay = vert[3 * i + 1], az = vert[3 * i + 2];
+        double bx = vert[3 * j], by = vert[3 * j + 1], bz = vert[3 * j + 2];
+        double cx = vert[3 * k], cy = vert[3 * k + 1], cz = vert[3 * k + 2];
+        double area = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax);
+        if (area == 0.0)
+            continue;
+        double s = area > 0.0 ? 1.0 : -1.0;
+        area = area * s;
+        /* edge lengths scale the tolerance into edge-function units */
+        double la = sqrt((cx - bx) * (cx - bx) + (cy - by) * (cy - by)) * tol;
+        double lb = sqrt((ax - cx) * (ax - cx) + (ay - cy) * (ay - cy)) * tol;
+        double lc = sqrt((bx - ax) * (bx - ax) + (by - ay) * (by - ay)) * tol;
+        double umin = ax < bx ? ax : bx, umax = ax > bx ? ax : bx;
+        double vmin = ay < by ? ay : by, vmax = ay > by ? ay : by;
+        umin = cx < umin ? cx : umin;
+        umax = cx > umax ? cx : umax;
+        vmin = cy < vmin ? cy : vmin;
+        vmax = cy > vmax ? cy : vmax;
+        /* columns ceil(umin - tol)..floor(umax + tol) clipped to the grid, rows likewise; decided in double
+         * (a vertex far outside the grid, or NaN, is skipped before any conversion to an integer) */
+        double u0 = umin - tol, u1 = umax + tol, v0 = vmin - tol, v1 = vmax + tol;
+        if (!(u0 <= (double)(cols - 1) && u1 >= 0.0 && v0 <= (double)(rows - 1) && v1 >= 0.0))
+            continue;
+        int64_t c0 = 0, c1 = cols - 1, r0 = 0, r1 = rows - 1;
+        if (u0 > 0.0) {
+            c0 = (int64_t)u0;                               /* truncation: floor of a positive value */
+            c0 += (double)c0 < u0;
+        }
+        if (u1 < (double)(cols - 1))
+            c1 = (int64_t)u1;
+        if (v0 > 0.0) {
+            r0 = (int64_t)v0;
+            r0 += (double)r0 < v0;
+        }
+        if (v1 < (double)(rows - 1))
+            r1 = (int64_t)v1;
+        double zlo = az < bz ? az : bz, zhi = az > bz ? az : bz;
+        zlo = cz < zlo ? cz : zlo;
+        zhi = cz > zhi ? cz : zhi;
+        for (int64_t r = r0; r <= r1; r++) {
+            double py = (double)r;
+            double *row = zbuf + r * cols;
+            for (int64_t c = c0; c <= c1; c++) {
+                double px = (double)c;
+                double wa = s * ((cx - bx) * (py - by) - (cy - by) * (px - bx));
+                if (wa < -la)
+                    continue;
+                double wb = s * ((ax - cx) * (py - cy) - (ay - cy) * (px - cx));
+                if (wb < -lb)
+                    continue;
+                double wc = s * ((bx - ax) * (py - ay) - (by - ay) * (px - ax));
+                if (wc < -lc)
+                    continue;
+                double z = az + (wb * (bz - az) + wc * (cz - az)) / area;
+                z = z > zlo ? z : zlo;                      /* no overshoot just outside a steep sliver */
+                z = z < zhi ? z : zhi;
+                if (z > row[c])
+                    row[c] = z;
+            }
+        }
+    }
+    return 0;
+}

@@ -630,7 +630,7 @@ OPTION_KINDS = {
     "size": ("image", "mesh"), "height": ("image", "mesh"), "resolution": ("image", "mesh"),
     "channel": ("image",), "z_units": ("image",),
     "up": ("mesh",), "units": ("mesh",), "samples": ("mesh",), "grid": ("mesh",), "supersample": ("mesh",),
-    "supersample_mode": ("mesh",), "background": ("mesh",), "margin": ("mesh",), "method": ("mesh",),
+    "supersample_mode": ("mesh",), "background": ("mesh",), "margin": ("mesh",),
 }
 _KIND_WORDS = {("image",): "image sources", ("mesh",): "meshes", ("image", "mesh"): "images and meshes"}
 _WHAT = {"image": "an image", "mesh": "a mesh", "scene": "a scene: it sets its own geometry and mapping",
@@ -754,7 +754,7 @@ def source_options(path, *, flags: dict | None = None, **given) -> dict:
             raise InputError(f"give either `{flag('resolution')}` or `{flag('samples')}`, not both "
                              f"(got {given['resolution']!r} and {given['samples']!r})")
         opts["grid"] = _samples_option(given["samples"], flag("samples"))
-    for name in ("channel", "z_units", "units", "grid", "supersample_mode", "background", "margin", "method"):
+    for name in ("channel", "z_units", "units", "grid", "supersample_mode", "background", "margin"):
         if name in given:
             opts[name] = given[name]
     if "supersample" in given:
@@ -787,7 +787,7 @@ def load_source(path, **opts) -> HeightField:
     ``.stl``/``.obj``/``.ply``/``.off``/``.glb``/``.gltf`` ->
     :func:`shapedisplay.mesh.mesh_to_heightfield` (options ``resolution``,
     ``grid``, ``up``, ``units``, ``size``, ``height_range``, ``background``,
-    ``supersample``, ``supersample_mode``, ``margin``, ``method``). Options
+    ``supersample``, ``supersample_mode``, ``margin``). Options
     that are None are dropped; an option the loader does not take is an
     error naming the nearest valid one.
     """
@@ -796,7 +796,7 @@ def load_source(path, **opts) -> HeightField:
     opts = {k: v for k, v in opts.items() if v is not None}
     if suffix in MESH_SUFFIXES:
         valid = ("resolution", "grid", "up", "units", "size", "height_range", "background", "supersample",
-                 "supersample_mode", "margin", "method")
+                 "supersample_mode", "margin")
         for k in opts:
             if k not in valid:
                 raise unknown_key("mesh option", k, valid)

@@ -204,7 +204,6 @@ def test_units_scale_lengths_and_heights(units, factor):
     ({"supersample": 0}, "`supersample` must be an integer from 1 to 16"),
     ({"supersample": 2.5}, "`supersample` must be an integer"),
     ({"supersample_mode": "median"}, "unknown supersample mode 'median'"),
-    ({"method": "embree"}, "unknown rasteriser method 'embree'"),
     ({"up": "w"}, "`up` must be one of x, y, z"),
     ({"up": [0, 0, 0]}, "`up` must be an axis name, a non-zero finite 3-vector"),
     ({"up": np.diag([1.0, 1.0, -1.0])}, "must be a proper rotation"),

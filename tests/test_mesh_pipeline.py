@@ -98,7 +98,7 @@ def test_heightmap_command_writes_every_format(tmp_path, capsys):
 def test_heightmap_command_options(tmp_path, capsys):
     out = tmp_path / "k.npy"
     rc = main(["heightmap", str(KEYCAP), "-o", str(out), "--samples", "61x31", "--up", "z",
-               "--supersample", "3", "--supersample-mode", "max", "--background=-1mm", "--method", "numpy"])
+               "--supersample", "3", "--supersample-mode", "max", "--background=-1mm"])
     assert rc == 0
     h = np.load(out)[::-1]                    # written as the top view
     assert h.shape == (31, 61)
@@ -159,7 +159,7 @@ def test_heightmap_command_bad_files(tmp_path, capsys):
 
 @pytest.mark.parametrize("opt, value", [("--up", "y"), ("--units", "m"), ("--supersample", "2"),
                                         ("--supersample-mode", "max"), ("--background", "1mm"),
-                                        ("--margin", "1mm"), ("--method", "numpy")])
+                                        ("--margin", "1mm")])
 def test_heightmap_mesh_options_on_an_image_are_refused(tmp_path, capsys, opt, value):
     """Mesh options used to be silently ignored for image sources."""
     from shapedisplay.imageio import write_png
