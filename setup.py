@@ -5,7 +5,8 @@ with ``importlib.util.find_spec``; nothing imports them as modules):
 
 * ``shapedisplay._engine``: the C runtime (every ``shapedisplay/runtime_c/sd_*.c``
   but the WebAssembly entry points ``sd_wasm.c``) and its offline play loop
-  ``shapedisplay/runtime/sd_play_path.c`` (:mod:`shapedisplay.runtime.native`);
+  ``shapedisplay/runtime/sd_play_path.c`` (:mod:`shapedisplay.runtime.native`), and the reports'
+  timing floors ``shapedisplay/runtime/sd_floors.c`` (:mod:`shapedisplay.reports.common`);
 * ``shapedisplay._kernels_c``: the compiler's kernels ``shapedisplay/sd_kernels.c``
   (:mod:`shapedisplay._kernels`). Kept apart from the runtime: compiling a
   table does not load the runtime, the runtime library holds only the
@@ -39,7 +40,8 @@ _DEFINITION = re.compile(r"^(?!static\b)[A-Za-z_][\w \t*]*?\b(sd_\w+)\s*\([^;{]*
 def runtime_sources() -> list[str]:
     """The C runtime's sources, whatever models it has (a glob: a new model file builds in)."""
     return [*(str(p) for p in sorted((PACKAGE / "runtime_c").glob("sd_*.c")) if p.name != "sd_wasm.c"),
-            str(PACKAGE / "runtime" / "sd_play_path.c")]
+            str(PACKAGE / "runtime" / "sd_play_path.c"),
+            str(PACKAGE / "runtime" / "sd_floors.c")]
 
 
 def exported(sources: list[str]) -> list[str]:

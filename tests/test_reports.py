@@ -492,6 +492,27 @@ def test_stuck_floor_runs_the_model_on_ticks_that_all_stay_stuck():
     assert stuck_floor(9001, runs=1, min_batch_s=0.001) > 0.0
 
 
+def test_timing_floors_compute_what_they_say():
+    """The floors' C loops (``sd_floors.c``) write the values their docstrings name: each tick's input times
+    ``h``; whole carrier periods times the envelope, the samples after the last whole period untouched; the
+    six interface rows in the order of run_kernel's outputs. Both floors are positive CPU times."""
+    lib = common._floors()
+    rng = np.random.default_rng(5)
+    v, out = rng.normal(size=1001), np.full(1001, np.nan)
+    lib.sd_floor_tick(v.ctypes.data, out.ctypes.data, v.size, 1e-3)
+    np.testing.assert_array_equal(out, v * 1e-3)
+    period, out = rng.normal(size=160), np.full(1001, np.nan)
+    lib.sd_floor_audio(out.ctypes.data, out.size, period.ctypes.data, period.size, 0.5)
+    np.testing.assert_array_equal(out[:960], np.tile(0.5 * period, 6))
+    assert np.isnan(out[960:]).all()
+    rows, out = [rng.normal(size=777) for _ in range(6)], np.full((6, 777), np.nan)
+    lib.sd_floor_interface(*(r.ctypes.data for r in rows), out.ctypes.data, 777, 0.25)
+    np.testing.assert_array_equal(out, np.array([rows[1], rows[2], rows[3], rows[4], rows[5], rows[0]]) * 0.25)
+    tick, audio = common.floor_costs(n=1 << 16, runs=1)
+    assert tick > 0.0 and audio > 0.0
+    assert common.interface_floor(100, runs=1, min_batch_s=0.001) > 0.0
+
+
 def test_cpu_per_call_reads_the_clock_a_few_times_per_run(monkeypatch):
     """cpu_per_call on a fake CPU clock: each call of fn costs 2 us, each clock read 0.5 us (a system
     call). The per-call figure is the call's cost plus at most a few percent of clock reads, with

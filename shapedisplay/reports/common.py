@@ -177,55 +177,58 @@ def cpu_per_call(fn, runs=3, min_batch_s=0.02, warmup=True):
 _FLOORS = None
 
 
+def _floors():
+    """The engine library (:func:`..runtime.native.library`) with the timing floors' argument types declared.
+
+    The floors are C loops in ``shapedisplay/runtime/sd_floors.c``, compiled
+    into the engine with the runtime's own flags; bound here once.
+    """
+    global _FLOORS
+    if _FLOORS is None:
+        import ctypes
+
+        from ..runtime.native import library
+        lib = library()
+        vp, i64, f64 = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
+        for name, args in (("sd_floor_tick", [vp, vp, i64, f64]),
+                           ("sd_floor_audio", [vp, i64, vp, i64, f64]),
+                           ("sd_floor_interface", [vp, vp, vp, vp, vp, vp, vp, i64, f64])):
+            fn = getattr(lib, name)
+            fn.argtypes = args
+            fn.restype = None
+        _FLOORS = lib
+    return _FLOORS
+
+
 def floor_costs(n=1 << 20, runs=3):
     """Least work any tick-based renderer does, timed now: ``(s per tick, s per audio sample)``.
 
     Per tick: read the tick's input and write one output computed from it
-    (one multiply; the loop vectorises). Per audio sample: write one sample,
-    a stored carrier period times an envelope value. Compiled loops over
-    ``n`` elements, min of ``runs`` runs after a warm-up. A renderer that
+    (one multiply). Per audio sample: write one sample, a stored carrier
+    period times an envelope value. C loops over ``n`` elements
+    (``sd_floor_tick`` and ``sd_floor_audio`` in the engine library, see
+    :func:`_floors`), min of ``runs`` runs after a warm-up. A renderer that
     writes its outputs for every tick and every audio sample cannot cost less
     than ``ticks * per_tick + samples * per_sample``; against a solver whose
     cost grows with the number of events and not with the duration this
     bounds the speed-up from above.
     """
-    global _FLOORS
-    if _FLOORS is None:
-        from numba import njit
-
-        @njit(cache=True)
-        def tick_floor(V, out, h):
-            for i in range(V.shape[0]):
-                out[i] = V[i] * h
-
-        @njit(cache=True)
-        def audio_floor(out, period, e):
-            p = period.shape[0]
-            j = 0
-            while j + p <= out.shape[0]:
-                for q in range(p):
-                    out[j + q] = e * period[q]
-                j += p
-
-        _FLOORS = (tick_floor, audio_floor)
-    tick_floor, audio_floor = _FLOORS
+    lib = _floors()
     V = np.full(n, 0.02)
     out = np.empty(n)
     period = np.sin(2.0 * math.pi * np.arange(160) / 160.0)      # one 300 Hz period at 48 kHz
-    tick_floor(V[:8], out[:8], 1e-3)
-    audio_floor(out[:320], period, 0.5)
+    pv, po, pp = V.ctypes.data, out.ctypes.data, period.ctypes.data
+    lib.sd_floor_tick(pv, po, 8, 1e-3)
+    lib.sd_floor_audio(po, 320, pp, period.size, 0.5)
     bt = ba = math.inf
     for _ in range(max(1, runs)):
         t0 = time.process_time()
-        tick_floor(V, out, 1e-3)
+        lib.sd_floor_tick(pv, po, n, 1e-3)
         t1 = time.process_time()
-        audio_floor(out, period, 0.5)
+        lib.sd_floor_audio(po, n, pp, period.size, 0.5)
         t2 = time.process_time()
         bt, ba = min(bt, t1 - t0), min(ba, t2 - t1)
     return bt / n, ba / (n - n % period.size)
-
-
-_INTERFACE_LOOP = None
 
 
 def interface_floor(n, runs=3, min_batch_s=0.02):
@@ -233,34 +236,21 @@ def interface_floor(n, runs=3, min_batch_s=0.02):
 
     ``run_kernel`` takes six per-tick input rows (t, V, N, mu_s, mu_k, gain)
     and returns six per-tick rows (friction, phase, x, v, the work done by
-    friction and the energy the damper dissipated). The floor is one compiled call that reads the six
-    input rows and writes six output rows, each output one multiply of an
-    input (the loop vectorises), over ``n`` ticks: the call itself included,
-    min of ``runs`` runs of at least ``min_batch_s`` each, after a warm-up.
-    Measured at the path's own length (a short path's rows stay in cache:
-    the least cost). A model that returns those rows cannot
-    cost less than this, whatever its physics.
+    friction and the energy the damper dissipated). The floor is one call of
+    a C loop (``sd_floor_interface`` in the engine library, see
+    :func:`_floors`) that reads the six input rows and writes six output
+    rows, each output one multiply of an input, over ``n`` ticks: the call
+    itself (through ctypes) included, min of ``runs`` runs of at least
+    ``min_batch_s`` each, after a warm-up. Measured at the path's own length
+    (a short path's rows stay in cache: the least cost). A model that returns
+    those rows cannot cost less than this, whatever its physics.
     """
-    global _INTERFACE_LOOP
+    lib = _floors()
     n = int(n)
-    if _INTERFACE_LOOP is None:
-        from numba import njit
-
-        @njit(cache=True)
-        def interface(t, V, N, mus, muk, gain, out, h):
-            for i in range(t.shape[0]):
-                out[0, i] = V[i] * h
-                out[1, i] = N[i] * h
-                out[2, i] = mus[i] * h
-                out[3, i] = muk[i] * h
-                out[4, i] = gain[i] * h
-                out[5, i] = t[i] * h
-
-        _INTERFACE_LOOP = interface
-    interface = _INTERFACE_LOOP
     rows = [np.full(n, 0.5 + k) for k in range(6)]
     out = np.empty((6, n))
-    per_call, _ = cpu_per_call(lambda: interface(*rows, out, 1e-3), runs=runs, min_batch_s=min_batch_s)
+    args = (*(r.ctypes.data for r in rows), out.ctypes.data, n, 1e-3)
+    per_call, _ = cpu_per_call(lambda: lib.sd_floor_interface(*args), runs=runs, min_batch_s=min_batch_s)
     return min(per_call)
 
 
