@@ -9,8 +9,8 @@ with ``importlib.util.find_spec``; nothing imports them as modules):
   timing floors ``shapedisplay/runtime/sd_floors.c`` (:mod:`shapedisplay.reports.common`);
 * ``shapedisplay._kernels_c``: the compiler's kernels ``shapedisplay/sd_kernels.c``
   (:mod:`shapedisplay._kernels`). Kept apart from the runtime: compiling a
-  table does not load the runtime, the runtime library holds only the
-  firmware's sources, and neither can clash with the other's names.
+  table does not load the runtime, the runtime library holds none of the
+  compiler's code, and neither can clash with the other's names.
 
 ``shapedisplay/_module.c`` makes each a valid extension module on every
 platform (its ``PyInit_`` function). Arithmetic is IEEE double as written

@@ -11,7 +11,7 @@ import sys
 import time
 from pathlib import Path
 
-HEAVY = ("trimesh", "pyvista", "vtk", "serial", "matplotlib", "scipy", "numba")
+HEAVY = ("trimesh", "pyvista", "vtk", "serial", "matplotlib", "scipy")
 FORBIDDEN = ("trimesh", "pyvista", "vtk", "serial", "matplotlib")
 BUDGET_HELP_S = 0.3
 EXE = Path(sys.executable).parent / "shapedisplay"

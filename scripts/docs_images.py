@@ -157,7 +157,7 @@ def drawing_versions() -> dict:
     """Versions of the libraries that decide the pixels (the same versions give the same bytes)."""
     from importlib.metadata import PackageNotFoundError, version
     out = {}
-    for dist in ("matplotlib", "vtk", "pyvista", "pillow", "numpy", "numba"):
+    for dist in ("matplotlib", "vtk", "pyvista", "pillow", "numpy"):
         try:
             out[dist] = version(dist)
         except PackageNotFoundError:

@@ -265,7 +265,7 @@ KERNEL_MIN_SIZE = 1 << 16
 
 
 def _flat(a) -> np.ndarray | None:
-    """1-D view of a large C-contiguous float64 array (for the numba kernels), else None."""
+    """1-D view of a large C-contiguous float64 array (for the C kernels, :mod:`._kernels`), else None."""
     if isinstance(a, np.ndarray) and a.dtype == np.float64 and a.flags.c_contiguous \
             and a.size >= KERNEL_MIN_SIZE:
         return a.reshape(-1)

@@ -97,7 +97,7 @@ def test_lateral_magnitude_clamped_direction_kept():
     assert note["above"] == 1 and note["max_excess"] == pytest.approx(3.5)
 
 
-@pytest.mark.parametrize("shape", [(1, 3), (300, 300)])   # numpy path and numba kernel path
+@pytest.mark.parametrize("shape", [(1, 3), (300, 300)])   # numpy path and C kernel path
 def test_lateral_clipping_never_gives_nan_or_loses_direction(shape):
     """A tiny force limit squared underflowed to 0 and 0/0 made NaN; an overflowing |F|^2 clipped to 0."""
     gx = np.resize(np.array([0.0, 1.0, 2.0]), shape)

@@ -148,7 +148,7 @@ def test_max_slope_must_be_positive():
         limit_walls(np.zeros((1, 2)), np.zeros((1, 2)), 0.0)
 
 
-@pytest.mark.parametrize("cols", [8, 512])   # numpy path and numba kernel path
+@pytest.mark.parametrize("cols", [8, 512])   # numpy path and C kernel path
 def test_overflowing_slopes_are_refused_not_zeroed(cols):
     """|g|^2 overflowing to inf used to clip the wall slopes to 0 (direction lost)."""
     from shapedisplay.heightfield import HeightField
