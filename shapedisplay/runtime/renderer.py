@@ -268,8 +268,9 @@ class Renderer:
         """
         cp = self._on_grid(cursor)
         out, audio, ev, counts = self._play(cp)
-        col = {k: np.ascontiguousarray(out[k]) for k in ("vx", "vy", "normal_force", "friction_force", "lateral_x",
-                                                         "lateral_y", "skin_stretch", "mu_s")}
+        # per-tick rows as views of the engine's output records (strided, not copied)
+        col = {k: out[k] for k in ("vx", "vy", "normal_force", "friction_force", "lateral_x", "lateral_y",
+                                   "skin_stretch", "mu_s")}
         t, x, y = (np.array(a, dtype=np.float64) for a in (cp.t, cp.x, cp.y))
         return RenderResult(t, x, y, col["vx"], col["vy"], col["normal_force"], col["friction_force"],
                             out["state"].astype(np.int8), col["lateral_x"], col["lateral_y"], col["skin_stretch"],
