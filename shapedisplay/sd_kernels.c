@@ -565,20 +565,23 @@ int64_t sd_zbuffer(const double *vert, int64_t n, const int64_t *faces, int64_t 
         double zlo = az < bz ? az : bz, zhi = az > bz ? az : bz;
         zlo = cz < zlo ? cz : zlo;
         zhi = cz > zhi ? cz : zhi;
+        /* Along a row each edge function, rounded as written, is monotonic in px (every rounding step is),
+         * so the samples that pass all three tests are one run: the row ends where the run does. */
         for (int64_t r = r0; r <= r1; r++) {
             double py = (double)r;
             double *row = zbuf + r * cols;
+            int in_run = 0;
             for (int64_t c = c0; c <= c1; c++) {
                 double px = (double)c;
                 double wa = s * ((cx - bx) * (py - by) - (cy - by) * (px - bx));
-                if (wa < -la)
-                    continue;
                 double wb = s * ((ax - cx) * (py - cy) - (ay - cy) * (px - cx));
-                if (wb < -lb)
-                    continue;
                 double wc = s * ((bx - ax) * (py - ay) - (by - ay) * (px - ax));
-                if (wc < -lc)
+                if (wa < -la || wb < -lb || wc < -lc) {
+                    if (in_run)
+                        break;
                     continue;
+                }
+                in_run = 1;
                 double z = az + (wb * (bz - az) + wc * (cz - az)) / area;
                 z = z > zlo ? z : zlo;                      /* no overshoot just outside a steep sliver */
                 z = z < zhi ? z : zhi;
