@@ -1,7 +1,8 @@
 """Shared test vectors of the C runtime's three targets (host, WebAssembly, Cortex-M4F).
 
 Every target plays the same binary table image with the same settings and
-stroke; the outputs are compared with the Python renderer. Input of
+stroke; the outputs are compared with the package's renderer (``Renderer``, the engine built in double
+precision for the host) within bounds derived for each target's arithmetic. Input of
 ``sd_vectors image`` (and of the wasm and M4 harnesses): i64 image size, the
 image, zero padding to 8 bytes, i64 policy, i64 model, f64 tick rate, f64
 audio rate, i64 n, f64 x[n], f64 y[n]. Output: sd_outputs_t out[n]
@@ -52,7 +53,7 @@ def parse_events(raw: bytes, n: int):
 
 
 def py_render_events(r, x, y):
-    """The Python renderer's outputs and audio (as test_c_runtime.py_render) with every event's time and
+    """The package renderer's outputs and audio (as test_c_runtime.py_render) with every event's time and
     amplitude, read from the event ring after each tick."""
     from shapedisplay.runtime.layouts import OUTPUTS as _O
     r.reset()
@@ -72,7 +73,7 @@ def py_render_events(r, x, y):
 
 
 def case_setup(dtype, kind, policy, tick, audio, model, seconds=0.25):
-    """Table, Python renderer, stroke and image of one case."""
+    """Table, renderer, stroke and image of one case."""
     from test_c_runtime import stroke, widget_table
     from shapedisplay.runtime import Renderer
     table = widget_table(dtype)
@@ -280,7 +281,7 @@ EXACT_FIELDS = ("t", "x", "y", "vx", "vy", "normal_force", "events", "state", "a
 
 
 def assert_within_derived_bounds(r, po, pa, co, ca) -> float:
-    """A double build with another libm against the Python reference: :data:`EXACT_FIELDS` equal,
+    """A double build with another libm against the host engine (``Renderer``): :data:`EXACT_FIELDS` equal,
     drive, audio and friction force within :func:`derived_bounds`. Returns the drive bound."""
     for name in EXACT_FIELDS:
         np.testing.assert_array_equal(co[name], po[name], err_msg=name)

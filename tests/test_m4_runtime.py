@@ -2,9 +2,9 @@
 
 `make -C runtime-c m4` builds a bare-metal harness that reads the shared vectors through Arm
 semihosting and plays them. The default build is single precision (-DSD_SINGLE, the FPU's
-fpv4-sp-d16): it is compared with the Python renderer within the derived bounds of
-runtime_vectors.float_bounds; the double build (M4_PRECISION=double) within derived_bounds
-(newlib's libm is not glibc's).
+fpv4-sp-d16): it is compared with the host's double-precision engine (``Renderer``) within the
+derived bounds of runtime_vectors.float_bounds; the double build (M4_PRECISION=double) within
+derived_bounds (newlib's libm is not glibc's).
 """
 import shutil
 
