@@ -13,6 +13,8 @@ Budget of the target: a 168 MHz core at 10 kHz ticks has 16 800 cycles per tick;
 half of it. Instructions are not cycles (a Cortex-M4 takes 1-3 cycles per instruction, more
 for divisions and flash wait states), so read these as a lower bound of the cycles.
 Needs arm-none-eabi-gcc, newlib and qemu-system-arm (scripts/install-system-deps.sh --with-toolchains).
+
+Run: ``.venv/bin/python benchmarks/bench_mcu.py [--quick]``.
 """
 from __future__ import annotations
 
@@ -24,7 +26,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from bench_c_runtime import library_sources  # noqa: E402
 from runtime_vectors import build_m4, case_setup, image_payload, m4_instructions, run_m4  # noqa: E402
 
 # (model, policy, tick rate, audio rate, stroke seconds: shorter where a tick costs millions)
@@ -44,7 +48,8 @@ def runtime_footprint(src: Path, precision: str, defs=()) -> tuple[int, int]:
     flags = ["-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-std=c99", "-O2",
              "-ffp-contract=off", *(["-DSD_SINGLE"] if precision == "single" else []), *defs]
     text = 0
-    for name in ("sd_pad.c", "sd_exact.c", "sd_render.c", "sd_image.c"):
+    for path in library_sources():
+        name = Path(path).name
         obj = src / (name + f".{precision}.o")
         subprocess.run(["arm-none-eabi-gcc", *flags, "-c", str(src / name), "-o", str(obj)], check=True)
         out = subprocess.run(["arm-none-eabi-size", str(obj)], capture_output=True, text=True, check=True).stdout
@@ -59,6 +64,10 @@ def runtime_footprint(src: Path, precision: str, defs=()) -> tuple[int, int]:
 
 
 def main() -> int:
+    import argparse
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="single precision only, the jump and exact lines")
+    quick = ap.parse_args().quick
     missing = [t for t in ("arm-none-eabi-gcc", "qemu-system-arm") if shutil.which(t) is None]
     if missing:
         print(f"bench_mcu: needs {missing} (scripts/install-system-deps.sh --with-toolchains)")
@@ -66,17 +75,18 @@ def main() -> int:
     small = ("-DSD_EVENT_RING=128", "-DSD_AUDIO_BLOCK_MAX=16")
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
-        for precision in ("single", "double"):
+        precisions = ("single",) if quick else ("single", "double")
+        for precision in precisions:
             for label, defs in (("default", ()), ("small-RAM", small)):
                 elf, (text, data, bss) = build_m4(tmp / f"{precision}-{label}", defs, precision)
                 code, ram = runtime_footprint(elf.parent.parent, precision, defs)
                 print(f"{precision} precision, {label} build: runtime code {code} B flash, sd_renderer_t {ram} B RAM; "
                       f"whole harness with libm: flash (text) {text} B, data {data} B")
-        builds = {p: build_m4(tmp / f"run-{p}", (), p)[0] for p in ("single", "double")}
+        builds = {p: build_m4(tmp / f"run-{p}", (), p)[0] for p in precisions}
         tmp_run = tmp / "io"
         tmp_run.mkdir()
         # the single-precision build (the M4F's) first: one line per configuration
-        for model, policy, tick, audio, seconds in CONFIGS:
+        for model, policy, tick, audio, seconds in CONFIGS[:2] if quick else CONFIGS:
             table, r, x, y, img = case_setup("uint16", "diagonal", policy, tick, audio, model, seconds=seconds)
             ins = m4_instructions(run_m4(builds["single"], "bench", image_payload(img, r, x, y), tmp_run, icount=True))
             print(f"instructions per tick: mean {ins.mean():.0f} max {ins.max():.0f} "
@@ -84,7 +94,7 @@ def main() -> int:
                   f"  median {np.median(ins):.0f}, {ins.size} ticks, mean = {ins.mean() / 16800:.2f} x the 16.8k "
                   f"budget, single precision")
         # the double build, for comparison (the M4F emulates double arithmetic in software)
-        for model, policy, tick, audio, seconds in CONFIGS[:2]:
+        for model, policy, tick, audio, seconds in () if quick else CONFIGS[:2]:
             table, r, x, y, img = case_setup("uint16", "diagonal", policy, tick, audio, model, seconds=seconds)
             d_ins = m4_instructions(run_m4(builds["double"], "bench", image_payload(img, r, x, y), tmp_run,
                                            icount=True))
