@@ -55,7 +55,8 @@ def library() -> ctypes.CDLL:
     if _LIB is not None:
         return _LIB
     from ..extensions import load_extension
-    sources = [*(p for p in sorted(RUNTIME_C.glob("sd_*.[ch]")) if p.name != "sd_wasm.c"), PLAY_SOURCE]
+    sources = [*(p for p in sorted(RUNTIME_C.glob("sd_*.[ch]")) if p.name != "sd_wasm.c"),
+               *sorted(PLAY_SOURCE.parent.glob("sd_*.c"))]
     lib = load_extension(library_path(), "the compiled C runtime", sources)
     vp, c_int64 = ctypes.c_void_p, ctypes.c_int64
     lib.sd_renderer_size.restype = ctypes.c_size_t
@@ -83,24 +84,6 @@ def library() -> ctypes.CDLL:
     lib.sd_render_events.restype = ctypes.c_long
     _LIB = lib
     return lib
-
-
-class TableImage:
-    """A table bound in the C runtime: its binary image, loaded in place as firmware loads an upload.
-
-    The image buffer is 8-byte aligned and lives as long as this object.
-    """
-
-    def __init__(self, table, device):
-        from .image import to_image
-        lib = library()
-        data = to_image(table, device)
-        self._buf = aligned_buffer(len(data))
-        ctypes.memmove(self._buf.ctypes.data, data, len(data))
-        self.handle = aligned_buffer(lib.sd_image_size())
-        rc = lib.sd_image_load(self.handle.ctypes.data, self._buf.ctypes.data, len(data))
-        if rc != 0:
-            raise InputError(f"the C runtime refused the table image (code {rc})")
 
 
 #: Names of :func:`renderer_layout`'s entries (``sd_renderer_layout``): byte offsets of the parts of an

@@ -64,6 +64,7 @@ Real-time rules for :meth:`Renderer.step`
 """
 from __future__ import annotations
 
+import ctypes
 import math
 
 import numpy as np
@@ -71,14 +72,32 @@ import numpy as np
 from ..errors import InputError, ModelError
 from ..table import FrictionTable
 from .cursor import CursorPath
+from .image import to_image
 from .layouts import NSLOT, OUTPUTS, PAD_STATE, RUN_STATE, SLOTS
 from .models import PadModel, divergence_message
-from .native import PLAY_EVENTS_FULL, TableImage, aligned_buffer, library, renderer_layout
+from .native import PLAY_EVENTS_FULL, aligned_buffer, library, renderer_layout
 from .result import RenderResult
 from .settings import audio_length, derive_config, render_settings
 
 #: Names of the per-tick outputs of :meth:`Renderer.step` (fields of :data:`~.layouts.OUTPUTS`).
 OUT_NAMES = OUTPUTS.names
+
+
+class TableImage:
+    """A table bound in the C runtime: its binary image, loaded in place as firmware loads an upload.
+
+    The image buffer is 8-byte aligned and lives as long as this object.
+    """
+
+    def __init__(self, table, device):
+        lib = library()
+        data = to_image(table, device)
+        self._buf = aligned_buffer(len(data))
+        ctypes.memmove(self._buf.ctypes.data, data, len(data))
+        self.handle = aligned_buffer(lib.sd_image_size())
+        rc = lib.sd_image_load(self.handle.ctypes.data, self._buf.ctypes.data, len(data))
+        if rc != 0:
+            raise InputError(f"the C runtime refused the table image (code {rc})")
 
 
 def _view(buf: np.ndarray, offset: int, dtype, count: int = 1) -> np.ndarray:
