@@ -8,7 +8,7 @@
    audio): a 3 s stroke across the phone scene rendered through an
    OfflineAudioContext (the same worklet and WebAssembly C runtime as live),
    wall time / quanta, as a fraction of the quantum's duration (2.67 ms).
-   Baseline in the same run: the Python renderer (numba) on the same stroke.
+   Baseline in the same run: the package's Renderer.render (the same C engine, native) on the same stroke.
 3. Cursor-to-sound latency as the browser reports it: baseLatency +
    outputLatency of the live AudioContext, plus the studio's input delay
    (the cursor is rendered 1.5 pointer intervals behind the pointer, at
@@ -104,11 +104,11 @@ def main() -> int:
             res = py.render(stroke)
             py_us = (time.perf_counter() - t0) * 1e6 / r["quanta"]
             print(f"AudioWorklet (C runtime in WebAssembly), {r['ticks']} ticks at 10 kHz, {r['events']} events "
-                  f"(Python: {res.event_time.size}), us per 128-sample quantum")
+                  f"(native: {res.event_time.size}), us per 128-sample quantum")
             print(f"  worklet             {stats(walls)}   = {100 * statistics.median(walls) / quantum_us:.2f} % "
                   f"of the {quantum_us:.0f} us quantum (target <= 10 %)")
-            print(f"  baseline: Python renderer (numba, offline) {py_us:7.1f} us per quantum's worth "
-                  f"(worklet / Python: {statistics.median(walls) / py_us:.2f}x)")
+            print(f"  baseline: Renderer.render (native C, offline) {py_us:7.1f} us per quantum's worth "
+                  f"(worklet / native: {statistics.median(walls) / py_us:.2f}x)")
 
             # 3. latency
             lat = page.evaluate("({base: studio.ctx.baseLatency, output: studio.ctx.outputLatency, "
