@@ -1,4 +1,4 @@
-"""The binary table image: writer, Python reader, and the C loader on the host (bit-exact)."""
+"""The binary table image: writer, Python reader, the C loader, and the image alone enough to play the table."""
 import struct
 import subprocess
 import sys
@@ -118,6 +118,8 @@ def _run_image(exe, payload, tmp_path):
 
 @pytest.mark.parametrize("dtype, kind, policy, tick, audio, model", CASES)
 def test_c_runtime_plays_the_image_bit_exact(sd_vectors_image, tmp_path, dtype, kind, policy, tick, audio, model):
+    """A standalone firmware-style player given the image and nothing but the model, policy and rates plays what
+    the host's Renderer plays from the table and its device: the image carries every setting."""
     table, r, x, y, img = case_setup(dtype, kind, policy, tick, audio, model)
     po, pa, (pclip, pev) = py_render(r, x, y)
     res, fout = _run_image(sd_vectors_image, image_payload(img, r, x, y), tmp_path)
@@ -173,7 +175,8 @@ def test_float_channel_nan_codes_are_refused(sd_vectors_image, tmp_path):
 
 
 def test_constant_n_table_image_plays_bit_exact(sd_vectors_image, tmp_path):
-    """A table without normal_force carries its constant N in the image (param 14); C plays it as Python does."""
+    """A table without normal_force carries its constant N in the image (param 14); the image alone plays it as
+    the host's Renderer plays the table."""
     from shapedisplay.devices import load_device
     from shapedisplay.runtime import Renderer
     from shapedisplay.studies import constant_table
