@@ -1,14 +1,11 @@
 /* sd_baselines.c -- the comparison integrators of the accuracy and stability reports, one renderer tick at
- * a time: the Konyo pad with tanh-regularised Coulomb friction (pads.tanh_tick, tanh_friction) and one
- * fixed explicit step per tick, forward Euler or classical RK4 (pads._explicit_tick, euler_tick,
- * rk4_tick). They are deliberately naive: the explicit ones blow up on the stiff Konyo pad (forward Euler
+ * a time: the Konyo pad with tanh-regularised Coulomb friction and one
+ * fixed explicit step per tick, forward Euler or classical RK4. They are deliberately naive: the explicit ones blow up on the stiff Konyo pad (forward Euler
  * unless h < 2 zeta / omega_n, about 5 us; RK4 unless h < 2.8 / omega_n, about 63 us) and the tanh model
  * creeps below breakaway; the reports show exactly that.
  *
- * Line-by-line ports: the same floating-point operations in the same order and the same libm functions
- * (exp, sin, cos, sqrt, tanh), so the double build is bit-identical to the numba kernels (rules in
- * sd_pad.c; compile with -ffp-contract=off). Divergence detection is that of the Python kernel: a
- * non-finite state or |x| beyond the physical bound sets S->diverged (and S->diverged_at), freezes the
+ * Double precision with the libm functions exp, sin, cos, sqrt, tanh (rules in sd_pad.c; compile with
+ * -ffp-contract=off). Divergence detection: a non-finite state or |x| beyond the physical bound sets S->diverged (and S->diverged_at), freezes the
  * state at zero and every later tick outputs f = 0.
  *
  * Work per tick: euler and rk4 O(1), no loop. tanh: one substep per min(substep, time left) (h / substep
@@ -26,14 +23,14 @@
 #endif
 #endif
 
-/* pads._SQRT2 = sqrt(2), pads._SQRT2E = sqrt(2 e) (the nearest doubles) */
+/* sqrt(2) and sqrt(2 e), the nearest doubles */
 #define SD_SQRT2 SD_R(1.4142135623730951)
 #define SD_SQRT2E SD_R(2.331643981597124)
 
-/* ------------------------------------------------------------------ free oscillator (pads.osc) */
+/* ------------------------------------------------------------------ free oscillator */
 /* m y'' + c y' + k y = 0 from (y0, v0), at time t: under-, critically and over-damped, c = 0 and c < 0.
  * The damping changes from call to call (the linearised friction slope), so the constants are computed
- * here, by the expressions of pads.osc. */
+ * here. */
 static void osc(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, sd_real t, sd_real *y, sd_real *v)
 {
     sd_real sig = SD_R(0.5) * c / m;
@@ -71,7 +68,7 @@ static void osc(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, sd_real
 }
 
 /* ------------------------------------------------------------------ tanh-regularised Coulomb */
-/* Friction on the pad at slip speed w = V - v and its slope df/dw (pads.tanh_friction):
+/* Friction on the pad at slip speed w = V - v and its slope df/dw:
  * f = N [(mu_s - mu_k) sqrt(2e) u exp(-u^2) + mu_k tanh(w / v_C)], u = w / v_St, v_St = sqrt(2) eps,
  * v_C = eps / 10. */
 static void tanh_friction(sd_real w, sd_real N, sd_real mus, sd_real muk, sd_real eps, sd_real *f, sd_real *df)
@@ -86,7 +83,7 @@ static void tanh_friction(sd_real w, sd_real N, sd_real mus, sd_real muk, sd_rea
     *df = N * (dmu * SD_SQRT2E * (SD_R(1.0) - SD_R(2.0) * u * u) * e / vst + muk * (SD_R(1.0) - th * th) / vc);
 }
 
-/* Konyo pad with tanh-regularised friction (pads.tanh_tick): linearly implicit exponential substeps (the
+/* Konyo pad with tanh-regularised friction: linearly implicit exponential substeps (the
  * friction linearised about the current slip speed, the linear oscillator solved in closed form in
  * increment form); phase 1 while |w| >= 2 eps (entered: the burst event, interpolated in the substep),
  * 0 again once |w| <= eps. */
@@ -154,7 +151,7 @@ int sd_tanh_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd
 }
 
 /* ------------------------------------------------------------------ explicit one-step baselines */
-/* One fixed explicit step per tick, forward Euler or RK4, with stick/slip switching (pads._explicit_tick).
+/* One fixed explicit step per tick, forward Euler or RK4, with stick/slip switching.
  * Blow-up (|x| beyond a physical bound, or a non-finite state) sets S->diverged and S->diverged_at and
  * freezes the state at zero; every later tick outputs f = 0 and no event. */
 static int explicit_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
@@ -229,14 +226,14 @@ static int explicit_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_re
     return n_ev;
 }
 
-/* Forward Euler, one step per tick (pads.euler_tick). */
+/* Forward Euler, one step per tick. */
 int sd_euler_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
                   sd_real mus, sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev)
 {
     return explicit_tick(S, P, t0, h, V, N, mus, muk, gain, ev_t, ev_a, cap, n_ev, 0);
 }
 
-/* Classical RK4, one step per tick (pads.rk4_tick). */
+/* Classical RK4, one step per tick. */
 int sd_rk4_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
                 sd_real mus, sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev)
 {

@@ -1,12 +1,9 @@
 /* sd_exact.c -- the exact event-driven Konyo pad (model "exact"), one renderer tick at a time.
  *
- * A port of shapedisplay/runtime/pads.py (exact_tick, slip_search, _polish, _w, osc,
- * _next_acc_zero), operation for operation in IEEE double precision (rules in sd_pad.c).
+ * IEEE double precision in the reference build (rules in sd_pad.c).
  * Stick phases are linear in time; slip phases are closed-form damped oscillations under
  * kinetic friction; re-stick is bracketed between the closed-form extrema of the pad velocity
- * and polished by safeguarded Newton. The work diagnostics of the Python kernel (energy
- * dissipated by friction and damper) are not computed: the renderer does not output them.
- * No allocation; bounded work per phase change.
+ * and polished by safeguarded Newton. No allocation; bounded work per phase change.
  */
 #include "sd_pad_common.h"
 
@@ -88,7 +85,7 @@ static sd_real wrel(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_rea
 
 /* Root of w in [lo, hi] with w(lo) = wlo >= 0 > w(hi) = whi, and the oscillator state there: safeguarded
  * Newton; a Newton step whose own error (|w''/2w'| dt^2 and omega^2 |dt|^3 / 6) is below the tolerance
- * ends it, with the state by Taylor expansion about the last evaluation (pads._polish). */
+ * ends it, with the state by Taylor expansion about the last evaluation. */
 static sd_real polish(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_real s, sd_real lo, sd_real hi,
                       sd_real wlo, sd_real whi, sd_real *y_out, sd_real *v_out)
 {
@@ -217,7 +214,7 @@ static int slip_search(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_
  * v = V is d, if the rest of the root and the state there follow from the Taylor expansion about t to
  * rounding: the series reversion of v(t + x) = V to fourth order (its first omitted term below
  * SD_TOL_ROOT of the root time) and the Taylor polynomial of order 5 of the state (omega_n |d| <= 1e-3).
- * Returns 1 with the root and the state there, 0 if the step is too long (pads._restick_end). */
+ * Returns 1 with the root and the state there, 0 if the step is too long. */
 static int restick_end(const sd_pad_t *P, sd_real t, sd_real y, sd_real v, sd_real a, sd_real d,
                        sd_real *t_out, sd_real *y_out, sd_real *v_out)
 {
@@ -252,7 +249,7 @@ static int restick_end(const sd_pad_t *P, sd_real t, sd_real y, sd_real v, sd_re
 /* The root of w = -s (v - V) in (lo, hi), where w falls monotonically through 0, by Newton's method from
  * t with the state (y, v) there until restick_end ends it; with the outcome against the span rem: kind 1
  * (crossing before rem), 0 (none within rem: the state at rem) or -1 (no settled root, or the evaluation
- * at rem within rounding of it: the caller walks the brackets) (pads._restick_newton). */
+ * at rem within rounding of it: the caller walks the brackets). */
 static int restick_newton(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_real s, sd_real lo, sd_real hi,
                           sd_real t, sd_real y, sd_real v, sd_real rem, sd_real *t_out, sd_real *y_out, sd_real *v_out)
 {
@@ -290,7 +287,7 @@ static int restick_newton(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, 
 
 /* slip_search of a fresh slip (v0 = V, no touch to skip), from half a damped period on, where the state
  * is -e_tp times the start: a certain crossing in (tp, 2 tp) found by Newton's method from tp; anything
- * else goes to slip_search (pads.fresh_slip_search, which gives the reasons). */
+ * else goes to slip_search. */
 static int fresh_slip_search(const sd_pad_t *P, sd_real y0, sd_real V, sd_real s, sd_real rem, sd_real *t_out,
                              sd_real *y_out, sd_real *v_out)
 {
@@ -330,7 +327,7 @@ static int fresh_slip_search(const sd_pad_t *P, sd_real y0, sd_real V, sd_real s
 /* slip_search of a slip under way (w(0) above the tolerance, no touch to skip): the first trough of w from
  * the closed-form |v| at the acceleration zeros, a first guess from the half cosine through the peak and
  * the trough refined on the damped shape, Newton's method; anything else goes to slip_search
- * (pads.continued_slip_search). */
+ *. */
 static int continued_slip_search(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real V, sd_real s, sd_real rem,
                                  sd_real *t_out, sd_real *y_out, sd_real *v_out)
 {
@@ -379,7 +376,7 @@ static int continued_slip_search(const sd_pad_t *P, sd_real y0, sd_real v0, sd_r
     if (!(w_tr < -SD_R(2.0) * tol - SD_R(1e-9) * D && w_pk > SD_R(0.0)))
         return slip_search(P, y0, v0, V, s, rem, SD_R(0.0), t_out, y_out, v_out);
     /* the half cosine's root, then two Newton steps on the damped shape between the peak and the trough
-     * (pads._continued_slip_u) */
+     * */
     {
         sd_real r = w_pk / (w_pk - w_tr), cu = SD_R(1.0) - SD_R(2.0) * r, su = SD_R(2.0) * SD_SQRT(r * (SD_R(1.0) - r));
         sd_real u = SD_ACOS(cu) / wd, v_pk = V - s * w_pk, q = sig / wd, g = wn2 / wd, eu = SD_EXP(-sig * u);

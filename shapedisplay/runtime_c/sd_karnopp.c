@@ -1,8 +1,6 @@
 /* sd_karnopp.c -- the modified Karnopp virtual spring (Provancher and Sylvester), one renderer tick at a time.
  *
- * A line-by-line port of shapedisplay/runtime/pads.py (karnopp_tick): the same floating-point operations
- * in the same order, so the double build is bit-identical to the numba kernel (rules in sd_pad.c; compile
- * with -ffp-contract=off). No libm call: stick is linear in time, so every breakaway is located inside the
+ * Rules of the arithmetic in sd_pad.c (compile with -ffp-contract=off). No libm call: stick is linear in time, so every breakaway is located inside the
  * tick in closed form.
  *
  * S->x is the spring stretch z (finger minus anchor), the friction force k_K z. Stuck: z' = V, breakaway

@@ -62,7 +62,7 @@
 #define SD_COPYSIGN copysign
 #define SD_EPS DBL_EPSILON
 #define SD_TINY 1e-300
-/* the reference build: the tolerances of the Python kernels (runtime/pads.py) */
+/* the reference build (double) */
 #define SD_TOL_BREAK 1e-12
 #define SD_TOL_ADMIT 1e-9
 #define SD_TOL_TOUCH 1e-6

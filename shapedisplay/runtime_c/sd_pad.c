@@ -1,10 +1,8 @@
 /* sd_pad.c -- the quasi-static "jump" stick-slip pad model, one renderer tick at a time.
  *
- * A line-by-line port of shapedisplay/runtime/pads.py (jump_tick, jump_restick and the
- * under-damped branches of osc and _next_acc_zero). Every floating-point operation is
- * written in the same order as the Python/numba kernel, in IEEE double precision, with
- * the same libm functions (exp, sin, cos, atan2, sqrt, fmod), so on a host with the same
- * libm the results are bit-identical; see runtime-c/README.md for the tolerance on other
+ * Every floating-point operation is written in a fixed order, in IEEE double precision in the
+ * reference build, with the libm functions exp, sin, cos, atan2, sqrt, fmod, so on hosts with
+ * the same libm the results are bit-identical; see runtime-c/README.md for the tolerance on other
  * targets. Compile as C99 without -ffast-math and without FMA contraction
  * (-ffp-contract=off), which would change the rounding of a*b+c.
  *
@@ -28,7 +26,7 @@ void sd_pad_prepare(sd_pad_t *P, const sd_pad_params_t *params)
     P->phase_rate = SD_R(4.0) * (P->under ? P->wd : SD_SQRT(P->wn2)) / SD_PI;
 }
 
-/* pads._restick_peak_reaches: 1 (the velocity peak after the first minimum reaches V) or -1 (it does
+/* 1 (the velocity peak after the first minimum reaches V) or -1 (it does
  * not) where a closed-form bound on |v| at the acceleration zeros decides with a wide margin, 0 where
  * the peak must be located (same operations, same constants). */
 static int restick_peak_reaches(const sd_pad_t *P, sd_real e, sd_real s, sd_real y0, sd_real V)
@@ -46,7 +44,7 @@ static int restick_peak_reaches(const sd_pad_t *P, sd_real e, sd_real s, sd_real
     return s * a0 < SD_R(0.0) ? 1 : -1;
 }
 
-/* The same operations as pads.jump_restick, with the pad constants (sig, wn2, disc, wd, pi/wd,
+/* The closed-form re-stick of the jump model, with the pad constants (sig, wn2, disc, wd, pi/wd,
  * SD_EXP(-sig pi/wd)) computed once by sd_pad_prepare from the same expressions. */
 static void restick(const sd_pad_t *P, sd_real s, sd_real xb, sd_real V, sd_real muk, sd_real N,
                     sd_real *slip_time, sd_real *x_restick)

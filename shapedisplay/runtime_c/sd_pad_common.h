@@ -1,8 +1,7 @@
 /* sd_pad_common.h -- helpers shared by the two pad models (sd_pad.c "jump", sd_exact.c "exact").
  *
- * Private to the runtime: not part of the API in sd_runtime.h. Every function repeats the
- * floating-point operations of shapedisplay/runtime/pads.py in the same order (rules in
- * sd_pad.c), so both models stay bit-exact against the Python kernels. static inline: each
+ * Private to the runtime: not part of the API in sd_runtime.h. The rules of the arithmetic are
+ * sd_pad.c's. static inline: each
  * translation unit gets its own copy and an unused one draws no warning.
  */
 #ifndef SD_PAD_COMMON_H
@@ -18,7 +17,7 @@ static inline sd_real sd_sgn(sd_real x) { return x > SD_R(0.0) ? SD_R(1.0) : (x 
 static inline sd_real py_max(sd_real a, sd_real b) { return b > a ? b : a; }
 static inline sd_real py_min(sd_real a, sd_real b) { return b < a ? b : a; }
 
-/* Python float modulo (sign of the divisor), as CPython's float_rem and numba. */
+/* Float modulo with the sign of the divisor (as Python's %). */
 static inline sd_real py_mod(sd_real a, sd_real b)
 {
     sd_real r = SD_FMOD(a, b);
@@ -42,7 +41,7 @@ static inline void osc_under(const sd_pad_t *P, sd_real y0, sd_real v0, sd_real 
 }
 
 /* The phase th1 (rad, in (0, pi]) of the under-damped free oscillator's first acceleration zero after
- * t = 0, the zeros being at (th1 + n pi) / wd; -1 if the acceleration is 0 (pads._acc_zero_phase). */
+ * t = 0, the zeros being at (th1 + n pi) / wd; -1 if the acceleration is 0. */
 static inline sd_real acc_zero_phase_under(const sd_pad_t *P, sd_real y0, sd_real v0)
 {
     sd_real sig = P->sig, wn2 = P->wn2;
@@ -92,7 +91,7 @@ static inline int record(sd_real *ev_t, sd_real *ev_a, int cap, int n_ev, sd_rea
 }
 
 /* End-of-tick state shared by the exact and jump ticks, friction force included
- * (pads._finish_tick). The caller stores v (and tsl) itself. */
+ *. The caller stores v (and tsl) itself. */
 static inline void finish_tick(sd_pad_state_t *S, sd_real x, sd_real phase, sd_real s, sd_real age, sd_real k,
                                sd_real c, sd_real V, sd_real N, sd_real muk, long n_events)
 {
@@ -107,7 +106,7 @@ static inline void finish_tick(sd_pad_state_t *S, sd_real x, sd_real phase, sd_r
         S->f = s * muk * N;
 }
 
-/* Slip direction and spring stretch at a breakaway with stick force f (pads._breakaway): a slip
+/* Slip direction and spring stretch at a breakaway with stick force f: a slip
  * forced by the maximum stick period starts from the breakaway stretch of the true N, so the burst,
  * the slip and the re-stick are those of a natural breakaway. */
 static inline sd_real breakaway(sd_real *x, sd_real f, sd_real V, int forced, sd_real mus, sd_real N, sd_real k,
@@ -120,8 +119,8 @@ static inline sd_real breakaway(sd_real *x, sd_real f, sd_real V, int forced, sd
 }
 
 /* Fast path of both models: stuck for the whole tick (the stick force is linear in time, so
- * both ends inside the static limit means no breakaway in between) -- as pads.jump_tick and
- * pads.exact_tick. Returns 1 and advances the state if it applies, 0 otherwise. */
+ * both ends inside the static limit means no breakaway in between), as the jump and exact
+ * models use it. Returns 1 and advances the state if it applies, 0 otherwise. */
 static inline int stuck_whole_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real h, sd_real V, sd_real N,
                                    sd_real mus)
 {

@@ -1,8 +1,6 @@
 /* sd_render.c -- table lookup, per-tick inputs, bursts and the online renderer step.
  *
- * Ports of shapedisplay/runtime/lookup.py (sample_all), renderer.py (_axis_speed, _derive,
- * online_step) and bursts.py (envelope, burst_value, synth), operation for operation in
- * IEEE double precision (see sd_pad.c for the rules that keep it bit-identical).
+ * IEEE double precision in the reference build (see sd_pad.c for the rules of the arithmetic).
  */
 #include <math.h>
 #include <string.h>
@@ -82,7 +80,7 @@ long sd_cell_index(const sd_table_t *T, long r, long c)
 }
 
 /* Cell of a position along one axis: the two sample indices around it and the weight of
- * the second, with the edge value held outside (lookup._axis_cell). */
+ * the second, with the edge value held outside. */
 static void axis_cell(sd_real pos, sd_real origin, sd_real step, long n, long *i0, long *i1, sd_real *t)
 {
     sd_real f = (pos - origin) / step;
@@ -550,7 +548,7 @@ int sd_renderer_init(sd_renderer_t *R, const sd_table_t *table, const sd_config_
     return SD_OK;
 }
 
-/* Index of the last audio sample at or before elapsed time e (s), plus one, as renderer.online_step
+/* Index of the last audio sample at or before elapsed time e (s), plus one, as every tick
  * computes it; saturated below 2^63 so that it never overflows (audio stops after 2^63 - 2048
  * samples: 6 million years at 48 kHz). */
 #ifndef SD_SINGLE

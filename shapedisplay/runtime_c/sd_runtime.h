@@ -1,9 +1,9 @@
 /* sd_runtime.h -- portable C99 runtime of the shapedisplay stick-slip renderer.
  *
- * Plays a friction-envelope table on a microcontroller: bilinear table lookup, the
- * quasi-static "jump" pad model, and the vibrotactile burst at every stick-to-slip event.
- * It reproduces the Python renderer (shapedisplay.runtime, model "jump") sample for
- * sample on shared test vectors (tests/test_c_runtime.py).
+ * Plays a friction-envelope table: bilinear table lookup, every pad model, and the
+ * vibrotactile burst at every stick-to-slip event. The one implementation of the renderer:
+ * the Python package binds it (shapedisplay.runtime.Renderer), the studio runs its
+ * WebAssembly build, firmware includes this header.
  *
  * Real-time rules: all memory is provided by the caller (tables are const arrays, e.g. from
  * `shapedisplay export --format c`, or a buffer received over the device link); nothing is
@@ -26,7 +26,7 @@ extern "C" {
  * when it is not under-damped), never more than SD_MAX_EVENTS_PER_TICK. A stick-slip cycle is two
  * phases and its slip lasts at least a quarter of the damped period, pi / (2 omega): a tick of length h
  * holds at most 4 h omega / pi of them, plus the phases cut by the tick's edges. A tick that reaches the
- * cap stops there and counts it (pad state `truncated`; pads.phase_cap is the same cap). Measured on a
+ * cap stops there and counts it (pad state `truncated`). Measured on a
  * sweep of V up to 1000 m/s, N up to 1000 N, h up to 10 ms: at most 0.25 of the cap; the degenerate pad
  * (exact model, c = 0, mu_k = mu_s, under reversals) takes no zero-length phases either. */
 #define SD_PHASES_BASE 32
@@ -47,7 +47,7 @@ typedef struct {
     int under;                             /* under-damped (disc < 0) */
 } sd_pad_t;
 
-/* A fresh state: stuck, spring relaxed, no normal-force cap (pads.new_state). */
+/* A fresh state: stuck, spring relaxed, no normal-force cap. */
 void sd_pad_reset(sd_pad_state_t *S);
 /* Copy the parameters and compute the derived pad constants; required before a tick. */
 void sd_pad_prepare(sd_pad_t *P, const sd_pad_params_t *params);
@@ -59,26 +59,26 @@ void sd_pad_prepare(sd_pad_t *P, const sd_pad_params_t *params);
 typedef int (*sd_tick_fn)(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
                           sd_real mus, sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev);
 
-/* The quasi-static jump model (pads.jump_tick). */
+/* The quasi-static jump model. */
 int sd_jump_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
                  sd_real mus, sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev);
 
-/* The exact event-driven pad model (pads.exact_tick). */
+/* The exact event-driven pad model. */
 int sd_exact_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
                   sd_real mus, sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev);
 
 /* The Imaizumi pad with Stribeck friction on a vibrating contactor, plain curve and pre-maximum variant
- * (pads.stribeck_tick; sd_stribeck.c). */
+ * (sd_stribeck.c). */
 int sd_stribeck_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
                      sd_real mus, sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev);
 
-/* The modified Karnopp virtual spring, every event located inside the tick (pads.karnopp_tick; sd_karnopp.c). */
+/* The modified Karnopp virtual spring, every event located inside the tick (sd_karnopp.c). */
 int sd_karnopp_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
                     sd_real mus, sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev);
 
 /* The comparison baselines of the accuracy and stability reports (sd_baselines.c): the Konyo pad with
- * tanh-regularised Coulomb friction (pads.tanh_tick) and one explicit step per tick, forward Euler
- * (pads.euler_tick) or RK4 (pads.rk4_tick), which set the state's `diverged` when they blow up. */
+ * tanh-regularised Coulomb friction and one explicit step per tick, forward Euler
+ * or RK4, which set the state's `diverged` when they blow up. */
 int sd_tanh_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
                  sd_real mus, sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev);
 int sd_euler_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_real V, sd_real N,
@@ -89,7 +89,7 @@ int sd_rk4_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd_
 /* The tick function of model id SD_MODEL_*, or NULL if the C runtime does not implement it. */
 sd_tick_fn sd_model_tick(int model);
 
-/* Closed-form slip outcome (see pads.jump_restick): slip time (inf = steady sliding) and the
+/* Closed-form slip outcome : slip time (inf = steady sliding) and the
  * spring stretch at re-stick. */
 void sd_jump_restick(sd_real m, sd_real c, sd_real k, sd_real s, sd_real xb, sd_real V, sd_real muk, sd_real N,
                      sd_real *slip_time, sd_real *x_restick);
@@ -142,7 +142,7 @@ long sd_render_events(const sd_real *ev_t, const sd_real *ev_a, long n_ev, sd_re
 
 /* ------------------------------------------------------------------ renderer */
 #ifndef SD_EVENT_RING
-#define SD_EVENT_RING 4096      /* bursts remembered (as the Python renderer; smaller saves RAM) */
+#define SD_EVENT_RING 4096      /* bursts remembered (smaller saves RAM) */
 #endif
 #ifndef SD_AUDIO_BLOCK_MAX
 #define SD_AUDIO_BLOCK_MAX 4096 /* audio samples per tick, >= ceil(audio_rate / tick_rate) + 2 */

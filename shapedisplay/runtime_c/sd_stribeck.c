@@ -1,13 +1,9 @@
 /* sd_stribeck.c -- the Imaizumi fingerpad with Stribeck friction on a laterally vibrating contactor
  * (model "stribeck"), one renderer tick at a time.
  *
- * A port of shapedisplay/runtime/pads.py (stribeck_tick and what it calls: _stribeck_plain_tick,
- * _stribeck_stick, _stribeck_series and _stribeck_taylor_slip, _stribeck_exp_slip with
- * _lin_propagator, _poly_basis, the phi functions and _landing_refined, _stribeck_lin_step, and the
- * pre-maximum variant's _stribeck_slip). The same algorithms with the same constants; the arithmetic
- * is the runtime's (no fused multiply-add, libm through sd_math.h), so results agree with the Python
- * kernel to the slip tolerance, not bit for bit (tests/test_c_stribeck.py checks both against
- * independent answers).
+ * The arithmetic is the runtime's (no fused multiply-add, libm through sd_math.h);
+ * tests/test_c_stribeck.py and tests/test_stribeck_kernel.py hold it to independent answers
+ * (Radau at tight tolerance, closed forms).
  *
  * Plain curve (stribeck_variant 0), mu = mu_k + (mu_s - mu_k) exp(-a |vr| / W) + b |vr| / W: stick in
  * closed form (the pad moves with the contactor; breakaway where the needed friction reaches mu_s W,
@@ -28,18 +24,18 @@
 
 #define R SD_R
 
-/* Tolerances from this one up run the slip by exponential Rosenbrock steps (pads.STRIBECK_EXP_MIN_TOL) */
+/* Tolerances from this one up run the slip by exponential Rosenbrock steps */
 #define SD_STRIBECK_EXP_MIN_TOL R(3e-9)
-/* Highest order of a Taylor slip step (pads.STRIBECK_MAX_ORDER), sign checks per step, step cap per call */
+/* Highest order of a Taylor slip step, sign checks per step, step cap per call */
 #define ST_MAX_ORDER 14
 #define ST_SAMPLES 4
 #define ST_MAX_TAYLOR_STEPS 20000L
 /* How far a Taylor step's polynomial may miss the equation of motion at its end, in tolerances */
 #define ST_TAYLOR_DEFECT_TOLS R(1e3)
-/* Weights of the exponential step's error estimate (pads.EXP_ERR_WEIGHT, EXP_ERR_WEIGHT_OVERDAMPED) */
+/* Weights of the exponential step's error estimate */
 #define ST_EXP_ERR_WEIGHT R(10.0)
 #define ST_EXP_ERR_WEIGHT_OVERDAMPED R(3.0)
-/* Terms of the responses' series in poly_basis at most (pads._SERIES_TERMS) */
+/* Terms of the responses' series in poly_basis at most */
 #define ST_SERIES_TERMS 64
 
 #ifdef SD_SINGLE
@@ -62,7 +58,7 @@
 #define ST_PREMAX_MIN R(1e-12)
 #endif
 
-/* e^x, 0 below ST_EXP_LO (as the Python kernels' own exponential: no subnormal results) */
+/* e^x, 0 below ST_EXP_LO (no subnormal results) */
 static inline sd_real st_exp(sd_real x) { return x < ST_EXP_LO ? R(0.0) : SD_EXP(x); }
 static inline int finite_(sd_real x) { return x - x == R(0.0); }
 
@@ -71,7 +67,7 @@ typedef struct {
     sd_real m, k, c, a, b, A, om, tol, substep;
 } st_par_t;
 
-/* ================================================================ general free oscillator (pads.osc) */
+/* ================================================================ general free oscillator */
 static void osc_any(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, sd_real t, sd_real *y, sd_real *v)
 {
     sd_real sig = R(0.5) * c / m, wn2 = k / m, disc = sig * sig - wn2;
@@ -110,7 +106,7 @@ static inline sd_real free_speed_scale(sd_real V, sd_real A, sd_real om, sd_real
     return SD_FABS(V) + A * om + mus * W / SD_SQRT(k * m);
 }
 
-/* (W mu, W dmu/d|vr|) of the plain curve at relative speed vr_abs (pads._plain_friction) */
+/* (W mu, W dmu/d|vr|) of the plain curve at relative speed vr_abs */
 static void plain_friction(sd_real vr_abs, sd_real W, sd_real mus, sd_real muk, sd_real a, sd_real b, sd_real *muW,
                            sd_real *dmuW)
 {
@@ -125,7 +121,7 @@ static void plain_friction(sd_real vr_abs, sd_real W, sd_real mus, sd_real muk, 
     *dmuW = b - (mus - muk) * a * e;
 }
 
-/* ================================================================ stick (pads._stick_force, _stribeck_stick) */
+/* ================================================================ stick */
 typedef struct {
     sd_real ua, xca, Ca, Sa, ta;
 } st_anchor_t;
@@ -258,7 +254,7 @@ static int stribeck_stick(const st_par_t *P, sd_real V, sd_real thr, sd_real ua,
     return broke;
 }
 
-/* ================================================================ linearised fallback step (pads._stribeck_lin_step) */
+/* ================================================================ linearised fallback step */
 static int lin_step(const st_par_t *P, sd_real *u_io, sd_real *z_io, sd_real *sr_io, sd_real V, sd_real W, sd_real mus,
                     sd_real muk, sd_real *t_io, sd_real te)
 {
@@ -299,7 +295,7 @@ static inline sd_real cos_phase(int j, sd_real C, sd_real S)
     return r == 0 ? C : (r == 1 ? -S : (r == 2 ? -C : S));
 }
 
-/* Taylor coefficients of a slip about t into co; returns the order p and the step in *h (pads._stribeck_series) */
+/* Taylor coefficients of a slip about t into co; returns the order p and the step in *h */
 static int taylor_series(const st_par_t *P, sd_real W, sd_real V, sd_real mus, sd_real muk, sd_real sr, sd_real t,
                          sd_real u, sd_real z, sd_real hcap, st_coef_t co, sd_real *h_out)
 {
@@ -428,7 +424,7 @@ static sd_real series_root(st_coef_t co, int p, sd_real sr, sd_real lo, sd_real 
     return hi;
 }
 
-/* Whether the step's polynomial at tau satisfies the equation of motion (pads._taylor_defect_ok) */
+/* Whether the step's polynomial at tau satisfies the equation of motion */
 static int taylor_defect_ok(const st_par_t *P, st_coef_t co, int p, sd_real tau, sd_real sr, sd_real V, sd_real W,
                             sd_real mus, sd_real muk, sd_real t, sd_real z0, sd_real *u1, sd_real *z1)
 {
@@ -445,7 +441,7 @@ static int taylor_defect_ok(const st_par_t *P, st_coef_t co, int p, sd_real tau,
     return d <= ST_TAYLOR_DEFECT_TOLS * P->tol * zsc;
 }
 
-/* Slip of the plain curve from t to at most te by Taylor steps; returns stuck (pads._stribeck_taylor_slip) */
+/* Slip of the plain curve from t to at most te by Taylor steps; returns stuck */
 static int taylor_slip(const st_par_t *P, sd_real *u_io, sd_real *z_io, sd_real *sr_io, sd_real V, sd_real W, sd_real mus,
                        sd_real muk, sd_real *t_io, sd_real te)
 {
@@ -528,7 +524,7 @@ static int taylor_slip(const st_par_t *P, sd_real *u_io, sd_real *z_io, sd_real 
 }
 
 /* ================================================================ plain curve: exponential slip steps */
-/* e^x - 1 - x (pads._expm1_minus_x) */
+/* e^x - 1 - x */
 static inline sd_real expm1_minus_x(sd_real x)
 {
     if (SD_FABS(x) < R(0.25)) {
@@ -541,7 +537,7 @@ static inline sd_real expm1_minus_x(sd_real x)
     return (st_exp(x) - R(1.0)) - x;
 }
 
-/* Propagator of m u'' + ce u' + k u = 0 over h (pads._lin_propagator) */
+/* Propagator of m u'' + ce u' + k u = 0 over h */
 static void lin_propagator(sd_real m, sd_real ce, sd_real k, sd_real h, sd_real *p11, sd_real *p12, sd_real *p21,
                            sd_real *p22)
 {
@@ -580,7 +576,7 @@ static void lin_propagator(sd_real m, sd_real ce, sd_real k, sd_real h, sd_real 
     }
 }
 
-/* (phi_2, phi_3, phi_4)(x) from e^x, |x| >= 1/2 (pads._phi234_of_exp) */
+/* (phi_2, phi_3, phi_4)(x) from e^x, |x| >= 1/2 */
 static inline void phi234_of_exp(sd_real x, sd_real ex, sd_real *p2, sd_real *p3, sd_real *p4)
 {
     sd_real ix = R(1.0) / x;
@@ -589,7 +585,7 @@ static inline void phi234_of_exp(sd_real x, sd_real ex, sd_real *p2, sd_real *p3
     *p4 = (*p3 - R(1.0 / 6)) * ix;
 }
 
-/* (phi_2, phi_3, phi_4)(x), phi_k(x) = sum_j x^j / (j + k)! (pads._phi234) */
+/* (phi_2, phi_3, phi_4)(x), phi_k(x) = sum_j x^j / (j + k)! */
 static inline void phi234(sd_real x, sd_real *p2, sd_real *p3, sd_real *p4)
 {
     if (SD_FABS(x) < R(0.5)) {
@@ -607,7 +603,7 @@ static inline void phi234(sd_real x, sd_real *p2, sd_real *p3, sd_real *p4)
     phi234_of_exp(x, st_exp(x), p2, p3, p4);
 }
 
-/* poly_basis's responses by divided differences of the phi functions (pads._phi_basis) */
+/* poly_basis's responses by divided differences of the phi functions */
 static void phi_basis(sd_real m, sd_real h, sd_real x1, sd_real x2, sd_real *o)
 {
     sd_real a2, a3, a4, b2, b3, b4, c2, c3, d2, d3, unused, g;
@@ -630,7 +626,7 @@ static void phi_basis(sd_real m, sd_real h, sd_real x1, sd_real x2, sd_real *o)
     o[5] = R(0.75) * g * (c3 - d3);
 }
 
-/* Whether poly_basis takes a step of h in closed form (pads._basis_in_closed_form) */
+/* Whether poly_basis takes a step of h in closed form */
 static inline int basis_in_closed_form(sd_real m, sd_real ce, sd_real wn, sd_real h, sd_real tol)
 {
     sd_real sg = SD_FABS(ce) * h / m, w = wn * h, w2, w4;
@@ -641,7 +637,7 @@ static inline int basis_in_closed_form(sd_real m, sd_real ce, sd_real wn, sd_rea
 }
 
 /* Responses from rest of m u'' + ce u' + k u = s^2 and = s^3 (s = tau / h) at h and h / 2: o[0..5] =
- * (u, u', u'_mid) of the first, then of the second (pads._poly_basis) */
+ * (u, u', u'_mid) of the first, then of the second */
 static void poly_basis(sd_real m, sd_real ce, sd_real k, sd_real wn, sd_real h, int lng, sd_real r11, sd_real r12,
                        sd_real r21, sd_real r22, sd_real eps, sd_real *o)
 {
@@ -719,13 +715,13 @@ static void poly_basis(sd_real m, sd_real ce, sd_real k, sd_real wn, sd_real h, 
     o[5] = zm3 * ih;
 }
 
-/* The landing's constants that landing_refined needs besides the trial (pads._landing_refined's arguments) */
+/* The landing's constants that landing_refined needs besides the trial  */
 typedef struct {
     sd_real sr, W, muk, dmu, E0, b, c, k, m, A, om;
 } st_land_t;
 
 /* The next trial step for a landing on sr vr = 0: the regula falsi's hg polished by Newton on the
- * trial's cubic, kept inside (lo, hi) (pads._landing_refined) */
+ * trial's cubic, kept inside (lo, hi) */
 static sd_real landing_refined(const st_land_t *L, sd_real hg, sd_real htr, sd_real lo, sd_real hi, sd_real q0,
                                sd_real qd0, sd_real q1, sd_real u1, sd_real z1, sd_real S1, sd_real ex, sd_real vr1)
 {
@@ -749,7 +745,7 @@ static sd_real landing_refined(const st_land_t *L, sd_real hg, sd_real htr, sd_r
     return hg;
 }
 
-/* Slip of the plain curve from t to at most te by exponential Rosenbrock steps (pads._stribeck_exp_slip).
+/* Slip of the plain curve from t to at most te by exponential Rosenbrock steps.
  * (C0, S0) = (cos, sin)(omega t) of the contactor, h0 the first step to try (0: the rest of the tick).
  * Returns stuck; *F_out the friction at the end, *hn_out the next step proposed. */
 static int exp_slip(const st_par_t *P, sd_real *u_io, sd_real *z_io, sd_real *sr_io, sd_real V, sd_real W, sd_real mus,
@@ -1122,7 +1118,7 @@ static int exp_slip(const st_par_t *P, sd_real *u_io, sd_real *z_io, sd_real *sr
     return 0;
 }
 
-/* ================================================================ the plain curve's tick (pads._stribeck_plain_tick) */
+/* ================================================================ the plain curve's tick */
 static int plain_tick(sd_pad_state_t *S, const st_par_t *P, sd_real t0, sd_real h, sd_real V, sd_real W, sd_real mus,
                       sd_real muk, sd_real B, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev)
 {
@@ -1187,7 +1183,7 @@ static int plain_tick(sd_pad_state_t *S, const st_par_t *P, sd_real t0, sd_real 
 }
 
 /* ================================================================ pre-maximum variant */
-/* W mu and W dmu/d|vr| of the pre-maximum curve (pads.stribeck_mu, variant 1, times W): written without
+/* W mu and W dmu/d|vr| of the pre-maximum curve: written without
  * |vr| / W outside the products, so that a vanishing (subnormal) load stays finite */
 static void mu_premax(const sd_pad_params_t *p, sd_real vr_abs, sd_real W, sd_real mus, sd_real muk, sd_real *muW,
                       sd_real *dmuW)
@@ -1214,7 +1210,7 @@ static inline sd_real contactor_v(const st_par_t *P, sd_real t)
     return P->A == R(0.0) ? R(0.0) : P->A * P->om * SD_COS(P->om * t);
 }
 
-/* dur seconds from ta by exponential substeps (pads._stribeck_slip); returns the step count */
+/* dur seconds from ta by exponential substeps; returns the step count */
 static long premax_slip(const st_par_t *P, const sd_pad_params_t *p, sd_real *u_io, sd_real *du_io, sd_real *s_io,
                         sd_real *F_out, sd_real V, sd_real W, sd_real mus, sd_real muk, sd_real ta, sd_real dur)
 {
@@ -1249,7 +1245,7 @@ static long premax_slip(const st_par_t *P, const sd_pad_params_t *p, sd_real *u_
     return it;
 }
 
-/* ================================================================ the tick (pads.stribeck_tick) */
+/* ================================================================ the tick */
 int sd_stribeck_tick(sd_pad_state_t *S, const sd_pad_t *Pd, sd_real t0, sd_real h, sd_real V, sd_real N, sd_real mus,
                      sd_real muk, sd_real gain, sd_real *ev_t, sd_real *ev_a, int cap, int n_ev)
 {
