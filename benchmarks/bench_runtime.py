@@ -70,9 +70,9 @@ def main() -> int:
         inputs = r.model_inputs(cursor)
         render, kernel, rfloor, kfloor = [], [], [], []
         for _ in range(rounds):
-            per_tick, per_sample = floor_costs(runs=1)
+            per_tick, per_sample = floor_costs(runs=3)
             rfloor.append(n * per_tick + n_audio * per_sample)
-            kfloor.append(interface_floor(n, runs=1))
+            kfloor.append(interface_floor(n, runs=3))
             render.append(min(cpu_per_call(lambda: r.render(cursor), runs=1, min_batch_s=0.05)[0]))
             kernel.append(min(cpu_per_call(lambda: run_kernel(r.model, *inputs), runs=1, min_batch_s=0.05)[0]))
         rr = [x / f for x, f in zip(render, rfloor)]

@@ -8,7 +8,10 @@ scene, exact model, 10 kHz):
 * the first ``play`` after an install: every run gets a fresh, empty cache
   directory (``XDG_CACHE_HOME``), as after ``pip install``. The C engine is
   built by the install (``shapedisplay._engine``), so nothing is compiled at
-  run time; the row shows that it stays so.
+  run time; the row shows that it stays so;
+* ``compile`` of bundled assets, as ``make demo`` runs it: the phone scene,
+  the tent profile picture and the keycap mesh (``--skip-compile`` leaves
+  them out).
 
 The baseline is ``python -c pass`` measured in the same run; every figure
 is min/median/max over the runs, and its median is printed as a ratio
@@ -24,7 +27,7 @@ Child processes run without ``PYTHONDONTWRITEBYTECODE``: an installed package
 has its bytecode compiled at install time (pip does it), so a user's command
 does not recompile the package's modules on every start.
 
-Usage: ``.venv/bin/python benchmarks/bench_startup.py [--runs N] [--cold-runs N] [--quick]``.
+Usage: ``.venv/bin/python benchmarks/bench_startup.py [--runs N] [--cold-runs N] [--quick] [--skip-compile]``.
 """
 import argparse
 import os
@@ -40,6 +43,15 @@ ROOT = Path(__file__).resolve().parent.parent
 SCENE = ROOT / "assets" / "scenes" / "phone.toml"
 EXE = Path(sys.executable).parent / "shapedisplay"
 STROKE = "62,2 -> 62,152 @ 30mm/s"  # 150 mm at 30 mm/s = 5 s
+ASSETS = ROOT / "assets"
+# (row label, compile arguments after the source; output added): the sources and options of `make demo`
+COMPILES = {
+    "compile phone scene": (ASSETS / "scenes" / "phone.toml", []),
+    "compile tent profile PNG": (ASSETS / "maps" / "tent_profile.png",
+                                 ["--size", "60x4mm", "--height", "0:2mm", "--mapping", "height", "--n-base", "0.5N",
+                                  "--n-gain", "2N/mm"]),
+    "compile keycap STL": (ASSETS / "meshes" / "keycap.stl", ["--resolution", "0.1mm", "--up", "z"]),
+}
 
 
 def child_env(**extra) -> dict:
@@ -74,6 +86,7 @@ def main() -> int:
     ap.add_argument("--runs", type=int, default=7, help="timed runs of each warm command (at least 3)")
     ap.add_argument("--cold-runs", type=int, default=3, help="timed first plays from empty caches (at least 3)")
     ap.add_argument("--quick", action="store_true", help="3 runs of every row")
+    ap.add_argument("--skip-compile", action="store_true", help="leave out the compile rows")
     args = ap.parse_args()
     runs, cold_runs = max(3, args.runs), max(3, args.cold_runs)
     if args.quick:
@@ -94,7 +107,11 @@ def main() -> int:
             "help": [str(EXE), "--help"],
             "play": play,
         }
-        run_once(play, env)                       # fills the ordinary caches (untimed)
+        if not args.skip_compile:
+            for label, (src, opts) in COMPILES.items():
+                warm[label] = [str(EXE), "compile", str(src), *opts, "-o", str(tmp / "compiled.npz")]
+        for cmd in warm.values():
+            run_once(cmd, env)                    # fills the ordinary caches (untimed)
         times = {k: [] for k in warm}
         for _ in range(runs):
             for k, cmd in warm.items():
@@ -113,6 +130,9 @@ def main() -> int:
     row("shapedisplay --help", times["help"], base)
     row("play 5 s stroke, warm", times["play"], base)
     row("first play after install (empty caches)", cold["first"], base)
+    for label in COMPILES:
+        if label in times:
+            row(label, times[label], base)
     return 0
 
 
