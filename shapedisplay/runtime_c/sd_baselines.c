@@ -27,46 +27,6 @@
 #define SD_SQRT2 SD_R(1.4142135623730951)
 #define SD_SQRT2E SD_R(2.331643981597124)
 
-/* ------------------------------------------------------------------ free oscillator */
-/* m y'' + c y' + k y = 0 from (y0, v0), at time t: under-, critically and over-damped, c = 0 and c < 0.
- * The damping changes from call to call (the linearised friction slope), so the constants are computed
- * here. */
-static void osc(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, sd_real t, sd_real *y, sd_real *v)
-{
-    sd_real sig = SD_R(0.5) * c / m;
-    sd_real wn2 = k / m;
-    sd_real disc = sig * sig - wn2;
-    if (disc < -SD_R(1e-10) * wn2) {
-        sd_real wd = SD_SQRT(-disc);
-        sd_real e = SD_EXP(-sig * t), cs = SD_COS(wd * t), sn = SD_SIN(wd * t);
-        *y = e * (y0 * cs + (v0 + sig * y0) / wd * sn);
-        *v = e * (v0 * cs - (wn2 * y0 + sig * v0) / wd * sn);
-        return;
-    }
-    if (disc > SD_R(1e-10) * wn2) {
-        sd_real sq = SD_SQRT(disc), r1, r2, p, q, e1, e2;
-        if (sig >= SD_R(0.0)) {
-            r2 = -sig - sq;
-            r1 = wn2 / r2;
-        } else {
-            r1 = -sig + sq;
-            r2 = wn2 / r1;
-        }
-        p = (v0 - r2 * y0) / (r1 - r2);
-        q = y0 - p;
-        e1 = SD_EXP(r1 * t);
-        e2 = SD_EXP(r2 * t);
-        *y = p * e1 + q * e2;
-        *v = r1 * p * e1 + r2 * q * e2;
-        return;
-    }
-    {
-        sd_real w = sig, a = y0, b = v0 + w * y0, e = SD_EXP(-w * t);
-        *y = (a + b * t) * e;
-        *v = (b - w * a - w * b * t) * e;
-    }
-}
-
 /* ------------------------------------------------------------------ tanh-regularised Coulomb */
 /* Friction on the pad at slip speed w = V - v and its slope df/dw:
  * f = N [(mu_s - mu_k) sqrt(2e) u exp(-u^2) + mu_k tanh(w / v_C)], u = w / v_St, v_St = sqrt(2) eps,
@@ -117,7 +77,7 @@ int sd_tanh_tick(sd_pad_state_t *S, const sd_pad_t *P, sd_real t0, sd_real h, sd
          * (e^{hA} - I) Y0' is the free oscillator started at (v0, a0), and A^-1 = [[-ceff/k, -m/k], [1, 0]] */
         a0 = (f0 - c * v - k * x) / m;
         for (q = 0; q < 60; q++) {
-            osc(m, ceff, k, v, a0, hs, &yh, &vh);
+            osc_any(m, ceff, k, v, a0, hs, &yh, &vh);
             dx = yh - v;
             v1 = v + dx;
             w1 = V - v1;

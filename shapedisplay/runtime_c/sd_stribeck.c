@@ -67,40 +67,6 @@ typedef struct {
     sd_real m, k, c, a, b, A, om, tol, substep;
 } st_par_t;
 
-/* ================================================================ general free oscillator */
-static void osc_any(sd_real m, sd_real c, sd_real k, sd_real y0, sd_real v0, sd_real t, sd_real *y, sd_real *v)
-{
-    sd_real sig = R(0.5) * c / m, wn2 = k / m, disc = sig * sig - wn2;
-    if (disc < -R(1e-10) * wn2) {
-        sd_real wd = SD_SQRT(-disc), e = SD_EXP(-sig * t), cs = SD_COS(wd * t), sn = SD_SIN(wd * t);
-        *y = e * (y0 * cs + (v0 + sig * y0) / wd * sn);
-        *v = e * (v0 * cs - (wn2 * y0 + sig * v0) / wd * sn);
-        return;
-    }
-    if (disc > R(1e-10) * wn2) {
-        sd_real sq = SD_SQRT(disc), r1, r2, p, q, e1, e2;
-        if (sig >= R(0.0)) {
-            r2 = -sig - sq;
-            r1 = wn2 / r2;
-        } else {
-            r1 = -sig + sq;
-            r2 = wn2 / r1;
-        }
-        p = (v0 - r2 * y0) / (r1 - r2);
-        q = y0 - p;
-        e1 = SD_EXP(r1 * t);
-        e2 = SD_EXP(r2 * t);
-        *y = p * e1 + q * e2;
-        *v = r1 * p * e1 + r2 * q * e2;
-        return;
-    }
-    {
-        sd_real w = sig, a = y0, b = v0 + w * y0, e = SD_EXP(-w * t);
-        *y = (a + b * t) * e;
-        *v = (b - w * a - w * b * t) * e;
-    }
-}
-
 static inline sd_real free_speed_scale(sd_real V, sd_real A, sd_real om, sd_real mus, sd_real W, sd_real k, sd_real m)
 {
     return SD_FABS(V) + A * om + mus * W / SD_SQRT(k * m);
