@@ -1,13 +1,11 @@
-"""The C runtime's ``stribeck`` model (runtime_c/sd_stribeck.c) against independent answers.
+"""The ``stribeck`` model's builds besides the package's engine, and its pre-maximum variant.
 
-The C tick runs through the vector tool (``sd_vectors pad``, see test_c_runtime.pad_vectors), a build
-of the engine's sources with the system compiler (-ffp-contract=off), and is checked as
-tests/test_stribeck_kernel.py checks the shipped engine: a tight ``solve_ivp`` Radau run with event
-functions (``reports.peers.stribeck_ivp``), the closed form of the linear curve (``a = 0``), the event
-bound of every tolerance the accuracy report tries, the pre-maximum variant's closed-form steady states
-and its hysteresis, finite and bounded outputs on hostile inputs, and events that do not depend on how
-the ticks cut the stroke. The single-precision build (-DSD_SINGLE) is held to finite, bounded outputs
-and to its tolerance floor against the double build.
+tests/test_stribeck_kernel.py holds the engine (``run_kernel``) to Radau, the linear curve's closed
+form and every tolerance's event bound. Here the C tick runs through the vector tool (``sd_vectors
+pad``, see test_c_runtime.pad_vectors), a build of the same sources with the system compiler
+(-ffp-contract=off): the pre-maximum variant's closed-form steady states and its hysteresis, finite and
+bounded outputs on hostile inputs, the single-precision build (-DSD_SINGLE) held to finite, bounded
+outputs and to its tolerance floor against the double build, and the Cortex-M4F instruction counts.
 """
 from __future__ import annotations
 
@@ -17,15 +15,11 @@ import subprocess
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
-from shapedisplay.devices import BurstParams, DeviceProfile, FrictionParams, PadParams
-from shapedisplay.reports.peers import stribeck_ivp
+from shapedisplay.devices import BurstParams, DeviceProfile
 from shapedisplay.runtime.models import get_model
 from shapedisplay.runtime.studies import IMAIZUMI_FRICTION, IMAIZUMI_PAD
 from test_c_runtime import CDIR, CFLAGS, LIB, _cc, pad_vectors, sd_vectors  # noqa: F401  (sd_vectors: fixture)
-from test_stribeck_kernel import _viscous_belt_events
 
 SINGLE = ["-DSD_SINGLE", "-Wdouble-promotion", "-Wfloat-conversion"]
 #: The single-precision build's slip tolerance floor (SD_STRIBECK_TOL_FLOOR in sd_stribeck.c)
@@ -63,96 +57,6 @@ def _c_truncated(exe, tmp_path, model, t, V, N, mus=2.1, muk=1.4):
     n = t.size
     full = [np.broadcast_to(np.asarray(a, float), (n,)).copy() for a in (V, N, mus, muk, 1.0)]
     return pad_vectors(exe, tmp_path, model, t, *full, truncated=True)
-
-
-def _radau(m=1e-4, k=1e3, c=1.0, b=1.9, V=0.1, hz=9.0, amp=1.25e-3, t_end=0.15, rtol=1e-11):
-    ref = stribeck_ivp("Radau", rtol, m=m, k=k, c=c, mu_s=2.1, mu_k=1.4, a=55.0, b=b, W=1.0, V=V, amp=amp,
-                       omega=2 * math.pi * hz, t_end=t_end)
-    assert ref.status == "ok" and ref.event_time.size >= 2
-    return ref
-
-
-# ------------------------------------------------------------------ plain curve against Radau
-@pytest.mark.parametrize("hz,amp,v,duration", [(9.0, 1.25e-3, 0.1, 0.15), (0.0, 0.0, 0.04, 0.12)])
-def test_plain_curve_matches_tight_radau(sd_vectors, tmp_path, hz, amp, v, duration):
-    """Default tolerance (Taylor slip steps): every event within 1e-9 s of Radau at rtol 1e-11, amplitudes
-    within 1e-8 (relative), at 1 and 10 kHz ticks."""
-    ref = _radau(V=v, hz=hz, amp=amp, t_end=duration)
-    model = _model(contactor_hz=hz, contactor_amplitude_m=amp)
-    for rate in (1000, 10_000):
-        f, phase, x, et, ea = _c_run(sd_vectors, tmp_path, model, _ticks(rate, duration), v, 1.0)
-        assert et.size == ref.event_time.size, rate
-        assert np.max(np.abs(et - ref.event_time)) < 1e-9, rate
-        np.testing.assert_allclose(ea, ref.event_amplitude, rtol=1e-8, atol=0)
-
-
-def test_default_steps_hold_on_a_pad_with_almost_no_sliding_damping(sd_vectors, tmp_path):
-    """c = 0, b = 0.05 N s/m (35 breakaways in 0.5 s) at 100 Hz ticks: the Taylor steps' defect check keeps
-    every event within 1e-9 s of Radau."""
-    pad = PadParams(1.0e-4, 1.0e3, 0.0)
-    ref = _radau(c=0.0, b=0.05, t_end=0.5)
-    assert ref.event_time.size >= 30
-    model = _model(pad=pad, extra={"stribeck": {"a": 55.0, "b": 0.05}}, contactor_hz=9.0,
-                   contactor_amplitude_m=1.25e-3)
-    _, _, _, et, _ = _c_run(sd_vectors, tmp_path, model, _ticks(100, 0.5), 0.1, 1.0)
-    assert et.size == ref.event_time.size
-    assert np.max(np.abs(et - ref.event_time)) < 1e-9
-
-
-@pytest.mark.parametrize("hz,amp,v,duration", [(9.0, 1.25e-3, 0.1, 0.25), (0.0, 0.0, 0.04, 0.12)])
-def test_exponential_steps_match_tight_radau_within_their_tolerance(sd_vectors, tmp_path, hz, amp, v, duration):
-    """Looser tolerances (exponential Rosenbrock slip steps): event errors within 10 tolerances of the mean
-    event interval, amplitudes within 100 tolerances, at 100 Hz, 1 and 10 kHz."""
-    ref = _radau(V=v, hz=hz, amp=amp, t_end=duration)
-    scale = float(np.mean(np.diff(ref.event_time)))
-    worst = {}
-    for tol in (1e-8, 1e-7, 1e-5, 1e-4):
-        model = _model(contactor_hz=hz, contactor_amplitude_m=amp, tolerance=tol)
-        for rate in (100, 1000, 10_000):
-            _, _, _, et, ea = _c_run(sd_vectors, tmp_path, model, _ticks(rate, duration), v, 1.0)
-            assert et.size == ref.event_time.size, (tol, rate)
-            err = float(np.max(np.abs(et - ref.event_time)))
-            assert err <= 10 * tol * scale, (tol, rate, err)
-            np.testing.assert_allclose(ea, ref.event_amplitude, rtol=100 * tol, atol=0)
-            worst[tol] = max(worst.get(tol, 0.0), err)
-    if hz:
-        assert worst[1e-8] < worst[1e-7] < worst[1e-5] < worst[1e-4]
-
-
-def test_every_tolerance_the_report_tries_keeps_its_event_bound(sd_vectors, tmp_path):
-    """The accuracy report's contactor stroke at each of its slip tolerances and tick rates: event times within
-    10 tolerances of the mean event interval of a tight Radau run (1e-9 s for the default Taylor steps)."""
-    from shapedisplay.reports.accuracy import STRIBECK_TOLERANCES, build_cases
-    case = next(c for c in build_cases(False) if c.name == "stribeck_contactor")
-    p = case.params
-    hz, amp, v = case.contactor["hz"], case.contactor["amplitude_m"], float(case.V(0.0))
-    ref = stribeck_ivp("Radau", 1e-11, m=p["m"], k=p["k"], c=p["c"], mu_s=p["mu_s"], mu_k=p["mu_k"], a=p["a"],
-                       b=p["b"], W=1.0, V=v, amp=amp, omega=2 * math.pi * hz, t_end=case.duration)
-    assert ref.status == "ok" and ref.event_time.size >= 8
-    scale = float(np.mean(np.diff(ref.event_time)))
-    for tol in STRIBECK_TOLERANCES:
-        model = _model(contactor_hz=hz, contactor_amplitude_m=amp, tolerance=tol)
-        for rate in case.rates:
-            _, _, _, et, ea = _c_run(sd_vectors, tmp_path, model, _ticks(rate, case.duration), v, 1.0)
-            assert et.size == ref.event_time.size, (tol, rate)
-            err = float(np.max(np.abs(et - ref.event_time)))
-            bound = 1e-9 if tol is None else 10 * tol * scale
-            assert err <= bound, (tol, rate, err, bound)
-            np.testing.assert_allclose(ea, ref.event_amplitude, rtol=100 * (tol or 1e-9), atol=0)
-
-
-@pytest.mark.parametrize("tol", [None, 1e-6, 1e-3])
-def test_linear_curve_matches_its_closed_form(sd_vectors, tmp_path, tol):
-    """a = 0, b = -0.1 (a negative viscous slope self-excites the slip): exact for every tolerance."""
-    dev_pad, dev_fr = PadParams(1.0, 1.0, 0.0), FrictionParams(1.0, 0.5)
-    model = _model(pad=dev_pad, friction=dev_fr, extra={"stribeck": {"a": 0.0, "b": -0.1}}, tolerance=tol)
-    expect = _viscous_belt_events(1.0, 1.0, -0.1, 1.0, 1.0, 0.2, 4)
-    for rate in (100, 1000):
-        _, _, _, et, ea = _c_run(sd_vectors, tmp_path, model, _ticks(rate, expect[-1] + 0.5), 0.2, 1.0,
-                                 mus=1.0, muk=0.5)
-        assert et.size == expect.size, rate
-        assert np.max(np.abs(et - expect)) < 1e-9, rate
-        np.testing.assert_allclose(ea, 1.0, rtol=1e-12)
 
 
 # ------------------------------------------------------------------ pre-maximum variant
@@ -226,35 +130,6 @@ def test_hostile_inputs_stay_finite_and_bounded(sd_vectors, tmp_path, variant, t
     out = _c_run(sd_vectors, tmp_path, model, t, V, N)
     _assert_finite_and_within_the_curve(out, V, N, 9.0, 1.25e-3)
     assert _c_truncated(sd_vectors, tmp_path, model, t, V, N) == 0
-
-
-_LOADS = st.one_of(st.just(0.0), st.floats(0.01, 3.0))
-_CONTACTORS = st.sampled_from([(0.0, 0.0), (9.0, 1.25e-3), (3.0, 1.25e-3)])
-
-
-@settings(max_examples=12, deadline=None)
-@given(st.lists(st.tuples(st.floats(-0.3, 0.3), _LOADS), min_size=3, max_size=8), _CONTACTORS,
-       st.sampled_from([None, 3e-9, 1e-6, 1e-5]))
-def test_events_independent_of_tick_cuts(sd_vectors, tmp_path_factory, segments, contactor, tol):
-    """Inputs held for 20 ms each; ticks of 1 ms, cut in three, give the same events: within 1e-8 s for the
-    default Taylor steps, 10 tolerances (in s) for the exponential ones."""
-    tmp_path = tmp_path_factory.mktemp("cuts")
-    hz, amp = contactor
-    model = _model(contactor_hz=hz, contactor_amplitude_m=amp, tolerance=tol)
-    V = np.repeat([s[0] for s in segments], 20)
-    N = np.repeat([s[1] for s in segments], 20)
-    events = []
-    for split in (1, 3):
-        n = V.size * split + 1
-        t = np.arange(n) / (1000.0 * split)
-        Vt = np.concatenate([[0.0], np.repeat(V, split)])
-        Nt = np.concatenate([[N[0]], np.repeat(N, split)])
-        out = _c_run(sd_vectors, tmp_path, model, t, Vt, Nt)
-        _assert_finite_and_within_the_curve(out, Vt, Nt, hz, amp)
-        events.append(out[3])
-    assert events[0].size == events[1].size
-    if events[0].size:
-        assert np.max(np.abs(events[0] - events[1])) < (1e-8 if tol is None else 10 * tol)
 
 
 # ------------------------------------------------------------------ single precision
