@@ -346,10 +346,45 @@ def _firmware_sections(table: FrictionTable, P: str, p: str) -> tuple[list[str],
         "    C->policy = SD_RETRIGGER;",
         "    C->model = SD_MODEL_JUMP;",
         "}",
+        *_use_model_lines(table, p),
         "#endif /* SD_RUNTIME_H */",
     ]
     assert "slope_friction_gain" in cfg
     return lines, objects
+
+
+def _c_real(v: float) -> str:
+    v = float(v)
+    return "(sd_real)HUGE_VAL" if v == math.inf else f"(sd_real){v!r}"
+
+
+def _use_model_lines(table: FrictionTable, p: str) -> list[str]:
+    """``name_use_model(C, model)``: every pad parameter of each model a table is played with, as the
+    package derives them from the table's device (:func:`~.runtime.models.get_model`), so firmware plays
+    the same model the package does. A model the device cannot run is left out (the function returns -1)."""
+    from .errors import ShapeDisplayError
+    from .runtime.layouts import PAD_PARAMS
+    from .runtime.models import get_model
+    from .runtime.native import C_MODELS
+    from .runtime.settings import device_for_table
+    dev = device_for_table(table)
+    lines = ["/* Play `model` (SD_MODEL_EXACT, _JUMP, _KARNOPP, _STRIBECK) with the pad parameters the package derives",
+             " * from the table's device; returns 0, or -1 (C left unchanged) for a model this header does not carry. */",
+             f"static inline int {p}_use_model(sd_config_t *C, int model)", "{", "    switch (model) {"]
+    for name in C_MODELS:
+        try:
+            params = get_model(name, dev).params
+        except ShapeDisplayError as exc:
+            lines.append(f"    /* {name}: not offered by this device ({str(exc).splitlines()[0]}) */")
+            continue
+        lines.append(f"    case SD_MODEL_{name.upper()}:")
+        for field in PAD_PARAMS.names:
+            v = params[field]
+            value = f"(int64_t){int(v)}" if PAD_PARAMS[field].kind == "i" else _c_real(v)
+            lines.append(f"        C->pad.{field} = {value};")
+        lines.append("        break;")
+    lines += ["    default:", "        return -1;", "    }", "    C->model = model;", "    return 0;", "}"]
+    return lines
 
 
 def c_header(table: FrictionTable, prefix: str = "sd_table") -> str:
@@ -378,6 +413,7 @@ def c_header(table: FrictionTable, prefix: str = "sd_table") -> str:
         " */",
         f"#ifndef {P}_H",
         f"#define {P}_H",
+        "#include <math.h>",
         "#include <stdint.h>",
         "",
         f"#define {P}_FORMAT_VERSION {table.header()['format_version']}",

@@ -4,9 +4,11 @@
  *     shapedisplay export TABLE --format c -o table.h --name sd_table
  * and compile this file (or your firmware's equivalent) with
  *     cc -std=c99 -O2 -ffp-contract=off -DSD_TABLE_HEADER='"table.h"' \
- *        tool_play_header.c sd_render.c sd_pad.c sd_exact.c sd_image.c -lm
+ *        tool_play_header.c sd_*.c -lm   (every runtime source but sd_wasm.c)
  * The header is enough on its own: sd_table_bind() fills the table and the whole configuration
  * (pad, friction, slope-friction gain K_mu, burst, rates) from it; any channel code type works.
+ * It plays the jump model; -DSD_PLAY_MODEL=SD_MODEL_KARNOPP (or _EXACT, _STRIBECK) plays another with
+ * the parameters the header carries for it (sd_table_use_model()).
  *
  *   sd_play_header AUDIO_RATE IN OUT [TOGGLE STATE]
  * IN: i64 n, f64 x[n], f64 y[n] (cursor per tick, m); OUT: f64 drive[n], i64 n_audio, f64 audio[n_audio]
@@ -82,6 +84,12 @@ int main(int argc, char **argv)
         return 2;
     }
     sd_table_bind(&T, &C, blocks);
+#ifdef SD_PLAY_MODEL
+    if (sd_table_use_model(&C, SD_PLAY_MODEL) != 0) {
+        fprintf(stderr, "sd_play_header: the header carries no parameters for model %d\n", (int)SD_PLAY_MODEL);
+        return 2;
+    }
+#endif
     C.audio_rate = (sd_real)atof(argv[1]);
     if (argc == 6 && sd_table_set_state(blocks, atoi(argv[4]), atoi(argv[5])) != 0) {
         fprintf(stderr, "sd_play_header: no toggle %s state %s\n", argv[4], argv[5]);
