@@ -143,7 +143,7 @@ def test_accuracy_speedup_is_measured_ratio(accuracy_report):
                 assert v["speedup"] == pytest.approx(peer["cpu_s_per_sim_s"] / ren[cost], rel=1e-12)
                 assert v["bound"] == pytest.approx(peer["cpu_s_per_sim_s"] / v["floor_cpu_s_per_sim_s"], rel=1e-12)
                 # the floor is at least the per-tick floor at the level's slowest tick rate (the model's: at
-                # least its interface's, which reads and writes six rows per tick)
+                # least its interface's, which reads six rows and writes four per tick)
                 assert v["floor_cpu_s_per_sim_s"] >= v["floor_tick_rate"] * fl["tick_s"] * (1 - 1e-12)
                 assert ren[cost] > 0
             n += 1
@@ -495,7 +495,7 @@ def test_stuck_floor_runs_the_model_on_ticks_that_all_stay_stuck():
 def test_timing_floors_compute_what_they_say():
     """The floors' C loops (``sd_floors.c``) write the values their docstrings name: each tick's input times
     ``h``; whole carrier periods times the envelope, the samples after the last whole period untouched; the
-    six interface rows in the order of run_kernel's outputs. Both floors are positive CPU times."""
+    four interface rows from the six inputs (t, V, N, mu_s, mu_k, gain). Both floors are positive CPU times."""
     lib = common._floors()
     rng = np.random.default_rng(5)
     v, out = rng.normal(size=1001), np.full(1001, np.nan)
@@ -505,9 +505,10 @@ def test_timing_floors_compute_what_they_say():
     lib.sd_floor_audio(out.ctypes.data, out.size, period.ctypes.data, period.size, 0.5)
     np.testing.assert_array_equal(out[:960], np.tile(0.5 * period, 6))
     assert np.isnan(out[960:]).all()
-    rows, out = [rng.normal(size=777) for _ in range(6)], np.full((6, 777), np.nan)
+    rows, out = [rng.normal(size=777) for _ in range(6)], np.full((4, 777), np.nan)
     lib.sd_floor_interface(*(r.ctypes.data for r in rows), out.ctypes.data, 777, 0.25)
-    np.testing.assert_array_equal(out, np.array([rows[1], rows[2], rows[3], rows[4], rows[5], rows[0]]) * 0.25)
+    t, V, N, mus, muk, gain = rows
+    np.testing.assert_array_equal(out, np.array([V, N, mus + muk, gain + t]) * 0.25)
     tick, audio = common.floor_costs(n=1 << 16, runs=1)
     assert tick > 0.0 and audio > 0.0
     assert common.interface_floor(100, runs=1, min_batch_s=0.001) > 0.0

@@ -477,7 +477,7 @@ def run(out_dir, quick=False, progress=True, plots=True, stream=None) -> dict:
                          "note": "least work of any tick-based renderer, timed in this run (reports.common."
                                  "floor_costs): per tick read the input and write one output; per audio sample "
                                  "write one carrier sample times an envelope; for the model alone at least one "
-                                 "call that reads run_kernel's six per-tick input rows and writes its six "
+                                 "call that reads run_kernel's six per-tick input rows and writes its four "
                                  "per-tick output rows over the case's path (reports.common.interface_floor), or run_kernel "
                                  "with the cheapest model over that many ticks with the pad stuck on every one "
                                  "(reports.common.stuck_floor), whichever costs more, timed per case and tick "
@@ -718,7 +718,7 @@ def markdown(rep) -> str:
          f"Bound: scipy's cost over the least work of any tick renderer at the slowest tick rate that "
          f"reached the error (per tick {common.fmt(fl['tick_s'])} s, per 48 kHz audio sample "
          f"{common.fmt(fl['audio_sample_s'])} s, timed in this run; for the model alone at least one call "
-         f"that reads run_kernel's six per-tick input rows and writes its six output rows over the case's "
+         f"that reads run_kernel's six per-tick input rows and writes its four output rows over the case's "
          f"path, timed in this run). scipy's cost grows with the number of "
          f"events, a tick renderer's with the duration: where events are few, no renderer can reach "
          f"{SPEEDUP_TARGET:g}x.", ""]

@@ -235,11 +235,10 @@ def interface_floor(n, runs=3, min_batch_s=0.02):
     """Least work of the model's interface over ``n`` ticks, timed now: CPU s per call.
 
     ``run_kernel`` takes six per-tick input rows (t, V, N, mu_s, mu_k, gain)
-    and returns six per-tick rows (friction, phase, x, v, the work done by
-    friction and the energy the damper dissipated). The floor is one call of
-    a C loop (``sd_floor_interface`` in the engine library, see
-    :func:`_floors`) that reads the six input rows and writes six output
-    rows, each output one multiply of an input, over ``n`` ticks: the call
+    and returns four per-tick rows (friction, phase, x, v). The floor is one
+    call of a C loop (``sd_floor_interface`` in the engine library, see
+    :func:`_floors`) that reads the six input rows and writes four output
+    rows, each output a multiply of an input (or of a sum of two), over ``n`` ticks: the call
     itself (through ctypes) included, min of ``runs`` runs of at least
     ``min_batch_s`` each, after a warm-up. Measured at the path's own length
     (a short path's rows stay in cache: the least cost). A model that returns
@@ -248,7 +247,7 @@ def interface_floor(n, runs=3, min_batch_s=0.02):
     lib = _floors()
     n = int(n)
     rows = [np.full(n, 0.5 + k) for k in range(6)]
-    out = np.empty((6, n))
+    out = np.empty((4, n))
     args = (*(r.ctypes.data for r in rows), out.ctypes.data, n, 1e-3)
     per_call, _ = cpu_per_call(lambda: lib.sd_floor_interface(*args), runs=runs, min_batch_s=min_batch_s)
     return min(per_call)

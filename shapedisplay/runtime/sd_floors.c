@@ -24,16 +24,15 @@ void sd_floor_audio(double *out, int64_t n, const double *period, int64_t p, dou
             out[j + q] = e * period[q];
 }
 
-/* The model interface: six input rows read, six output rows (row-major 6 x n) written, one multiply each. */
+/* The model interface (run_kernel's): six input rows read, four output rows (row-major 4 x n) written, one
+ * multiply or a sum and a multiply each. */
 void sd_floor_interface(const double *t, const double *V, const double *N, const double *mus,
                         const double *muk, const double *gain, double *out, int64_t n, double h)
 {
     for (int64_t i = 0; i < n; i++) {
         out[i] = V[i] * h;
         out[n + i] = N[i] * h;
-        out[2 * n + i] = mus[i] * h;
-        out[3 * n + i] = muk[i] * h;
-        out[4 * n + i] = gain[i] * h;
-        out[5 * n + i] = t[i] * h;
+        out[2 * n + i] = (mus[i] + muk[i]) * h;
+        out[3 * n + i] = (gain[i] + t[i]) * h;
     }
 }
