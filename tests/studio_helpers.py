@@ -14,8 +14,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 PHONE = ROOT / "assets" / "scenes" / "phone.toml"
-#: Longest wait for a studio's first compile (s): generous for a cold numba cache on a busy machine.
-READY_TIMEOUT = 300.0
+#: Longest wait for a studio's first compile (s): generous for a busy machine.
+READY_TIMEOUT = 120.0
 
 
 class StudioProcess:
@@ -39,8 +39,8 @@ class StudioProcess:
         m = re.match(r"http://([^/]+)/\?token=(\S+)", self.url)
         self.host, self.token = m.group(1), m.group(2)
         self.base = f"http://{self.host}"
-        # the socket listens at once; requests are answered after the first compile (on a cold numba
-        # cache that includes compiling the renderer's kernels): wait for it here, not in each test
+        # the socket listens at once; requests are answered after the first compile: wait for it here,
+        # not in each test
         self.wait_state(lambda st: st["generation"] >= 1, timeout=READY_TIMEOUT)
 
     def _read(self):
