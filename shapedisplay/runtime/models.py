@@ -422,7 +422,7 @@ def run_kernel(model: PadModel, t, V, N, mus, muk, gain, state=None):
     A model that diverges (the explicit baselines) says so in ``state["diverged"]``; one that reaches its
     cap on phase changes in a tick raises :class:`ModelError`.
     """
-    from .native import RUN_UNKNOWN_MODEL, library
+    from .native import RUN_UNKNOWN_MODEL, address, library
     lib = library()
     n = int(np.shape(t)[0])
     rows = [np.ascontiguousarray(a, dtype=np.float64) for a in (t, V, N, mus, muk, gain)]
@@ -434,16 +434,21 @@ def run_kernel(model: PadModel, t, V, N, mus, muk, gain, state=None):
         if a.shape not in ((n,), (1,)) or (a.shape == (1,) and n == 0):
             raise InputError(f"`{name}` must have shape ({n},) or (1,) (got {a.shape})")
         ones.append(int(a.shape[0] != n))
-    init = model.new_state() if state is None else np.array(state, dtype=PAD_STATE).reshape(1)
-    out = np.empty((4, n))
+    ins = [address(a) for a in rows]
+    init = model.new_state()[0] if state is None else np.array(state, dtype=PAD_STATE).reshape(1)[0]
     cap = n // 8 + 1024
     while True:
-        S = init.copy()
-        ev = np.empty((2, cap))
-        n_ev = lib.sd_pad_run(model.model_id, model.param_block.ctypes.data, S.ctypes.data,
-                              rows[0].ctypes.data, n, *(a.ctypes.data for a in rows[1:]), *ones,
-                              *(r.ctypes.data for r in out),
-                              ev[0].ctypes.data, ev[1].ctypes.data, cap)
+        # one block: the final state, four per-tick rows, then the event times and amplitudes (one address;
+        # a short run costs mostly its calls, not its ticks)
+        words = PAD_STATE.itemsize // 8
+        block = np.empty(words + 4 * n + 2 * cap)
+        S = block[:words].view(PAD_STATE)
+        S[0] = init
+        base = address(block)
+        out = base + 8 * words
+        ev = out + 8 * 4 * n
+        n_ev = lib.sd_pad_run(model.model_id, address(model.param_block), base, ins[0], n, *ins[1:], *ones,
+                              out, out + 8 * n, out + 16 * n, out + 24 * n, ev, ev + 8 * cap, cap)
         if n_ev == RUN_UNKNOWN_MODEL:
             raise ModelError(f"the C engine has no tick for model '{model.name}' (id {model.model_id})")
         if n_ev <= cap:
@@ -453,7 +458,9 @@ def run_kernel(model: PadModel, t, V, N, mus, muk, gain, state=None):
     if st["truncated"] > 0:
         raise ModelError(f"model '{model.name}' reached its cap on phase changes in one tick "
                          f"({int(st['truncated'])} ticks cut); inputs are outside the model's range")
-    return st, out[0], out[1], out[2], out[3], ev[0, :n_ev], ev[1, :n_ev]
+    rows_out = block[words:words + 4 * n].reshape(4, n)
+    events = block[words + 4 * n:].reshape(2, cap)
+    return st, rows_out[0], rows_out[1], rows_out[2], rows_out[3], events[0, :n_ev], events[1, :n_ev]
 
 
 def _as_ticks(value, n, field):
