@@ -647,8 +647,7 @@ def _assemble(hf, device, mapping, options, kept, left_out, walls, codes, quant,
     meta = table_meta(device, mapping, options, hf.source, hf.sha256(), report)
     background = {k: 0.0 for k in codes}
     if repeated:
-        row = {n: quant[n].decode(c[:1]) for n, c in codes.items()}  # re-encodes to the same codes
-        table = FrictionTable.from_patches(grid, [((r, 0), row) for r in range(hf.rows)], quant, background, meta)
+        table = FrictionTable.from_repeated_row(grid, {n: c[0] for n, c in codes.items()}, quant, background, meta)
     elif tiles is not None:
         background = {n: float(quant[n].decode(np.asarray([bg_codes[n]]))[0]) for n in codes}
         placed = [(rc, {n: quant[n].decode(c) for n, c in chans.items()}) for rc, chans in tiles]

@@ -28,15 +28,32 @@ from .errors import InputError
 
 #: Largest grid accepted before allocation (samples); 16384^2 float64 = 2 GiB.
 MAX_SAMPLES = 16384 * 16384
+#: Longest side of a grid accepted before allocation (samples): the aspect ratio is at most
+#: ``MAX_SIDE``:1, and a table keeps per-row bookkeeping (a row placed once per grid row) that
+#: grows with the side, not the sample count (1 x 100,000,000 pixels took 7.5 GB).
+MAX_SIDE = 65536
 
 
-def check_grid_size(rows: int, cols: int, what: str) -> None:
-    """Refuse a grid that would exhaust memory, before anything is allocated."""
-    n = int(rows) * int(cols)
+def check_grid_size(rows: int, cols: int, what: str, fix: str = "") -> None:
+    """Refuse a grid that would exhaust memory, before anything is allocated.
+
+    The one size rule of every source (pictures, arrays, meshes, primitives):
+    at most :data:`MAX_SAMPLES` samples and :data:`MAX_SIDE` samples a side.
+    ``fix`` says how the caller's input gets within the limits ("crop or
+    resample the picture"); the message also names the constant to raise.
+    """
+    rows, cols = int(rows), int(cols)
+    n = rows * cols
+    how = f"; {fix}" if fix else ""
     if n > MAX_SAMPLES:
         raise InputError(
             f"{what}: grid of {cols} x {rows} = {n} samples ({n * 8 / 2**30:.1f} GiB as float64) "
-            f"exceeds the limit of {MAX_SAMPLES} samples"
+            f"exceeds the limit of {MAX_SAMPLES} samples (shapedisplay.heightfield.MAX_SAMPLES){how}"
+        )
+    if max(rows, cols) > MAX_SIDE:
+        raise InputError(
+            f"{what}: grid of {cols} x {rows} samples has a side of {max(rows, cols)} samples, beyond the limit "
+            f"of {MAX_SIDE} a side (aspect ratio at most {MAX_SIDE}:1; shapedisplay.heightfield.MAX_SIDE){how}"
         )
 
 

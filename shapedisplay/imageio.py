@@ -38,9 +38,11 @@ shape (rows, cols) or (cols,) are read with numpy.
 Limits
 ------
 The picture size is read from the file header (Pillow opens lazily) and
-checked against :data:`shapedisplay.heightfield.MAX_SAMPLES` *before* any
+checked against :data:`shapedisplay.heightfield.MAX_SAMPLES` and
+:data:`~shapedisplay.heightfield.MAX_SIDE` (samples a side) *before* any
 pixel data is decoded, so an oversized or hostile file (a decompression
-bomb) is refused without exhausting memory.
+bomb, a picture of 1 x 100,000,000 pixels) is refused without exhausting
+memory.
 
 Pillow reads 16-bit-per-channel RGB/RGBA PNG at 8 bits per channel; such a
 file is read that way with a warning that says so (convert it to 16-bit grey
@@ -69,6 +71,8 @@ CHANNELS = ("luminance", "r", "g", "b", "a", "normal")
 #: ITU-R BT.709 luma weights of R', G', B'.
 BT709 = (0.2126, 0.7152, 0.0722)
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+#: How a picture beyond the size limits gets within them (one sample per pixel: no option resamples it).
+PICTURE_FIX = "crop or resample the picture"
 
 
 class PictureWarning(UserWarning):
@@ -115,7 +119,10 @@ def _open(path: Path):
     if path.is_dir():
         raise FileFormatError(f"image '{path}': is a directory, not a file")
     try:
-        return Image.open(path)
+        with warnings.catch_warnings():
+            # Pillow warns above its quiet limit; the caller checks the size against ours next
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            return Image.open(path)
     except PermissionError as exc:
         raise FileFormatError(f"image '{path}': unreadable ({exc.strerror or exc})") from None
     except Image.DecompressionBombError as exc:   # Pillow's own header check (its limit is below ours)
@@ -138,7 +145,7 @@ def picture_info(path: str | os.PathLike) -> dict:
         cols, rows = im.size
         if cols == 0 or rows == 0:
             raise FileFormatError(f"image '{path}': empty image ({cols}x{rows} pixels)")
-        check_grid_size(rows, cols, f"image '{path}'")
+        check_grid_size(rows, cols, f"image '{path}'", PICTURE_FIX)
         return {"cols": cols, "rows": rows, "mode": im.mode, "bit_depth": _bit_depth(im, path),
                 "format": im.format}
 
@@ -192,7 +199,7 @@ def read_picture(path: str | os.PathLike, channel: str | None = None) -> Picture
         cols, rows = im.size
         if cols == 0 or rows == 0:
             raise FileFormatError(f"image '{path}': empty image ({cols}x{rows} pixels)")
-        check_grid_size(rows, cols, f"image '{path}'")     # before any pixel is decoded
+        check_grid_size(rows, cols, f"image '{path}'", PICTURE_FIX)     # before any pixel is decoded
         depth = _bit_depth(im, path)
         notes = []
         if getattr(im, "n_frames", 1) > 1:
@@ -258,7 +265,7 @@ def _gray16_png_pixels(path: Path):
         if (depth, colour, compression, filtering, interlace) != (16, 0, 0, 0, 0) or not 0 < rows * cols \
                 <= PILLOW_QUIET_PIXELS:
             return None
-        check_grid_size(rows, cols, f"image '{path}'")     # before any pixel is decoded
+        check_grid_size(rows, cols, f"image '{path}'", PICTURE_FIX)     # before any pixel is decoded
         from .gradients import KERNEL_MIN_SIZE
         if rows * cols < KERNEL_MIN_SIZE:
             return None
@@ -561,7 +568,7 @@ def read_npy(path: str | os.PathLike) -> np.ndarray:
         if dtype.kind not in "uif":
             raise FileFormatError(f"array '{path}': dtype {dtype} is not supported; use an integer or float array")
         rows, cols = (1, shape[0]) if len(shape) == 1 else shape
-        check_grid_size(rows, cols, f"array '{path}'")
+        check_grid_size(rows, cols, f"array '{path}'", "crop or resample the array")
         fh.seek(0)
         try:
             arr = np.load(fh, allow_pickle=False)

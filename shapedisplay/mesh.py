@@ -506,8 +506,8 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units=None, ba
     mc = int(math.ceil(mrg / dx - 1e-9)) if mrg > 0 else 0
     mr = int(math.ceil(mrg / dy - 1e-9)) if mrg > 0 else 0
     rows, cols = rows_f + 2 * mr, cols_f + 2 * mc
-    check_grid_size(rows, cols, f"{where} height field")
-    check_grid_size(rows * k, cols * k, f"{where} with supersample={k}")
+    check_grid_size(rows, cols, f"{where} height field", "give a coarser `resolution` or a smaller `size`")
+    check_grid_size(rows * k, cols * k, f"{where} with supersample={k}", "give a smaller `supersample`")
     x0, y0 = -mc * dx, -mr * dy
 
     # --- rasterise in sub-sample grid units

@@ -334,6 +334,29 @@ class FrictionTable:
         h.update(self.meta)
         return h
 
+    @classmethod
+    def from_repeated_row(cls, grid: Grid, codes: dict, quant: dict, background: dict | None = None,
+                          meta: dict | None = None) -> "FrictionTable":
+        """One row of codes stored once and placed on every row of the canvas (an extruded profile).
+
+        ``codes[name]`` has shape (cols,) and the dtype of ``quant[name]``;
+        the table has one block per row, built without a patch per row.
+        """
+        names = sorted(quant)
+        for name in names:
+            if name not in CHANNELS:
+                raise unknown_key("channel", name, CHANNELS)
+            c = np.asarray(codes[name])
+            if c.shape != (grid.cols,) or c.dtype != np.dtype(_DTYPES[quant[name].dtype]):
+                raise InputError(f"codes of channel '{name}' must be {quant[name].dtype} of shape "
+                                 f"{(grid.cols,)} (got {c.dtype} {c.shape})")
+        flat = {n: np.ascontiguousarray(codes[n]) for n in names}
+        bg = {n: float((background or {}).get(n, 0.0)) for n in names}
+        t = cls(grid, [(1, grid.cols)], [(r, 0, 0) for r in range(grid.rows)], flat, dict(quant), bg,
+                copy.deepcopy(meta or {}))
+        t._check_layout()
+        return t
+
     def checksum(self) -> str:
         return _checksum(self.header(), self.codes)
 
