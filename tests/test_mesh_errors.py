@@ -229,3 +229,39 @@ def test_bad_output_suffix_for_mesh_export(tmp_path):
     with pytest.raises(FileFormatError, match="directory .* does not exist"):
         mesh.save_heightfield_mesh(hf, tmp_path / "missing" / "x.stl")
     assert list(tmp_path.iterdir()) == []
+
+
+def _polygon_obj(path, n: int) -> None:
+    """An OBJ of one face: a circle of ``n`` vertices (a fan of n - 2 slivers once triangulated)."""
+    a = 2 * np.pi * np.arange(n) / n
+    v = np.column_stack([30 + 20 * np.cos(a), 30 + 20 * np.sin(a), 1 + 0.5 * np.sin(5 * a)])
+    lines = [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in v]
+    path.write_text("\n".join(lines) + "\nf " + " ".join(map(str, range(1, n + 1))) + "\n")
+
+
+def test_obj_face_of_80000_vertices_is_refused_before_triangulating(tmp_path, capsys):
+    """One face line of 80,000 vertices took 47.5 s (its fan rasterised sliver by sliver)."""
+    import time
+
+    from shapedisplay_cli.main import main
+    path = tmp_path / "polygon.obj"
+    _polygon_obj(path, 80_000)
+    t0 = time.perf_counter()
+    code = main(["compile", str(path), "-o", str(tmp_path / "t.npz")])
+    elapsed = time.perf_counter() - t0
+    out, err = capsys.readouterr()
+    assert code == 2 and not out and not (tmp_path / "t.npz").exists()
+    assert err == (f"shapedisplay compile: error: mesh '{path}': face on line 80001 has 80000 vertices, beyond the "
+                   f"limit of {mesh.MAX_FACE_VERTICES} a face (shapedisplay.mesh.MAX_FACE_VERTICES); triangulate "
+                   f"the polygon in a modelling program first\n")
+    assert elapsed < 5
+
+
+def test_obj_face_at_the_vertex_limit_still_reads(tmp_path):
+    path = tmp_path / "polygon.obj"
+    _polygon_obj(path, mesh.MAX_FACE_VERTICES)
+    verts, faces, _ = mesh.load_mesh(path)
+    assert len(verts) == mesh.MAX_FACE_VERTICES and len(faces) == mesh.MAX_FACE_VERTICES - 2
+    path.write_text("f " + " ".join(["1"] * (mesh.MAX_FACE_VERTICES + 1)) + "\n")   # the first line too
+    with pytest.raises(FileFormatError, match=r"face on line 1 has 4097 vertices"):
+        mesh.load_mesh(path)
