@@ -369,7 +369,7 @@ def scene_warnings(scene: Scene, grps: list[dict]) -> list[str]:
     return warned + combined_height_warnings(scene, grps, warned)
 
 
-def check_scene(path, device=None) -> list[str]:
+def check_scene(path, device=None, confine: bool = False) -> list[str]:
     """Validate a scene without compiling it.
 
     Raises :class:`SceneError` (an ``InputError``) on the first error; returns
@@ -377,7 +377,7 @@ def check_scene(path, device=None) -> list[str]:
     the device cannot render alone or combined, ramps shortened), the same
     as the compile report lists.
     """
-    scene = path if isinstance(path, Scene) else load_scene(path, device=device)
+    scene = path if isinstance(path, Scene) else load_scene(path, device=device, confine=confine)
     grps = groups(scene, 1)
     check_groups(scene, grps)
     return scene_warnings(scene, grps)
@@ -514,7 +514,7 @@ def scene_force_channels(scene: Scene, options=None) -> dict:
     return chans
 
 
-def compile_scene(path, device=None, options=None):
+def compile_scene(path, device=None, options=None, confine: bool = False):
     """Compile a scene file into a friction-envelope table.
 
     Parameters
@@ -525,6 +525,8 @@ def compile_scene(path, device=None, options=None):
         Overrides the scene's device.
     options : compile.CompileOptions, optional
         Quantization, gradient method, wall limit, channels to keep.
+    confine : bool
+        Read only files inside the scene's folder (see :func:`load_scene`); the studio sets it.
 
     Returns
     -------
@@ -542,9 +544,9 @@ def compile_scene(path, device=None, options=None):
     if not isinstance(options, CompileOptions):
         raise InputError(f"`options` must be CompileOptions (got {type(options).__name__})")
     if isinstance(path, Scene):
-        scene = path if device is None else load_scene(path.path, device=device)
+        scene = path if device is None else load_scene(path.path, device=device, confine=confine)
     else:
-        scene = load_scene(path, device=device)
+        scene = load_scene(path, device=device, confine=confine)
     dev = scene.device
     mapping = scene.mapping
     canvas = scene.canvas

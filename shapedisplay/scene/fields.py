@@ -17,6 +17,9 @@ from ..units import parse_pair, parse_quantity
 
 #: How overlapping widgets combine: max (default), min, add, over (the later widget wins).
 OVERLAP_RULES = ("max", "min", "add", "over")
+#: Largest length a scene may state, metres (positions, sizes, ramps, heights): 1 km. Checked
+#: as each value is read, so that snapping a box to the grid never meets an infinite sample index.
+MAX_LENGTH_M = 1000.0
 
 
 class SceneError(InputError):
@@ -102,11 +105,38 @@ class Widget:
 
 # --------------------------------------------------------------- value parsing
 class Ctx:
-    """Parsing context: where we are, the canvas dpi, the scene directory."""
+    """Parsing context: where we are, the canvas dpi, the scene directory.
 
-    def __init__(self, path: str, base_dir: Path, dpi: float | None = None, is_1d: bool = False):
+    ``confine``: when True every file the scene names must resolve (symlinks
+    followed) inside ``base_dir`` (the studio); ``origins`` maps a field path
+    to what it was written as in another format (an SVG's ``data-device``).
+    """
+
+    def __init__(self, path: str, base_dir: Path, dpi: float | None = None, is_1d: bool = False,
+                 confine: bool = False, origins: dict | None = None):
         self.path, self.base_dir, self.dpi, self.is_1d = path, base_dir, dpi, is_1d
+        self.confine = confine
+        self.origins = origins or {}
         self.warnings: list[str] = []
+
+    def file(self, where: str, field_path: str, value) -> Path:
+        """The file the key ``field_path`` names: relative to the scene's folder, inside it when confined.
+
+        Every path-bearing key of a scene is resolved here (see ``spec.PATH_KEYS``).
+        """
+        p = Path(str(value))
+        if not p.is_absolute():
+            p = self.base_dir / p
+        if self.confine:
+            root = Path(self.base_dir).resolve()
+            real = p.resolve()
+            if not real.is_relative_to(root):
+                origin = self.origins.get(field_path)
+                named = f"`{field_path}`" + (f" ({origin})" if origin else "")
+                head = f"scene '{self.path}'" + (f": {where}" if where else "")
+                raise SceneError(f"{head}: {named} = {str(value)!r} resolves to '{real}', outside the scene's "
+                                 f"folder '{root}'; the studio reads only under that folder (copy the file there)")
+        return p
 
     def error(self, where: str, field_path: str, msg: str) -> SceneError:
         head = f"scene '{self.path}'" + (f": {where}" if where else "")
@@ -138,9 +168,16 @@ def wrap_unit_errors(ctx: Ctx, where: str, fn, *args):
         raise SceneUnitError(f"{head}: {exc}") from None
 
 
+def _bounded(v: float, value, field_path: str, ctx: Ctx, where: str) -> float:
+    if not abs(v) <= MAX_LENGTH_M:
+        raise ctx.error(where, field_path, f"must be a length within {MAX_LENGTH_M:g} m of 0 (got {value!r})")
+    return v
+
+
 def length(value, field_path: str, ctx: Ctx, where: str = "", positive: bool = False,
            nonneg: bool = False) -> float:
     v = wrap_unit_errors(ctx, where, parse_quantity, _px(value, field_path, ctx, where), "m", field_path)
+    _bounded(v, value, field_path, ctx, where)
     if positive and not v > 0:
         raise ctx.error(where, field_path, f"must be a length > 0 (got {value!r})")
     if nonneg and v < 0:
@@ -164,7 +201,8 @@ def pair(value, sep: str, field_path: str, ctx: Ctx, where: str = "") -> tuple[f
             raise ctx.error(where, field_path, f"must look like 'A{sep}B px' (got {value!r})")
         return (length(parts[0].strip() + " px", field_path, ctx, where),
                 length(parts[1].strip() + " px", field_path, ctx, where))
-    return wrap_unit_errors(ctx, where, parse_pair, value, sep, "m", field_path)
+    a, b = wrap_unit_errors(ctx, where, parse_pair, value, sep, "m", field_path)
+    return _bounded(a, value, field_path, ctx, where), _bounded(b, value, field_path, ctx, where)
 
 
 def number(value, field_path: str, ctx: Ctx, where: str = "", lo=None, hi=None, integer=False) -> float:

@@ -47,6 +47,7 @@ Placement rules (documented in the README):
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -74,6 +75,17 @@ DIRECTIONS = ("symmetric", "one-sided")
 LATERAL = ("off", "gradient", "normal")
 #: Largest canvas accepted (samples), checked before anything is allocated.
 MAX_CANVAS_SAMPLES = 4096 * 4096
+#: Most [[widget]] entries a scene may hold, checked before any widget is read (docs/limits.md).
+MAX_WIDGETS = 2000
+#: Deepest nesting of tables and arrays in a scene (``[[widget]]`` values: 3 levels; a 2-D data
+#: layer: 5). Checked on the text before the TOML parser, which recurses once per level, runs,
+#: and on the parsed data (dotted keys nest without brackets) before anything walks it.
+MAX_NESTING = 32
+#: Keys outside [[widget]] that name a file, as (table, key). A widget type declares its file
+#: keys with the kind "file" in its keys (widgets.py); :func:`path_keys` lists them all, and
+#: the reader resolves every one through ``Ctx.file``, which keeps it inside the scene's folder
+#: when asked (the studio).
+PATH_KEYS = (("device", "profile"),)
 
 
 @dataclass(frozen=True)
@@ -99,8 +111,115 @@ class Scene:
         raise InputError(f"scene '{self.path}': no widget '{wid}'{did_you_mean(wid, [w.id for w in self.widgets])}")
 
 
+# --------------------------------------------------------------- files a scene names
+def widget_file_keys(wtype: str | None = None) -> tuple:
+    """The keys of widget type ``wtype`` (of any type when None) that name a file."""
+    types = WIDGET_TYPES.values() if wtype is None else [WIDGET_TYPES[wtype]]
+    return tuple(sorted({k for wt in types for k, kind in wt.keys.items() if kind == "file"}))
+
+
+def path_keys() -> list:
+    """Every key of a scene that names a file, as written: ``device.profile``, ``defaults.file``,
+    ``defaults.image.file``, ..., ``widget.file`` (one entry per widget type that has it)."""
+    out = [f"{sec}.{key}" for sec, key in PATH_KEYS]
+    out += [f"defaults.{k}" for k in widget_file_keys()]
+    out += [f"defaults.{t}.{k}" for t in sorted(WIDGET_TYPES) for k in widget_file_keys(t)]
+    out += [f"widget.{k}" for k in widget_file_keys()]
+    return out
+
+
+def is_device_path(value) -> bool:
+    """True if a device profile value is a path (a separator or a suffix), not a bundled name."""
+    if not isinstance(value, str):
+        return True
+    return "/" in value or "\\" in value or Path(value).suffix != ""
+
+
+def path_refs(data: dict) -> list:
+    """``(where, field_path, value)`` of every file the parsed scene ``data`` names (see :data:`PATH_KEYS`)."""
+    refs = []
+    for sec, key in PATH_KEYS:
+        table = data.get(sec)
+        if isinstance(table, dict) and key in table and is_device_path(table[key]):
+            refs.append(("", f"{sec}.{key}", table[key]))
+    defaults = data.get("defaults")
+    if isinstance(defaults, dict):
+        for k in widget_file_keys():
+            if k in defaults:
+                refs.append(("", f"defaults.{k}", defaults[k]))
+        for t in WIDGET_TYPES:
+            if isinstance(defaults.get(t), dict):
+                refs += [("", f"defaults.{t}.{k}", defaults[t][k]) for k in widget_file_keys(t) if k in defaults[t]]
+    widgets = data.get("widget")
+    widgets = [widgets] if isinstance(widgets, dict) else widgets
+    for i, w in enumerate(widgets if isinstance(widgets, list) else []):
+        if isinstance(w, dict):
+            known = isinstance(w.get("type"), str) and w["type"] in WIDGET_TYPES
+            keys = widget_file_keys(w["type"]) if known else widget_file_keys()
+            refs += [(f"widget[{i}] '{w.get('id', i)}'", f"widget[{i}].{k}", w[k]) for k in keys if k in w]
+    return refs
+
+
+def _device_source(src, ctx: Ctx):
+    """What :func:`load_device` reads for the scene's ``device.profile`` value ``src``."""
+    from ..devices import BUNDLED_DEVICES
+    if not ctx.confine:
+        if isinstance(src, str) and (src.endswith(".toml") or "/" in src):
+            cand = ctx.base_dir / src
+            return cand if cand.exists() else src
+        return src
+    if is_device_path(src):
+        return ctx.file("", "device.profile", src)
+    bundled = BUNDLED_DEVICES / f"{src}.toml"      # a name: only a bundled profile, never a file of the cwd
+    if not bundled.is_file():
+        from ..errors import unknown_key
+        raise SceneError(f"scene '{ctx.path}': `device.profile`: "
+                         f"{unknown_key('device', src, (p.stem for p in BUNDLED_DEVICES.glob('*.toml')))}")
+    return bundled
+
+
+# --------------------------------------------------------------- limits on the text and the data
+_TOML_TOKENS = re.compile(r'''
+      "{3}(?:[^\\]|\\.)*?"{3,5}     # multi-line basic string
+    | '{3}.*?'{3,5}                 # multi-line literal string
+    | "(?:[^"\\\n]|\\.)*"         # basic string
+    | '[^'\n]*'                     # literal string
+    | \#[^\n]*                      # comment
+    | [\[\]{}]                       # brackets: the only thing counted
+''', re.S | re.X)
+
+
+def check_toml_nesting(text: str, where: str) -> None:
+    """Refuse TOML text whose brackets nest deeper than :data:`MAX_NESTING` (before parsing it)."""
+    depth = deepest = 0
+    for m in _TOML_TOKENS.finditer(text):
+        tok = m.group()
+        if tok in "[{":
+            depth += 1
+            if depth > deepest:
+                deepest = depth
+                if deepest > MAX_NESTING:
+                    line = text.count("\n", 0, m.start()) + 1
+                    raise FileFormatError(f"{where}: tables and arrays nest more than {MAX_NESTING} levels deep "
+                                          f"at line {line}, beyond the limit of {MAX_NESTING} (docs/limits.md)")
+        elif tok in "]}":
+            depth = max(depth - 1, 0)
+
+
+def check_data_nesting(data, where: str) -> None:
+    """Refuse parsed scene data nested deeper than :data:`MAX_NESTING` (an iterative walk)."""
+    stack = [(data, 1)]
+    while stack:
+        node, depth = stack.pop()
+        if depth > MAX_NESTING:
+            raise FileFormatError(f"{where}: tables and arrays (dotted keys count) nest more than "
+                                  f"{MAX_NESTING} levels deep, beyond the limit of {MAX_NESTING} (docs/limits.md)")
+        children = node.values() if isinstance(node, dict) else node
+        stack.extend((c, depth + 1) for c in children if isinstance(c, (dict, list)))
+
+
 # --------------------------------------------------------------- loading
-def load_scene(path, device=None) -> Scene:
+def load_scene(path, device=None, confine: bool = False) -> Scene:
     """Read and validate a scene file.
 
     Parameters
@@ -111,6 +230,11 @@ def load_scene(path, device=None) -> Scene:
     device : DeviceProfile, str, Path or None
         Overrides the scene's ``[device] profile`` (a profile, a bundled name
         or a path).
+    confine : bool
+        Refuse, naming the key and the path, every file the scene names
+        (:func:`path_keys`; an SVG's ``data-device``, ``data-file``) that
+        does not resolve, symlinks followed, inside the scene's folder. The
+        studio sets it; a command line may read files anywhere.
 
     Returns
     -------
@@ -121,19 +245,22 @@ def load_scene(path, device=None) -> Scene:
     p = Path(path)
     if p.suffix.lower() == ".svg":           # a UI mockup: the scene it shows (scene/svg.py)
         from .svg import svg_scene_data
-        return parse_scene(svg_scene_data(p), str(p), p.resolve().parent, device=device)
+        origins: dict = {}
+        return parse_scene(svg_scene_data(p, origins=origins), str(p), p.resolve().parent, device=device,
+                           confine=confine, origins=origins)
     try:
         text = p.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise FileFormatError(f"scene '{p}': no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise FileFormatError(f"scene '{p}': unreadable ({exc})") from None
+    check_toml_nesting(text, f"scene '{p}'")
     tomllib = toml_module()
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise FileFormatError(f"scene '{p}': invalid TOML ({exc})") from None
-    return parse_scene(data, str(p), p.resolve().parent, device=device)
+    return parse_scene(data, str(p), p.resolve().parent, device=device, confine=confine)
 
 
 def import_svg(path, output, *, overwrite: bool = False) -> dict:
@@ -158,11 +285,25 @@ def import_svg(path, output, *, overwrite: bool = False) -> dict:
     return {"widgets": len(scene.widgets), "notes": notes, "warnings": list(scene.warnings), "path": str(output)}
 
 
-def parse_scene(data: dict, path: str = "<scene>", base_dir: Path | None = None, device=None) -> Scene:
-    """Validate parsed TOML ``data`` into a :class:`Scene` (see :func:`load_scene`)."""
+def parse_scene(data: dict, path: str = "<scene>", base_dir: Path | None = None, device=None,
+                confine: bool = False, origins: dict | None = None) -> Scene:
+    """Validate parsed TOML ``data`` into a :class:`Scene` (see :func:`load_scene`).
+
+    ``origins`` maps field paths to what they were written as (an SVG's attributes), for messages.
+    """
     from ..devices import DeviceProfile, load_device
 
-    ctx = Ctx(path, Path(base_dir) if base_dir is not None else Path.cwd())
+    ctx = Ctx(path, Path(base_dir) if base_dir is not None else Path.cwd(), confine=confine, origins=origins)
+    if not isinstance(data, dict):
+        raise SceneError(f"scene '{path}': must be a table of sections (got {type(data).__name__})")
+    check_data_nesting(data, f"scene '{path}'")
+    raw_widgets = data.get("widget", [])
+    if isinstance(raw_widgets, list) and len(raw_widgets) > MAX_WIDGETS:
+        raise SceneError(f"scene '{path}': {len(raw_widgets)} [[widget]] entries, more than the limit of "
+                         f"{MAX_WIDGETS} (MAX_WIDGETS, docs/limits.md); split the scene")
+    if confine:                             # every file the scene names, before any is read
+        for where, field_path, value in path_refs(data):
+            ctx.file(where, field_path, value)
     check_keys(data, SECTIONS, ctx, "", "", "section")
     for sec in ("scene", "canvas", "device", "mapping", "defaults"):
         if sec in data and not isinstance(data[sec], dict):
@@ -183,14 +324,17 @@ def parse_scene(data: dict, path: str = "<scene>", base_dir: Path | None = None,
         src = device if device is not None else dev_raw.get("profile")
         if src is not None and not isinstance(src, (str, Path)):
             raise ctx.error("", "device.profile", f"must be a bundled device name or a path (got {src!r})")
-        if src is not None and isinstance(src, str) and (src.endswith(".toml") or "/" in src) and device is None:
-            cand = ctx.base_dir / src
-            src = cand if cand.exists() else src
+        named = src
+        if src is not None and device is None:
+            src = _device_source(src, ctx)
         try:
             dev = load_device(src)
         except InputError as exc:
             raise SceneError(f"scene '{path}': `device.profile`: {exc}") from None
-        dev_src = str(src) if src is not None else "default"
+        if src is None:
+            dev_src = "default"
+        else:                               # a bundled profile is recorded by its name
+            dev_src = str(src) if is_device_path(named) else str(named)
 
     mapping, direction = _parse_mapping(data.get("mapping", {}), ctx)
     defaults = data.get("defaults", {})
@@ -298,9 +442,14 @@ def _parse_canvas(raw, ctx: Ctx) -> Canvas:
     n = canvas.rows * canvas.cols
     if n > MAX_CANVAS_SAMPLES:
         raise ctx.error("", "canvas.resolution",
-                        f"gives {canvas.cols} x {canvas.rows} = {n} samples, more than the limit of "
+                        f"gives {_count(canvas.cols)} x {_count(canvas.rows)} = {_count(n)} samples, more than the limit of "
                         f"{MAX_CANVAS_SAMPLES}; use a coarser resolution (got {spacing * 1e3:g} mm)")
     return canvas
+
+
+def _count(n: int) -> str:
+    """A sample count for a message: exact, or in e-notation when it is absurd."""
+    return str(n) if n < 10 ** 12 else f"~1e{len(str(n)) - 1}"
 
 
 def _parse_mapping(raw: dict, ctx: Ctx) -> tuple[MappingOptions, str]:

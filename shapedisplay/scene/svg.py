@@ -106,7 +106,7 @@ def _widget_type(attrs: dict, types) -> str | None:
     return None
 
 
-def svg_scene_data(path, notes: list | None = None) -> dict:
+def svg_scene_data(path, notes: list | None = None, origins: dict | None = None) -> dict:
     """The scene data (as parsed TOML would hold it) of an SVG mockup; see the module docstring.
 
     Parameters
@@ -115,6 +115,9 @@ def svg_scene_data(path, notes: list | None = None) -> dict:
         The ``.svg`` file.
     notes : list, optional
         Receives one line per thing left out (elements without a widget type).
+    origins : dict, optional
+        Receives, per scene field path (``device.profile``, ``widget[3].file``), the attribute
+        it was read from (``<svg data-device>``), for messages about it.
 
     Returns
     -------
@@ -147,11 +150,20 @@ def svg_scene_data(path, notes: list | None = None) -> dict:
         name = key[5:].replace("-", "_")
         sec, field = _ROOT_KEYS.get(name, ("mapping", name))
         data.setdefault(sec, {})[field] = _value(value)
+        if origins is not None:
+            origins[f"{sec}.{field}"] = f"<svg {key}>"
 
     def xy(px, py):    # SVG px (y down) -> scene mm (y up)
         return px * k, H - py * k
 
     widgets, seen, skipped = [], set(), 0
+
+    def add(widget: dict, wid: str, attrs: dict) -> None:
+        if origins is not None:
+            for key in attrs:
+                if key.startswith("data-") and key != "data-widget":
+                    origins[f"widget[{len(widgets)}].{key[5:].replace('-', '_')}"] = f"element '{wid}' {key}"
+        widgets.append(widget)
     for el in svg.elements():
         if el is svg:
             continue
@@ -181,7 +193,7 @@ def svg_scene_data(path, notes: list | None = None) -> dict:
                     "stroke-width" in attrs:
                 opts["width"] = f"{_mm(float(el.stroke_width) * k)} mm"
             if "from" in opts or "to" in opts:
-                widgets.append({"id": wid, "type": wtype, **opts})
+                add({"id": wid, "type": wtype, **opts}, wid, attrs)
                 continue
             segs = _segments(el, se)
             if not segs:
@@ -189,8 +201,8 @@ def svg_scene_data(path, notes: list | None = None) -> dict:
             for i, (a, b) in enumerate(segs):
                 (ax, ay), (bx, by) = xy(a.x, a.y), xy(b.x, b.y)
                 sid = wid if len(segs) == 1 else f"{wid}-{i + 1}"
-                widgets.append({"id": sid, "type": wtype, "from": f"{_mm(ax)},{_mm(ay)} mm",
-                                "to": f"{_mm(bx)},{_mm(by)} mm", **opts})
+                add({"id": sid, "type": wtype, "from": f"{_mm(ax)},{_mm(ay)} mm",
+                     "to": f"{_mm(bx)},{_mm(by)} mm", **opts}, wid, attrs)
             continue
         w = {"id": wid, "type": wtype}
         if "position" not in opts and "center" not in opts:
@@ -204,7 +216,7 @@ def svg_scene_data(path, notes: list | None = None) -> dict:
                 r = min(float(el.rx or el.ry), float(el.ry or el.rx)) * k
                 w["corner_radius"] = f"{_mm(r)} mm"
         w.update(opts)
-        widgets.append(w)
+        add(w, wid, attrs)
         seen.add(wid)
     if skipped and notes is not None:
         notes.append(f"{skipped} element(s) without a widget type left out (text, decoration)")

@@ -28,13 +28,16 @@ from pathlib import Path
 import numpy as np
 
 from ..forces import EXPONENTS, equal_steps
-from .fields import (Canvas, Ctx, OVERLAP_RULES, SceneError, Widget, choice, length, number, pair,
-                     quantity, wrap_unit_errors)
+from .fields import (MAX_LENGTH_M, Canvas, Ctx, OVERLAP_RULES, SceneError, Widget, choice, length, number,
+                     pair, quantity, wrap_unit_errors)
 
 #: Published starting points: ramp spans of 10-30 mm were studied;
 #: perception saturates above ~15 mm at 0.15 N/mm.
 DEFAULT_RAMP = "10 mm"
 EDGES = ("linear", "cosine", "tent")
+#: Largest box a widget may span on the canvas grid (samples), checked before its geometry is
+#: built (a mesh is rasterised on the whole box, also where it reaches past the canvas).
+MAX_WIDGET_SAMPLES = 4096 * 4096
 
 
 # --------------------------------------------------------------- shapes
@@ -569,9 +572,7 @@ def _resample(values: np.ndarray, u, v, W: float, H: float, is_1d: bool, centred
 def _file(raw, key, w: PlaceCtx, what: str) -> Path:
     if key not in raw:
         raise w.error(key, f"is required for a{'n' if what[0] in 'aeiou' else ''} {what} (e.g. {key} = \"terrain.png\")")
-    p = Path(str(raw[key]))
-    if not p.is_absolute():
-        p = w.ctx.base_dir / p
+    p = w.ctx.file(w.where, w.fp + key, raw[key])
     if not p.is_file():
         raise w.error(key, f"names a missing {what} file (got {str(raw[key])!r}, looked for '{p}')")
     return p
@@ -604,6 +605,8 @@ class Image(WidgetType):
         else:
             from ..units import parse_pair
             lo, hi = wrap_unit_errors(w.ctx, w.where, parse_pair, raw.get("height", "0:2mm"), ":", "m", w.fp + "height")
+            if not (abs(lo) <= MAX_LENGTH_M and abs(hi) <= MAX_LENGTH_M):
+                raise w.error("height", f"must be lengths within {MAX_LENGTH_M:g} m of 0 (got {raw.get('height')!r})")
         if hi < lo:
             raise w.error("height", f"range must run low:high (got {raw.get('height', raw.get('force'))!r})")
         from ..sources import load_image
@@ -787,6 +790,11 @@ def place_widget(wt: WidgetType, raw: dict, index: int, wid: str, canvas: Canvas
     else:
         row0 = int(round(y / s))
         nrows = max(int(round(sh / s)) + 1, 2)
+    if ncols * nrows > MAX_WIDGET_SAMPLES:
+        raise ctx.error(where, f"widget[{index}].{'size' if wt.boxed else 'from'}",
+                        f"gives a box of {ncols} x {nrows} = {ncols * nrows} samples on the "
+                        f"{s * 1e3:g} mm grid, more than the limit of {MAX_WIDGET_SAMPLES} (got {sw * 1e3:g} x "
+                        f"{sh * 1e3:g} mm)")
     W, H = (ncols - 1) * s, (0.0 if canvas.is_1d else (nrows - 1) * s)
     moved = max(abs(col0 * s - x), abs(row0 * s - y), abs(W - sw), abs(H - sh))
     if moved > 1e-3 * s:

@@ -5,9 +5,14 @@ last good compile (table, report, generation number) and the last error.
 Compiling again never loses the last good table: a scene with an error keeps
 the previous table playing and records the error with the line it points at.
 
-Files: the session reads only under the source's folder (a scene's image
-widgets and a device profile given as a path must lie there too) and writes
-only the scene text the page saves and files under the output folder.
+Files: the session reads only under the source's folder: every file a scene
+or an SVG mockup names (``scene.path_keys()``: image, mesh and data widget
+files, the device profile, from a widget or from ``[defaults]``) must
+resolve there, symlinks followed, or the compile is refused with one line
+naming the key and the path (``compile_scene(..., confine=True)``); a
+``--device`` given as a path must lie there too, and a device given by name
+is only ever a bundled profile. It writes only the scene text the page saves
+and files under the output folder.
 """
 from __future__ import annotations
 
@@ -16,7 +21,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import FileFormatError, InputError, ShapeDisplayError
+from ..errors import FileFormatError, InputError, ShapeDisplayError, unknown_key
 from ..sources import source_kind
 
 #: Largest scene text the page may save, bytes.
@@ -86,7 +91,8 @@ class Session:
         self.kind = source_kind(src)
         self.source = src.resolve()
         self.root = self.source.parent
-        if self.device is not None and _looks_like_path(self.device):
+        from ..scene.spec import is_device_path
+        if self.device is not None and is_device_path(self.device):
             dev = Path(self.device)
             dev = dev if dev.is_absolute() else Path.cwd() / dev
             if not inside(dev, self.root):
@@ -111,29 +117,6 @@ class Session:
         if len(data) > MAX_SCENE_BYTES:
             raise InputError(f"scene text must be at most {MAX_SCENE_BYTES} bytes (got {len(data)})")
         write_text(self.source, text)
-
-    def _check_scene_reads(self, text: str) -> None:
-        """Refuse a scene that would read a file outside the source's folder."""
-        from ..devices import toml_module
-        tomllib = toml_module()
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError:
-            return                      # the compiler reports the syntax error with its line
-        refs = []
-        dev = data.get("device")
-        if isinstance(dev, dict) and isinstance(dev.get("profile"), str) and _looks_like_path(dev["profile"]):
-            refs.append(("device.profile", dev["profile"]))
-        widgets = data.get("widget")
-        for i, w in enumerate(widgets if isinstance(widgets, list) else []):
-            if isinstance(w, dict) and isinstance(w.get("file"), str):
-                refs.append((f"widget[{i}].file", w["file"]))
-        for name, ref in refs:
-            p = Path(ref)
-            if not inside(p if p.is_absolute() else self.root / p, self.root):
-                where = f"widget[{name[7:name.index(']')]}] " if name.startswith("widget[") else ""
-                raise InputError(f"scene '{self.source}': {where}`{name}` = '{ref}' lies outside the scene's folder "
-                                 f"'{self.root}'; the studio reads only under that folder")
 
     # -------------------------------------------------------------- compiling
     def compile(self) -> bool:
@@ -166,7 +149,6 @@ class Session:
 
     def _compile_source(self):
         from ..compile import compile_heightfield, format_report
-        from ..devices import load_device
         if self.kind == "table":
             from ..table import FrictionTable
             table = FrictionTable.load(self.source)
@@ -174,20 +156,26 @@ class Session:
             return table, report, (format_report(report) if report.get("grid") else "")
         if self.kind in ("scene", "svg"):
             from ..scene import compile_scene, format_widget_report
-            try:
-                text = self.source.read_text(encoding="utf-8")
-            except (OSError, UnicodeDecodeError) as exc:
-                raise FileFormatError(f"scene '{self.source}': unreadable ({exc})") from None
-            if self.kind == "scene":
-                self._check_scene_reads(text)
-            device = load_device(self.device) if self.device else None
-            result = compile_scene(self.source, device=device)
+            device = self._device() if self.device else None
+            result = compile_scene(self.source, device=device, confine=True)
             report_text = format_report(result.report) + "\n" + format_widget_report(result.report)
             return result.table, result.report, report_text
         from ..sources import load_source
         hf = load_source(self.source, **self.source_options)
-        result = compile_heightfield(hf, load_device(self.device))
+        result = compile_heightfield(hf, self._device())
         return result.table, result.report, format_report(result.report)
+
+    def _device(self):
+        """The ``--device`` profile: a file checked to lie under the folder, or a bundled name
+        (never a file of the current directory that happens to have that name)."""
+        from ..devices import BUNDLED_DEVICES, load_device
+        from ..scene.spec import is_device_path
+        if self.device is None or is_device_path(self.device):
+            return load_device(self.device)
+        bundled = BUNDLED_DEVICES / f"{self.device}.toml"
+        if not bundled.is_file():
+            raise unknown_key("device", self.device, (p.stem for p in BUNDLED_DEVICES.glob("*.toml")))
+        return load_device(bundled)
 
     # -------------------------------------------------------------- page state
     def state(self) -> dict:
@@ -223,9 +211,3 @@ class Session:
         except ValueError:
             pass
         return inside(p, self.root)
-
-
-def _looks_like_path(value: str) -> bool:
-    return "/" in value or "\\" in value or value.lower().endswith(".toml")
-
-
