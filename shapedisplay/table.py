@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from .atomic import atomic_path
-from .container import NpzReader, write_npz
+from .container import NpzReader, parse_json, write_npz
 from .errors import TableError, InputError, did_you_mean, unknown_key
 
 FORMAT_NAME = "shapedisplay-friction-table"
@@ -384,24 +384,34 @@ class FrictionTable:
 
     # -------------------------------------------------------------- files
     def save(self, path: str | os.PathLike) -> Path:
-        """Write atomically to ``path`` (.npz). Returns the path."""
+        """Write atomically to ``path`` (.npz). Returns the path.
+
+        The table is first checked by the reader's rules (:func:`check_readable`):
+        a table :meth:`load` would refuse is not written.
+        """
         path = Path(path)
+        arrays = self._arrays(str(path))
         with atomic_path(path, suffix=".npz") as tmp:
             with open(tmp, "wb") as fh:
-                write_npz(fh, self._arrays())
+                write_npz(fh, arrays)
         return path
 
     def to_bytes(self) -> bytes:
-        """The bytes of the table file (.npz) that :meth:`save` writes."""
+        """The bytes of the table file (.npz) that :meth:`save` writes (checked as :meth:`save` does)."""
         buf = io.BytesIO()
-        write_npz(buf, self._arrays())
+        write_npz(buf, self._arrays("<bytes>"))
         return buf.getvalue()
 
-    def _arrays(self) -> dict:
-        """The entries of the table file: ``header`` (JSON with its checksum) and each channel, little-endian."""
+    def _arrays(self, where: str = "<bytes>") -> dict:
+        """The entries of the table file: ``header`` (JSON with its checksum) and each channel, little-endian.
+
+        Raises :class:`TableError` if the reader would refuse them (``where`` names the file).
+        """
         header = self.header()
         header["checksum"] = _checksum(header, self.codes)
-        arrays = {"header": np.frombuffer(json.dumps(header, sort_keys=True).encode(), dtype=np.uint8)}
+        text = json.dumps(header, sort_keys=True).encode()
+        check_readable(text, self.codes, where)
+        arrays = {"header": np.frombuffer(text, dtype=np.uint8)}
         for n, a in self.codes.items():
             arrays[n] = a.astype(a.dtype.newbyteorder("<"), copy=False)
         return arrays
@@ -450,8 +460,6 @@ class FrictionTable:
                 raise TableError(f"{label}: unexpected entry '{unknown[0]}'; a table holds 'header' and "
                                  f"channel arrays only")
             header = z.read_json("header", HEADER_MAX_BYTES)
-            if not isinstance(header, dict):
-                raise TableError(f"{label}: header must be a JSON object (got {type(header).__name__})")
             cap, dtypes = array_caps(header, label)
             arrays, spent = {}, 0
             for name in sorted(z.entries):
@@ -616,8 +624,39 @@ def stored_values_cap(grid: Grid) -> int:
     return min(MAX_CANVAS_SAMPLES, STORED_PER_CANVAS * grid.rows * grid.cols)
 
 
+def check_readable(header_json: bytes, codes: dict, where: str) -> None:
+    """Check a table's header (JSON bytes) and channel arrays by the rules its reader applies.
+
+    The writer's half of :meth:`FrictionTable._from_npz`: the same header
+    size, depth and finiteness caps (:func:`~shapedisplay.container.parse_json`),
+    the same per-channel and total array caps (:func:`array_caps`) and the
+    same schema (:meth:`FrictionTable.from_header`). Raises
+    :class:`TableError` naming the table ``where``, the key, the rule and the
+    value, with "not written" added.
+    """
+    label = f"table '{where}'"
+    try:
+        if len(header_json) > HEADER_MAX_BYTES:
+            raise TableError(f"{label}, entry 'header': {len(header_json)} elements exceed the limit of "
+                             f"{HEADER_MAX_BYTES}")
+        header = parse_json(header_json, f"{label}, entry 'header'")
+        cap, dtypes = array_caps(header, label)
+        spent = 0
+        for name, a in codes.items():
+            if a.size > cap:
+                raise TableError(f"{label}, entry '{name}': {a.size} elements exceed the limit of {cap}")
+            spent += a.nbytes
+        if spent > MAX_TABLE_BYTES:
+            raise TableError(f"{label}: channels hold {spent} bytes, beyond the limit of {MAX_TABLE_BYTES}")
+        FrictionTable.from_header(header, codes, where)
+    except TableError as exc:
+        raise TableError(f"{exc}; not written (the table reader would refuse it)") from None
+
+
 def array_caps(header: dict, label: str) -> tuple[int, dict]:
     """Per-channel element cap and declared dtypes, from the header alone (before any array is read)."""
+    if not isinstance(header, dict):
+        raise TableError(f"{label}: header must be a JSON object (got {type(header).__name__})")
     try:
         if header.get("format") != FORMAT_NAME:
             raise TableError(f"format is {_short(header.get('format'))}, expected {FORMAT_NAME!r}")

@@ -556,3 +556,42 @@ def test_stribeck_tolerance_option_and_profile_key(tmp_path, compiled, capsys):
                           "-o", tmp_path / "o.wav"], capsys)
     assert code == 0, err
     assert (tmp_path / "o.wav").stat().st_size > 44
+
+
+def _stl_near_float32_max(path: Path, s: float = 3e38) -> None:
+    """A 184-byte binary STL: two triangles with coordinates near 1e38 (float32's largest is 3.4e38)."""
+    tris = [((-s, -s, 0), (s, -s, 0), (-s, s, s)), ((s, -s, 0), (s, s, s), (-s, s, s))]
+    data = b"\0" * 80 + struct.pack("<I", len(tris))
+    for t in tris:
+        data += struct.pack("<3f", 0, 0, 1) + b"".join(struct.pack("<3f", *v) for v in t) + b"\0\0"
+    path.write_bytes(data)
+    assert len(data) == 184
+
+
+@pytest.mark.parametrize("s", [1e38, 3e38])
+def test_compile_writes_no_table_its_reader_refuses(tmp_path, capsys, s):
+    """Coordinates near 1e38 compiled (exit 0) into a table `inspect` refused (grid.dx_m 1.17e+33)."""
+    stl, out = tmp_path / "huge.stl", tmp_path / "t.npz"
+    _stl_near_float32_max(stl, s)
+    code, stdout, err = run(["compile", stl, "-o", out], capsys)
+    assert code == 2 and not stdout and not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["huge.stl"]
+    assert "Traceback" not in err and "RuntimeWarning" not in err and "overflow" not in err
+    errors = [line for line in err.splitlines() if ": error: " in line]
+    assert errors == err.splitlines()[-1:], err          # before it at most the size warning that explains it
+    assert errors[0].startswith(f"shapedisplay compile: error: table '{out}': header 'grid.dx_m' must be within "
+                                f"0..1000 (got ")
+    assert errors[0].endswith("; not written (the table reader would refuse it)")
+
+
+def test_table_writer_and_reader_share_one_rule(table, tmp_path):
+    """The rule that refuses a table on reading refuses it on writing: save, to_bytes; nothing left behind."""
+    import dataclasses
+    from shapedisplay.table import Grid
+    far = dataclasses.replace(table, grid=Grid(table.grid.rows, table.grid.cols, 2e3, table.grid.dy))
+    for write in (lambda: far.save(tmp_path / "far.npz"), far.to_bytes):
+        with pytest.raises(TableError, match=r"header 'grid.dx_m' must be within 0..1000 \(got 2000.0\); not "
+                                             r"written \(the table reader would refuse it\)") as e:
+            write()
+        assert "\n" not in str(e.value)
+    assert list(tmp_path.iterdir()) == []
+    assert FrictionTable.from_bytes(table.to_bytes()).checksum() == table.checksum()
