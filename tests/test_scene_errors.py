@@ -282,3 +282,84 @@ def test_unit_hints_propose_millimetres_and_newtons(tmp_path):
     from shapedisplay.units import parse_quantity
     with pytest.raises(UnitError, match=r"e.g. '2 N/mm'"):
         parse_quantity("2", "N/m", "n_gain")
+
+
+# --------------------------------------------------------------- limits checked as the scene is read
+def _cli_one_line(args, capsys) -> str:
+    from shapedisplay_cli.main import main
+    assert main(args) == 2
+    e = capsys.readouterr().err
+    assert e.count("\n") == 1 and "Traceback" not in e, e[:2000]
+    return e
+
+
+@pytest.mark.parametrize("value", [
+    "[" * 6000 + "]" * 6000,                                   # 12 KB of nested arrays
+    "{a = " * 3000 + "1" + "}" * 3000,                         # nested inline tables
+    "[" * 33 + "1" + "]" * 33,                                 # one level past the limit
+])
+def test_deep_nesting_is_one_line_exit_2(tmp_path, capsys, value):
+    from shapedisplay.scene.spec import MAX_NESTING
+    p = scene(tmp_path, BUTTON + f"label = {value}\n")
+    for cmd in (["check", str(p)], ["compile", str(p), "-o", str(tmp_path / "t.npz")]):
+        e = _cli_one_line(cmd, capsys)
+        assert f"more than {MAX_NESTING} levels" in e and "at line 15" in e
+    assert not (tmp_path / "t.npz").exists()
+
+
+def test_nesting_within_the_limit_and_brackets_in_strings_pass_the_depth_check(tmp_path):
+    deep = "[" * 100
+    for extra in (f'label = "{deep}"  # {deep}\n', f"label = '{deep}'\n", f'label = """\n{deep}"""\n',
+                  f"label = \'\'\'{deep}\'\'\'\n", "label = " + "[" * 5 + "1" + "]" * 5 + "\n"):
+        assert isinstance(check_scene(scene(tmp_path, BUTTON + extra)), list), extra
+
+
+def test_deep_dotted_keys_are_refused(tmp_path, capsys):
+    p = scene(tmp_path, BUTTON + "label." + ".".join(["a"] * 3000) + " = 1\n")
+    assert "levels deep" in _cli_one_line(["check", str(p)], capsys)
+
+
+@pytest.mark.parametrize("key, value", [
+    ("size", '"1e308x5 mm"'), ("position", '"1e308,0 mm"'), ("position", '"0,-1e308 mm"'),
+    ("size", '["1e308 mm", "5 mm"]'), ("ramp", '"1e308 mm"'), ("height", '"1e300 mm"'),
+])
+def test_huge_geometry_is_refused_naming_key_and_value(tmp_path, capsys, key, value):
+    from shapedisplay.scene.fields import MAX_LENGTH_M
+    text = BUTTON.replace(f"{key} = ", f"{key}_old = ") if key in BUTTON else BUTTON
+    text = "\n".join(line for line in text.splitlines() if not line.startswith(f"{key}_old")) + f"\n{key} = {value}\n"
+    p = scene(tmp_path, text)
+    e = _cli_one_line(["compile", str(p), "-o", str(tmp_path / "t.npz")], capsys)
+    assert f"`widget[0].{key}`" in e and f"within {MAX_LENGTH_M:g} m" in e and "1e30" in e
+    assert _cli_one_line(["check", str(p)], capsys)
+
+
+def test_a_widget_box_too_large_for_the_grid_is_refused(tmp_path):
+    from shapedisplay.scene.widgets import MAX_WIDGET_SAMPLES
+    text = BUTTON.replace('size = "20x10 mm"', 'size = "900x900 m"')
+    with pytest.raises(InputError, match=f"more than the limit of {MAX_WIDGET_SAMPLES}"):
+        check_scene(scene(tmp_path, text))
+
+
+def test_huge_canvas_resolution_is_one_line(tmp_path, capsys):
+    p = scene(tmp_path, BUTTON, head=HEAD.replace('"0.5 mm"', '"1e-300 mm"'))
+    e = _cli_one_line(["check", str(p)], capsys)
+    assert "`canvas.resolution`" in e and len(e) < 400
+
+
+def test_widget_count_limit_is_checked_before_any_work(tmp_path, capsys, monkeypatch):
+    import time
+
+    from shapedisplay.scene import spec
+    n = spec.MAX_WIDGETS + 1
+    text = "".join(f'[[widget]]\nid = "b{i}"\ntype = "button"\nposition = "1,1 mm"\nsize = "2x2 mm"\n'
+                   for i in range(n))
+    p = scene(tmp_path, text)
+    t0 = time.perf_counter()
+    e = _cli_one_line(["check", str(p)], capsys)
+    assert f"{n} [[widget]] entries, more than the limit of {spec.MAX_WIDGETS}" in e
+    assert time.perf_counter() - t0 < 2.0
+    called = []
+    monkeypatch.setattr(spec, "place_widget", lambda *a, **k: called.append(1))
+    with pytest.raises(InputError, match="MAX_WIDGETS"):
+        load_scene(p)
+    assert not called

@@ -207,8 +207,11 @@ def check_toml_nesting(text: str, where: str) -> None:
 
 
 def check_data_nesting(data, where: str) -> None:
-    """Refuse parsed scene data nested deeper than :data:`MAX_NESTING` (an iterative walk)."""
-    stack = [(data, 1)]
+    """Refuse parsed scene data nested deeper than :data:`MAX_NESTING` (an iterative walk).
+
+    The file's top level is level 0: ``[[widget]]`` is 1, a widget's table 2, an array in it 3.
+    """
+    stack = [(data, 0)]
     while stack:
         node, depth = stack.pop()
         if depth > MAX_NESTING:
