@@ -312,3 +312,79 @@ def test_default_port_taken_moves_to_the_next_free_one():
             bind_port("127.0.0.1", DEFAULT_PORT)
     finally:
         held.close()
+
+
+def _raw_get(studio, path: str, headers: list) -> int:
+    """Status of a GET sent with exactly ``headers`` (repeats kept; urllib would merge them)."""
+    import http.client
+    conn = http.client.HTTPConnection(studio.host, timeout=30)
+    try:
+        conn.putrequest("GET", f"{path}?token={studio.token}", skip_host=True, skip_accept_encoding=True)
+        for name, value in headers:
+            conn.putheader(name, value)
+        conn.endheaders()
+        return conn.getresponse().status
+    finally:
+        conn.close()
+
+
+def _gate_status(headers: list) -> int:
+    """Status the studio's security gate answers a request with ``headers`` (in-process, ASGI)."""
+    import asyncio
+
+    from shapedisplay.studio.app import Gate
+
+    async def app(scope, receive, send):
+        await send({"type": "http.response.start", "status": 200, "headers": []})
+        await send({"type": "http.response.body", "body": b""})
+
+    sent = []
+
+    async def send(msg):
+        sent.append(msg)
+
+    async def receive():
+        return {"type": "http.request", "body": b""}
+
+    scope = {"type": "http", "query_string": b"token=t", "path": "/api/state",
+             "headers": [(k.lower().encode(), v.encode()) for k, v in headers]}
+    asyncio.run(Gate(app, "t", {"h:1"}, {"http://h:1"})(scope, receive, send))
+    return sent[0]["status"]
+
+
+def test_two_host_or_two_origin_headers_are_refused(studio):
+    assert _gate_status([("Host", "h:1")]) == 200
+    assert _gate_status([("Host", "h:1"), ("Origin", "http://h:1")]) == 200
+    assert _gate_status([("Host", "h:1"), ("Host", "h:1")]) == 403
+    assert _gate_status([("Host", "evil:1"), ("Host", "h:1")]) == 403
+    assert _gate_status([("Host", "h:1"), ("Origin", "http://evil"), ("Origin", "http://h:1")]) == 403
+    assert _gate_status([("Host", "h:1"), ("Origin", "http://h:1"), ("Origin", "http://h:1")]) == 403
+    # through the real server: the HTTP parser may refuse two Hosts itself (400) before the gate does (403)
+    own_host, own_origin = studio.host, f"http://{studio.host}"
+    assert _raw_get(studio, "/api/state", [("Host", own_host)]) == 200
+    assert _raw_get(studio, "/api/state", [("Host", own_host), ("Origin", own_origin)]) == 200
+    assert _raw_get(studio, "/api/state", [("Host", own_host), ("Host", own_host)]) in (400, 403)
+    assert _raw_get(studio, "/api/state", [("Host", own_host), ("Host", "attacker.example")]) in (400, 403)
+    assert _raw_get(studio, "/api/state", [("Host", own_host), ("Origin", own_origin),
+                                           ("Origin", own_origin)]) == 403
+    assert _raw_get(studio, "/api/state", [("Host", own_host), ("Origin", "http://attacker.example"),
+                                           ("Origin", own_origin)]) == 403
+
+
+def test_malformed_snapshot_bodies_are_400_with_one_line(tmp_path):
+    shutil.copy(PHONE, tmp_path / "phone.toml")
+    s = StudioProcess(tmp_path / "phone.toml")
+    try:
+        s.wait_state(lambda st: st["table_generation"] is not None)
+        for body in (b'{"stroke":{"t":{"a":1}}}', b'{"stroke":{"t":[[1]]}}', b'{"stroke":{"t":["a"]}}',
+                     b'{"stroke":{"t":[true]}}', b'{"stroke":{"nope":[1]}}', b'{"stroke":[1]}',
+                     b'{"channel":{"a":1}}', b"[" * 100_000 + b"]" * 100_000,
+                     b'{"a":' * 50_000 + b"1" + b"}" * 50_000, b"{not json", b"\xff\xfe"):
+            status, reply = s.get("/api/snapshot", method="POST", data=body)
+            assert status == 400, (body[:40], status, reply[:200])
+            msg = json.loads(reply)["error"]
+            assert msg and "\n" not in msg, msg
+    finally:
+        s.stop()
+    err = s.proc.stderr.read()
+    assert "Traceback" not in err and "500" not in err, err[-2000:]

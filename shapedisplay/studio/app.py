@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import re
 import secrets
 import struct
 import time
@@ -47,7 +48,11 @@ class Gate:
         self.app, self.token, self.hosts, self.origins = app, token, hosts, origins
 
     def refusal(self, scope) -> str | None:
-        headers = {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in scope.get("headers", [])}
+        raw = [(k.decode("latin-1").lower(), v.decode("latin-1")) for k, v in scope.get("headers", [])]
+        for name in ("host", "origin"):
+            if sum(1 for k, _ in raw if k == name) > 1:
+                return f"refused: more than one {name.capitalize()} header"
+        headers = dict(raw)
         host = headers.get("host", "")
         if host not in self.hosts:
             return f"refused: Host '{host}' is not this studio's address"
@@ -261,14 +266,14 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
         try:
             body = await _body(request)
             cur = need_table()
-            req = json.loads(body or b"{}")
-            if not isinstance(req, dict):
-                raise InputError("snapshot request must be a JSON object")
-            channel = str(req.get("channel", "normal_force"))
-            stroke = req.get("stroke") if isinstance(req.get("stroke"), dict) else None
+            req = _json_object(body or b"{}", "snapshot request")
+            channel = req.get("channel", "normal_force")
+            if not isinstance(channel, str):
+                raise InputError(f"snapshot `channel` must be a channel name (got {type(channel).__name__})")
+            stroke = req.get("stroke")            # checked by snapshot_png (views.check_stroke)
             png = await asyncio.get_running_loop().run_in_executor(None, snapshot_png, cur.table, channel, stroke)
-        except (ShapeDisplayError, ValueError) as exc:
-            return JSONResponse({"error": str(exc)}, status_code=400)
+        except ShapeDisplayError as exc:
+            return JSONResponse({"error": str(exc).splitlines()[0]}, status_code=400)
         return Response(png, media_type="image/png")
 
     async def ws(websocket):
@@ -309,6 +314,31 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
     app = Starlette(routes=routes, lifespan=lifespan)
     app.state.studio = studio
     return Gate(app, token, hosts, origins)
+
+
+#: Deepest nesting of arrays and objects in a request body (a stroke: 2), checked before parsing.
+MAX_JSON_NESTING = 32
+_JSON_TOKENS = re.compile(rb'"(?:[^"\\]|\\.)*"|[\[\]{}]')
+
+
+def _json_object(body: bytes, what: str) -> dict:
+    """Parse a request body that must be a JSON object, nested at most MAX_JSON_NESTING deep."""
+    depth = 0
+    for m in _JSON_TOKENS.finditer(body):
+        tok = m.group()
+        if tok in (b"[", b"{"):
+            depth += 1
+            if depth > MAX_JSON_NESTING:
+                raise InputError(f"{what} nests arrays and objects more than {MAX_JSON_NESTING} levels deep")
+        elif tok in (b"]", b"}"):
+            depth -= 1
+    try:
+        req = json.loads(body)
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise InputError(f"{what} must be JSON ({str(exc).splitlines()[0]})") from None
+    if not isinstance(req, dict):
+        raise InputError(f"{what} must be a JSON object (got {type(req).__name__})")
+    return req
 
 
 async def _body(request) -> bytes:

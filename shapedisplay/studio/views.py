@@ -10,6 +10,8 @@ import io
 
 import numpy as np
 
+from ..errors import InputError, unknown_key
+
 #: Viridis at 16 evenly spaced points (the preview's default colour map), 8-bit RGB.
 VIRIDIS = np.array([(68, 1, 84), (72, 26, 108), (71, 47, 125), (65, 68, 135), (57, 86, 140), (49, 104, 142),
                     (42, 120, 142), (35, 136, 142), (31, 152, 139), (34, 168, 132), (53, 183, 121),
@@ -52,6 +54,28 @@ def _lut() -> np.ndarray:
 _LUT = _lut()
 
 
+def check_stroke(stroke) -> dict:
+    """The page's recorded stroke as float64 arrays, or InputError naming the key and the rule.
+
+    ``stroke`` (parsed JSON) must be an object whose keys are trace arrays
+    (``viewer.TRACE_ARRAYS``) and whose values are flat lists of numbers; what
+    the numbers must satisfy (finite, equal lengths, ...) the trace checks.
+    """
+    from ..viewer import TRACE_ARRAYS
+    if not isinstance(stroke, dict):
+        raise InputError(f"snapshot `stroke` must be a JSON object of arrays (got {type(stroke).__name__})")
+    out = {}
+    for key, value in stroke.items():
+        if key not in TRACE_ARRAYS:
+            raise unknown_key("snapshot stroke array", str(key)[:40], TRACE_ARRAYS)
+        if not isinstance(value, list) or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                  for v in value):
+            raise InputError(f"snapshot `stroke.{key}` must be a flat list of numbers "
+                             f"(got {type(value).__name__}{' with other items' if isinstance(value, list) else ''})")
+        out[key] = np.asarray(value, dtype=np.float64)
+    return out
+
+
 def snapshot_png(table, channel: str = "normal_force", stroke: dict | None = None,
                  size: str = "1200x800") -> bytes:
     """The 3D preview of ``table`` (off-screen, as ``shapedisplay preview -o``), with the last stroke.
@@ -63,11 +87,12 @@ def snapshot_png(table, channel: str = "normal_force", stroke: dict | None = Non
     from PIL import Image
 
     from .. import viewer
+    arrays = check_stroke(stroke) if stroke else None     # a malformed stroke is refused before any work
     model = viewer.model_from_table(table)
     trace = None
-    if stroke:
-        trace = viewer.Trace(**{k: np.asarray(stroke.get(k, []), dtype=np.float64)
-                                for k in viewer.TRACE_ARRAYS}, table_checksum=table.checksum(), source="studio")
+    if arrays is not None:
+        trace = viewer.Trace(**{k: arrays.get(k, np.zeros(0)) for k in viewer.TRACE_ARRAYS},
+                             table_checksum=table.checksum(), source="studio")
     preview = viewer.render(model, channel, trace=trace, size=size, off_screen=True)
     try:
         img = preview.screenshot()
