@@ -512,6 +512,7 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units=None, ba
             f"({width * 1e3:.6g} x {height * 1e3:.6g} mm, projected area {proj * 1e6:.3g} mm^2); choose another `up`"
         )
     zscale = 1.0
+    origin = lo                                     # the footprint's corner, file coordinates in metres
     if size is None:
         _warn_size(where, width, height, units)
     else:   # scale about the footprint's corner
@@ -519,9 +520,12 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units=None, ba
             sx = sy = zscale = size / max(width, height)
         else:
             sx, sy = size[0] / width, size[1] / height
-        px, py, pz = lo[0] + (px - lo[0]) * sx, lo[1] + (py - lo[1]) * sy, lo[2] + (pz - lo[2]) * zscale
-        hi = lo + (hi - lo) * np.array([sx, sy, zscale])
-        width, height = float(hi[0] - lo[0]), float(hi[1] - lo[1])
+        # positions from the corner: adding the corner back would lose a scaled footprint far smaller than
+        # the corner's coordinates (1e38 mm scaled to 60 mm: width 0)
+        px, py, pz = (px - lo[0]) * sx, (py - lo[1]) * sy, (pz - lo[2]) * zscale
+        hi = (hi - lo) * np.array([sx, sy, zscale])
+        lo = np.zeros(3)
+        width, height = float(hi[0]), float(hi[1])
 
     # --- grid
     if shape is not None:
@@ -578,7 +582,7 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units=None, ba
         "meshes": info.get("meshes", 1),
         "units": units,
         "up": _up_text(up),
-        "model_origin_m": [float(lo[0]), float(lo[1]), float(lo[2])],
+        "model_origin_m": [float(v) for v in origin],
         "footprint_m": [width, height],
         "height_range_m": [0.0, relief] if hr is None else list(hr),
         "file_footprint_m": [file_width, file_height],

@@ -265,3 +265,12 @@ def test_obj_face_at_the_vertex_limit_still_reads(tmp_path):
     path.write_text("f " + " ".join(["1"] * (mesh.MAX_FACE_VERTICES + 1)) + "\n")   # the first line too
     with pytest.raises(FileFormatError, match=r"face on line 1 has 4097 vertices"):
         mesh.load_mesh(path)
+
+
+def test_size_scales_a_footprint_far_from_the_origin(tmp_path):
+    """Coordinates near 3e38 mm scaled to 60 mm: the corner added back lost the footprint (ZeroDivisionError)."""
+    s = 3e38
+    v = np.array([[-s, -s, 0], [s, -s, 0], [-s, s, s], [s, s, s]])
+    hf = mesh.mesh_to_heightfield((v, [[0, 1, 2], [1, 3, 2]]), size="60mm")
+    assert hf.size_m[0] == pytest.approx(60 * MM, rel=0.01) and np.isfinite(hf.heights).all()
+    assert hf.heights.max() == pytest.approx(30 * MM, rel=0.01)
