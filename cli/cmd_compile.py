@@ -92,9 +92,11 @@ class warnings_as_lines:
 
     def __exit__(self, *exc):
         import sys
+
+        from .main import printable
         self._ctx.__exit__(*exc)
         for w in self._caught:
-            print(f"shapedisplay {self.command}: warning: {w.message}", file=sys.stderr)
+            print(f"shapedisplay {self.command}: warning: {printable(str(w.message))}", file=sys.stderr)
         return False
 
 

@@ -153,6 +153,24 @@ PARAMETER_ALIASES = {
 }
 
 
+#: Characters a terminal acts on instead of showing: C0 and C1 controls, DEL, line and paragraph
+#: separators, and the bidirectional marks, embeddings, overrides and isolates (U+202E turns the rest
+#: of a line around).
+_UNPRINTABLE = re.compile("[\x00-\x1f\x7f-\x9f\u061c\u200e\u200f\u2028\u2029\u202a-\u202e\u2066-\u2069]")
+
+
+def printable(text: str) -> str:
+    """``text`` as one line a terminal shows as written: whitespace runs become one space, and every
+    other control or bidirectional-formatting character is written as its escape (``\\x00``, ``\\u202e``).
+
+    Messages quote file names and file contents; these must not move the cursor, ring, clear the
+    screen or reorder what follows on the line.
+    """
+    text = " ".join(text.split())
+    return _UNPRINTABLE.sub(lambda m: f"\\x{ord(m.group()):02x}" if ord(m.group()) < 0x100
+                            else f"\\u{ord(m.group()):04x}", text)
+
+
 def join_negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
     """``argv`` with values that start with '-' attached to their option (see :class:`CommandLine`)."""
     return CommandLine(parser, argv).argv
@@ -255,7 +273,7 @@ def main(argv=None) -> int:
         _check_outputs(args, line)
         return int(args.func(args) or 0)
     except ShapeDisplayError as exc:
-        message = " ".join(line.name_options(str(exc)).split())   # one line, whatever the text held
+        message = printable(line.name_options(str(exc)))   # one line, whatever the text held
         print(f"shapedisplay {args.command}: error: {message}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -85,6 +85,9 @@ _AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 MAX_MESH_BYTES = 512 * 1024 * 1024
 #: Most triangles a binary STL may declare in its header (10 M triangles = 500 MB of STL).
 MAX_MESH_TRIANGLES = 10_000_000
+#: Largest magnitude of a vertex coordinate, file units: the footprint, areas and normals are
+#: products of up to four coordinates, finite in float64 below this (an STL's float32 stays under 3.4e38).
+MAX_COORDINATE = 1e60
 #: Most vertices of one OBJ face (polygon), checked before trimesh splits it into a fan of
 #: triangles: each slice of a fan spans the polygon, and rasterising them costs the polygon's
 #: area per vertex (80,000 vertices: 47.5 s).
@@ -476,6 +479,13 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units=None, ba
         i = int(np.flatnonzero(bad)[0])
         raise InputError(
             f"{where}: vertices must be finite: {int(bad.sum())} NaN/inf vertices, first #{i} = {verts[i].tolist()}"
+        )
+    bad = used & np.any(np.abs(verts) > MAX_COORDINATE, axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise InputError(
+            f"{where}: vertex coordinates must be within +-{MAX_COORDINATE:g} (file units; "
+            f"shapedisplay.mesh.MAX_COORDINATE): {int(bad.sum())} vertices beyond, first #{i} = {verts[i].tolist()}"
         )
 
     # coordinates as contiguous columns (fast gathers and reductions), metres, rotated

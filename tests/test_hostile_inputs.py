@@ -595,3 +595,29 @@ def test_table_writer_and_reader_share_one_rule(table, tmp_path):
         assert "\n" not in str(e.value)
     assert list(tmp_path.iterdir()) == []
     assert FrictionTable.from_bytes(table.to_bytes()).checksum() == table.checksum()
+
+
+def test_error_lines_escape_control_and_bidi_characters(table, tmp_path, capsys):
+    """A quoted name with NUL, ESC and a right-to-left override is printed as escapes, on one line."""
+    header, arrays = parts(table)
+    evil = "n\x00\x1b[2J\u202eexe.txt"
+    header["channels"][evil] = header["channels"].pop(next(iter(header["channels"])))
+    path = tmp_path / "evil.npz"
+    path.write_bytes(resigned(header, arrays))
+    code, out, err = run(["inspect", path], capsys)
+    assert code == 2 and not out
+    assert err.count("\n") == 1 and "\x00" not in err and "\x1b" not in err and "\u202e" not in err
+    assert r"unknown channel 'n\x00\x1b[2J\u202eexe.txt'" in err, err
+
+
+def test_no_numpy_warning_before_a_mesh_error(tmp_path, capsys):
+    """Coordinates of 1e150 and 1e300 overflowed the area products: numpy warnings, then a traceback or an error."""
+    for c in ("1e150", "1e300"):
+        obj = tmp_path / f"huge{c}.obj"
+        obj.write_text(f"v -{c} -{c} 0\nv {c} -{c} 0\nv -{c} {c} {c}\nv {c} {c} {c}\nf 1 2 3\nf 2 4 3\n")
+        for extra in ([], ["--size", "60mm"]):
+            code, out, err = run(["compile", obj, "-o", tmp_path / "t.npz", *extra], capsys)
+            assert code == 2 and err.count("\n") == 1, err
+            assert err.startswith(f"shapedisplay compile: error: mesh '{obj}': vertex coordinates must be within "
+                                  f"+-1e+60 (file units; shapedisplay.mesh.MAX_COORDINATE): 4 vertices beyond")
+    assert sorted(p.suffix for p in tmp_path.iterdir()) == [".obj", ".obj"]
