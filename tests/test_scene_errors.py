@@ -363,3 +363,58 @@ def test_widget_count_limit_is_checked_before_any_work(tmp_path, capsys, monkeyp
     with pytest.raises(InputError, match="MAX_WIDGETS"):
         load_scene(p)
     assert not called
+
+
+def test_overlapping_pairs_equal_every_pair_checked():
+    import random
+
+    from shapedisplay.scene.compiler import _overlap, overlapping_pairs
+    rng = random.Random(7)
+    for n in (0, 1, 2, 50, 300):
+        boxes = []
+        for _ in range(n):
+            r0, c0 = rng.randrange(0, 200), rng.randrange(0, 300)
+            boxes.append((r0, c0, r0 + rng.randrange(0, 30), c0 + rng.randrange(0, 30)))
+        brute = [(i, j) for i in range(n) for j in range(i + 1, n) if _overlap(boxes[i], boxes[j])]
+        assert overlapping_pairs(boxes) == brute
+    strip = [(0, c, 0, c + 3) for c in range(0, 400, 2)]             # a 1-D canvas: one row, swept by columns
+    assert overlapping_pairs(strip) == [(i, j) for i in range(200) for j in range(i + 1, 200) if j - i <= 1]
+
+
+def _grid_of_buttons(n: int) -> str:
+    side = int(n ** 0.5) + 1
+    head = f'[canvas]\nsize = "{side * 6}x{side * 6} mm"\nresolution = "1 mm"\n'
+    return head + "".join(f'[[widget]]\nid = "b{i}"\ntype = "button"\nposition = "{i % side * 6 + 1},{i // side * 6 + 1} mm"\n'
+                          f'size = "4x4 mm"\nheight = "1 mm"\nramp = "1 mm"\n' for i in range(n))
+
+
+def test_many_widgets_cost_about_n_pair_checks_and_the_table_reads_back(tmp_path, monkeypatch):
+    """2,000 touching buttons (one block): ~n box comparisons, not n^2/2; the report lists a bounded
+    number of ids per widget, so the table's header stays within what the reader takes."""
+    from shapedisplay.scene import compiler
+    from shapedisplay.table import FrictionTable
+    n = 2000
+    p = tmp_path / "many.toml"
+    p.write_text(_grid_of_buttons(n))
+    calls = []
+    real = compiler._overlap
+    monkeypatch.setattr(compiler, "_overlap", lambda a, b: calls.append(1) or real(a, b))
+    result = compile_scene(p)
+    side = int(n ** 0.5) + 1
+    # four passes (groups, their rectangles, rules, warnings), each ~ n x (buttons in two rows);
+    # every pair in every pass would be 4 x n^2 / 2 = 8,000,000
+    assert len(calls) < 4 * n * 2 * side, len(calls)
+    monkeypatch.undo()
+    assert len(result.report["widgets"]) == n
+    out = tmp_path / "many.npz"
+    out.write_bytes(result.table.to_bytes())
+    assert FrictionTable.load(out).checksum() == result.table.checksum()
+
+
+def test_widgets_stacked_on_one_another_are_refused_past_the_pair_limit(tmp_path, capsys):
+    from shapedisplay.scene.compiler import MAX_OVERLAP_PAIRS
+    n = int((2 * MAX_OVERLAP_PAIRS) ** 0.5) + 2
+    text = "".join(f'[[widget]]\nid = "b{i}"\ntype = "button"\nposition = "10,10 mm"\nsize = "20x10 mm"\n'
+                   for i in range(n))
+    e = _cli_one_line(["check", str(scene(tmp_path, text))], capsys)
+    assert f"more than {MAX_OVERLAP_PAIRS} pairs of widgets" in e

@@ -74,6 +74,52 @@ def _union(a, b):
     return (min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3]))
 
 
+#: Most pairs of widgets whose boxes (grown by the gradient's reach) may overlap: n widgets stacked
+#: on one another make n^2 / 2 pairs, each checked for its overlap rule and warned about.
+MAX_OVERLAP_PAIRS = 200_000
+
+
+def overlapping_pairs(boxes, where: str = "scene") -> list[tuple[int, int]]:
+    """Index pairs ``(i, j)``, ``i < j``, of the boxes ``(r0, c0, r1, c1)`` (inclusive) that overlap, sorted.
+
+    A sweep along the axis whose starts spread more (rows, or columns for a
+    strip): each box is compared only with the boxes still open where it
+    starts, so n widgets laid out on a screen cost about n x (widgets across
+    one band), not n^2 / 2 comparisons. More than :data:`MAX_OVERLAP_PAIRS`
+    pairs is a :class:`SceneError` (``where`` names the scene).
+    """
+    n = len(boxes)
+    if n < 2:
+        return []
+    ax = 0 if len({b[0] for b in boxes}) >= len({b[1] for b in boxes}) else 1
+    order = sorted(range(n), key=lambda i: boxes[i][ax])
+    active: list = []
+    pairs = []
+    for i in order:
+        bi = boxes[i]
+        active = [j for j in active if boxes[j][ax + 2] >= bi[ax]]
+        for j in active:
+            if _overlap(bi, boxes[j]):
+                pairs.append((j, i) if j < i else (i, j))
+        if len(pairs) > MAX_OVERLAP_PAIRS:
+            raise SceneError(f"{where}: more than {MAX_OVERLAP_PAIRS} pairs of widgets overlap or touch "
+                             f"(MAX_OVERLAP_PAIRS, docs/limits.md); stack fewer widgets on one another")
+        active.append(i)
+    pairs.sort()
+    return pairs
+
+
+def _pairs_by_group(scene: Scene, grps: list[dict]) -> list[list]:
+    """Per group, the pairs ``(wa, wb)`` of its widgets whose boxes overlap, by index (widgets whose
+    boxes overlap always share a group)."""
+    rank = {i: k for k, g in enumerate(grps) for i in g["members"]}
+    out: list = [[] for _ in grps]
+    ws = scene.widgets
+    for i, j in overlapping_pairs([_box(w) for w in ws], f"scene '{scene.path}'"):
+        out[rank[i]].append((ws[i], ws[j]))
+    return out
+
+
 def gradient_reach(options, spacing: float) -> int:
     """Samples beyond a widget's box where its slopes are nonzero (and beyond that, which heights they read)."""
     m = getattr(options, "gradient_method", "central")
@@ -112,10 +158,8 @@ def groups(scene: Scene, reach: int = 1) -> list[dict]:
         return i
 
     stored = [_grow(_box(w), reach, rows, cols) for w in scene.widgets]
-    for i in range(n):
-        for j in range(i + 1, n):
-            if _overlap(stored[i], stored[j]):
-                parent[find(j)] = find(i)
+    for i, j in overlapping_pairs(stored, f"scene '{scene.path}'"):
+        parent[find(j)] = find(i)
     while True:
         rects: dict = {}
         for i in range(n):
@@ -123,11 +167,9 @@ def groups(scene: Scene, reach: int = 1) -> list[dict]:
             rects[r] = stored[i] if r not in rects else _union(rects[r], stored[i])
         keys = sorted(rects)
         merged = False
-        for a in range(len(keys)):
-            for b in range(a + 1, len(keys)):
-                if _overlap(rects[keys[a]], rects[keys[b]]):
-                    parent[find(keys[b])] = find(keys[a])
-                    merged = True
+        for a, b in overlapping_pairs([rects[k] for k in keys], f"scene '{scene.path}'"):
+            parent[find(keys[b])] = find(keys[a])
+            merged = True
         if not merged:
             break
     out: dict = {}
@@ -140,21 +182,17 @@ def groups(scene: Scene, reach: int = 1) -> list[dict]:
 def check_groups(scene: Scene, grps: list[dict]) -> None:
     """Overlap rules: widgets that truly overlap must share a rule; one toggle per block."""
     ws = scene.widgets
-    for g in grps:
+    for g, pairs in zip(grps, _pairs_by_group(scene, grps)):
         mem = [ws[i] for i in g["members"]]
-        for a in range(len(mem)):
-            for b in range(a + 1, len(mem)):
-                wa, wb = mem[a], mem[b]
-                if not _overlap(_box(wa), _box(wb)):
-                    continue
-                da, db = WIDGET_TYPES[wa.type].data_layer, WIDGET_TYPES[wb.type].data_layer
-                if da != db or (da and wa.params["channel"] != wb.params["channel"]):
-                    continue  # height and data (or two data channels) never combine
-                if wa.overlap != wb.overlap:
-                    raise SceneError(
-                        f"scene '{scene.path}': {wa.where} and {wb.where} overlap with conflicting rules "
-                        f"(`widget[{wa.index}].overlap` = '{wa.overlap}', `widget[{wb.index}].overlap` = "
-                        f"'{wb.overlap}'); give both the same `overlap` (max, min, add or over)")
+        for wa, wb in pairs:
+            da, db = WIDGET_TYPES[wa.type].data_layer, WIDGET_TYPES[wb.type].data_layer
+            if da != db or (da and wa.params["channel"] != wb.params["channel"]):
+                continue  # height and data (or two data channels) never combine
+            if wa.overlap != wb.overlap:
+                raise SceneError(
+                    f"scene '{scene.path}': {wa.where} and {wb.where} overlap with conflicting rules "
+                    f"(`widget[{wa.index}].overlap` = '{wa.overlap}', `widget[{wb.index}].overlap` = "
+                    f"'{wb.overlap}'); give both the same `overlap` (max, min, add or over)")
         toggles = [w for w in mem if WIDGET_TYPES[w.type].states]
         if len(toggles) > 1:
             a, b = toggles[0], toggles[1]
@@ -327,35 +365,31 @@ def overlap_warnings(scene: Scene, grps: list[dict]) -> list[str]:
     written). The warning is left out when both widgets set ``overlap``.
     """
     out = []
-    ws = scene.widgets
     is_1d = scene.canvas.is_1d
     s = scene.canvas.spacing
-    for g in grps:
-        mem = [ws[i] for i in g["members"]]
-        for a in range(len(mem)):
-            for b in range(a + 1, len(mem)):
-                wa, wb = mem[a], mem[b]
-                if WIDGET_TYPES[wa.type].data_layer or WIDGET_TYPES[wb.type].data_layer:
-                    continue
-                if (wa.overlap_given and wb.overlap_given) or not _overlap(_box(wa), _box(wb)):
-                    continue
-                ba, bb = _box(wa), _box(wb)
-                region = (max(ba[0], bb[0]), max(ba[1], bb[1]), min(ba[2], bb[2]), min(ba[3], bb[3]))
-                both = None
-                for w in (wa, wb):
-                    (lr, lc, nr, nc), u, v, W, H = _widget_local(w, *region, is_1d)
-                    hv = np.broadcast_to(WIDGET_TYPES[w.type].heights(w.params, u, v, W, H, is_1d), (nr, nc))
-                    nz = np.abs(hv) > 1e-12
-                    both = nz if both is None else both & nz
-                if both is None or not both.any():
-                    continue
-                rr, cc = np.nonzero(both)
-                x0, x1 = (region[1] + cc.min()) * s, (region[1] + cc.max()) * s
-                y0, y1 = (region[0] + rr.min()) * s, (region[0] + rr.max()) * s
-                where = f"x {x0 * 1e3:.4g}..{x1 * 1e3:.4g} mm" + ("" if is_1d else f", y {y0 * 1e3:.4g}..{y1 * 1e3:.4g} mm")
-                out.append(f"{wa.where} and {wb.where} overlap on {int(both.sum())} samples ({where}); their heights "
-                           f"combine by `overlap` = '{wa.overlap}' ({_RULE_WORDS[wa.overlap]}); set `overlap` on both "
-                           f"(max, min, add or over) to choose the rule and silence this warning")
+    for pairs in _pairs_by_group(scene, grps):
+        for wa, wb in pairs:
+            if WIDGET_TYPES[wa.type].data_layer or WIDGET_TYPES[wb.type].data_layer:
+                continue
+            if wa.overlap_given and wb.overlap_given:
+                continue
+            ba, bb = _box(wa), _box(wb)
+            region = (max(ba[0], bb[0]), max(ba[1], bb[1]), min(ba[2], bb[2]), min(ba[3], bb[3]))
+            both = None
+            for w in (wa, wb):
+                (lr, lc, nr, nc), u, v, W, H = _widget_local(w, *region, is_1d)
+                hv = np.broadcast_to(WIDGET_TYPES[w.type].heights(w.params, u, v, W, H, is_1d), (nr, nc))
+                nz = np.abs(hv) > 1e-12
+                both = nz if both is None else both & nz
+            if both is None or not both.any():
+                continue
+            rr, cc = np.nonzero(both)
+            x0, x1 = (region[1] + cc.min()) * s, (region[1] + cc.max()) * s
+            y0, y1 = (region[0] + rr.min()) * s, (region[0] + rr.max()) * s
+            where = f"x {x0 * 1e3:.4g}..{x1 * 1e3:.4g} mm" + ("" if is_1d else f", y {y0 * 1e3:.4g}..{y1 * 1e3:.4g} mm")
+            out.append(f"{wa.where} and {wb.where} overlap on {int(both.sum())} samples ({where}); their heights "
+                       f"combine by `overlap` = '{wa.overlap}' ({_RULE_WORDS[wa.overlap]}); set `overlap` on both "
+                       f"(max, min, add or over) to choose the rule and silence this warning")
     return out
 
 
@@ -367,6 +401,17 @@ def scene_warnings(scene: Scene, grps: list[dict]) -> list[str]:
     without a chosen rule, and heights the device cannot render, alone or combined."""
     warned = list(scene.warnings) + overlap_warnings(scene, grps) + height_warnings(scene)
     return warned + combined_height_warnings(scene, grps, warned)
+
+
+#: Most widget ids a report note lists (a block of n widgets would otherwise list n^2 ids).
+REPORT_IDS = 12
+
+
+def _some_ids(members: list, but) -> str:
+    """The ids of ``members`` other than ``but``, quoted: the first REPORT_IDS, then how many more."""
+    shown = [m for m in members[:REPORT_IDS + 1] if m is not but][:REPORT_IDS]
+    more = len(members) - 1 - len(shown)
+    return ", ".join(f"'{m.id}'" for m in shown) + (f" and {more} more" if more > 0 else "")
 
 
 def check_scene(path, device=None, confine: bool = False) -> list[str]:
@@ -643,7 +688,7 @@ def compile_scene(path, device=None, options=None, confine: bool = False):
                 wbytes = nbytes
             if len(members) > 1:
                 note.append(("block shared with " if k == 0 else f"merged into the block of '{members[0].id}' with ")
-                            + ", ".join(f"'{m.id}'" for m in members if m is not w))
+                            + _some_ids(members, w))
             if b["toggle"] is w:
                 extra = [p for st, p in toggles[w.id]["states"].items() if st != w.params["state"]]
                 for p in sorted(set(extra)):

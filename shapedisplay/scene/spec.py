@@ -76,7 +76,7 @@ LATERAL = ("off", "gradient", "normal")
 #: Largest canvas accepted (samples), checked before anything is allocated.
 MAX_CANVAS_SAMPLES = 4096 * 4096
 #: Most [[widget]] entries a scene may hold, checked before any widget is read (docs/limits.md).
-MAX_WIDGETS = 2000
+MAX_WIDGETS = 10_000
 #: Deepest nesting of tables and arrays in a scene (``[[widget]]`` values: 3 levels; a 2-D data
 #: layer: 5). Checked on the text before the TOML parser, which recurses once per level, runs,
 #: and on the parsed data (dotted keys nest without brackets) before anything walks it.
