@@ -1,4 +1,8 @@
-"""Atomic file writes: a crash never leaves a partial file under the final name.
+"""Atomic, durable file writes: a crash or a power loss never leaves a partial file under the final name.
+
+A file is written under a temporary name beside the target, flushed to disk
+(``fsync``), renamed over the target, and the directory is flushed so the
+rename survives a power loss too (SQLite's and git's order).
 
 Also the rules every command's outputs follow: an output never resolves to
 an input or to another output of the same command (:func:`check_outputs`),
@@ -20,7 +24,7 @@ from .errors import FileFormatError, ShapeDisplayError
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; rename it over ``path`` on success.
+    """Yield a temporary path beside ``path``; on success flush it, rename it over ``path``, flush the folder.
 
     The temporary file keeps the final suffix (some writers, such as
     ``numpy.savez``, append one otherwise). On any exception the temporary
@@ -44,8 +48,10 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
         yield tmp_path
         # mkstemp creates 0600; give the file the permissions a plain open() would
         os.chmod(tmp_path, 0o666 & ~_umask())
+        os.fsync(fd)               # the data on disk before the name points at it (any descriptor of the file)
         os.replace(tmp_path, final)
         os.close(fd)
+        _fsync_dir(parent)         # the rename itself on disk
     except BaseException as exc:
         with contextlib.suppress(OSError):
             tmp_path.unlink()
@@ -54,6 +60,26 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
             # disk full, permissions, a name that cannot be replaced: one line, no partial file
             raise FileFormatError(f"output '{final}': cannot write ({exc.strerror or exc})") from None
         raise
+
+
+def _fsync_dir(parent: Path) -> None:
+    """Flush directory ``parent`` (a rename in it) to disk, where the platform can.
+
+    Windows cannot open a directory for this (and its rename is journalled);
+    a file system that does not support it (EINVAL) is left as it is.
+    """
+    if os.name == "nt":  # pragma: no cover - no directory descriptors
+        return
+    try:
+        dfd = os.open(parent, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    except OSError:
+        return
+    try:
+        os.fsync(dfd)
+    except OSError:
+        pass
+    finally:
+        os.close(dfd)
 
 
 def _lock(fd: int) -> bool:

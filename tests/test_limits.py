@@ -93,3 +93,31 @@ def test_picture_at_the_side_limit_compiles_with_its_row_stored_once(tmp_path, c
     from shapedisplay.table import FrictionTable
     t = FrictionTable.load(out)
     assert t.patch_shapes == [(1, 1)] and len(t.blocks) == MAX_SIDE
+
+
+# ----------------------------------------------------------- 5. durable writes
+@pytest.mark.skipif(shutil.which("strace") is None or not sys.platform.startswith("linux"), reason="needs strace")
+def test_compile_flushes_the_table_before_the_rename_and_the_folder_after(tmp_path):
+    import re
+    src, out, log = tmp_path / "map.png", tmp_path / "t.npz", tmp_path / "strace.txt"
+    grey_png(src, 64, 48)
+    cmd = ["strace", "-f", "-qq", "-o", str(log), "-e", "trace=openat,open,fsync,fdatasync,rename,renameat,renameat2",
+           sys.executable, "-m", "shapedisplay", "compile", str(src), "-o", str(out), "--size", "60x40mm",
+           "--height", "0:2mm", "-q"]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    if done.returncode != 0 and "ptrace" in done.stderr:
+        pytest.skip(f"strace cannot trace here: {done.stderr.strip()}")
+    assert done.returncode == 0, done.stderr
+    calls = log.read_text().splitlines()
+    part = re.compile(r'open(?:at)?\(.*"(?P<name>[^"]*/\.t\.[^"/]*\.part\.npz)".*O_EXCL.*\) = (?P<fd>\d+)')  # mkstemp
+    opened = [(i, m) for i, line in enumerate(calls) if (m := part.search(line))]
+    assert opened, "\n".join(calls[-20:])
+    at, m = opened[-1]
+    fd, name = m["fd"], m["name"]
+    renamed = next(i for i, line in enumerate(calls) if "rename" in line and f'"{name}"' in line and f'"{out}"' in line)
+    assert any(re.search(rf"\b(fsync|fdatasync)\({fd}\)\s+= 0", line) for line in calls[at:renamed]), calls[at:renamed]
+    folder = re.compile(rf'open(?:at)?\(.*"{re.escape(str(tmp_path))}/?".*O_DIRECTORY.*\) = (\d+)')
+    after = calls[renamed:]
+    dirs = [m.group(1) for line in after if (m := folder.search(line))]
+    assert dirs and any(re.search(rf"\bfsync\({d}\)\s+= 0", line) for line in after for d in dirs), after
+    assert out.stat().st_size > 0 and not [p for p in tmp_path.iterdir() if ".part" in p.name]
