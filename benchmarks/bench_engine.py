@@ -22,16 +22,28 @@ c. offline render in the process: ``Renderer(table, model=m).render(cursor)``
    ``render`` is timed (the renderer is built once; the ordinary caches);
 d. ``shapedisplay report accuracy --quick`` and ``report stability --quick``
    (``--no-plots``): whole-process wall time, and from ``accuracy.json`` the
-   renderer's CPU time per simulated second summed per model over the
-   settings both sides ran;
-e. WebAssembly against native: not measured here. ``bench_c_runtime.py``
-   measures no WebAssembly and ``bench_studio.py`` measures the AudioWorklet
-   only inside its ``main()`` (a live studio in Chromium), with no function to
-   import; ``benchmarks/bench_wasm.py`` compares wasmtime with native C.
+   renderer's CPU time per simulated second (``Renderer.render``, and ``run_kernel``: the model alone)
+   summed per model over the settings both sides ran;
+e. WebAssembly against native, per tick: each side's C sources (``runtime_c/``, the library its
+   ``Makefile`` lists as ``LIB``) built natively (``cc -O2``, a loop over ``sd_renderer_step`` timed inside
+   the process) and as its WebAssembly module (``make -C runtime_c wasm`` in a copy of its tree; the
+   shipped ``runtime_c/wasm/sd_runtime.wasm`` if clang/wasm-ld are missing), run in wasmtime through
+   ``sd_wasm_run`` (one call for all ticks, as ``benchmarks/bench_wasm.py``), both modules in the same
+   wasmtime (this tree's venv, where the old venv has none). The input: ``case_setup`` of each side's
+   ``tests/runtime_vectors.py`` (2-D widget table, six channels, retrigger, 10 kHz ticks, 48 kHz audio,
+   the diagonal stroke back and forth), 200 000 ticks, models jump and exact (the old C has only those).
+   CPU time of the tick loop alone; ``--wasm-rounds`` processes per side and target, 3 loops each;
+f. Cortex-M4F instructions per ``sd_renderer_step`` under QEMU (mps2-an386, ``-icount``): each side's
+   harness (``build_m4`` of its ``tests/runtime_vectors.py``, its own ``runtime_c/`` sources, single
+   precision, the M4F's FPU) plays the same shared vector (the widget table, diagonal stroke,
+   retrigger, 10 kHz ticks, 48 kHz audio, 0.25 s: 2 500 ticks) for exact and jump. Instruction counts
+   are deterministic, so one run per side suffices; min / median / max are over the ticks, and the
+   note gives the mean and the worst tick against the 16 800 cycles of a 10 kHz tick at 168 MHz.
 
 Each table comes from ``assets/scenes/phone.toml`` compiled by its own side's
 ``shapedisplay compile`` (if one side cannot compile, both play the other's).
-Every figure is min / median / max over the runs, wall time; the ratio is
+Every figure is min / median / max over the runs, wall time (e: CPU time per tick; f: instructions
+per tick, over the ticks); the ratio is
 old median / new median, so **a ratio above 1 means the new code is faster**.
 Whole-process rows also give the ratio of the median CPU time (user + system
 of the child), which a loaded machine inflates less than wall time.
@@ -43,15 +55,19 @@ and a run that fails prints its last error line and the benchmark goes on
 Set up the baseline once::
 
     git clone /work/main /tmp/sd-base && git -C /tmp/sd-base checkout 59ad372
-    cd /tmp/sd-base && python3 -m venv .venv && .venv/bin/pip install -q -e '.[all]'
+    cd /tmp/sd-base && python3 -m venv .venv && .venv/bin/pip install -q -e '.[all]' pytest
+    # pytest: the old tests/runtime_vectors.py (e, f) imports test_c_runtime, which imports it
 
 Run (standard library only, any Python 3.9+)::
 
     python benchmarks/bench_engine.py --baseline /tmp/sd-base
     python benchmarks/bench_engine.py --baseline /tmp/sd-base --skip-reports   # about a minute
 
-The reports take minutes each (about 3 min for ``accuracy --quick`` on a busy
-2-core machine); ``--report-rounds`` defaults to 1.
+e needs this tree's venv to have wasmtime (``pip install -e '.[test]'``) and a C compiler; f needs
+arm-none-eabi-gcc, newlib and qemu-system-arm (``scripts/install-system-deps.sh --with-toolchains``);
+a side that cannot build prints its failure and the row shows ``failed``.
+
+The quick reports take under a minute each on a 2-core machine; ``--report-rounds`` defaults to 1.
 """
 from __future__ import annotations
 
@@ -59,6 +75,7 @@ import argparse
 import json
 import os
 import resource
+import shutil
 import statistics
 import subprocess
 import sys
@@ -114,6 +131,145 @@ for m in models:
 """
 
 
+# Run by each side's python (e, f): argv tests dir, output dir, models, ticks. The shared vector of that side's
+# tests/runtime_vectors.py (its own table image), the diagonal stroke back and forth to `ticks` ticks.
+PAYLOAD_SCRIPT = r"""
+import sys
+from pathlib import Path
+import numpy as np
+sys.path.insert(0, sys.argv[1])
+from runtime_vectors import case_setup, image_payload
+out, models, n = Path(sys.argv[2]), sys.argv[3].split(","), int(sys.argv[4])
+for m in models:
+    table, r, x, y, img = case_setup("uint16", "diagonal", "retrigger", 10_000.0, 48_000.0, m, seconds=0.25)
+    reps = n // len(x) + 1
+    x = np.tile(np.concatenate([x, x[::-1]]), reps)[:n]
+    y = np.tile(np.concatenate([y, y[::-1]]), reps)[:n]
+    (out / f"{m}.in").write_bytes(image_payload(img, r, x, y))
+"""
+
+# Run by each side's python (f): argv tests dir, models. Builds that side's M4F harness from its own sources,
+# one JSON line per model with the instructions of every sd_renderer_step.
+M4_SCRIPT = r"""
+import json, sys, tempfile
+from pathlib import Path
+sys.path.insert(0, sys.argv[1])
+from runtime_vectors import build_m4, case_setup, image_payload, m4_instructions, run_m4
+with tempfile.TemporaryDirectory() as d:
+    d = Path(d)
+    elf = build_m4(d / "build", (), "single")[0]
+    for m in sys.argv[2].split(","):
+        table, r, x, y, img = case_setup("uint16", "diagonal", "retrigger", 10_000.0, 48_000.0, m, seconds=0.25)
+        ins = m4_instructions(run_m4(elf, "bench", image_payload(img, r, x, y), d, icount=True))
+        print(json.dumps({"model": m, "instructions": ins.tolist()}), flush=True)
+"""
+
+# Run by a python with wasmtime (e): argv module, payload, loops. The payload as image_payload writes it; the
+# ticks through sd_wasm_run as benchmarks/bench_wasm.py; prints the CPU seconds of each loop (JSON list).
+WASM_SCRIPT = r"""
+import json, math, struct, sys, time
+import wasmtime
+module_path, payload, loops = sys.argv[1], open(sys.argv[2], "rb").read(), int(sys.argv[3])
+(size,) = struct.unpack_from("<q", payload, 0)
+image = payload[8:8 + size]
+pos = 8 + size + (-size % 8)
+policy, model = struct.unpack_from("<qq", payload, pos)
+tick, audio = struct.unpack_from("<dd", payload, pos + 16)
+(n,) = struct.unpack_from("<q", payload, pos + 32)
+x = payload[pos + 40:pos + 40 + 8 * n]
+y = payload[pos + 40 + 8 * n:pos + 40 + 16 * n]
+xy = bytearray(16 * n)                                   # interleaved x0 y0 x1 y1 ...
+for i in range(8):
+    xy[i::16] = x[i::8]
+    xy[8 + i::16] = y[i::8]
+engine = wasmtime.Engine()
+store = wasmtime.Store(engine)
+inst = wasmtime.Instance(store, wasmtime.Module.from_file(engine, module_path), [])
+ex = inst.exports(store)
+ex["_initialize"](store)
+mem = ex["memory"]
+base = ex["sd_wasm_stage"](store, len(image))
+mem.write(store, image, base)
+assert ex["sd_wasm_load"](store, base, len(image)) == 0, "sd_wasm_load"
+assert ex["sd_wasm_configure"](store, model, policy, tick, audio) == 0, "sd_wasm_configure"
+per_tick = math.ceil(audio / tick) + 2
+p = ex["sd_wasm_scratch"](store, 16 * n + 8 * per_tick * n)
+mem.write(store, bytes(xy), p)
+times = []
+for _ in range(loops):
+    ex["sd_wasm_reset"](store, 0.0)
+    t0 = time.process_time()
+    na = ex["sd_wasm_run"](store, p, n, 0, p + 16 * n, per_tick * n)
+    times.append(time.process_time() - t0)
+    assert na > 0, "sd_wasm_run wrote no audio"
+print(json.dumps(times))
+"""
+
+# The native loop (e): the payload as the M4 harness reads it; every loop from a reset, CPU time of the
+# sd_renderer_step loop alone (the audio summed so it is not optimised away). Old and new API alike.
+NATIVE_C = r"""
+#define _POSIX_C_SOURCE 199309L
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include "sd_runtime.h"
+static sd_image_t img;
+static sd_renderer_t R;
+static double cpu_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+int main(int argc, char **argv)
+{
+    FILE *f;
+    long size, n, i, k, loops;
+    double *buf, *xy, acc = 0.0, rates[2], t0;
+    int64_t v[3];
+    sd_config_t C;
+    if (argc != 3 || !(f = fopen(argv[1], "rb"))) return 2;
+    loops = atol(argv[2]);
+    fseek(f, 0, SEEK_END);
+    size = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    buf = malloc((size_t)size + 8);
+    if (!buf || fread(buf, 1, (size_t)size, f) != (size_t)size) return 2;
+    memcpy(v, buf, 8);
+    if (sd_image_load(&img, buf + 1, (size_t)v[0]) != SD_OK) return 3;
+    xy = buf + 1 + (v[0] + 7) / 8;
+    memcpy(v, xy, 16);
+    memcpy(rates, xy + 2, 16);
+    sd_image_config(&img, &C);
+    C.policy = (int)v[0];
+    C.model = (int)v[1];
+    C.tick_rate = rates[0];
+    C.audio_rate = rates[1];
+    memcpy(v, xy + 4, 8);
+    n = (long)v[0];
+    if (sd_renderer_init(&R, &img.table, &C) != SD_OK) return 4;
+    printf("[");
+    for (k = 0; k < loops; k++) {
+        sd_renderer_reset(&R, 0);
+        t0 = cpu_s();
+        for (i = 0; i < n; i++) {
+            long j;
+            sd_renderer_step(&R, xy[5 + i], xy[5 + n + i]);
+            for (j = 0; j < R.n_audio; j++) acc += R.audio[j];
+        }
+        printf("%s%.9f", k ? ", " : "", cpu_s() - t0);
+    }
+    printf("]\n");
+    fprintf(stderr, "checksum %g\n", acc);
+    return 0;
+}
+"""
+WASM_TICKS = 200_000
+WASM_LOOPS = 3                                     # timed loops per process
+M4_MODELS = ("exact", "jump")                      # the old C runtime has only these two
+M4_BUDGET = 16_800                                 # cycles of a 10 kHz tick at 168 MHz
+
 @dataclass
 class Side:
     """One tree under test: its root and virtual environment."""
@@ -137,6 +293,7 @@ class Row:
     cpu: dict = field(default_factory=lambda: {"old": [], "new": []})
     failures: dict = field(default_factory=lambda: {"old": [], "new": []})
     note: str = ""
+    unit: str = "s"             # "s": a duration; "tick": seconds per tick; "instr": instructions per tick
 
 
 def last_error_line(text: str) -> str:
@@ -263,9 +420,10 @@ def measure_renders(sides, tables, work: Path, warm_env: dict, rounds: int, repe
 
 
 def accuracy_timings(path: Path) -> dict:
-    """{(case, setting label): (model, renderer CPU s per simulated s)} of the settings that ran."""
+    """{(case, setting label): (model, render CPU s per simulated s, model-alone CPU s per simulated s)} of the
+    renderer settings that ran."""
     data = json.loads(path.read_text())
-    return {(c["name"], st["label"]): (st["model"], st["cpu_s_per_sim_s"])
+    return {(c["name"], st["label"]): (st["model"], st["cpu_s_per_sim_s"], st.get("model_cpu_s_per_sim_s"))
             for c in data["cases"] for st in c["settings"]
             if st.get("family") == "renderer" and st.get("status") == "ok" and st.get("cpu_s_per_sim_s") is not None}
 
@@ -292,21 +450,141 @@ def measure_reports(sides, work: Path, warm_env: dict, rounds: int) -> list:
         models = sorted({runs[0][k][0] for k in common})
         for m in models:
             keys = [k for k in common if runs[0][k][0] == m]
-            row = Row(f"d. accuracy: {m} render CPU s per sim s, sum of {len(keys)} settings")
-            for name in ("old", "new"):
-                row.wall[name] = [sum(t[k][1] for k in keys) for t in timings[name]]
-            rows.insert(-1, row)
+            for i, what in ((1, "render"), (2, "model alone")):
+                if any(t[k][i] is None for t in runs for k in keys):
+                    continue
+                row = Row(f"d. accuracy {m}, {what}: CPU per sim s, {len(keys)} settings")
+                for name in ("old", "new"):
+                    row.wall[name] = [sum(t[k][i] for k in keys) for t in timings[name]]
+                rows.insert(-1, row)
     return rows
 
 
-def fmt(s: float) -> str:
+def library_sources(cdir: Path) -> list:
+    """A side's engine library: the C sources its ``runtime_c/Makefile`` lists as ``LIB :=``."""
+    for line in (cdir / "Makefile").read_text().splitlines():
+        if line.startswith("LIB") and ":=" in line:
+            return [str(cdir / n) for n in line.split(":=", 1)[1].split()]
+    raise RuntimeError(f"no LIB := line in {cdir / 'Makefile'}")
+
+
+def wasm_python(sides) -> str:
+    """A python with wasmtime: this tree's (both modules then run in the same wasmtime)."""
+    for s in reversed(sides):
+        if subprocess.run([s.python, "-c", "import wasmtime"], capture_output=True).returncode == 0:
+            return s.python
+    raise RuntimeError("no venv has wasmtime (pip install -e '.[test]' in this tree)")
+
+
+def build_wasm_targets(side: Side, work: Path) -> tuple:
+    """(native loop executable, WebAssembly module, how the module was got) built from the side's sources."""
+    cdir = side.root / "shapedisplay" / "runtime_c"
+    out = work / f"e-{side.name}"
+    out.mkdir()
+    (out / "loop.c").write_text(NATIVE_C)
+    exe = out / "sd_loop"
+    cc = os.environ.get("CC", "cc")
+    p = subprocess.run([cc, "-std=c99", "-O2", "-ffp-contract=off", "-I", str(cdir), *library_sources(cdir),
+                        str(out / "loop.c"), "-lm", "-o", str(exe)], capture_output=True, text=True)
+    if p.returncode != 0:
+        raise RuntimeError(f"native build: {last_error_line(p.stderr)}")
+    copy = out / "runtime_c"
+    shutil.copytree(cdir, copy, ignore=shutil.ignore_patterns("build", "sd_vectors*", "sd_bench", "*.o"))
+    p = subprocess.run(["make", "-s", "-C", str(copy), "wasm"], capture_output=True, text=True, timeout=300)
+    if p.returncode == 0 and (copy / "build" / "sd_runtime.wasm").is_file():
+        return exe, copy / "build" / "sd_runtime.wasm", "built now by make wasm"
+    print(f"  {side.name:3} make wasm: FAILED {last_error_line(p.stderr)}; the shipped module plays", flush=True)
+    return exe, cdir / "wasm" / "sd_runtime.wasm", "the shipped module"
+
+
+def measure_wasm(sides, work: Path, rounds: int) -> list:
+    print(f"e. WebAssembly vs native, {rounds} processes x {WASM_LOOPS} loops of {WASM_TICKS} ticks per side",
+          flush=True)
+    rows = {(m, t): Row(f"e. {m} per tick, {t}", unit="tick") for m in M4_MODELS
+            for t in ("native C", "WebAssembly (wasmtime)")}
+    targets, payloads = {}, {}
+    try:
+        wpy = wasm_python(sides)
+    except RuntimeError as exc:
+        print(f"  e: {exc}", flush=True)
+        wpy = None
+    for s in sides:
+        out = work / f"e-in-{s.name}"
+        out.mkdir()
+        try:
+            run(s, [s.python, "-c", PAYLOAD_SCRIPT, str(s.root / "tests"), str(out), ",".join(M4_MODELS),
+                    str(WASM_TICKS)], {}, work)
+            payloads[s.name] = out
+            targets[s.name] = build_wasm_targets(s, work)
+        except (RuntimeError, OSError, subprocess.SubprocessError) as exc:
+            print(f"  {s.name:3} e. set-up: FAILED {exc}", flush=True)
+            for row in rows.values():
+                row.failures[s.name].append(f"set-up: {exc}")
+    for _ in range(rounds):
+        for s in (s for s in sides if s.name in targets):
+            exe, module, _ = targets[s.name]
+            for m in M4_MODELS:
+                payload = str(payloads[s.name] / f"{m}.in")
+                for t, argv in (("native C", [str(exe), payload, str(WASM_LOOPS)]),
+                                ("WebAssembly (wasmtime)",
+                                 [wpy, "-c", WASM_SCRIPT, str(module), payload, str(WASM_LOOPS)] if wpy else None)):
+                    row = rows[m, t]
+                    if argv is None:
+                        row.failures[s.name].append("no wasmtime")
+                        continue
+                    try:
+                        out = run(s, argv, {}, work)[2]
+                        row.wall[s.name].extend(v / WASM_TICKS for v in json.loads(out.strip().splitlines()[-1]))
+                    except (RuntimeError, ValueError, IndexError) as exc:
+                        row.failures[s.name].append(str(exc))
+                        print(f"  {s.name:3} {row.label}: FAILED {exc}", flush=True)
+    for m in M4_MODELS:
+        nat, wa = rows[m, "native C"], rows[m, "WebAssembly (wasmtime)"]
+        parts = [f"{n}: {statistics.median(wa.wall[n]) / statistics.median(nat.wall[n]):.2f}"
+                 for n in ("old", "new") if wa.wall[n] and nat.wall[n]]
+        how = "; ".join(f"{n} module {targets[n][2]}" for n in ("old", "new") if n in targets)
+        wa.note = (f"WebAssembly / native per tick (medians): {', '.join(parts) or 'n/a'}; {how}; "
+                   f"wasmtime of {wpy or '-'}")
+    return [rows[k] for k in sorted(rows, key=lambda k: (M4_MODELS.index(k[0]), k[1] != "native C"))]
+
+
+def measure_m4(sides, work: Path) -> list:
+    print("f. Cortex-M4F instructions per sd_renderer_step (QEMU -icount), one run per side", flush=True)
+    rows = {m: Row(f"f. {m} M4F instructions per tick (n=1 run)", unit="instr") for m in M4_MODELS}
+    for s in sides:
+        try:
+            out = run(s, [s.python, "-c", M4_SCRIPT, str(s.root / "tests"), ",".join(M4_MODELS)], {}, work)[2]
+        except RuntimeError as exc:
+            print(f"  {s.name:3} f. M4F harness: FAILED {exc}", flush=True)
+            for row in rows.values():
+                row.failures[s.name].append(str(exc))
+            continue
+        for line in out.splitlines():
+            try:
+                r = json.loads(line)
+            except ValueError:
+                continue
+            rows[r["model"]].wall[s.name] = r["instructions"]
+    for row in rows.values():
+        if row.wall["old"] and row.wall["new"]:
+            mo, mn = (statistics.fmean(row.wall[n]) for n in ("old", "new"))
+            row.note = (f"mean {mo:.0f} -> {mn:.0f} (old/new {mo / mn:.2f}); worst tick {max(row.wall['old']):.0f} "
+                        f"-> {max(row.wall['new']):.0f} = {max(row.wall['new']) / M4_BUDGET:.2f} x the 16 800-cycle "
+                        f"budget; {len(row.wall['new'])} ticks, single precision; deterministic counts")
+    return list(rows.values())
+
+def fmt(s: float, unit: str = "s") -> str:
+    if unit == "instr":
+        return f"{s:.0f}"
+    if unit == "tick":
+        return f"{s * 1e9:.0f} ns"
     return f"{s * 1e3:.1f} ms" if s < 1 else f"{s:.2f} s"
 
 
-def spread(values: list, failures: list) -> str:
+def spread(values: list, failures: list, unit: str = "s") -> str:
     if not values:
         return "failed" if failures else "-"
-    return f"{fmt(min(values))} / {fmt(statistics.median(values))} / {fmt(max(values))}"
+    return f"{fmt(min(values), unit)} / {fmt(statistics.median(values), unit)} / {fmt(max(values), unit)}"
 
 
 def ratio(old: list, new: list) -> str:
@@ -317,15 +595,17 @@ def ratio(old: list, new: list) -> str:
 
 def print_table(rows: list) -> None:
     print()
-    print("ratio = old median / new median (wall time): > 1 means the new code is faster; "
-          "cpu = the same ratio of CPU time (user + system) for whole-process rows")
-    head = f"{'measurement':58} {'old min / median / max':32} {'new min / median / max':32} {'old/new':>7} {'cpu':>6}"
+    print("ratio = old median / new median (wall time; e: CPU time per tick; f: instructions per tick): > 1 means "
+          "the new code is faster; cpu = the same ratio of CPU time (user + system) for whole-process rows")
+    w = max(len(r.label) for r in rows) if rows else 11
+    head = f"{'measurement':{w}} {'old min / median / max':32} {'new min / median / max':32} {'old/new':>7} {'cpu':>6}"
     print(head)
     print("-" * len(head))
     for r in rows:
         cpu = ratio(r.cpu["old"], r.cpu["new"]) if r.cpu["old"] or r.cpu["new"] else ""
-        print(f"{r.label:58} {spread(r.wall['old'], r.failures['old']):32} "
-              f"{spread(r.wall['new'], r.failures['new']):32} {ratio(r.wall['old'], r.wall['new']):>7} {cpu:>6}")
+        print(f"{r.label:{w}} {spread(r.wall['old'], r.failures['old'], r.unit):32} "
+              f"{spread(r.wall['new'], r.failures['new'], r.unit):32} {ratio(r.wall['old'], r.wall['new']):>7} "
+              f"{cpu:>6}".rstrip())
         if r.note:
             print(f"{'':4}{r.note}")
     failed = [(r, n, f) for r in rows for n in ("old", "new") for f in dict.fromkeys(r.failures[n])]
@@ -333,8 +613,6 @@ def print_table(rows: list) -> None:
         print("\nfailures (distinct):")
         for r, n, f in failed:
             print(f"  {n} {r.label}: {f}")
-    print("e. WebAssembly vs native: skipped (bench_c_runtime.py measures no WebAssembly; bench_studio.py has "
-          "no importable measuring function; see benchmarks/bench_wasm.py)")
 
 
 def describe(side: Side) -> str:
@@ -354,7 +632,11 @@ def main() -> int:
     ap.add_argument("--render-rounds", type=int, default=2, help="render processes per side (default 2)")
     ap.add_argument("--render-repeats", type=int, default=3, help="timed renders per process and model (default 3)")
     ap.add_argument("--report-rounds", type=int, default=1, help="runs of each report per side (default 1)")
-    ap.add_argument("--skip-reports", action="store_true", help="skip d. (the reports take minutes)")
+    ap.add_argument("--skip-reports", action="store_true", help="skip d. (the quick reports)")
+    ap.add_argument("--wasm-rounds", type=int, default=5,
+                    help=f"processes per side, model and target in e. (default 5, {WASM_LOOPS} loops each)")
+    ap.add_argument("--skip-wasm", action="store_true", help="skip e. (WebAssembly vs native)")
+    ap.add_argument("--skip-m4", action="store_true", help="skip f. (Cortex-M4F instruction counts under QEMU)")
     args = ap.parse_args()
 
     sides = [Side("old", args.baseline.resolve()), Side("new", args.current.resolve())]
@@ -374,6 +656,10 @@ def main() -> int:
         rows += measure_renders(sides, tables, work, warm_env, args.render_rounds, args.render_repeats)
         if not args.skip_reports:
             rows += measure_reports(sides, work, warm_env, args.report_rounds)
+        if not args.skip_wasm:
+            rows += measure_wasm(sides, work, args.wasm_rounds)
+        if not args.skip_m4:
+            rows += measure_m4(sides, work)
     print_table(rows)
     print(f"load average at end: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     return 0
