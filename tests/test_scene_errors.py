@@ -418,3 +418,14 @@ def test_widgets_stacked_on_one_another_are_refused_past_the_pair_limit(tmp_path
                    for i in range(n))
     e = _cli_one_line(["check", str(scene(tmp_path, text))], capsys)
     assert f"more than {MAX_OVERLAP_PAIRS} pairs of widgets" in e
+
+
+def test_deeply_nested_svg_groups_are_one_line(tmp_path, capsys):
+    pytest.importorskip("svgelements")
+    from shapedisplay.scene.svg import MAX_SVG_DEPTH
+    n = 3000
+    p = tmp_path / "deep.svg"
+    p.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="20mm" height="20mm" viewBox="0 0 20 20">'
+                 + "<g>" * n + '<rect data-widget="button" x="0" y="0" width="5" height="5"/>' + "</g>" * n + "</svg>")
+    e = _cli_one_line(["check", str(p)], capsys)
+    assert f"more than {MAX_SVG_DEPTH} levels deep" in e

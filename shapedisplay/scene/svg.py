@@ -57,6 +57,8 @@ ROUNDED_TYPES = ("button", "dent", "well")
 _ROOT_KEYS = {"resolution": ("canvas", "resolution"), "device": ("device", "profile"),
               "profile": ("device", "profile"), "name": ("scene", "name"), "description": ("scene", "description")}
 _MM_PER_CSS_PX = 25.4 / 96
+#: Deepest nesting of SVG elements read (design tools nest groups a few levels deep).
+MAX_SVG_DEPTH = 64
 _NUMBER = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
 
@@ -132,6 +134,7 @@ def svg_scene_data(path, notes: list | None = None, origins: dict | None = None)
     where = f"SVG mockup '{path}'"
     if not path.is_file():
         raise FileFormatError(f"{where}: no such file")
+    _check_depth(path, where)
     try:
         svg = se.SVG.parse(str(path), reify=True)
     except Exception as exc:  # svgelements raises ParseError, ValueError, ... for broken files
@@ -225,6 +228,20 @@ def svg_scene_data(path, notes: list | None = None, origins: dict | None = None)
                          f"or an id such as \"button-ok\"); types: {', '.join(sorted(WIDGET_TYPES))}")
     data["widget"] = widgets
     return data
+
+
+def _check_depth(path: Path, where: str) -> None:
+    """Refuse elements nested deeper than MAX_SVG_DEPTH (svgelements walks groups recursively)."""
+    from xml.etree.ElementTree import ParseError, iterparse
+    depth = 0
+    try:
+        for event, _el in iterparse(str(path), events=("start", "end")):
+            depth += 1 if event == "start" else -1
+            if depth > MAX_SVG_DEPTH:
+                raise FileFormatError(f"{where}: elements nest more than {MAX_SVG_DEPTH} levels deep, beyond the "
+                                      f"limit of {MAX_SVG_DEPTH} (docs/limits.md)")
+    except ParseError as exc:
+        raise FileFormatError(f"{where}: cannot read the SVG ({exc})") from None
 
 
 def _segments(el, se) -> list:
