@@ -258,3 +258,23 @@ def test_a_mesh_reads_no_material_outside_the_folder(tmp_path, monkeypatch):
     monkeypatch.undo()
     assert s.error is None and s.current is not None
     assert not [p for p in opened if isinstance(p, str) and p.startswith(str(outside.resolve()))]
+
+
+def test_a_mesh_that_may_name_files_needs_a_trimesh_that_keeps_them_in_its_folder(tmp_path, monkeypatch):
+    """trimesh 4 reads an OBJ's ``../`` material anywhere: the studio refuses such a mesh with it."""
+    trimesh = pytest.importorskip("trimesh")
+    folder = tmp_path / "scene"
+    folder.mkdir()
+    (folder / "m.obj").write_text("v 0 0 0\nv 10 0 1\nv 0 10 1\nf 1 2 3\n")
+    (folder / "s.toml").write_text(HEAD + _widget("mesh") + 'file = "m.obj"\n')
+    monkeypatch.setattr(trimesh, "__version__", "4.6.0")
+    s = studio_compile(folder / "s.toml")
+    assert s.error is not None and "trimesh>=5" in s.error.message and "`widget[0].file`" in s.error.message
+    s = studio_compile(folder / "m.obj")
+    assert s.error is not None and "trimesh>=5" in s.error.message
+    write_file("mesh", folder)                  # an STL names no other file: read with any trimesh
+    (folder / "s.toml").write_text(HEAD + _widget("mesh") + 'file = "bump.stl"\n')
+    assert studio_compile(folder / "s.toml").error is None
+    assert compile_scene(folder / "s.toml").table is not None
+    monkeypatch.undo()
+    assert studio_compile(folder / "m.obj").error is None

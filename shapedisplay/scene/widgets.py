@@ -633,6 +633,30 @@ class Image(WidgetType):
         return _resample(p["values"], u, v, W, H, is_1d, centred=True)
 
 
+#: Mesh formats that may name other files (OBJ: mtllib and textures; glTF: buffers and images).
+MESH_SUFFIXES_WITH_REFERENCES = (".obj", ".gltf", ".glb")
+
+
+def check_mesh_confined(path: Path, where: str) -> None:
+    """Refuse a mesh that may name other files when trimesh would read them outside the mesh's folder.
+
+    trimesh 5 keeps the files a mesh names (an OBJ's ``mtllib`` and textures,
+    glTF buffers and images) inside the mesh's own folder; trimesh 4 reads
+    ``../`` names anywhere. A confined read (the studio) needs the former.
+    """
+    if Path(path).suffix.lower() not in MESH_SUFFIXES_WITH_REFERENCES:
+        return
+    try:
+        import trimesh
+    except ImportError:
+        return                              # the mesh reader reports the missing extra
+    major = int(str(trimesh.__version__).split(".")[0])
+    if major < 5:
+        raise SceneError(f"{where}: a {Path(path).suffix} mesh may name other files, and trimesh "
+                         f"{trimesh.__version__} would read them outside the folder; the studio needs "
+                         f"trimesh>=5 for it: pip install -U 'trimesh>=5'")
+
+
 class Mesh(WidgetType):
     """A 3D model (STL/OBJ/PLY/...) whose top surface is placed in the box.
 
@@ -649,6 +673,8 @@ class Mesh(WidgetType):
 
     def finish(self, raw, W, H, w):
         path = _file(raw, "file", w, "mesh")
+        if w.ctx.confine:
+            check_mesh_confined(path, f"scene '{w.ctx.path}': {w.where}: `{w.fp}file`")
         scale = number(raw.get("height_scale", 1.0), w.fp + "height_scale", w.ctx, w.where, lo=0.0)
         from ..mesh import mesh_to_heightfield
         from ..errors import ShapeDisplayError

@@ -161,6 +161,9 @@ class Session:
             report_text = format_report(result.report) + "\n" + format_widget_report(result.report)
             return result.table, result.report, report_text
         from ..sources import load_source
+        if self.kind == "mesh":
+            from ..scene.widgets import check_mesh_confined
+            check_mesh_confined(self.source, f"studio source '{self.source.name}'")
         hf = load_source(self.source, **self.source_options)
         result = compile_heightfield(hf, self._device())
         return result.table, result.report, format_report(result.report)
