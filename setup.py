@@ -1,7 +1,8 @@
 """The package's compiled parts, built when the package is built or installed (pyproject.toml has the rest).
 
 Two extension modules, loaded from Python with ctypes (their files are found
-with ``importlib.util.find_spec``; nothing imports them as modules):
+with ``importlib.util.find_spec``; the engine's module is also imported for its
+one Python-level function, ``pad_run``, see ``_module.c``):
 
 * ``shapedisplay._engine``: the C runtime (every ``shapedisplay/runtime_c/sd_*.c``
   but the WebAssembly entry points ``sd_wasm.c``) and its offline play loop
@@ -49,9 +50,9 @@ def exported(sources: list[str]) -> list[str]:
     return sorted({m.group(1) for s in sources for m in _DEFINITION.finditer((HERE / s).read_text(encoding="utf-8"))})
 
 
-def extension(name: str, sources: list[str], **kw) -> Extension:
+def extension(name: str, sources: list[str], macros=(), **kw) -> Extension:
     short = name.rsplit(".", 1)[1]
-    return Extension(name, [*sources, str(PACKAGE / "_module.c")], define_macros=[("SD_MODULE", short)],
+    return Extension(name, [*sources, str(PACKAGE / "_module.c")], define_macros=[("SD_MODULE", short), *macros],
                      export_symbols=exported(sources), **kw)
 
 
@@ -69,7 +70,8 @@ class BuildExt(build_ext):
 
 setup(
     ext_modules=[
-        extension("shapedisplay._engine", runtime_sources(), include_dirs=[str(PACKAGE / "runtime_c")]),
+        extension("shapedisplay._engine", runtime_sources(), macros=[("SD_ENGINE_METHODS", None)],
+                  include_dirs=[str(PACKAGE / "runtime_c")]),
         extension("shapedisplay._kernels_c", [str(PACKAGE / "sd_kernels.c")]),
     ],
     cmdclass={"build_ext": BuildExt},

@@ -77,6 +77,11 @@ class PadModel:
         self.params = self.param_block[0]
 
     @functools.cached_property
+    def _fresh_state(self) -> np.void:
+        """The record of :meth:`new_state`, made once (what :func:`run_kernel` starts from by default)."""
+        return self.new_state()[0]
+
+    @functools.cached_property
     def model_id(self) -> int:
         """Position in :data:`MODELS` (``SD_MODEL_*`` in C)."""
         return MODEL_IDS[self.name]
@@ -422,33 +427,27 @@ def run_kernel(model: PadModel, t, V, N, mus, muk, gain, state=None):
     A model that diverges (the explicit baselines) says so in ``state["diverged"]``; one that reaches its
     cap on phase changes in a tick raises :class:`ModelError`.
     """
-    from .native import RUN_UNKNOWN_MODEL, address, library
-    lib = library()
+    from .native import RUN_UNKNOWN_MODEL, library
+    if _PAD_RUN is None:
+        _bind_pad_run(library())
     n = int(np.shape(t)[0])
     rows = [np.ascontiguousarray(a, dtype=np.float64) for a in (t, V, N, mus, muk, gain)]
     for name, a in zip(("t", "V", "N"), rows[:3]):
         if a.shape != (n,):
             raise InputError(f"`{name}` must have shape ({n},) (got {a.shape})")
-    ones = []
     for name, a in zip(("mus", "muk", "gain"), rows[3:]):
         if a.shape not in ((n,), (1,)) or (a.shape == (1,) and n == 0):
             raise InputError(f"`{name}` must have shape ({n},) or (1,) (got {a.shape})")
-        ones.append(int(a.shape[0] != n))
-    ins = [address(a) for a in rows]
-    init = model.new_state()[0] if state is None else np.array(state, dtype=PAD_STATE).reshape(1)[0]
+    init = model._fresh_state if state is None else np.array(state, dtype=PAD_STATE).reshape(1)[0]
+    words = PAD_STATE.itemsize // 8
     cap = n // 8 + 1024
     while True:
-        # one block: the final state, four per-tick rows, then the event times and amplitudes (one address;
-        # a short run costs mostly its calls, not its ticks)
-        words = PAD_STATE.itemsize // 8
+        # one block: the final state, four per-tick rows, then the event times and amplitudes
         block = np.empty(words + 4 * n + 2 * cap)
         S = block[:words].view(PAD_STATE)
         S[0] = init
-        base = address(block)
-        out = base + 8 * words
-        ev = out + 8 * 4 * n
-        n_ev = lib.sd_pad_run(model.model_id, address(model.param_block), base, ins[0], n, *ins[1:], *ones,
-                              out, out + 8 * n, out + 16 * n, out + 24 * n, ev, ev + 8 * cap, cap)
+        n_ev = _PAD_RUN(model.model_id, model.param_block, S, *rows, block[words:words + 4 * n],
+                        block[words + 4 * n:])
         if n_ev == RUN_UNKNOWN_MODEL:
             raise ModelError(f"the C engine has no tick for model '{model.name}' (id {model.model_id})")
         if n_ev <= cap:
@@ -461,6 +460,19 @@ def run_kernel(model: PadModel, t, V, N, mus, muk, gain, state=None):
     rows_out = block[words:words + 4 * n].reshape(4, n)
     events = block[words + 4 * n:].reshape(2, cap)
     return st, rows_out[0], rows_out[1], rows_out[2], rows_out[3], events[0, :n_ev], events[1, :n_ev]
+
+
+#: ``shapedisplay._engine.pad_run`` once bound (:func:`_bind_pad_run`).
+_PAD_RUN = None
+
+
+def _bind_pad_run(lib) -> None:
+    """Bind the engine module's ``pad_run`` (after :func:`~.native.library` has checked the engine is current:
+    the module is the same file). One call from Python without ctypes' argument conversions: a short run's
+    cost is mostly its call."""
+    global _PAD_RUN
+    from .. import _engine
+    _PAD_RUN = _engine.pad_run
 
 
 def _as_ticks(value, n, field):

@@ -13,6 +13,7 @@ to play. :class:`~.renderer.Renderer`, :func:`~.models.run_kernel` and
 from __future__ import annotations
 
 import ctypes
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -92,6 +93,7 @@ LAYOUT_NAMES = ("out", "run", "pad", "audio", "ev_t", "ev_a", "position_faults",
                 "n_audio")
 
 
+@functools.cache
 def renderer_layout() -> dict:
     """Where the parts of a renderer state lie (:data:`LAYOUT_NAMES` -> int), as the compiled engine has them."""
     off = np.zeros(len(LAYOUT_NAMES), np.int64)

@@ -75,7 +75,7 @@ from .cursor import CursorPath
 from .image import to_image
 from .layouts import NSLOT, OUTPUTS, PAD_STATE, RUN_STATE, SLOTS
 from .models import PadModel, divergence_message
-from .native import PLAY_EVENTS_FULL, aligned_buffer, library, renderer_layout
+from .native import PLAY_EVENTS_FULL, address, aligned_buffer, library, renderer_layout
 from .result import RenderResult
 from .settings import audio_length, derive_config, render_settings
 
@@ -113,9 +113,8 @@ class _State:
         self.lib = lib
         self.buf = aligned_buffer(lib.sd_renderer_size())
         self.address = self.buf.ctypes.data
-        rc = lib.sd_renderer_init(self.address, image.handle.ctypes.data, config.ctypes.data)
-        if rc != 0:
-            raise InputError(f"the C engine refused the table or the settings (code {rc})")
+        self._image, self._config = image.handle.ctypes.data, config.ctypes.data
+        self.init()
         L = renderer_layout()
         self.out = _view(self.buf, L["out"], OUTPUTS)[0]
         self.run = _view(self.buf, L["run"], RUN_STATE)[0]
@@ -124,6 +123,12 @@ class _State:
         self.ev_t = _view(self.buf, L["ev_t"], np.float64, L["event_ring"])
         self.ev_a = _view(self.buf, L["ev_a"], np.float64, L["event_ring"])
         self.position_faults = _view(self.buf, L["position_faults"], np.int64)
+
+    def init(self) -> None:
+        """Bind the state to its table and settings afresh (``sd_renderer_init``: no allocation)."""
+        rc = self.lib.sd_renderer_init(self.address, self._image, self._config)
+        if rc != 0:
+            raise InputError(f"the C engine refused the table or the settings (code {rc})")
 
     def reset(self, t0: float) -> None:
         self.lib.sd_renderer_reset(self.address, float(t0))
@@ -221,6 +226,7 @@ class Renderer:
         self._lib = library()
         self._image = TableImage(table, cfg.device)
         self._online = _State(self._lib, self._image, self._config)
+        self._offline = None
         self._step = self._lib.sd_renderer_step
         #: The tick's audio samples after :meth:`step`: ``audio_block[:audio_samples]`` (a view).
         self.audio_block = self._online.audio[:int(math.ceil(self.audio_rate / self.tick_rate)) + 2]
@@ -249,13 +255,15 @@ class Renderer:
         audio = np.empty(n_audio)
         counts = np.zeros(5, np.int64)
         ev_cap = n // 8 + 1024
+        if self._offline is None:            # the offline runs' own state, kept from render to render
+            self._offline = _State(self._lib, self._image, self._config)
+        st = self._offline
         while True:
-            st = _State(self._lib, self._image, self._config)
+            st.init()
             st.reset(cp.t[0] if n else 0.0)
             ev = np.empty((2, ev_cap))
-            rc = self._lib.sd_play_path(st.address, x.ctypes.data, y.ctypes.data, n, out.ctypes.data,
-                                        audio.ctypes.data, n_audio, ev[0].ctypes.data, ev[1].ctypes.data, ev_cap,
-                                        counts.ctypes.data)
+            rc = self._lib.sd_play_path(st.address, address(x), address(y), n, address(out), address(audio),
+                                        n_audio, address(ev), address(ev) + 8 * ev_cap, ev_cap, address(counts))
             if rc != PLAY_EVENTS_FULL:
                 break
             ev_cap *= 4
