@@ -9,7 +9,7 @@ OUT    := out
 .PHONY: install test demo bench report generate docs-images clean
 
 # the C engine and kernels are compiled by the install: a changed C source or setup.py installs again
-ENGINE_SRC := setup.py $(wildcard shapedisplay/runtime_c/sd_*.[ch] shapedisplay/runtime/sd_*.c shapedisplay/sd_kernels.c)
+ENGINE_SRC := setup.py $(wildcard shapedisplay/runtime_c/sd_*.[ch] shapedisplay/runtime/sd_*.c shapedisplay/sd_kernels.c shapedisplay/_module.c)
 $(STAMP): pyproject.toml scripts/install-system-deps.sh $(ENGINE_SRC)
 	sh scripts/install-system-deps.sh --with-xvfb --with-studio --with-toolchains
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)

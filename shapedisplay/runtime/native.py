@@ -57,7 +57,7 @@ def library() -> ctypes.CDLL:
         return _LIB
     from ..extensions import load_extension
     sources = [*(p for p in sorted(RUNTIME_C.glob("sd_*.[ch]")) if p.name != "sd_wasm.c"),
-               *sorted(PLAY_SOURCE.parent.glob("sd_*.c"))]
+               *sorted(PLAY_SOURCE.parent.glob("sd_*.c")), PLAY_SOURCE.parent.parent / "_module.c"]
     lib = load_extension(library_path(), "the compiled C runtime", sources)
     vp, c_int64 = ctypes.c_void_p, ctypes.c_int64
     lib.sd_renderer_size.restype = ctypes.c_size_t
