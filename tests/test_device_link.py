@@ -234,16 +234,35 @@ def test_reset_mid_upload_without_restart_keeps_old_table(link, emu, image):
 
 
 def test_commit_without_verified_upload_refused(link, emu, image):
-    with pytest.raises(DeviceRefused, match="NOT_VERIFIED"):
+    # docs/protocol.md: no staged upload of that id is NO_UPLOAD; one whose END has not succeeded, NOT_VERIFIED.
+    with pytest.raises(DeviceRefused, match="NO_UPLOAD"):
         link.request(P.Msg.COMMIT, P.UPLOAD_ID.pack(1), (P.Msg.ACK,))
-    # An upload whose whole-table CRC disagrees is discarded at END.
     link.request(P.Msg.UPLOAD_BEGIN, P.UPLOAD_BEGIN.pack(9, 4, 0x1234), (P.Msg.ACK,))
     link.request(P.Msg.UPLOAD_CHUNK, P.UPLOAD_CHUNK.pack(9, 0) + b"abcd", (P.Msg.CHUNK_ACK,))
-    with pytest.raises(DeviceRefused, match="CHECKSUM"):
-        link.request(P.Msg.UPLOAD_END, P.UPLOAD_END.pack(9, 0x1234, 4), (P.Msg.VERIFIED,))
     with pytest.raises(DeviceRefused, match="NOT_VERIFIED"):
         link.request(P.Msg.COMMIT, P.UPLOAD_ID.pack(9), (P.Msg.ACK,))
+    with pytest.raises(DeviceRefused, match="NO_UPLOAD"):
+        link.request(P.Msg.COMMIT, P.UPLOAD_ID.pack(8), (P.Msg.ACK,))       # another id
+    # An upload whose whole-table CRC disagrees is discarded at END: nothing is staged after it.
+    with pytest.raises(DeviceRefused, match="CHECKSUM"):
+        link.request(P.Msg.UPLOAD_END, P.UPLOAD_END.pack(9, 0x1234, 4), (P.Msg.VERIFIED,))
+    with pytest.raises(DeviceRefused, match="NO_UPLOAD"):
+        link.request(P.Msg.COMMIT, P.UPLOAD_ID.pack(9), (P.Msg.ACK,))
     assert emu.activations == []
+
+
+def test_commit_after_reset_answers_no_upload(link, emu, image):
+    uid = 21
+    link.request(P.Msg.UPLOAD_BEGIN, P.UPLOAD_BEGIN.pack(uid, len(image), crc32(image)), (P.Msg.ACK,))
+    for off in range(0, len(image), 256):
+        link.request(P.Msg.UPLOAD_CHUNK, P.UPLOAD_CHUNK.pack(uid, off) + image[off:off + 256], (P.Msg.CHUNK_ACK,))
+    link.request(P.Msg.UPLOAD_END, P.UPLOAD_END.pack(uid, crc32(image), len(image)), (P.Msg.VERIFIED,))
+    emu.reset()                      # the verified upload is lost; the active table (none) stays
+    link.connect()
+    with pytest.raises(DeviceRefused, match="NO_UPLOAD") as info:
+        link.request(P.Msg.COMMIT, P.UPLOAD_ID.pack(uid), (P.Msg.ACK,))
+    assert info.value.code == P.Err.NO_UPLOAD
+    assert emu.activations == [] and link.status().active_crc == 0
 
 
 def test_corrupt_table_image_rejected_before_commit(link, emu, image):

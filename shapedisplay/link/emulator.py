@@ -651,10 +651,12 @@ class DeviceEmulator:
         if len(f.body) != P.UPLOAD_ID.size:
             return self._nak(f, P.Err.BAD_BODY, 0, "COMMIT body must be 2 bytes")
         (uid,) = P.UPLOAD_ID.unpack(f.body)
-        up = self._upload
         if self._streaming:
             return self._nak(f, P.Err.BUSY, 0, "cannot commit while streaming; send STOP first")
-        if up is None or up["id"] != uid or up["table"] is None:
+        up = self._upload_for(f, uid)          # none staged (a reset, never begun): NO_UPLOAD
+        if up is None:
+            return
+        if up["table"] is None:
             return self._nak(f, P.Err.NOT_VERIFIED, 0, f"upload {uid} is not verified; nothing committed")
         self.active_table = up["table"]
         self.active_crc, self.active_size = up["crc"], up["size"]

@@ -551,13 +551,19 @@ class DeviceLink:
                     raise DeviceRefused(f"device refused upload chunk: {P.err_name(code)}: {text}", code, detail)
         # Verification parses and checksums the whole table on the device: allow it more time.
         slow = max(self.timeout, 2.0)
-        self.request(P.Msg.UPLOAD_END, P.UPLOAD_END.pack(uid, crc, size), (P.Msg.VERIFIED,), timeout=slow)
+        try:
+            self.request(P.Msg.UPLOAD_END, P.UPLOAD_END.pack(uid, crc, size), (P.Msg.VERIFIED,), timeout=slow)
+        except DeviceRefused as exc:
+            if exc.code == P.Err.NO_UPLOAD:
+                raise DeviceResetError(f"device on '{self.port}' lost the upload before UPLOAD_END: {exc}") from None
+            raise
         try:
             self.request(P.Msg.COMMIT, P.UPLOAD_ID.pack(uid), (P.Msg.ACK,), timeout=slow)
         except (LinkTimeout, DeviceRefused) as exc:
             # Every acknowledgement may have been lost after the device committed (a resent COMMIT
-            # then finds nothing staged): ask the device what is true instead of guessing.
-            if isinstance(exc, DeviceRefused) and exc.code != P.Err.NOT_VERIFIED:
+            # then finds nothing staged: NO_UPLOAD), or the device reset before COMMIT (NO_UPLOAD
+            # too): ask the device what is true instead of guessing.
+            if isinstance(exc, DeviceRefused) and exc.code not in (P.Err.NO_UPLOAD, P.Err.NOT_VERIFIED):
                 raise
             self._confirm_commit(report, exc)
 
@@ -571,6 +577,9 @@ class DeviceLink:
         if st.active_crc == report.crc32 and st.active_size == report.size:
             report.commit_confirmed_by_status = True
             return
+        if isinstance(cause, DeviceRefused) and cause.code == P.Err.NO_UPLOAD:
+            # Nothing staged and the new table not active: the device reset after UPLOAD_END.
+            raise DeviceResetError(f"device on '{self.port}' lost the verified upload before COMMIT ({cause})")
         raise LinkError(f"device on '{self.port}' did not acknowledge COMMIT ({cause}); its status shows table "
                         f"{st.active_crc:08x} ({st.active_size} bytes) active, not the new {report.crc32:08x}: "
                         f"the new table is not active")
