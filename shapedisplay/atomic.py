@@ -62,6 +62,21 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
         raise
 
 
+def replace_dir(src: str | os.PathLike, dst: str | os.PathLike) -> None:
+    """Rename the complete folder ``src`` to ``dst`` (absent or an empty folder) durably.
+
+    ``src`` is flushed first (the names in it on disk), then renamed, then
+    the parent of ``dst`` is flushed (the rename on disk): after a power loss
+    ``dst`` is the whole folder or absent. Both must be on one file system
+    (``src`` made beside ``dst``). Files in ``src`` are written with
+    :func:`atomic_path`, which flushes each file before its name.
+    """
+    src, dst = Path(src), Path(dst)
+    _fsync_dir(src)
+    os.replace(src, dst)
+    _fsync_dir(dst.parent if str(dst.parent) else Path("."))
+
+
 def _fsync_dir(parent: Path) -> None:
     """Flush directory ``parent`` (a rename in it) to disk, where the platform can.
 

@@ -1,6 +1,7 @@
 """Study presets (``shapedisplay study NAME -o DIR``) against closed forms, and constant-N tables."""
 import json
 import math
+import os
 
 import numpy as np
 import pytest
@@ -209,6 +210,38 @@ def test_cli_study_writes_every_file_and_never_overwrites(tmp_path, capsys):
     assert main(["study", "konyo"]) == 2
     assert main(["study", "friction", "--list", "--only", "slider-*-dmu0.3"]) == 0
     assert len(capsys.readouterr().out.split()) == 10
+
+
+def test_study_written_twice_leaves_one_complete_folder_and_no_temporary_files(tmp_path):
+    from shapedisplay.errors import FileFormatError
+
+    out = tmp_path / "fr"
+    only = "stick-mus0.500-dmu0.2"
+    expected = sorted(["manifest.json", "summary.csv", "summary.png", f"{only}.wav", f"{only}.npz"])
+
+    def files():
+        return {p.name: p.read_bytes() for p in out.iterdir()}
+
+    run_study("friction", out, only=only, duration=0.1)
+    first = files()
+    assert sorted(first) == expected
+    # into the same folder again: refused, the folder as it was
+    with pytest.raises(FileFormatError, match="not empty"):
+        run_study("friction", out, only=only, duration=0.1)
+    assert files() == first
+    # into the emptied folder again: the same complete folder, byte for byte
+    for p in out.iterdir():
+        p.unlink()
+    run_study("friction", out, only=only, duration=0.1)
+    assert files() == first
+    assert [p.name for p in tmp_path.iterdir()] == ["fr"]          # no temporary folder beside it
+    mask = os.umask(0o022)
+    os.umask(mask)
+    assert {oct(p.stat().st_mode & 0o777) for p in out.iterdir()} == {oct(0o666 & ~mask)}
+    assert oct(out.stat().st_mode & 0o777) == oct(0o777 & ~mask)
+    man = json.loads(first["manifest.json"])
+    assert {man["summary"], man["plot"], man["conditions"][0]["wav"], man["conditions"][0]["trace"]} <= set(first)
+    assert first["summary.png"][:8] == b"\x89PNG\r\n\x1a\n"
 
 
 # ------------------------------------------------------------------ constant-N tables

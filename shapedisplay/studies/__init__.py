@@ -11,6 +11,11 @@ writes, into a new folder:
 * ``summary.csv`` — one row per condition (columns below);
 * ``summary.png`` — the study's plot (needs matplotlib).
 
+Every file is written through :mod:`shapedisplay.atomic` into a temporary
+folder beside the new one, which is renamed into place once complete and
+its parent flushed (:func:`shapedisplay.atomic.replace_dir`): after a crash
+or a power loss the folder is whole or absent.
+
 This package module is only the registry (cheap to import: the CLI lists
 the presets in its help); conditions, summaries, plots and the runner live
 in :mod:`.presets` and load on first use.

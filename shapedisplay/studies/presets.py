@@ -15,6 +15,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..atomic import atomic_path, replace_dir, write_text
 from ..devices import DeviceProfile, FrictionParams, load_device
 from ..errors import FileFormatError, InputError, unknown_key
 from . import STUDY_STICK_LIMIT, Study, get_study
@@ -262,8 +263,12 @@ def _figure(nrows, ncols=1, h=3.2):
 
 
 def _save(plt, fig, path):
-    fig.savefig(path, dpi=100, metadata={"Software": None})      # no version stamped in: same data, same bytes
-    plt.close(fig)
+    try:
+        with atomic_path(path) as tmp:          # flushed and renamed whole: never a partial plot under its name
+            fig.savefig(tmp, dpi=100, format=Path(path).suffix[1:] or "png",
+                        metadata={"Software": None})      # no version stamped in: same data, same bytes
+    finally:
+        plt.close(fig)
 
 
 def _plot_friction(rows, path):
@@ -429,20 +434,17 @@ def run_study(name, out_dir=None, *, duration: float | None = None, tick_rate: f
         if tmp is None:
             return StudyResult(st, rows)
         from .. import __version__
-        (tmp / "summary.csv").write_text(summary_csv(rows), encoding="utf-8")
+        write_text(tmp / "summary.csv", summary_csv(rows))
         st.draw(rows, tmp / "summary.png")
         manifest = {"format": STUDY_FORMAT, "study": st.name, "title": st.title, "description": st.description,
                     "shapedisplay_version": __version__,
                     "options": {"duration_s": duration, "tick_rate_hz": tick_rate, "only": only, **options},
                     "summary": "summary.csv", "plot": "summary.png", "conditions": entries}
-        (tmp / "manifest.json").write_text(json.dumps(manifest, indent=2, default=_json_default) + "\n",
-                                           encoding="utf-8")
-        for p in tmp.iterdir():
-            os.chmod(p, 0o666 & ~_umask())
-        os.chmod(tmp, 0o777 & ~_umask())
+        write_text(tmp / "manifest.json", json.dumps(manifest, indent=2, default=_json_default) + "\n")
+        os.chmod(tmp, 0o777 & ~_umask())          # mkdtemp makes 0700; the files get a plain open()'s mode
         if out.exists():
             out.rmdir()                           # empty (checked above)
-        os.replace(tmp, out)
+        replace_dir(tmp, out)                     # the folder flushed, renamed whole, its parent flushed
         tmp = None
         return StudyResult(st, rows, out, manifest)
     finally:
