@@ -161,3 +161,51 @@ def test_bad_mockups_are_one_line_errors(tmp_path, body, root, exc, pattern):
     (tmp_path / "broken.svg").write_text("<svg width='10mm' height='10mm'><rect")
     with pytest.raises((FileFormatError, InputError)):
         load_scene(tmp_path / "broken.svg")
+
+
+# ------------------------------------------------------------------ limits checked before svgelements parses
+def _zigzag(n):
+    """A path of ``n`` line segments across the 80 x 40 canvas (13 bytes a segment)."""
+    return "M 5 20 " + " ".join(f"L {5 + 70 * i / n:.4f} {20 + (5 if i % 2 else -5)}" for i in range(1, n + 1))
+
+
+@pytest.mark.parametrize("d", ["M 0 0 L 1 1 L 2 2", "M0,0 1,1 2,2z", "m0 0h5v5h-5z", "M0 0C1 1 2 2 3 3 4 4 5 5 6 6",
+                               "M0 0 Q 1 1 2 0 T 4 0 6 0", "M0 0 S 1 1 2 0 3 3 4 0", "M0 0A5 5 0 0 1 10 10 5 5 0 1 0 0 0",
+                               "M 1 1 L 2 2 M 5 5 L 6 6 Z M 8 8", "M 5 5", ""])
+def test_path_segments_are_counted_as_svgelements_draws_them(d):
+    import svgelements as se
+    from shapedisplay.scene.svg import _path_segment_count
+    drawn = [s for s in se.Path(d).segments() if not isinstance(s, se.Move)]
+    assert _path_segment_count(d) == len(drawn)
+
+
+def test_path_polyline_and_polygon_past_the_segment_limit_are_refused_in_one_line(tmp_path, monkeypatch):
+    from shapedisplay.scene import svg
+    monkeypatch.setattr(svg, "MAX_PATH_SEGMENTS", 40)
+    pts = " ".join(f"{5 + i},{10 + i % 2}" for i in range(41))       # 41 points: 40 segments, 41 closed
+    ok = _svg(tmp_path, f'<path id="ridge-a" d="{_zigzag(40)}"/><polyline id="ridge-b" points="{pts}"/>')
+    assert len(svg.svg_scene_data(ok)["widget"]) == 80
+    for body, what in [(f'<path id="ridge-a" d="{_zigzag(41)}"/>', "<path> 'ridge-a' has 41 segments"),
+                       (f'<g><polygon points="{pts}"/></g>', "<polygon> number 3 has 41 segments")]:
+        with pytest.raises(FileFormatError) as info:
+            svg.svg_scene_data(_svg(tmp_path, body))
+        msg = str(info.value)
+        assert what in msg and "more than the limit of 40 (svg.MAX_PATH_SEGMENTS, docs/limits.md)" in msg
+        assert "raise shapedisplay.scene.svg.MAX_PATH_SEGMENTS" in msg and "\n" not in msg
+
+
+def test_long_ridge_path_and_many_elements_are_refused_before_parsing(tmp_path):
+    """200,000 segments (2.6 MB) or 100,000 rects (5 MB): refused by the first pass over the XML."""
+    import time
+    from shapedisplay.scene.svg import MAX_PATH_SEGMENTS, MAX_SVG_ELEMENTS
+    long_path = _svg(tmp_path, f'<path id="ridge-long" d="{_zigzag(200_000)}" stroke-width="0.5"/>')
+    t = time.perf_counter()
+    with pytest.raises(FileFormatError, match=rf"has 200000 segments, more than the limit of {MAX_PATH_SEGMENTS} "):
+        load_scene(long_path)
+    rects = "".join(f'<rect x="{i % 300 * 0.25:.2f}" y="{i // 300 * 0.1:.2f}" width="0.2" height="0.05"/>'
+                    for i in range(100_000))
+    many = _svg(tmp_path, rects + '<rect id="button-a" x="1" y="1" width="5" height="5"/>')
+    with pytest.raises(FileFormatError, match=rf"more than {MAX_SVG_ELEMENTS} elements, the limit "
+                                              r"\(svg.MAX_SVG_ELEMENTS, docs/limits.md\)"):
+        load_scene(many)
+    assert time.perf_counter() - t < 5.0            # svgelements alone takes 5 s for the rects, 6 s for the path

@@ -59,6 +59,15 @@ _ROOT_KEYS = {"resolution": ("canvas", "resolution"), "device": ("device", "prof
 _MM_PER_CSS_PX = 25.4 / 96
 #: Deepest nesting of SVG elements read (design tools nest groups a few levels deep).
 MAX_SVG_DEPTH = 64
+#: Most elements in one SVG document (a settings screen has hundreds), counted before svgelements parses it.
+MAX_SVG_ELEMENTS = 50_000
+#: Most segments in one path, polyline or polygon (each becomes a widget on a line widget; see spec.MAX_WIDGETS),
+#: counted from its ``d`` or ``points`` text before svgelements parses it.
+MAX_PATH_SEGMENTS = 10_000
+#: Numbers a path command takes per segment (``M`` takes 2 and its further pairs are line segments).
+_PATH_ARGS = {"m": 2, "l": 2, "h": 1, "v": 1, "c": 6, "s": 4, "q": 4, "t": 2, "a": 7, "z": 0}
+_PATH_COMMAND = re.compile(r"([MmZzLlHhVvCcSsQqTtAa])")
+_PATH_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 _NUMBER = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
 
@@ -134,7 +143,7 @@ def svg_scene_data(path, notes: list | None = None, origins: dict | None = None)
     where = f"SVG mockup '{path}'"
     if not path.is_file():
         raise FileFormatError(f"{where}: no such file")
-    _check_depth(path, where)
+    _check_structure(path, where)
     try:
         svg = se.SVG.parse(str(path), reify=True)
     except Exception as exc:  # svgelements raises ParseError, ValueError, ... for broken files
@@ -230,18 +239,70 @@ def svg_scene_data(path, notes: list | None = None, origins: dict | None = None)
     return data
 
 
-def _check_depth(path: Path, where: str) -> None:
-    """Refuse elements nested deeper than MAX_SVG_DEPTH (svgelements walks groups recursively)."""
+def _check_structure(path: Path, where: str) -> None:
+    """Refuse, in one pass of the XML before svgelements reads it, what would make it slow or deep.
+
+    Nesting past MAX_SVG_DEPTH (svgelements walks groups recursively), more
+    than MAX_SVG_ELEMENTS elements, or a ``path``, ``polyline`` or
+    ``polygon`` of more than MAX_PATH_SEGMENTS segments (counted from its
+    text: svgelements builds objects per segment, and each segment of a
+    ridge, edge or groove is a widget).
+    """
     from xml.etree.ElementTree import ParseError, iterparse
-    depth = 0
+    depth = elements = 0
     try:
-        for event, _el in iterparse(str(path), events=("start", "end")):
-            depth += 1 if event == "start" else -1
+        for event, el in iterparse(str(path), events=("start", "end")):
+            if event == "end":
+                depth -= 1
+                el.clear()                    # the pass keeps no tree
+                continue
+            depth += 1
+            elements += 1
             if depth > MAX_SVG_DEPTH:
                 raise FileFormatError(f"{where}: elements nest more than {MAX_SVG_DEPTH} levels deep, beyond the "
-                                      f"limit of {MAX_SVG_DEPTH} (docs/limits.md)")
+                                      f"limit of {MAX_SVG_DEPTH} (svg.MAX_SVG_DEPTH, docs/limits.md)")
+            if elements > MAX_SVG_ELEMENTS:
+                raise FileFormatError(f"{where}: more than {MAX_SVG_ELEMENTS} elements, the limit "
+                                      f"(svg.MAX_SVG_ELEMENTS, docs/limits.md); flatten or remove decoration, "
+                                      f"or raise shapedisplay.scene.svg.MAX_SVG_ELEMENTS")
+            tag = el.tag.rsplit("}", 1)[-1]
+            if tag in ("path", "polyline", "polygon"):
+                n = _path_segment_count(el.get("d", "")) if tag == "path" else \
+                    _points_segment_count(el.get("points", ""), closed=tag == "polygon")
+                if n > MAX_PATH_SEGMENTS:
+                    name = f"'{el.get('id')}'" if el.get("id") else f"number {elements}"
+                    raise FileFormatError(f"{where}: <{tag}> {name} has {n} segments, more than the limit of "
+                                          f"{MAX_PATH_SEGMENTS} (svg.MAX_PATH_SEGMENTS, docs/limits.md); simplify "
+                                          f"the path, or raise shapedisplay.scene.svg.MAX_PATH_SEGMENTS")
     except ParseError as exc:
         raise FileFormatError(f"{where}: cannot read the SVG ({exc})") from None
+
+
+def _path_segment_count(d: str) -> int:
+    """Segments (lines, curves, arcs, closes) a path's ``d`` text draws, counted without building them.
+
+    Each command's numbers are split into segments by the count it takes
+    (``C`` 6, ``L`` 2, ``H`` 1, ...); the first pair of a ``M`` is a move,
+    its further pairs lines. A short last group counts as one segment; arc
+    flags written without spaces (``a1 1 0 01 5 5``) read as fewer numbers.
+    So the count is at most one a command above what is drawn, never below
+    by more than one an arc.
+    """
+    n = 0
+    parts = _PATH_COMMAND.split(d)
+    for cmd, args in zip(parts[1::2], parts[2::2]):
+        per = _PATH_ARGS[cmd.lower()]
+        if per == 0:
+            n += 1
+            continue
+        k = -(-len(_PATH_NUMBER.findall(args)) // per)        # ceil: a short last group is still drawn as one
+        n += max(0, k - 1) if cmd in "Mm" else k
+    return n
+
+
+def _points_segment_count(points: str, closed: bool) -> int:
+    k = -(-len(_PATH_NUMBER.findall(points)) // 2)
+    return max(0, k - 1) + (1 if closed and k > 1 else 0)
 
 
 def _segments(el, se) -> list:
