@@ -265,6 +265,17 @@ def test_commit_after_reset_answers_no_upload(link, emu, image):
     assert emu.activations == [] and link.status().active_crc == 0
 
 
+@pytest.mark.parametrize("how", [True, "boot lost"])
+def test_reset_between_verify_and_commit_restarts_the_upload(link, emu, image, how):
+    old = make_table_bytes(seed=7)
+    link.upload(old)
+    emu.reset_after_verify = how         # BOOT seen, or lost: then COMMIT answers NO_UPLOAD, the old table active
+    rep = link.upload(image)
+    assert rep.restarts == 1 and not rep.commit_confirmed_by_status
+    assert emu.activations == [(crc32(old), len(old)), (crc32(image), len(image))]
+    assert link.status().active_crc == crc32(image)
+
+
 def test_corrupt_table_image_rejected_before_commit(link, emu, image):
     bad = bytearray(image)
     bad[len(bad) // 2] ^= 0xFF          # consistent CRC-32 of a damaged file: the table checksum catches it

@@ -199,6 +199,7 @@ class DeviceEmulator:
         self.outputs: list = []                 # (index, samples) rendered, when record_outputs
         self.record_outputs = False
         self.reset_after_chunks = None          # test hook: power-cycle after N accepted chunks
+        self.reset_after_verify = False         # test hook: power-cycle once after VERIFIED ("boot lost": BOOT damaged)
         self.vanish_after_chunks = None         # test hook: the port disappears after N accepted chunks
         self.counters = collections.Counter()
         self._prepared = False
@@ -646,6 +647,11 @@ class DeviceEmulator:
         up["table"] = table
         self.state = P.State.VERIFIED
         self._reply(f, P.Msg.VERIFIED, P.VERIFIED.pack(uid, actual, up["size"]))
+        if self.reset_after_verify:
+            if self.reset_after_verify == "boot lost":
+                self.inject("corrupt", "tx")     # the host never sees BOOT; its COMMIT finds nothing staged
+            self.reset_after_verify = False
+            self.reset()
 
     def _on_commit(self, f: Frame) -> None:
         if len(f.body) != P.UPLOAD_ID.size:
