@@ -194,3 +194,76 @@ def test_constant_n_table_image_plays_bit_exact(sd_vectors_image, tmp_path):
     assert pev > 10 and cev == pev
     assert_outputs_equal(co, po)
     np.testing.assert_array_equal(ca, pa)
+
+
+# ------------------------------------------------------------------ decoded range (SD_ERR_IMAGE_RANGE)
+def _u16_image(scale_offset):
+    """A 1 x 8 uint16 table image (normal_force, grad_x) with one channel's scale/offset then set in the
+    binary header only (what the C loader reads), resealed."""
+    g = Grid(1, 8, 1e-3, 1e-3)
+    nf = np.linspace(0.5, 2.0, 8)[None, :]
+    chans = {"normal_force": nf, "grad_x": np.linspace(-0.1, 0.1, 8)[None, :]}
+    table = FrictionTable.from_dense(g, chans, {n: choose_quantization(v, "uint16") for n, v in chans.items()})
+    img = bytearray(I.to_image(table))
+    for (name, field), value in scale_offset.items():
+        slot = I.SLOTS.index(name)
+        struct.pack_into("<d", img, 224 + 32 * slot + {"scale": 8, "offset": 16}[field], value)
+    return table, _reseal(img)
+
+
+@pytest.fixture(scope="module")
+def sd_vectors_image_single(tmp_path_factory):
+    out = tmp_path_factory.mktemp("c-image-single") / "sd_vectors"
+    srcs = [str(CDIR / n) for n in (*LIB, "tool_vectors.c")]
+    res = subprocess.run([_cc(), *CFLAGS, "-DSD_SINGLE", "-I", str(CDIR), *srcs, "-lm", "-o", str(out)],
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    return out
+
+
+def _load_code(exe, img, table, tmp_path):
+    from shapedisplay.runtime import Renderer
+    r = Renderer(table, model="jump")
+    res, _ = _run_image(exe, image_payload(img, r, [0.0, 1e-4], [0.0, 0.0]), tmp_path)
+    if res.returncode == 0:
+        return 0
+    assert res.returncode == 4, res.stderr
+    return int(res.stderr.split("(")[1].split(")")[0])
+
+
+@pytest.mark.parametrize("edit", [
+    {("normal_force", "scale"): 1e307},                               # 65535 x 1e307 = inf
+    {("normal_force", "offset"): 1.7976931348623157e308, ("normal_force", "scale"): 1e304},
+    {("normal_force", "offset"): -1.7976931348623157e308, ("normal_force", "scale"): 1e304},   # offset - scale x top
+    {("grad_x", "scale"): 1e307},
+])
+def test_c_loader_refuses_channels_decoding_beyond_the_reals(sd_vectors_image, sd_vectors_image_single, tmp_path,
+                                                             edit):
+    """offset +/- scale x (largest code of the type) must be finite (SD_ERR_IMAGE_RANGE, -18) in either build;
+    every such value loaded before and played N, friction or skin stretch as inf or NaN. (The single-precision
+    build refuses these scales and offsets already as beyond float range, SD_ERR_IMAGE_VALUE.)"""
+    table, img = _u16_image(edit)
+    assert _load_code(sd_vectors_image, img, table, tmp_path) == -18
+    assert _load_code(sd_vectors_image_single, img, table, tmp_path) == -16
+
+
+def test_single_build_refuses_values_beyond_float_range(sd_vectors_image, sd_vectors_image_single, tmp_path):
+    """65535 x 1e35 = 6.6e39 is a double but not a float: the double build plays it, the single build refuses
+    it; 65535 x 5e33 = 3.3e38 stays within float range and loads in both."""
+    table, img = _u16_image({("normal_force", "scale"): 1e35})
+    assert _load_code(sd_vectors_image, img, table, tmp_path) == 0
+    assert _load_code(sd_vectors_image_single, img, table, tmp_path) == -18
+    table, img = _u16_image({("normal_force", "scale"): 5e33})
+    assert _load_code(sd_vectors_image_single, img, table, tmp_path) == 0
+
+
+@pytest.mark.parametrize("scale, offset", [(1e307, 0.0), (1e304, 1.7976931348623157e308), (1e304, -1.7e308)])
+def test_python_reader_refuses_what_the_c_loader_refuses(scale, offset):
+    """The same rule in the Python reader (the table schema of table.py, which read_image and FrictionTable.load
+    apply): offset +/- scale x the code type's largest code finite, else a TableError naming the channel."""
+    from shapedisplay.table import Quantization
+    g = Grid(1, 4, 1e-3, 1e-3)
+    table = FrictionTable.from_codes(g, {"normal_force": np.array([[0, 1, 2, 65535]], np.uint16)},
+                                     {"normal_force": Quantization("uint16", scale, offset)})
+    with pytest.raises(TableError, match="normal_force.*overflow"):
+        I.read_image(I.to_image(table))

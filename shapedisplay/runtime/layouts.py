@@ -152,6 +152,8 @@ RUN_STATE = _layout("RUN_STATE", [
     ("clipped", i8, "audio samples limited to full scale"),
     ("events_total", i8, "stick-to-slip events since reset"),
     ("events_dropped", i8, "events that did not fit the event ring"),
+    ("value_faults", i8, "ticks with a non-finite value replaced: table products overflowing (played without "
+                         "contact), pad state reset, NaN drive played as 0, skin stretch as 0"),
 ])
 
 OUTPUTS = _layout("OUTPUTS", [

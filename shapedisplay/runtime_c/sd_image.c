@@ -50,6 +50,23 @@ static int real_ok(double v)
 #endif
 }
 
+/* Every value an integer-coded channel decodes (offset + scale x code) lies within the range of
+ * sd_real. The rule bounds the code type's whole range, 0 .. 255 or 0 .. 65535, not the codes
+ * stored: O(1) instead of a pass over the codes, sound for any code the image holds, and the
+ * rule of the Python reader (table.py, channel schema), so a table is refused by both or by
+ * neither. The value is linear in the code, so its extremes are offset and offset + scale x top;
+ * like Python, offset +/- scale x top is required in range. They are computed in double from the
+ * scale and offset as the build holds them (float in the single-precision build: a product of two
+ * floats is exact in double, and a double sum within float range rounds to a finite float), so
+ * the decode in sd_real cannot overflow when these do not. Float codes are the values themselves
+ * (scale and offset unused), bounded by the finiteness pass. */
+static int decoded_ok(const sd_channel_t *ch, uint32_t dtype)
+{
+    double sc = (double)ch->scale, of = (double)ch->offset, top = dtype == SD_U8 ? 255.0 : 65535.0;
+    if (dtype == SD_F32 || dtype == SD_F64) return 1;
+    return real_ok(of + sc * top) && real_ok(of - sc * top);
+}
+
 static double f64le(const uint8_t *p)
 {
     uint64_t u = (uint64_t)u32le(p) | (uint64_t)u32le(p + 4) << 32;
@@ -171,6 +188,7 @@ int sd_image_load(sd_image_t *img, const void *data, size_t size)
             for (i = 0; i < n_values; i++)
                 if (!real_ok(((const double *)ch->codes)[i])) return SD_ERR_IMAGE_VALUE;
         }
+        if (!decoded_ok(ch, dtype)) return SD_ERR_IMAGE_RANGE;
         img->table.slot[s] = ch;
     }
     img->table.n_blocks = (int32_t)n_blocks;

@@ -200,6 +200,7 @@ typedef struct {
     int64_t clipped;                /* audio samples limited to full scale */
     int64_t events_total;           /* stick-to-slip events since reset */
     int64_t events_dropped;         /* events that did not fit the event ring */
+    int64_t value_faults;           /* ticks with a non-finite value replaced: table products overflowing (played without contact), pad state reset, NaN drive played as 0, skin stretch as 0 */
 } sd_run_state_t;
 #define SD_FIELDS_RUN_STATE(X) \
     X(F64, tick) \
@@ -212,7 +213,8 @@ typedef struct {
     X(I64, n_recent) \
     X(I64, clipped) \
     X(I64, events_total) \
-    X(I64, events_dropped)
+    X(I64, events_dropped) \
+    X(I64, value_faults)
 
 /* OUTPUTS */
 typedef struct {

@@ -9,7 +9,6 @@
 
 
 static sd_real py_max(sd_real a, sd_real b) { return b > a ? b : a; }
-static sd_real py_min(sd_real a, sd_real b) { return b < a ? b : a; }
 static long imax(long a, long b) { return b > a ? b : a; }
 static long imin(long a, long b) { return b < a ? b : a; }
 
@@ -259,7 +258,8 @@ static void forget_events(sd_burst_state_t *B, const sd_real *ev_t, const sd_rea
     B->i_out = B->i_out > k ? B->i_out - k : 0;
 }
 
-/* v clipped to [-1, 1]; counts a clipped sample in *clipped. */
+/* v clipped to [-1, 1]; counts a clipped sample in *clipped. NaN gives 0, counted as clipped: no
+ * NaN reaches the DAC (the drive's clamp in sd_renderer_step counts its NaN in run.value_faults). */
 static sd_real clip_unit(sd_real v, long *clipped)
 {
     if (v > SD_R(1.0)) {
@@ -269,6 +269,10 @@ static sd_real clip_unit(sd_real v, long *clipped)
     if (v < -SD_R(1.0)) {
         *clipped += 1;
         return -SD_R(1.0);
+    }
+    if (v != v) {
+        *clipped += 1;
+        return SD_R(0.0);
     }
     return v;
 }
@@ -696,6 +700,15 @@ sd_real sd_renderer_step(sd_renderer_t *R, sd_real x, sd_real y)
     axis_speed(vx, vy, &R->run.ax, &R->run.ay, &V);
     sd_sample_slots(R->table, xm, ym, vals);
     sd_derive(R->table, &R->cfg, vals, vx, vy, SD_FABS(V), &N, &mus, &muk, &gain);
+    /* Table values are finite (sd_image_load), but their products may not be (a normal force of 1e300
+     * times a slope of 1e10): such a tick is a value fault, played without contact (N = 0). */
+    if (!(isfinite(mus * N) && isfinite(muk * N) && isfinite(mus) && isfinite(gain))) {
+        R->run.value_faults += 1;
+        N = SD_R(0.0);
+        mus = R->cfg.mu_s;
+        muk = R->cfg.mu_k;
+        gain = SD_R(0.0);
+    }
     /* forget bursts that have finished (and that the burst state no longer needs) */
     dur = R->cfg.rise_s + R->cfg.decay_s;
     done = R->cfg.policy == SD_ADD ? (long)R->bursts.i_out : (long)R->bursts.i_in;
@@ -715,6 +728,12 @@ sd_real sd_renderer_step(sd_renderer_t *R, sd_real x, sd_real y)
     if (h > SD_R(0.0)) {
         long n1 = R->tick_fn(&R->pad, &R->pad_model, t - h, h, V, N, mus, muk, gain, R->ev_t, R->ev_a, (int)cap,
                              (int)nrec);
+        if (!(isfinite(R->pad.f) && isfinite(R->pad.x) && isfinite(R->pad.v))) {
+            /* overflow inside the pad model (forces near the largest sd_real): a value fault, the pad
+             * starts again at rest; the tick's events stand (their amplitudes are clipped or counted) */
+            R->run.value_faults += 1;
+            sd_pad_reset(&R->pad);
+        }
         nev = n1 - nrec;
         if (n1 > cap) {
             R->run.events_dropped += n1 - cap;
@@ -750,7 +769,12 @@ sd_real sd_renderer_step(sd_renderer_t *R, sd_real x, sd_real y)
 #else
             * sin(2.0 * SD_PI * R->cfg.carrier_hz * (t - R->run.t0));
 #endif
-    drive = py_min(py_max(drive, -SD_R(1.0)), SD_R(1.0));
+    if (drive > SD_R(1.0)) drive = SD_R(1.0);          /* as min(max(drive, -1), 1) for numbers */
+    else if (drive < -SD_R(1.0)) drive = -SD_R(1.0);
+    else if (drive != drive) {                          /* NaN (an inf amplitude times a carrier zero): never into the drive */
+        drive = SD_R(0.0);
+        R->run.value_faults += 1;
+    }
     f = R->pad.f;
 #ifdef SD_SINGLE
     R->out.t = R->run.t0 + (sd_real)kk * K->h;
@@ -772,6 +796,10 @@ sd_real sd_renderer_step(sd_renderer_t *R, sd_real x, sd_real y)
     R->out.lateral_y = vals[SD_SLOT_LATERAL_Y];
     target = R->table->slot[SD_SLOT_SKIN_STRETCH] ? vals[SD_SLOT_SKIN_STRETCH] : R->cfg.skin_target;
     R->out.skin_stretch = mus * N > SD_R(0.0) ? target * f / (mus * N) : SD_R(0.0);
+    if (!isfinite(R->out.skin_stretch)) {              /* a huge target times a huge force */
+        R->out.skin_stretch = SD_R(0.0);
+        R->run.value_faults += 1;
+    }
     R->out.events = (sd_real)nev;
     R->out.drive = drive;
     R->out.audio_samples = (sd_real)R->n_audio;

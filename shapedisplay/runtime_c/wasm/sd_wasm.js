@@ -42,6 +42,7 @@ const ERRORS = {
   "-3": "setting out of range", "-10": "image size wrong (truncated?)", "-11": "not a table image",
   "-12": "unsupported image version", "-13": "image CRC mismatch (corrupt)", "-14": "image layout out of bounds",
   "-15": "image misaligned", "-16": "non-finite value in image", "-17": "big-endian host",
+  "-18": "channel values overflow (offset + scale x code)",
 };
 
 export class SdError extends Error {
