@@ -211,3 +211,83 @@ def plain_vectors(tmp_path_factory):
                          capture_output=True, text=True, timeout=180)
     assert res.returncode == 0, res.stderr
     return out
+
+
+# ------------------------------------------------------------------ extreme tables through Renderer
+_CODE_DTYPES = ("uint8", "uint16", "float32", "float64")
+_EXTREME = st.one_of(st.floats(-1e308, 1e308), st.sampled_from([0.0, 1.0, -1.0, 1e300, -1e300, 1.7e308, -1.7e308,
+                                                                3.4e38, -3.4e38, 1e-300, 5e-324]))
+
+
+@st.composite
+def _extreme_channel(draw, n):
+    """(Quantization, codes of n values): any code type, scale and offset, codes over the type's range."""
+    from shapedisplay.table import Quantization
+    dtype = draw(st.sampled_from(_CODE_DTYPES))
+    if dtype in ("float32", "float64"):
+        vals = draw(st.lists(st.floats(allow_nan=False, allow_infinity=False, width=32 if dtype == "float32" else 64),
+                             min_size=n, max_size=n))
+        return Quantization(dtype), np.array(vals, dtype)
+    top = np.iinfo(dtype).max
+    codes = draw(st.lists(st.sampled_from([0, 1, top // 2, top]) | st.integers(0, top), min_size=n, max_size=n))
+    return Quantization(dtype, draw(_EXTREME), draw(_EXTREME)), np.array(codes, dtype)
+
+
+@settings(max_examples=150, deadline=None)
+@given(data=st.data(), model=st.sampled_from(["exact", "jump", "karnopp"]),
+       names=st.sets(st.sampled_from(["friction_scale", "burst_gain", "grad_x", "grad_y", "lateral_x",
+                                      "skin_stretch", "breakaway_force", "kinetic_force"]), max_size=4),
+       kmu=st.sampled_from([0.0, 0.4, 1e300]), rows=st.integers(1, 2), cols=st.integers(1, 4))
+def test_any_table_the_reader_accepts_plays_finite_outputs(data, model, names, kmu, rows, cols):
+    """Small tables with extreme but finite scales, offsets, codes and backgrounds: whatever the reader
+    (read_image: the table schema) accepts, the engine accepts too (the same range rule) and plays finite
+    outputs for finite cursor samples, the drive and audio within [-1, 1]; a non-finite intermediate is a
+    counted value fault, never an output."""
+    from shapedisplay.errors import ShapeDisplayError
+    from shapedisplay.runtime import Renderer
+    from shapedisplay.runtime import image as I
+    from shapedisplay.runtime.layouts import OUTPUTS
+    from shapedisplay.table import FrictionTable, Grid
+    from hypothesis import assume
+    names = {"normal_force", *names}
+    if kmu > 0:
+        names.add("grad_x")
+    quant, codes, bg = {}, {}, {}
+    for n in sorted(names):
+        q, c = data.draw(_extreme_channel(rows * cols), label=n)
+        quant[n], codes[n] = q, c.reshape(rows, cols)
+        bg[n] = data.draw(_EXTREME, label=f"{n} background")
+    try:
+        table = FrictionTable.from_codes(Grid(rows, cols, 1e-3, 1e-3), codes, quant, bg,
+                                         meta={"mapping": {"slope_friction_gain": kmu}})
+        table = I.read_image(I.to_image(table))          # what the reader accepts
+    except ShapeDisplayError:
+        assume(False)
+    r = Renderer(table, model=model, tick_rate=10_000.0, audio_rate=48_000.0)   # the C loader must agree
+    pos = st.floats(-1e6, 1e6) | st.floats(-2e-3, 6e-3) | st.sampled_from([0.0, 1e3, -1e3, 999.9])
+    xs = data.draw(st.lists(pos, min_size=2, max_size=40), label="x")
+    ys = data.draw(st.lists(pos, min_size=len(xs), max_size=len(xs)), label="y")
+    r.reset()
+    for x, y in zip(xs, ys):
+        r.step(x, y)
+        for name in OUTPUTS.names:
+            assert np.isfinite(r.last[name]), (name, r.last[name])
+        assert -1.0 <= r.last["drive"] <= 1.0
+        a = r.audio_block[:int(r.last["audio_samples"])]
+        assert np.all(np.abs(a) <= 1.0)
+
+
+def test_overflowing_products_are_value_faults_not_outputs():
+    """A table each of whose values is finite but whose forces overflow (N near the largest double times a
+    friction scale of 1e10): every tick is counted in run.value_faults and plays without contact."""
+    from shapedisplay.runtime import Renderer
+    from shapedisplay.table import FrictionTable, Grid, Quantization
+    codes = {"normal_force": np.full((1, 4), 255, np.uint8), "friction_scale": np.full((1, 4), 255, np.uint8)}
+    quant = {"normal_force": Quantization("uint8", 1e305, 0.0), "friction_scale": Quantization("uint8", 1e10, 0.0)}
+    r = Renderer(FrictionTable.from_codes(Grid(1, 4, 1e-3, 1e-3), codes, quant), model="jump",
+                 tick_rate=10_000.0, audio_rate=48_000.0)
+    r.reset()
+    for k in range(50):
+        r.step(1e-5 * k, 0.0)
+        assert r.last["normal_force"] == 0.0 and r.last["friction_force"] == 0.0
+    assert int(r._online.run["value_faults"]) == 50
