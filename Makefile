@@ -6,7 +6,7 @@ SD     := $(VENV)/bin/shapedisplay
 STAMP  := $(VENV)/.installed
 OUT    := out
 
-.PHONY: install test demo bench report generate docs-images clean
+.PHONY: install test demo bench report generate docs-images fuzz clean
 
 # the C engine and kernels are compiled by the install: a changed C source or setup.py installs again
 ENGINE_SRC := setup.py $(wildcard shapedisplay/runtime_c/sd_*.[ch] shapedisplay/runtime/sd_*.c shapedisplay/sd_kernels.c shapedisplay/_module.c)
@@ -53,6 +53,12 @@ generate: $(STAMP)
 # previews need off-screen OpenGL, the studio screenshot Chromium (skipped with a note where missing). ~2 min.
 docs-images: $(STAMP)
 	$(PY) scripts/docs_images.py
+
+# The C engine under libFuzzer, double and single builds side by side, FUZZ_SECONDS (60) each
+# (shapedisplay/runtime_c/README.md, Fuzzing; the seeds are exported with the installed CLI).
+FUZZ_SECONDS ?= 60
+fuzz: $(STAMP)
+	$(MAKE) -C shapedisplay/runtime_c -j2 fuzz FUZZ_SECONDS=$(FUZZ_SECONDS)
 
 clean:
 	rm -rf $(OUT) build *.egg-info

@@ -22,6 +22,8 @@
 #                 also install the C runtime's cross toolchains, used by
 #                 `make -C runtime-c wasm|m4` and their tests:
 #                   clang lld wasi-libc libclang-rt-dev-wasm32   WebAssembly (wasm32-wasi)
+#                   libclang-rt-dev                               clang's sanitizer and libFuzzer
+#                                                                 runtimes (`make -C runtime-c fuzz`)
 #                   gcc-arm-none-eabi libnewlib-arm-none-eabi     Cortex-M4F bare metal
 #                   qemu-system-arm                               runs the M4F build (mps2-an386)
 #
@@ -34,7 +36,7 @@ for arg in "$@"; do
     case "$arg" in
         --with-xvfb) PACKAGES="$PACKAGES xvfb" ;;
         --with-studio) PACKAGES="$PACKAGES clang lld wasi-libc libclang-rt-dev-wasm32 chromium" ;;
-        --with-toolchains) PACKAGES="$PACKAGES clang lld wasi-libc libclang-rt-dev-wasm32 gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm" ;;
+        --with-toolchains) PACKAGES="$PACKAGES clang lld wasi-libc libclang-rt-dev-wasm32 libclang-rt-dev gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm" ;;
         *) echo "install-system-deps: unknown option '$arg' (valid: --with-xvfb, --with-studio, --with-toolchains)" >&2; exit 2 ;;
     esac
 done
