@@ -267,3 +267,17 @@ def test_python_reader_refuses_what_the_c_loader_refuses(scale, offset):
                                      {"normal_force": Quantization("uint16", scale, offset)})
     with pytest.raises(TableError, match="normal_force.*overflow"):
         I.read_image(I.to_image(table))
+
+
+@pytest.mark.parametrize("field, value", [(80, 7e30), (88, -1000.5), (64, 2e3)])
+def test_c_loader_refuses_grids_beyond_a_kilometre(sd_vectors_image, sd_vectors_image_single, tmp_path, field,
+                                                    value):
+    """Grid origin and spacing within 1 km, as the Python reader's table schema requires (MAX_COORDINATE_M): an
+    origin of 7e30 m (found by the fuzzer) was where a held cursor started, and the next tick's velocity was
+    inf in the single-precision build."""
+    table, img = _u16_image({})
+    img = bytearray(img)
+    struct.pack_into("<d", img, field, value)
+    img = _reseal(img)
+    assert _load_code(sd_vectors_image, img, table, tmp_path) == -18
+    assert _load_code(sd_vectors_image_single, img, table, tmp_path) == -18

@@ -161,6 +161,10 @@ int sd_image_load(sd_image_t *img, const void *data, size_t size)
     if (!(img->table.grid.dx > SD_R(0.0) && img->table.grid.dy > SD_R(0.0) && real_ok(f64le(p + 64))
           && real_ok(f64le(p + 72)) && real_ok(f64le(p + 80)) && real_ok(f64le(p + 88))))
         return SD_ERR_IMAGE_VALUE;
+    /* spacing and origin within SD_POSITION_LIMIT_M (table.MAX_COORDINATE_M, the Python reader's rule): a
+     * held cursor starts at the origin, and an origin of 7e30 m made the next tick's velocity inf in float */
+    for (s = 0; s < 4; s++)
+        if (!(fabs(f64le(p + 64 + 8 * s)) <= SD_POSITION_LIMIT_M)) return SD_ERR_IMAGE_RANGE;
     for (s = 0; s < SD_IMAGE_NPARAM; s++) {
         img->params[s] = f64le(p + 96 + 8 * s);
         if (!real_ok(img->params[s])) return SD_ERR_IMAGE_VALUE;

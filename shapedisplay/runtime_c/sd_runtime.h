@@ -247,7 +247,8 @@ enum {
     SD_ERR_IMAGE_ALIGN = -15,    /* image not 8-byte aligned in memory */
     SD_ERR_IMAGE_VALUE = -16,    /* a non-finite or out-of-range value */
     SD_ERR_IMAGE_ENDIAN = -17,   /* big-endian host: the codes cannot be used in place */
-    SD_ERR_IMAGE_RANGE = -18     /* a channel decodes values beyond sd_real: offset +/- scale x (largest code of its type) */
+    SD_ERR_IMAGE_RANGE = -18     /* a channel decodes values beyond sd_real (offset +/- scale x the largest code of
+                                    its type), or a grid spacing or origin beyond SD_POSITION_LIMIT_M */
 };
 
 typedef struct {

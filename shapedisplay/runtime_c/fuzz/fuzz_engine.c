@@ -23,6 +23,7 @@
 #include <math.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include "../sd_runtime.h"
@@ -71,10 +72,9 @@ static uint32_t crc32_fast(const uint8_t *p, size_t n)
 
 static int finite_r(sd_real v) { return isfinite(v); }
 
-static void check(int ok)
-{
-    if (!ok) abort();
-}
+/* a failed check names itself, then aborts (libFuzzer keeps the input as a crash) */
+#define check(ok) do { if (!(ok)) { fprintf(stderr, "fuzz_engine: check failed, line %d: %s\n", __LINE__, #ok); \
+                                    abort(); } } while (0)
 
 /* Every value a loaded image can hand the renderer is finite (the loader's range rule). */
 static void check_decoded(void)
