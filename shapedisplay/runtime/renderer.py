@@ -356,6 +356,13 @@ class Renderer:
         """Events the event ring could not hold while they sounded, since :meth:`reset`."""
         return int(self._online.run["events_dropped"])
 
+    @property
+    def value_faults(self) -> int:
+        """Ticks since :meth:`reset` whose values overflowed (a NaN drive played as 0, a force beyond the
+        reals played without contact, a pad restarted at rest); 0 for any table the reader accepts played
+        with finite cursors."""
+        return int(self._online.run["value_faults"])
+
     def recent_events(self):
         """(times, amplitudes) of the bursts still sounding (copies)."""
         n = int(self._online.run["n_recent"])
