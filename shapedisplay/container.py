@@ -316,23 +316,31 @@ class NpzReader:
         return parse_json(raw.tobytes(), f"{self.label}, entry '{name}'", max_depth, self.error)
 
 
+def too_deep(text: str, tokens: re.Pattern, limit: int) -> int | None:
+    """Offset in ``text`` of the first bracket that opens a level deeper than ``limit``, or None.
+
+    ``tokens`` matches the brackets ``[]{}`` and whatever must be skipped whole (strings, comments); a
+    scan without recursion, so it runs before a recursive parser would meet the nesting."""
+    depth = 0
+    for m in tokens.finditer(text):
+        tok = m.group()
+        if tok in ("[", "{"):
+            depth += 1
+            if depth > limit:
+                return m.start()
+        elif tok in ("]", "}"):
+            depth = max(depth - 1, 0)
+    return None
+
+
 def parse_json(data: bytes, where: str, max_depth: int = JSON_MAX_DEPTH, error=TableError):
     """Parse UTF-8 JSON whose nesting is at most ``max_depth``; NaN/Infinity refused."""
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise error(f"{where}: not UTF-8 text (byte {exc.start})") from None
-    depth = deepest = 0
-    for tok in _JSON_TOKENS.finditer(text):
-        c = tok.group()
-        if c in "[{":
-            depth += 1
-            if depth > deepest:
-                deepest = depth
-                if deepest > max_depth:
-                    raise error(f"{where}: JSON nests deeper than {max_depth} levels")
-        elif c in "]}":
-            depth -= 1
+    if too_deep(text, _JSON_TOKENS, max_depth) is not None:
+        raise error(f"{where}: JSON nests deeper than {max_depth} levels")
 
     def constant(name):
         raise _NonFinite(name)

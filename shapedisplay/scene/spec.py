@@ -51,6 +51,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..container import too_deep
 from ..devices import toml_module
 from ..errors import FileFormatError, InputError, did_you_mean
 from ..forces import DEFAULT_SLOPE_FRICTION_GAIN, MappingOptions
@@ -191,19 +192,11 @@ _TOML_TOKENS = re.compile(r'''
 
 def check_toml_nesting(text: str, where: str) -> None:
     """Refuse TOML text whose brackets nest deeper than :data:`MAX_NESTING` (before parsing it)."""
-    depth = deepest = 0
-    for m in _TOML_TOKENS.finditer(text):
-        tok = m.group()
-        if tok in "[{":
-            depth += 1
-            if depth > deepest:
-                deepest = depth
-                if deepest > MAX_NESTING:
-                    line = text.count("\n", 0, m.start()) + 1
-                    raise FileFormatError(f"{where}: tables and arrays nest more than {MAX_NESTING} levels deep "
-                                          f"at line {line}, beyond the limit of {MAX_NESTING} (docs/limits.md)")
-        elif tok in "]}":
-            depth = max(depth - 1, 0)
+    pos = too_deep(text, _TOML_TOKENS, MAX_NESTING)
+    if pos is not None:
+        line = text.count("\n", 0, pos) + 1
+        raise FileFormatError(f"{where}: tables and arrays nest more than {MAX_NESTING} levels deep "
+                              f"at line {line}, beyond the limit of {MAX_NESTING} (docs/limits.md)")
 
 
 def check_data_nesting(data, where: str) -> None:
