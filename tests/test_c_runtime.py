@@ -188,33 +188,44 @@ def stroke(n, kind):
 
 
 # ------------------------------------------------------------------ table compiled in from the C header export
-@pytest.mark.parametrize("model", ["exact", "karnopp", "stribeck"])
-def test_header_plays_every_model_as_the_package(tmp_path, model):
-    """Firmware plays every model from the header alone: ``sd_table_use_model`` sets the pad parameters the
-    package derives for the model, and the header player's drive and audio equal ``Renderer.step``'s bit for
-    bit (the same sources, the same double arithmetic) on a stroke with stick-slip events."""
+def _header_play(tmp_path, table, model, n):
+    """The table's C header export played by tool_play_header.c (``model`` by ``sd_table_use_model``, jump by
+    default) and by ``Renderer.step`` over ``n`` ticks of the diagonal stroke: both drives and audios, and
+    the events Renderer counted."""
     from shapedisplay.export import export_c
-    table = widget_table("uint16", kmu=0.4, sparse=True)
-    table.meta["tick_rate_hz"] = 10_000.0
     header = export_c(table, tmp_path / "table.h", name="sd_table")
     exe = tmp_path / "sd_play_header"
-    cmd = [_cc(), *CFLAGS, f'-DSD_TABLE_HEADER="{header}"', f"-DSD_PLAY_MODEL=SD_MODEL_{model.upper()}", "-I",
-           str(CDIR), str(CDIR / "tool_play_header.c"), *(str(CDIR / n) for n in LIB), "-lm", "-o", str(exe)]
+    defs = [f'-DSD_TABLE_HEADER="{header}"']   # the header carries K_mu and every other constant
+    if model != "jump":
+        defs.append(f"-DSD_PLAY_MODEL=SD_MODEL_{model.upper()}")
+    cmd = [_cc(), *CFLAGS, *defs, "-I", str(CDIR), str(CDIR / "tool_play_header.c"),
+           *(str(CDIR / n) for n in LIB), "-lm", "-o", str(exe)]
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stderr
     r = Renderer(table, model=model, tick_rate=10_000.0, audio_rate=48_000.0)
-    x, y = stroke(1500, "diagonal")
+    x, y = stroke(n, "diagonal")
     po, pa, (_, pev) = py_render(r, x, y)
     fin, fout = tmp_path / "in", tmp_path / "out"
     fin.write_bytes(struct.pack("<q", x.size) + np.asarray(x, "<f8").tobytes() + np.asarray(y, "<f8").tobytes())
     res = subprocess.run([str(exe), "48000", str(fin), str(fout)], capture_output=True, text=True, timeout=60)
     assert res.returncode == 0, res.stderr
     raw = fout.read_bytes()
-    drive = np.frombuffer(raw[:8 * x.size], "<f8")
-    audio = np.frombuffer(raw[8 * x.size + 8:], "<f8")
-    assert pev > 0
-    np.testing.assert_array_equal(drive, po["drive"])
-    np.testing.assert_array_equal(audio, pa)
+    (na,) = struct.unpack_from("<q", raw, 8 * x.size)
+    assert na == pa.size
+    return np.frombuffer(raw[:8 * x.size], "<f8"), po["drive"], np.frombuffer(raw[8 * x.size + 8:], "<f8"), pa, pev
+
+
+@pytest.mark.parametrize("model", ["exact", "karnopp", "stribeck"])
+def test_header_plays_every_model_as_the_package(tmp_path, model):
+    """Firmware plays every model from the header alone: ``sd_table_use_model`` sets the pad parameters the
+    package derives for the model, and the header player's drive and audio equal ``Renderer.step``'s bit for
+    bit (the same sources, the same double arithmetic) on a stroke with stick-slip events."""
+    table = widget_table("uint16", kmu=0.4, sparse=True)
+    table.meta["tick_rate_hz"] = 10_000.0
+    drive, want_drive, audio, want_audio, events = _header_play(tmp_path, table, model, 1500)
+    assert events > 0
+    np.testing.assert_array_equal(drive, want_drive)
+    np.testing.assert_array_equal(audio, want_audio)
 
 
 @pytest.mark.parametrize("dtype, sparse, kmu", [("uint16", True, 0.4), ("uint16", False, 0.0), ("uint8", True, 0.4),
@@ -223,30 +234,12 @@ def test_table_from_c_header_export(tmp_path, dtype, sparse, kmu):
     """`shapedisplay export --format c` + tool_play_header.c reproduce Renderer.step bit for bit.
 
     The header binds itself (``sd_table_bind``): any channel code type, K_mu without -D flags."""
-    from shapedisplay.export import export_c
     table = widget_table(dtype, kmu=kmu, sparse=sparse)
     table.meta["tick_rate_hz"] = 10_000.0
-    header = export_c(table, tmp_path / "table.h", name="sd_table")
-    exe = tmp_path / "sd_play_header"
-    defs = [f'-DSD_TABLE_HEADER="{header}"']   # the header carries K_mu and every other constant
-    cmd = [_cc(), *CFLAGS, *defs, "-I", str(CDIR), str(CDIR / "tool_play_header.c"),
-           *(str(CDIR / n) for n in LIB), "-lm", "-o", str(exe)]
-    res = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
-    assert res.returncode == 0, res.stderr
-    r = Renderer(table, model="jump", tick_rate=10_000.0, audio_rate=48_000.0)
-    x, y = stroke(2500, "diagonal")
-    po, pa, (_, pev) = py_render(r, x, y)
-    fin, fout = tmp_path / "in", tmp_path / "out"
-    fin.write_bytes(struct.pack("<q", x.size) + np.asarray(x, "<f8").tobytes() + np.asarray(y, "<f8").tobytes())
-    res = subprocess.run([str(exe), "48000", str(fin), str(fout)], capture_output=True, text=True, timeout=60)
-    assert res.returncode == 0, res.stderr
-    raw = fout.read_bytes()
-    drive = np.frombuffer(raw[:8 * x.size], "<f8")
-    (na,) = struct.unpack_from("<q", raw, 8 * x.size)
-    audio = np.frombuffer(raw[8 * x.size + 8:], "<f8")
-    assert pev > 20 and na == pa.size
-    np.testing.assert_array_equal(drive, po["drive"])
-    np.testing.assert_array_equal(audio, pa)
+    drive, want_drive, audio, want_audio, events = _header_play(tmp_path, table, "jump", 2500)
+    assert events > 20
+    np.testing.assert_array_equal(drive, want_drive)
+    np.testing.assert_array_equal(audio, want_audio)
 
 
 def test_c_renderer_init_refuses_bad_parameters(sd_vectors, tmp_path):
