@@ -84,6 +84,9 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from native_loop import LOOP_C  # noqa: E402  (the loop bench_wasm.py times)
+
 ROOT = Path(__file__).resolve().parent.parent
 PLAY_STROKE = "62,2 -> 62,156 @ 30mm/s"
 RENDER_STROKE = "62,2 -> 62,152 @ 30mm/s"        # 150 mm at 30 mm/s: 5 s, 50 001 ticks at 10 kHz
@@ -205,66 +208,6 @@ for _ in range(loops):
 print(json.dumps(times))
 """
 
-# The native loop (e): the payload as the M4 harness reads it; every loop from a reset, CPU time of the
-# sd_renderer_step loop alone (the audio summed so it is not optimised away). Old and new API alike.
-NATIVE_C = r"""
-#define _POSIX_C_SOURCE 199309L
-#include <stdio.h>
-#include <stdlib.h>
-#include <string.h>
-#include <time.h>
-#include "sd_runtime.h"
-static sd_image_t img;
-static sd_renderer_t R;
-static double cpu_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-int main(int argc, char **argv)
-{
-    FILE *f;
-    long size, n, i, k, loops;
-    double *buf, *xy, acc = 0.0, rates[2], t0;
-    int64_t v[3];
-    sd_config_t C;
-    if (argc != 3 || !(f = fopen(argv[1], "rb"))) return 2;
-    loops = atol(argv[2]);
-    fseek(f, 0, SEEK_END);
-    size = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    buf = malloc((size_t)size + 8);
-    if (!buf || fread(buf, 1, (size_t)size, f) != (size_t)size) return 2;
-    memcpy(v, buf, 8);
-    if (sd_image_load(&img, buf + 1, (size_t)v[0]) != SD_OK) return 3;
-    xy = buf + 1 + (v[0] + 7) / 8;
-    memcpy(v, xy, 16);
-    memcpy(rates, xy + 2, 16);
-    sd_image_config(&img, &C);
-    C.policy = (int)v[0];
-    C.model = (int)v[1];
-    C.tick_rate = rates[0];
-    C.audio_rate = rates[1];
-    memcpy(v, xy + 4, 8);
-    n = (long)v[0];
-    if (sd_renderer_init(&R, &img.table, &C) != SD_OK) return 4;
-    printf("[");
-    for (k = 0; k < loops; k++) {
-        sd_renderer_reset(&R, 0);
-        t0 = cpu_s();
-        for (i = 0; i < n; i++) {
-            long j;
-            sd_renderer_step(&R, xy[5 + i], xy[5 + n + i]);
-            for (j = 0; j < R.n_audio; j++) acc += R.audio[j];
-        }
-        printf("%s%.9f", k ? ", " : "", cpu_s() - t0);
-    }
-    printf("]\n");
-    fprintf(stderr, "checksum %g\n", acc);
-    return 0;
-}
-"""
 WASM_TICKS = 200_000
 WASM_LOOPS = 3                                     # timed loops per process
 M4_MODELS = ("exact", "jump")                      # the old C runtime has only these two
@@ -481,7 +424,7 @@ def build_wasm_targets(side: Side, work: Path) -> tuple:
     cdir = side.root / "shapedisplay" / "runtime_c"
     out = work / f"e-{side.name}"
     out.mkdir()
-    (out / "loop.c").write_text(NATIVE_C)
+    (out / "loop.c").write_text(LOOP_C)
     exe = out / "sd_loop"
     cc = os.environ.get("CC", "cc")
     p = subprocess.run([cc, "-std=c99", "-O2", "-ffp-contract=off", "-I", str(cdir), *library_sources(cdir),

@@ -9,6 +9,7 @@ the ratio wasm / native.
 """
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -22,6 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_c_runtime import library_sources  # noqa: E402
+from native_loop import LOOP_C  # noqa: E402
 from runtime_vectors import WasmRunner, case_setup, image_payload  # noqa: E402
 from shapedisplay.runtime import wasm  # noqa: E402
 
@@ -32,51 +34,6 @@ REPEATS = 5          # best of 5 for both (a shared machine)
 
 # The native loop: the same payload as `sd_vectors image`, the ticks timed inside the process
 # (CPU time of the sd_renderer_step loop only; the audio block is summed so it is not optimised away).
-LOOP_C = r"""
-#include <stdio.h>
-#include <stdlib.h>
-#include <string.h>
-#include <time.h>
-#include "sd_runtime.h"
-static sd_image_t img;
-static sd_renderer_t R;
-int main(int argc, char **argv)
-{
-    FILE *f = fopen(argv[1], "rb");
-    long size, n, i;
-    double *buf, *xy, acc = 0.0, rates[2];
-    int64_t v[3];
-    sd_config_t C;
-    clock_t c0;
-    if (argc != 2 || !f) return 2;
-    fseek(f, 0, SEEK_END);
-    size = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    buf = malloc((size_t)size + 8);
-    if (!buf || fread(buf, 1, (size_t)size, f) != (size_t)size) return 2;
-    memcpy(v, buf, 8);
-    if (sd_image_load(&img, buf + 1, (size_t)v[0]) != SD_OK) return 3;
-    xy = buf + 1 + (v[0] + 7) / 8;
-    memcpy(v, xy, 16);
-    memcpy(rates, xy + 2, 16);
-    sd_image_config(&img, &C);
-    C.policy = (int)v[0];
-    C.model = (int)v[1];
-    C.tick_rate = rates[0];
-    C.audio_rate = rates[1];
-    memcpy(v, xy + 4, 8);
-    n = (long)v[0];
-    if (sd_renderer_init(&R, &img.table, &C) != SD_OK) return 4;
-    c0 = clock();
-    for (i = 0; i < n; i++) {
-        long j;
-        sd_renderer_step(&R, xy[5 + i], xy[5 + n + i]);
-        for (j = 0; j < R.n_audio; j++) acc += R.audio[j];
-    }
-    printf("%.6f %g\n", (double)(clock() - c0) / CLOCKS_PER_SEC, acc);
-    return 0;
-}
-"""
 
 
 def main() -> int:
@@ -93,8 +50,8 @@ def main() -> int:
         subprocess.run([cc, "-std=c99", "-O2", "-ffp-contract=off", "-I", str(CDIR), *srcs, str(d / "loop.c"),
                         "-lm", "-o", str(exe)], check=True)
         (d / "in").write_bytes(image_payload(img, r, x, y))
-        native = min(float(subprocess.run([str(exe), str(d / "in")], capture_output=True, text=True,
-                                          check=True).stdout.split()[0]) for _ in range(REPEATS))
+        native = min(json.loads(subprocess.run([str(exe), str(d / "in"), str(REPEATS)], capture_output=True,
+                                               text=True, check=True).stdout))
     w = WasmRunner(wasm.MODULE)
     per_tick = int(np.ceil(r.audio_rate / r.tick_rate)) + 2
     assert w.load(img) == 0
