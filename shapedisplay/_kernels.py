@@ -27,19 +27,21 @@ CHUNK = 1 << 15
 C_SOURCE = Path(__file__).resolve().parent / "sd_kernels.c"
 #: The extension module the C kernels are compiled into (``setup.py``).
 EXTENSION = "shapedisplay._kernels_c"
-#: The loaded library; ``False`` switches :func:`c_kernels` off (the tests compare the other paths some
-#: callers keep, such as :func:`.gradients.wall_regions`' scipy labelling, with the C ones).
+#: The loaded library; ``False`` switches :func:`c_kernels` off (the tests compare the numpy paths some
+#: callers keep for other array layouts with the C ones).
 _C = None
+#: The loaded library whatever the switch says (:func:`library`).
+_LIB = None
 
 
-def c_kernels():
-    """The compiled C kernels as a ctypes library (loaded once), or None where switched off (``_C = False``).
+def library():
+    """The compiled C kernels as a ctypes library, loaded once with their argument types declared.
 
     Raises :class:`~shapedisplay.errors.InputError` where the extension
     module is missing or does not load (a broken install).
     """
-    global _C
-    if _C is None:
+    global _LIB
+    if _LIB is None:
         import ctypes
 
         from .extensions import extension_path, load_extension
@@ -58,7 +60,15 @@ def c_kernels():
             fn = getattr(lib, name)
             fn.argtypes = args
             fn.restype = None if name == "sd_gray_to_heights" else i64
-        _C = lib
+        _LIB = lib
+    return _LIB
+
+
+def c_kernels():
+    """:func:`library`, or None where switched off (``_C = False``: the tests compare the numpy paths)."""
+    global _C
+    if _C is None:
+        _C = library()
     return _C or None
 
 

@@ -550,10 +550,7 @@ def _compile_whole(hf, device, mapping, options, kept):
     """Walls and coded channels computed on whole arrays (any method and mapping)."""
     # -- gradient analysis (walls are analysed for every compile)
     gx, gy = gradient(hf, options.gradient_method, **options.gradient_kw)
-    # one 8-byte-per-sample scratch array: the wall labels, then the normal force (fresh memory costs a
-    # process page faults; on a 4096x4096 map each such array is 128 MiB)
-    work = np.empty(hf.shape, dtype=np.float64)
-    walls = detect_walls(hf, gx, gy, options.max_slope, work=work)
+    walls = detect_walls(hf, gx, gy, options.max_slope)
     uses_slopes = any(n in kept for n in ("grad_x", "grad_y", "lateral_x", "lateral_y"))
     if _limited(walls, kept, options):
         limit_walls(gx, gy, options.max_slope, out=(gx, gy), walls=walls)
@@ -576,7 +573,7 @@ def _compile_whole(hf, device, mapping, options, kept):
     n_min = min(max(mapping.n_base, lo_n), hi_n)
     if mapping.height and (any(k in kept for k in ("normal_force", "skin_stretch"))
                            or (mapping.lateral == "normal" and "lateral_x" in kept)):
-        n, clamped["normal_force"] = normal_force(hf, device, mapping, out=work)
+        n, clamped["normal_force"] = normal_force(hf, device, mapping)
         n_min = _min_nonzero_abs(n) or n_min
         if "normal_force" in kept:
             code("normal_force", n)
@@ -597,7 +594,7 @@ def _compile_whole(hf, device, mapping, options, kept):
         if "lateral_y" in kept:
             code("lateral_y", fy, n_min)
         del fx, fy
-    gx = gy = work = None
+    gx = gy = None
     if "skin_stretch" in kept:
         s, clamped["skin_stretch"] = skin_stretch(n if mapping.height else None, hf.shape, device, mapping)
         code("skin_stretch", s)

@@ -281,8 +281,7 @@ def _magnitude_sq(gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
     return m2
 
 
-def detect_walls(hf: HeightField, gx: np.ndarray, gy: np.ndarray, max_slope: float, *,
-                 work: np.ndarray | None = None) -> WallReport:
+def detect_walls(hf: HeightField, gx: np.ndarray, gy: np.ndarray, max_slope: float) -> WallReport:
     """Find samples steeper than ``max_slope`` and describe where they are.
 
     Parameters
@@ -293,10 +292,6 @@ def detect_walls(hf: HeightField, gx: np.ndarray, gy: np.ndarray, max_slope: flo
         Slopes.
     max_slope : float
         Steepest renderable slope (dimensionless, > 0; ``inf`` disables).
-    work : ndarray (rows, cols) float64, optional
-        Scratch memory the region labelling may use (overwritten), so that a
-        caller can reuse it afterwards instead of the process taking fresh
-        memory twice.
 
     Returns
     -------
@@ -321,7 +316,7 @@ def detect_walls(hf: HeightField, gx: np.ndarray, gy: np.ndarray, max_slope: flo
         mask = np.greater(m2, limit * limit, out=np.empty(gx.shape, dtype=bool))
         del m2
     _check_steepest(hf, steepest)
-    return wall_report(hf, mask, int(np.count_nonzero(mask)), limit, steepest, work)
+    return wall_report(hf, mask, int(np.count_nonzero(mask)), limit, steepest)
 
 
 def _check_steepest(hf: HeightField, steepest: float) -> None:
@@ -332,21 +327,16 @@ def _check_steepest(hf: HeightField, steepest: float) -> None:
             f"dx={hf.dx:g} m, dy={hf.dy:g} m; check the units of the size and height range ({hf.source})")
 
 
-def wall_report(hf: HeightField, mask: np.ndarray, count: int, limit: float, steepest: float,
-                work: np.ndarray | None = None) -> WallReport:
+def wall_report(hf: HeightField, mask: np.ndarray, count: int, limit: float, steepest: float) -> WallReport:
     """The :class:`WallReport` of ``count`` > 0 wall samples in ``mask`` (regions and their boxes)."""
-    labels = None
-    if work is not None and work.shape == mask.shape and work.dtype.itemsize == np.dtype(np.intp).itemsize \
-            and work.flags.c_contiguous and work.flags.writeable:
-        labels = work.view(np.intp)
-    n, top, spans = wall_regions(mask, WallReport.MAX_BOXES, out=labels)
+    n, top, spans = wall_regions(mask, WallReport.MAX_BOXES)
     boxes = [[round((hf.x0 + c0 * hf.dx) * 1e3, 6), round((hf.x0 + c1 * hf.dx) * 1e3, 6),
               round((hf.y0 + r0 * hf.dy) * 1e3, 6), round((hf.y0 + r1 * hf.dy) * 1e3, 6)]
              for r0, r1, c0, c1 in spans]
     return WallReport(mask, count, count / mask.size, limit, steepest, boxes, int(n))
 
 
-def wall_regions(mask: np.ndarray, k: int, *, out: np.ndarray | None = None) -> tuple[int, np.ndarray, list]:
+def wall_regions(mask: np.ndarray, k: int) -> tuple[int, np.ndarray, list]:
     """Connected regions of ``mask`` (4-connected, as ``scipy.ndimage.label``) and the ``k`` largest.
 
     Parameters
@@ -354,9 +344,6 @@ def wall_regions(mask: np.ndarray, k: int, *, out: np.ndarray | None = None) -> 
     mask : ndarray (rows, cols) bool
     k : int
         How many of the largest regions to describe.
-    out : ndarray (rows, cols) intp or int32, optional
-        Where to write the labels (scratch: overwritten, not part of the result).
-        By default a new int32 array (intp beyond 2**31 samples).
 
     Returns
     -------
@@ -369,142 +356,24 @@ def wall_regions(mask: np.ndarray, k: int, *, out: np.ndarray | None = None) -> 
     spans : list of (row_min, row_max, col_min, col_max)
         Inclusive sample bounds of each region in ``top``.
 
-    Cost: where a C compiler is there, one pass over the mask's rows in C
-    (``sd_regions`` in ``sd_kernels.c``, see :func:`._kernels.c_kernels`:
-    union-find over the runs of each row,
-    each region's size and box kept at its root; no label per sample):
-    about 0.13 s for a noisy 4096x4096 map's 2.2 million regions, against
-    0.4-0.7 s for the path below. Without one: scipy's labelling pass,
-    one histogram of the labels (``bincount`` for intp labels;
-    ``np.add.at`` for int32 labels, which ``bincount`` would first copy
-    into intp: twice the memory), one pass mapping the chosen labels to
-    ranks and one bounding-box pass over that (all in C); choosing the
-    largest is linear in the number of regions (a threshold from the
-    histogram of sizes, not a sort or a partition of every region). Both
-    give the same result (the tests compare them with scipy's labels).
+    One pass over the mask's rows in C (``sd_regions`` in ``sd_kernels.c``:
+    union-find over the runs of each row, each region's size and box kept at
+    its root; no label per sample): about 0.13 s for a noisy 4096x4096 map's
+    2.2 million regions. The tests hold it to ``scipy.ndimage.label``.
     """
-    if out is not None and (out.shape != mask.shape or out.dtype not in (np.dtype(np.intp), np.dtype(np.int32))
-                            or not out.flags.c_contiguous):
-        raise InputError(f"`out` must be a C-contiguous intp or int32 array of shape {mask.shape} "
-                         f"(got {out.dtype} {out.shape})")
     from . import _kernels
-    lib = _kernels.c_kernels() if mask.ndim == 2 and mask.size else None
-    if lib is not None:
-        found = _regions_in_c(lib.sd_regions, mask, k)
-        if found is not None:
-            return found
-    label, find_objects = _labelling()
-    if out is None:
-        out = np.empty(mask.shape, np.int32 if mask.size < 2 ** 31 else np.intp)
-    labels = out
-    n = label(mask, labels)
-    if n == 0:
-        return 0, np.zeros(0, np.int64), []
-    if labels.dtype == np.dtype(np.intp):
-        sizes = np.bincount(labels.reshape(-1), minlength=n + 1)
-    else:
-        sizes = np.zeros(n + 1, np.intp)
-        np.add.at(sizes, labels.reshape(-1), 1)
-    sizes[0] = 0
-    k = min(k, n)
-    # the k-th largest size s_k from a histogram of sizes (sizes above CAP share its top bin; then
-    # fewer than mask.size / CAP regions are that large and they are sorted directly)
-    cap = 1 << 16
-    at_least = np.cumsum(np.bincount(np.minimum(sizes[1:], cap), minlength=cap + 1)[::-1])[::-1]
-    s_k = int(np.flatnonzero(at_least >= k)[-1])         # at_least[s]: regions of size >= s (s < cap)
-    above = np.flatnonzero(sizes > s_k) if s_k < cap else np.flatnonzero(sizes >= cap)
-    above = above[np.lexsort((above, -sizes[above]))]
-    if above.size < k:                                   # fill up with regions of size s_k in label order
-        above = np.concatenate([above, np.flatnonzero(sizes == s_k)[:k - above.size]])
-    cand = above[:k]
-    rank = np.zeros(n + 1, dtype=np.int32 if k >= 127 else np.int8)
-    rank[cand] = np.arange(1, k + 1)
-    ranked = rank[labels]
-    del labels, out
-    spans = [(sl[0].start, sl[0].stop - 1, sl[1].start, sl[1].stop - 1)
-             for sl in find_objects(ranked, k)]
-    return int(n), cand.astype(np.int64), spans
-
-
-def _regions_in_c(fn, mask: np.ndarray, k: int):
-    """:func:`wall_regions`' result from ``sd_regions``; None if it ran out of memory."""
     m = np.ascontiguousarray(mask, dtype=bool)
+    if m.ndim != 2 or m.size == 0:
+        return 0, np.zeros(0, np.int64), []
     rows, cols = m.shape
     top = np.zeros(max(k, 1), np.int64)
     spans = np.zeros(4 * max(k, 1), np.int64)
-    n = int(fn(m.ctypes.data, rows, cols, k, top.ctypes.data, spans.ctypes.data))
+    n = int(_kernels.library().sd_regions(m.ctypes.data, rows, cols, k, top.ctypes.data, spans.ctypes.data))
     if n < 0:
-        return None
+        raise InputError(f"not enough memory to count the wall regions of a {cols} x {rows} map")
     kept = min(k, n)
     box = spans[:4 * kept].reshape(kept, 4).tolist()
     return n, top[:kept].copy(), [tuple(b) for b in box]
-
-
-#: 4-connectivity of :func:`wall_regions` (``scipy.ndimage.generate_binary_structure(2, 1)``).
-_CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], dtype=bool)
-_LABELLING = None
-
-
-def _labelling():
-    """``(label(mask, out) -> n, find_objects(labels, max_label) -> slices)``: scipy.ndimage's C routines.
-
-    Importing ``scipy.ndimage`` costs a process about 0.25 s of CPU (it
-    pulls in scipy's array-API layer, ``numpy.f2py`` and ``numpy.testing``
-    to build its docstrings and dispatch), twice what labelling a 4096x4096
-    map takes. The two compiled modules behind ``label`` and
-    ``find_objects`` (``scipy.ndimage._ni_label``, ``scipy.ndimage._nd_image``)
-    load in about 0.02 s, so they are loaded on their own, under their own
-    names: a later ``import scipy.ndimage`` finds them in ``sys.modules``
-    and uses the same modules (and once it is imported they are taken from
-    there). With a scipy whose layout differs the public functions are
-    used; both give the same labels (the tests compare them).
-    """
-    global _LABELLING
-    if _LABELLING is None:
-        _LABELLING = _direct_labelling() or _public_labelling()
-    return _LABELLING
-
-
-def _public_labelling():
-    from scipy import ndimage
-    return (lambda mask, out: int(ndimage.label(mask, output=out)),
-            lambda labels, k: ndimage.find_objects(labels, max_label=k))
-
-
-def _direct_labelling():
-    import importlib.machinery
-    import importlib.util
-    import os
-    import sys
-    try:
-        mods = []
-        for name in ("_ni_label", "_nd_image"):
-            full = f"scipy.ndimage.{name}"
-            mod = sys.modules.get(full)
-            if mod is None:
-                spec = importlib.util.find_spec("scipy")
-                folder = os.path.join(spec.submodule_search_locations[0], "ndimage")
-                path = next(p for p in (os.path.join(folder, name + s) for s in importlib.machinery.EXTENSION_SUFFIXES)
-                            if os.path.isfile(p))
-                loader = importlib.machinery.ExtensionFileLoader(full, path)
-                mod = importlib.util.module_from_spec(importlib.util.spec_from_file_location(full, path, loader=loader))
-                sys.modules[full] = mod
-                try:
-                    loader.exec_module(mod)
-                except BaseException:
-                    del sys.modules[full]
-                    raise
-            mods.append(mod)
-        raw_label, raw_find = mods[0]._label, mods[1].find_objects
-    except Exception:   # another scipy layout: the public functions below
-        return None
-
-    def label(mask, out):
-        return int(raw_label(np.asarray(mask), _CROSS, out))
-
-    def find_objects(labels, k):
-        return raw_find(np.asarray(labels), k)
-    return label, find_objects
 
 
 def _check_finite_peak(peak: float) -> None:

@@ -346,7 +346,7 @@ def test_compile_of_a_walled_map_is_unchanged_by_the_shared_scratch_and_the_mask
     fast = compile_heightfield(hf, RIG, m)
     assert fast.report["walls"]["count"] > 1000 and fast.report["walls"]["regions"] > 100
     detect, limit = compile_mod.detect_walls, compile_mod.limit_walls
-    monkeypatch.setattr(compile_mod, "detect_walls", lambda *a, work=None: detect(*a))
+    monkeypatch.setattr(compile_mod, "detect_walls", lambda *a: detect(*a))
     monkeypatch.setattr(compile_mod, "limit_walls", lambda *a, walls=None, **kw: limit(*a, **kw))
     plain = compile_heightfield(hf, RIG, m)
     assert fast.report == plain.report and fast.table.quant == plain.table.quant
@@ -368,14 +368,12 @@ def test_normal_force_written_into_a_given_array():
         normal_force(hf, RIG, MappingOptions.parse("height"), out=np.empty((40, 50), np.float32))
 
 
-def test_wall_labelling_loads_no_scipy_ndimage_and_a_later_import_shares_it(tmp_path):
-    """Labelling walls takes scipy.ndimage's compiled routines without importing the package (about 0.25 s
-    of start-up); the same labels as ndimage.label; importing scipy.ndimage afterwards still works."""
+def test_wall_regions_load_no_scipy_ndimage(tmp_path):
+    """Counting wall regions runs the package's C kernel: scipy.ndimage (about 0.25 s of start-up) is not
+    imported, and the count is scipy's."""
     code = (
         "import sys, numpy as np\n"
-        "from shapedisplay import _kernels\n"
         "from shapedisplay.gradients import wall_regions\n"
-        "_kernels._C = False\n"                              # scipy's path, not the C count
         "mask = np.random.default_rng(4).random((300, 300)) < 0.4\n"
         "n, top, spans = wall_regions(mask, 5)\n"
         "print('scipy.ndimage' in sys.modules)\n"
@@ -386,16 +384,6 @@ def test_wall_labelling_loads_no_scipy_ndimage_and_a_later_import_shares_it(tmp_
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert r.stdout.split() == ["False", "True", "True"]
-
-
-def test_wall_labelling_falls_back_to_the_public_scipy_functions(monkeypatch):
-    from shapedisplay import gradients
-    monkeypatch.setattr("shapedisplay._kernels._C", False)         # scipy's path, not the C count
-    mask = np.random.default_rng(6).random((200, 210)) < 0.45
-    direct = gradients.wall_regions(mask, 7)
-    monkeypatch.setattr(gradients, "_LABELLING", gradients._public_labelling())
-    public = gradients.wall_regions(mask, 7)
-    assert direct[0] == public[0] and np.array_equal(direct[1], public[1]) and direct[2] == public[2]
 
 
 def test_heights_whose_sum_overflows_are_still_finite():
