@@ -9,7 +9,7 @@ OUT    := out
 .PHONY: install test demo bench report generate docs-images fuzz clean
 
 # the C engine and kernels are compiled by the install: a changed C source or setup.py installs again
-ENGINE_SRC := setup.py $(wildcard shapedisplay/runtime_c/sd_*.[ch] shapedisplay/runtime/sd_*.c shapedisplay/sd_kernels.c shapedisplay/_module.c)
+ENGINE_SRC := setup.py $(wildcard shapedisplay/engine/sd_*.[ch] shapedisplay/render/sd_*.c shapedisplay/author/sd_kernels.c shapedisplay/_module.c)
 $(STAMP): pyproject.toml scripts/install-system-deps.sh $(ENGINE_SRC)
 	sh scripts/install-system-deps.sh --with-xvfb --with-studio --with-toolchains
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -44,10 +44,10 @@ report: $(STAMP)
 	$(SD) report accuracy -o $(OUT)/report
 	$(SD) report stability -o $(OUT)/report
 
-# Files derived from the runtime's model registry and layouts (dispatch.py, runtime_c/sd_layout.h,
+# Files derived from the runtime's model registry and layouts (dispatch.py, engine/sd_layout.h,
 # KERNEL_SOURCES_SHA256 lines): run after changing a kernel or adding a model; tests check they are current.
 generate: $(STAMP)
-	$(PY) -m shapedisplay.runtime.codegen
+	$(PY) -m shapedisplay.render.codegen
 
 # Every picture in docs/images from the shipped samples, byte-stable (tests/test_docs_images.py compares them);
 # previews need off-screen OpenGL, the studio screenshot Chromium (skipped with a note where missing). ~2 min.
@@ -55,10 +55,10 @@ docs-images: $(STAMP)
 	$(PY) scripts/docs_images.py
 
 # The C engine under libFuzzer, double and single builds side by side, FUZZ_SECONDS (60) each
-# (shapedisplay/runtime_c/README.md, Fuzzing; the seeds are exported with the installed CLI).
+# (shapedisplay/engine/README.md, Fuzzing; the seeds are exported with the installed CLI).
 FUZZ_SECONDS ?= 60
 fuzz: $(STAMP)
-	$(MAKE) -C shapedisplay/runtime_c -j2 fuzz FUZZ_SECONDS=$(FUZZ_SECONDS)
+	$(MAKE) -C shapedisplay/engine -j2 fuzz FUZZ_SECONDS=$(FUZZ_SECONDS)
 
 clean:
 	rm -rf $(OUT) build *.egg-info

@@ -4,12 +4,12 @@ Two extension modules, loaded from Python with ctypes (their files are found
 with ``importlib.util.find_spec``; the engine's module is also imported for its
 one Python-level function, ``pad_run``, see ``_module.c``):
 
-* ``shapedisplay._engine``: the C runtime (every ``shapedisplay/runtime_c/sd_*.c``
+* ``shapedisplay._engine``: the C runtime (every ``shapedisplay/engine/sd_*.c``
   but the WebAssembly entry points ``sd_wasm.c``) and its offline play loop
-  ``shapedisplay/runtime/sd_play_path.c`` (:mod:`shapedisplay.runtime.native`), and the reports'
-  timing floors ``shapedisplay/runtime/sd_floors.c`` (:mod:`shapedisplay.reports.common`);
-* ``shapedisplay._kernels_c``: the compiler's kernels ``shapedisplay/sd_kernels.c``
-  (:mod:`shapedisplay._kernels`). Kept apart from the runtime: compiling a
+  ``shapedisplay/render/sd_play_path.c`` (:mod:`shapedisplay.render.native`), and the reports'
+  timing floors ``shapedisplay/render/sd_floors.c`` (:mod:`shapedisplay.reports.common`);
+* ``shapedisplay._kernels_c``: the compiler's kernels ``shapedisplay/author/sd_kernels.c``
+  (:mod:`shapedisplay.author.kernels`). Kept apart from the runtime: compiling a
   table does not load the runtime, the runtime library holds none of the
   compiler's code, and neither can clash with the other's names.
 
@@ -40,9 +40,9 @@ _DEFINITION = re.compile(r"^(?!static\b)[A-Za-z_][\w \t*]*?\b(sd_\w+)\s*\([^;{]*
 
 def runtime_sources() -> list[str]:
     """The C runtime's sources, whatever models it has (a glob: a new model file builds in)."""
-    return [*(str(p) for p in sorted((PACKAGE / "runtime_c").glob("sd_*.c")) if p.name != "sd_wasm.c"),
-            str(PACKAGE / "runtime" / "sd_play_path.c"),
-            str(PACKAGE / "runtime" / "sd_floors.c")]
+    return [*(str(p) for p in sorted((PACKAGE / "engine").glob("sd_*.c")) if p.name != "sd_wasm.c"),
+            str(PACKAGE / "render" / "sd_play_path.c"),
+            str(PACKAGE / "render" / "sd_floors.c")]
 
 
 def exported(sources: list[str]) -> list[str]:
@@ -71,8 +71,8 @@ class BuildExt(build_ext):
 setup(
     ext_modules=[
         extension("shapedisplay._engine", runtime_sources(), macros=[("SD_ENGINE_METHODS", None)],
-                  include_dirs=[str(PACKAGE / "runtime_c")]),
-        extension("shapedisplay._kernels_c", [str(PACKAGE / "sd_kernels.c")]),
+                  include_dirs=[str(PACKAGE / "engine")]),
+        extension("shapedisplay._kernels_c", [str(PACKAGE / "author" / "sd_kernels.c")]),
     ],
     cmdclass={"build_ext": BuildExt},
 )

@@ -122,12 +122,12 @@ def print_levels(per_case, runs):
 
 
 def part_stribeck(runs):
-    from shapedisplay.compile import CompileOptions, compile_heightfield
-    from shapedisplay.devices import load_device
-    from shapedisplay.forces import MappingOptions
-    from shapedisplay.runtime.cursor import CursorPath
-    from shapedisplay.runtime.renderer import Renderer
-    from shapedisplay.sources import from_array
+    from shapedisplay.author.compile import CompileOptions, compile_heightfield
+    from shapedisplay.table.devices import load_device
+    from shapedisplay.author.forces import MappingOptions
+    from shapedisplay.render.cursor import CursorPath
+    from shapedisplay.render.renderer import Renderer
+    from shapedisplay.author.sources import from_array
     dev = load_device("handheld-stick")
     grid = [(N, V, rate) for N in (0.5, 2.0, 6.0) for V in (0.001, 0.02, 0.1, 0.3) for rate in (1000.0, 10000.0, 96000.0)]
     dur = 0.2

@@ -15,7 +15,7 @@ Each figure is printed beside the same figure for a *restarting* synthesis
 are often synthesised: ``A env(t - t_e) sin(2 pi f_c (t - t_e))`` per burst),
 computed here with numpy as the baseline of the comparison.
 
-Cost: seconds per audio sample of :func:`~shapedisplay.runtime.bursts.render_bursts`
+Cost: seconds per audio sample of :func:`~shapedisplay.render.bursts.render_bursts`
 with 1 .. 1000 bursts live at once, as a ratio to the 1-burst case measured in
 the same run (O(1) per sample means ratios near 1).
 """
@@ -27,9 +27,9 @@ import time
 
 import numpy as np
 
-from shapedisplay.devices import load_device
-from shapedisplay.runtime.bursts import BURST_POLICIES, burst_envelope, render_bursts
-from shapedisplay.runtime.models import simulate_pad
+from shapedisplay.table.devices import load_device
+from shapedisplay.render.bursts import BURST_POLICIES, burst_envelope, render_bursts
+from shapedisplay.render.models import simulate_pad
 
 RATE, FC, RISE, DECAY = 48_000.0, 300.0, 0.005, 0.030
 STEP = 2.0 * math.sin(math.pi * FC / RATE)

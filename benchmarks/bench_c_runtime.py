@@ -1,9 +1,9 @@
 """The C engine's tick on the host, built outside Python, against the same engine called from Python.
 
-Builds ``sd_bench`` from ``shapedisplay/runtime_c/`` with the system C
-compiler (the library sources of ``runtime_c/Makefile``, C99, -O2, no FMA
+Builds ``sd_bench`` from ``shapedisplay/engine/`` with the system C
+compiler (the library sources of ``engine/Makefile``, C99, -O2, no FMA
 contraction: the flags ``setup.py`` builds ``shapedisplay._engine`` with) and
-runs it (``runtime_c/tool_bench.c``: a 60 mm tent table, the Konyo pad, a
+runs it (``engine/tool_bench.c``: a 60 mm tent table, the Konyo pad, a
 100 mm/s back-and-forth stroke at 10 kHz):
 
 * pad      - the jump model's tick alone (``sd_jump_tick``);
@@ -34,11 +34,11 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-CDIR = ROOT / "shapedisplay" / "runtime_c"
+CDIR = ROOT / "shapedisplay" / "engine"
 
 
 def library_sources() -> list:
-    """The engine library's C sources, as ``runtime_c/Makefile`` lists them (``LIB :=``)."""
+    """The engine library's C sources, as ``engine/Makefile`` lists them (``LIB :=``)."""
     text = (CDIR / "Makefile").read_text()
     names = re.search(r"^LIB\s*:=\s*(.+)$", text, re.M).group(1).split()
     return [str(CDIR / n) for n in names]
@@ -56,10 +56,10 @@ def build(out: Path) -> Path:
 
 
 def python_rates(n: int) -> dict:
-    from shapedisplay.devices import load_device
-    from shapedisplay.runtime import Renderer
-    from shapedisplay.runtime.cursor import CursorPath
-    from shapedisplay.table import FrictionTable, Grid, choose_quantization
+    from shapedisplay.table.devices import load_device
+    from shapedisplay.render import Renderer
+    from shapedisplay.render.cursor import CursorPath
+    from shapedisplay.table.model import FrictionTable, Grid, choose_quantization
     dev = load_device("handheld-stick")
     xg = np.arange(241) * 0.25e-3
     nf = np.interp(xg, [0, 0.015, 0.030, 0.045, 0.060], [0.5, 0.5, 2.5, 0.5, 0.5])

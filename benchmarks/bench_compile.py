@@ -32,11 +32,11 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from shapedisplay.compile import CompileOptions, compile_heightfield  # noqa: E402
-from shapedisplay.devices import load_device  # noqa: E402
-from shapedisplay.imageio import read_picture, write_png  # noqa: E402
-from shapedisplay.forces import MappingOptions  # noqa: E402
-from shapedisplay.sources import load_image  # noqa: E402
+from shapedisplay.author.compile import CompileOptions, compile_heightfield  # noqa: E402
+from shapedisplay.table.devices import load_device  # noqa: E402
+from shapedisplay.author.imageio import read_picture, write_png  # noqa: E402
+from shapedisplay.author.forces import MappingOptions  # noqa: E402
+from shapedisplay.author.sources import load_image  # noqa: E402
 
 BUDGET_S = 2.0
 BUDGET_MEM = 8.0
@@ -94,7 +94,7 @@ def spread(values) -> str:
 def whole_process(tmp: Path, n: int) -> bool:
     """Time ``shapedisplay compile`` on a smooth and a noisy map against the baseline process."""
     cli = Path(sys.executable).with_name("shapedisplay")
-    cli_cmd = [str(cli)] if cli.exists() else [sys.executable, "-m", "shapedisplay_cli.main"]
+    cli_cmd = [str(cli)] if cli.exists() else [sys.executable, "-m", "shapedisplay.cli.main"]
     ok = True
     print(f"whole process, {PROCESS_RUNS} runs each: min / median / max seconds; ratio = median ours / median "
           f"baseline (same runs, interleaved)")

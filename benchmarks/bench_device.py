@@ -24,7 +24,7 @@ import numpy as np
 
 from shapedisplay.link.emulator import DeviceEmulator, EmulatorConfig
 from shapedisplay.link.host import DeviceLink
-from shapedisplay.table import FrictionTable, Grid, choose_quantization
+from shapedisplay.table.model import FrictionTable, Grid, choose_quantization
 
 BAUD = 921_600
 LINE_RATE = BAUD / 10.0     # bytes/s, 8N1
@@ -63,7 +63,7 @@ def bench_latency(n: int, baud: int, model: str = "jump"):
     image = tutorial_image()
     with tempfile.TemporaryDirectory() as d:
         port_file = os.path.join(d, "port")
-        cmd = [sys.executable, "-m", "shapedisplay_cli.main", "device", "emulate", "--baud", str(baud),
+        cmd = [sys.executable, "-m", "shapedisplay.cli.main", "device", "emulate", "--baud", str(baud),
                "--model", model, "--stop-after", "120", "--port-file", port_file]
         proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         try:
@@ -88,7 +88,7 @@ def bench_latency(n: int, baud: int, model: str = "jump"):
 
 def tutorial_image() -> bytes:
     """A 60 mm tent profile table with the published Konyo pad (1-D, 0.25 mm grid)."""
-    from shapedisplay.devices import load_device
+    from shapedisplay.table.devices import load_device
     dev = load_device("handheld-stick")
     x = np.arange(241) * 0.25e-3
     n = np.interp(x, [0, 0.015, 0.030, 0.045, 0.060], [0.5, 0.5, 2.5, 0.5, 0.5])

@@ -14,7 +14,7 @@ b. warm play: the same command with the ordinary caches (numba's
    ``__pycache__`` beside each tree's sources, ``~/.cache``), filled by one
    untimed run;
 c. offline render in the process: ``Renderer(table, model=m).render(cursor)``
-   (``shapedisplay.runtime.renderer``: numba in the old release, the C runtime
+   (``shapedisplay.render.renderer``: numba in the old release, the C runtime
    now) and the renderer ``play`` uses (the old release's ``PathRenderer``,
    engine "auto", whose engine is printed; the new ``Renderer``) for the models
    exact, jump, karnopp and stribeck, a 5 s stroke (``parse_stroke("62,2 ->
@@ -24,17 +24,17 @@ d. ``shapedisplay report accuracy --quick`` and ``report stability --quick``
    (``--no-plots``): whole-process wall time, and from ``accuracy.json`` the
    renderer's CPU time per simulated second (``Renderer.render``, and ``run_kernel``: the model alone)
    summed per model over the settings both sides ran;
-e. WebAssembly against native, per tick: each side's C sources (``runtime_c/``, the library its
+e. WebAssembly against native, per tick: each side's C sources (``engine/``, the library its
    ``Makefile`` lists as ``LIB``) built natively (``cc -O2``, a loop over ``sd_renderer_step`` timed inside
-   the process) and as its WebAssembly module (``make -C runtime_c wasm`` in a copy of its tree; the
-   shipped ``runtime_c/wasm/sd_runtime.wasm`` if clang/wasm-ld are missing), run in wasmtime through
+   the process) and as its WebAssembly module (``make -C engine wasm`` in a copy of its tree; the
+   shipped ``engine/wasm/sd_runtime.wasm`` if clang/wasm-ld are missing), run in wasmtime through
    ``sd_wasm_run`` (one call for all ticks, as ``benchmarks/bench_wasm.py``), both modules in the same
    wasmtime (this tree's venv, where the old venv has none). The input: ``case_setup`` of each side's
    ``tests/runtime_vectors.py`` (2-D widget table, six channels, retrigger, 10 kHz ticks, 48 kHz audio,
    the diagonal stroke back and forth), 200 000 ticks, models jump and exact (the old C has only those).
    CPU time of the tick loop alone; ``--wasm-rounds`` processes per side and target, 3 loops each;
 f. Cortex-M4F instructions per ``sd_renderer_step`` under QEMU (mps2-an386, ``-icount``): each side's
-   harness (``build_m4`` of its ``tests/runtime_vectors.py``, its own ``runtime_c/`` sources, single
+   harness (``build_m4`` of its ``tests/runtime_vectors.py``, its own ``engine/`` sources, single
    precision, the M4F's FPU) plays the same shared vector (the widget table, diagonal stroke,
    retrigger, 10 kHz ticks, 48 kHz audio, 0.25 s: 2 500 ticks) for exact and jump. Instruction counts
    are deterministic, so one run per side suffices; min / median / max are over the ticks, and the
@@ -96,12 +96,12 @@ TIMEOUT_S = 1800                                   # one process; a report on a 
 # Run by each side's python: one JSON line per (class, model), the render times in seconds or the error.
 RENDER_SCRIPT = r"""
 import json, sys, time
-import shapedisplay.runtime.renderer as renderer
-from shapedisplay.runtime.cursor import parse_stroke
-from shapedisplay.table import FrictionTable
+import shapedisplay.render.renderer as renderer
+from shapedisplay.render.cursor import parse_stroke
+from shapedisplay.table.model import FrictionTable
 
 try:                                     # the old release plays through PathRenderer (engine "auto")
-    from shapedisplay.runtime.play import PathRenderer
+    from shapedisplay.render.play import PathRenderer
 except ImportError:                      # the C runtime's Renderer is what play calls
     PathRenderer = None
 
@@ -404,7 +404,7 @@ def measure_reports(sides, work: Path, warm_env: dict, rounds: int) -> list:
 
 
 def library_sources(cdir: Path) -> list:
-    """A side's engine library: the C sources its ``runtime_c/Makefile`` lists as ``LIB :=``."""
+    """A side's engine library: the C sources its ``engine/Makefile`` lists as ``LIB :=``."""
     for line in (cdir / "Makefile").read_text().splitlines():
         if line.startswith("LIB") and ":=" in line:
             return [str(cdir / n) for n in line.split(":=", 1)[1].split()]
@@ -421,7 +421,7 @@ def wasm_python(sides) -> str:
 
 def build_wasm_targets(side: Side, work: Path) -> tuple:
     """(native loop executable, WebAssembly module, how the module was got) built from the side's sources."""
-    cdir = side.root / "shapedisplay" / "runtime_c"
+    cdir = side.root / "shapedisplay" / "engine"
     out = work / f"e-{side.name}"
     out.mkdir()
     (out / "loop.c").write_text(LOOP_C)
@@ -431,7 +431,7 @@ def build_wasm_targets(side: Side, work: Path) -> tuple:
                         str(out / "loop.c"), "-lm", "-o", str(exe)], capture_output=True, text=True)
     if p.returncode != 0:
         raise RuntimeError(f"native build: {last_error_line(p.stderr)}")
-    copy = out / "runtime_c"
+    copy = out / "engine"
     shutil.copytree(cdir, copy, ignore=shutil.ignore_patterns("build", "sd_vectors*", "sd_bench", "*.o"))
     p = subprocess.run(["make", "-s", "-C", str(copy), "wasm"], capture_output=True, text=True, timeout=300)
     if p.returncode == 0 and (copy / "build" / "sd_runtime.wasm").is_file():

@@ -44,8 +44,8 @@ def main() -> int:
     print(f"shapedisplay compile --help     {t_chelp * 1e3:7.1f} ms   ratio {t_chelp / base:.2f}")
     ok = t_help <= BUDGET_HELP_S
     for what, code in (("import shapedisplay", "import shapedisplay"),
-                       ("CLI parser", "import shapedisplay_cli.main as m; m.build_parser()"),
-                       ("authoring modules", "import shapedisplay.sources, shapedisplay.compile, shapedisplay.export")):
+                       ("CLI parser", "import shapedisplay.cli.main as m; m.build_parser()"),
+                       ("authoring modules", "import shapedisplay.author.sources, shapedisplay.author.compile, shapedisplay.exchange.export")):
         mods = loaded(code)
         bad = [m for m in mods if m in FORBIDDEN]
         ok &= not bad

@@ -1,6 +1,6 @@
 """Instructions per renderer tick on a Cortex-M4F (QEMU mps2-an386, -icount), with RAM and flash.
 
-Builds the bare-metal harness (`make -C runtime_c m4`: the single-precision build, sd_real = float, as the
+Builds the bare-metal harness (`make -C engine m4`: the single-precision build, sd_real = float, as the
 M4F's FPU; and M4_PRECISION=double for comparison), plays a 2-D table with six channels
 (normal force, friction scale, burst gain, grad x/y, lateral x; two widgets, 0.5 mm samples)
 along a diagonal stroke, and counts the instructions of every `sd_renderer_step` call with
@@ -42,7 +42,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_c_runtime import CDIR, library_sources  # noqa: E402
 from runtime_vectors import (ICOUNT_SHIFT, QEMU_M4, build_m4, case_setup, image_payload,  # noqa: E402
                              m4_instructions, run_m4)
-from shapedisplay.export import export_c  # noqa: E402
+from shapedisplay.exchange.export import export_c  # noqa: E402
 
 # (model, policy, tick rate, audio rate, stroke seconds: shorter where a tick costs millions)
 CONFIGS = [

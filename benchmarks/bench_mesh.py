@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from shapedisplay import mesh
+from shapedisplay.author import mesh
 
 MM = 1e-3
 

@@ -36,10 +36,10 @@ from pathlib import Path
 import numpy as np
 
 from shapedisplay.reports.common import cpu_per_call, floor_costs, interface_floor
-from shapedisplay.runtime.cursor import parse_stroke
-from shapedisplay.runtime.models import run_kernel
-from shapedisplay.runtime.renderer import Renderer
-from shapedisplay.scene import compile_scene
+from shapedisplay.render.cursor import parse_stroke
+from shapedisplay.render.models import run_kernel
+from shapedisplay.render.renderer import Renderer
+from shapedisplay.author.scene import compile_scene
 
 ROOT = Path(__file__).resolve().parent.parent
 STROKE = "62,2 -> 62,152 @ 30mm/s"           # 5 s, the stroke of bench_startup.py and bench_engine.py

@@ -43,9 +43,9 @@ def stats(values):
 def main() -> int:
     from playwright.sync_api import sync_playwright
 
-    from shapedisplay.runtime import Renderer
-    from shapedisplay.runtime.cursor import parse_stroke
-    from shapedisplay.scene import compile_scene
+    from shapedisplay.render import Renderer
+    from shapedisplay.render.cursor import parse_stroke
+    from shapedisplay.author.scene import compile_scene
 
     folder = Path(tempfile.mkdtemp(prefix="sd-bench-studio-"))
     scene = folder / "phone.toml"

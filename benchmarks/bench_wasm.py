@@ -25,9 +25,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_c_runtime import library_sources  # noqa: E402
 from native_loop import LOOP_C  # noqa: E402
 from runtime_vectors import WasmRunner, case_setup, image_payload  # noqa: E402
-from shapedisplay.runtime import wasm  # noqa: E402
+from shapedisplay.render import wasm  # noqa: E402
 
-CDIR = Path(__file__).resolve().parent.parent / "shapedisplay" / "runtime_c"
+CDIR = Path(__file__).resolve().parent.parent / "shapedisplay" / "engine"
 N = 200_000
 REPEATS = 5          # best of 5 for both (a shared machine)
 

@@ -37,10 +37,10 @@ class Skipped(Exception):
 
 def _phone(work: Path):
     """The phone scene compiled, the README stroke played on it: (table, renderer, result, trace path)."""
-    from shapedisplay.runtime.cursor import parse_stroke
-    from shapedisplay.runtime.renderer import Renderer
-    from shapedisplay.scene import compile_scene
-    from shapedisplay.sinks import write_trace
+    from shapedisplay.render.cursor import parse_stroke
+    from shapedisplay.render.renderer import Renderer
+    from shapedisplay.author.scene import compile_scene
+    from shapedisplay.render.sinks import write_trace
 
     table = compile_scene(ASSETS / "scenes" / "phone.toml").table
     r = Renderer(table, model="exact", tick_rate=10000.0)
@@ -62,8 +62,8 @@ def _need_offscreen():
 
 def play_phone(out: Path, work: Path) -> None:
     """``play --plot`` of the README stroke over the phone scene."""
-    from shapedisplay.exchange.widgetmap import widget_map
-    from shapedisplay.sinks import plot_trace
+    from shapedisplay.table.widgets import widget_map
+    from shapedisplay.render.sinks import plot_trace
     table, _, res, _ = _phone(work)
     plot_trace(out, res, widgets=widget_map(table))
 
@@ -131,7 +131,7 @@ def studio_phone(out: Path, work: Path) -> None:
 
 
 def _cli(*argv: str) -> None:
-    from shapedisplay_cli.main import main
+    from shapedisplay.cli.main import main
     import contextlib
     import io
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):

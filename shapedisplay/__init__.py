@@ -1,9 +1,12 @@
 """shapedisplay: tactile shapes for friction-based shape displays.
 
-Pipeline (imports flow one way): sources -> :mod:`heightfield` ->
-:mod:`gradients` -> :mod:`forces` -> :mod:`compile` -> :mod:`table` ->
-:mod:`runtime` -> :mod:`sinks`. The runtime side (``table``, ``devices``,
-``runtime``, ``sinks``) never imports the authoring side.
+Subpackages follow the pipeline (imports flow one way): :mod:`.author`
+(sources, height fields, gradients, forces, compile, scenes) -> :mod:`.table`
+(the table, its container and devices) -> :mod:`.render` (the C engine's
+binding, cursor, results, sinks); around them :mod:`.link` (devices over a
+serial link), :mod:`.exchange` (exports), :mod:`.reports` (accuracy,
+stability, studies), :mod:`.studio`, :mod:`.viewer` and :mod:`.cli`. The
+runtime side (``table``, ``render``, ``link``) never imports the authoring side.
 
 ``import shapedisplay`` is cheap: submodules load on first attribute access,
 and no optional dependency (trimesh, pyvista, pyserial, matplotlib) is
@@ -15,21 +18,21 @@ import importlib
 
 __version__ = "0.1.0"
 
-from .errors import (  # noqa: E402  (light, always needed)
+from shapedisplay.errors import (  # noqa: E402  (light, always needed)
     FileFormatError, InputError, MissingDependencyError, ModelError, ShapeDisplayError,
     TableError, UnitError,
 )
 
 _LAZY = {
-    "HeightField": "heightfield",
-    "FrictionTable": "table",
-    "DeviceProfile": "devices",
-    "load_device": "devices",
+    "HeightField": "author.heightfield",
+    "FrictionTable": "table.model",
+    "DeviceProfile": "table.devices",
+    "load_device": "table.devices",
     "parse_quantity": "units",
-    "load_source": "sources",
-    "MappingOptions": "forces",
-    "CompileOptions": "compile",
-    "compile_heightfield": "compile",
+    "load_source": "author.sources",
+    "MappingOptions": "author.forces",
+    "CompileOptions": "author.compile",
+    "compile_heightfield": "author.compile",
 }
 
 

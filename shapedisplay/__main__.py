@@ -1,4 +1,4 @@
 """``python -m shapedisplay`` runs the command-line tool."""
-from shapedisplay_cli.main import entry
+from shapedisplay.cli.main import entry
 
 entry()

@@ -3,8 +3,8 @@
  * setup.py builds the C runtime (shapedisplay._engine) and the compiler's kernels
  * (shapedisplay._kernels_c) as extension modules, each with this file and SD_MODULE set
  * to its name, so that they install like any compiled part of a Python package on every
- * platform. Python calls most of their C functions through ctypes (shapedisplay/runtime/native.py,
- * shapedisplay/_kernels.py). The engine's module also defines pad_run (SD_ENGINE_METHODS): a
+ * platform. Python calls most of their C functions through ctypes (shapedisplay/render/native.py,
+ * shapedisplay/author/kernels.py). The engine's module also defines pad_run (SD_ENGINE_METHODS): a
  * model's tick over per-tick inputs, called per short run by the reports, where a ctypes call's
  * argument conversions would cost more than the ticks. */
 #define PY_SSIZE_T_CLEAN
@@ -16,9 +16,9 @@
 #define SD_STR2(name) #name
 
 #ifdef SD_ENGINE_METHODS
-#include "runtime_c/sd_runtime.h"
+#include "engine/sd_runtime.h"
 
-/* shapedisplay/runtime/sd_play_path.c */
+/* shapedisplay/render/sd_play_path.c */
 int64_t sd_pad_run(int model, const sd_pad_params_t *params, sd_pad_state_t *S, const double *t, int64_t n,
                    const double *V, const double *N, const double *mus, const double *muk, const double *gain,
                    int mus_one, int muk_one, int gain_one, double *f, double *phase, double *x, double *v,
@@ -75,7 +75,7 @@ done:
 }
 
 static PyMethodDef sd_methods[] = {
-    {"pad_run", pad_run, METH_VARARGS, "A pad model's C tick over per-tick inputs (see shapedisplay.runtime.models.run_kernel)."},
+    {"pad_run", pad_run, METH_VARARGS, "A pad model's C tick over per-tick inputs (see shapedisplay.render.models.run_kernel)."},
     {NULL, NULL, 0, NULL},
 };
 #define SD_METHODS sd_methods
@@ -85,7 +85,7 @@ static PyMethodDef sd_methods[] = {
 
 static struct PyModuleDef sd_module = {
     PyModuleDef_HEAD_INIT, SD_STR(SD_MODULE),
-    "C functions of shapedisplay (see shapedisplay/runtime/native.py).", 0, SD_METHODS,
+    "C functions of shapedisplay (see shapedisplay/render/native.py).", 0, SD_METHODS,
 };
 
 PyMODINIT_FUNC SD_INIT(SD_MODULE)(void)

@@ -19,7 +19,7 @@ import tempfile
 from pathlib import Path
 from typing import Iterator
 
-from .errors import FileFormatError, ShapeDisplayError
+from shapedisplay.errors import FileFormatError, ShapeDisplayError
 
 
 @contextlib.contextmanager

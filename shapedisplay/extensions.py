@@ -15,7 +15,7 @@ from __future__ import annotations
 import ctypes
 from pathlib import Path
 
-from .errors import InputError
+from shapedisplay.errors import InputError
 
 PACKAGE = Path(__file__).resolve().parent
 

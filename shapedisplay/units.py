@@ -15,7 +15,7 @@ import math
 import re
 from typing import Tuple
 
-from .errors import InputError, UnitError
+from shapedisplay.errors import InputError, UnitError
 
 Dim = Tuple[int, int, int]  # exponents of (m, kg, s)
 
@@ -111,7 +111,7 @@ class _Parser:
         elif tok in _ATOMS:
             scale, dim = _ATOMS[tok]
         else:
-            from .errors import did_you_mean
+            from shapedisplay.errors import did_you_mean
             raise UnitError(
                 f"`{self.field}`: unknown unit '{tok}' in '{self.text}'{did_you_mean(tok, _ATOMS)}"
             )

@@ -14,9 +14,9 @@ import zipfile
 
 import numpy as np
 
-from shapedisplay.compile import CompileOptions, compile_heightfield
-from shapedisplay.forces import MappingOptions
-from shapedisplay.heightfield import HeightField
+from shapedisplay.author.compile import CompileOptions, compile_heightfield
+from shapedisplay.author.forces import MappingOptions
+from shapedisplay.author.heightfield import HeightField
 
 
 def small_table():

@@ -13,8 +13,8 @@ import struct
 
 import numpy as np
 
-from shapedisplay.runtime.image import to_image
-from shapedisplay.runtime.layouts import OUTPUTS
+from shapedisplay.render.image import to_image
+from shapedisplay.render.layouts import OUTPUTS
 
 # (table dtype, stroke, policy, tick rate, audio rate, model): the cases every target runs
 CASES = [
@@ -55,7 +55,7 @@ def parse_events(raw: bytes, n: int):
 def py_render_events(r, x, y):
     """The package renderer's outputs and audio (as test_c_runtime.py_render) with every event's time and
     amplitude, read from the event ring after each tick."""
-    from shapedisplay.runtime.layouts import OUTPUTS as _O
+    from shapedisplay.render.layouts import OUTPUTS as _O
     r.reset()
     outs, audio, et, ea = [], [], [], []
     for xi, yi in zip(x, y):
@@ -75,7 +75,7 @@ def py_render_events(r, x, y):
 def case_setup(dtype, kind, policy, tick, audio, model, seconds=0.25):
     """Table, renderer, stroke and image of one case."""
     from test_c_runtime import stroke, widget_table
-    from shapedisplay.runtime import Renderer
+    from shapedisplay.render import Renderer
     table = widget_table(dtype)
     r = Renderer(table, model=model, tick_rate=tick, audio_rate=audio, burst_policy=policy)
     x, y = stroke(int(seconds * tick), kind)
@@ -161,7 +161,7 @@ def derived_bounds(r, outs, unit_roundoff: float, libm_ulps: float = 1.0):
     """Bounds on the differences between two builds of the runtime that do the same operations but
     differ in libm (each result within ``libm_ulps`` ulp) and/or precision (``unit_roundoff`` u):
     ``(dt_event, d_drive, d_force)`` -- event-time, drive/audio-sample and friction-force bounds.
-    The derivation is in runtime_c/README.md ("Tolerance"); ``outs`` are the reference per-tick
+    The derivation is in engine/README.md ("Tolerance"); ``outs`` are the reference per-tick
     outputs (layouts.OUTPUTS records)."""
     u = unit_roundoff
     F = np.abs(outs["friction_force"])
@@ -193,7 +193,7 @@ FLOAT_LIBM_ULPS = 2.0
 
 def float_bounds(r, table, x, y, po, pt):
     """Bounds on the differences between the single-precision build and the double reference on one
-    vector, derived in runtime_c/README.md ("Tolerance of the single-precision build"):
+    vector, derived in engine/README.md ("Tolerance of the single-precision build"):
     ``(dt_event, d_drive, d_force)``. ``po`` are the reference outputs, ``pt`` its event times."""
     u = U_FLOAT
     K = 16.0 * FLOAT_LIBM_ULPS                     # <= 8 libm results along a phase change, 2u per ulp
@@ -306,7 +306,7 @@ def build_m4(out_dir, defs=(), precision="single"):
     import shutil
     import subprocess
     from pathlib import Path
-    cdir = Path(__file__).resolve().parent.parent / "shapedisplay" / "runtime_c"
+    cdir = Path(__file__).resolve().parent.parent / "shapedisplay" / "engine"
     src = Path(out_dir) / "src"
     shutil.copytree(cdir, src, ignore=shutil.ignore_patterns("build", "wasm", "sd_vectors", "sd_bench"))
     res = subprocess.run(["make", "-s", "-C", str(src), "m4", f"M4_DEFS={' '.join(defs)}", f"M4_PRECISION={precision}"],

@@ -14,11 +14,26 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parent.parent / "shapedisplay"
 
+#: The shared leaves at the top of the package: every subpackage may import them.
+LEAVES = {"shapedisplay", "shapedisplay.errors", "shapedisplay.units", "shapedisplay.atomic",
+          "shapedisplay.extensions"}
 #: What the runtime and the device link may import: a table file plus these run a device host.
-RUNTIME_SIDE = {"shapedisplay", "shapedisplay.errors", "shapedisplay.units", "shapedisplay.table", "shapedisplay.container",
-                "shapedisplay.devices", "shapedisplay.atomic",
-                "shapedisplay.extensions"}
-RUNTIME_PACKAGES = ("shapedisplay.runtime", "shapedisplay.link")
+RUNTIME_SIDE = LEAVES
+RUNTIME_PACKAGES = ("shapedisplay.table", "shapedisplay.render", "shapedisplay.link")
+#: Subpackage -> the subpackages it may import (besides the leaves): the pipeline's direction.
+ALLOWED = {
+    "table": set(),
+    "render": {"table"},
+    "link": {"table", "render"},
+    "author": {"table"},
+    "exchange": {"table", "render", "author"},
+    "viewer": {"table", "render", "author"},
+    "reports": {"table", "render", "author", "exchange"},
+    "studio": {"table", "render", "author", "exchange", "viewer"},
+    "cli": {"table", "render", "link", "author", "exchange", "viewer", "reports", "studio"},
+}
+#: Top-level modules besides subpackages (the leaves and the ``python -m`` entry point).
+TOP_LEVEL_LIMIT = 8
 
 
 def _modules() -> dict[str, tuple[Path, bool]]:
@@ -92,10 +107,10 @@ def find_cycle(graph) -> list[str] | None:
 def test_graph_sees_lazy_and_relative_imports():
     """The walker itself: it finds a function-level relative import and a package-level one."""
     g = import_graph()
-    assert "shapedisplay.runtime.renderer" in g["shapedisplay.viewer.model"]      # lazy, inside a function
-    assert "shapedisplay.runtime.native" in g["shapedisplay.runtime.models"]      # from .native import ..., lazy
+    assert "shapedisplay.render.renderer" in g["shapedisplay.viewer.model"]      # lazy, inside a function
+    assert "shapedisplay.render.native" in g["shapedisplay.render.models"]      # from .native import ..., lazy
     assert "shapedisplay.link.protocol" in g["shapedisplay.link.engine"]          # from . import protocol
-    assert "shapedisplay.scene.fields" in g["shapedisplay.scene.widgets"]
+    assert "shapedisplay.author.scene.fields" in g["shapedisplay.author.scene.widgets"]
 
 
 def test_no_import_cycles():
@@ -105,6 +120,38 @@ def test_no_import_cycles():
 def test_find_cycle_reports_a_cycle():
     assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
     assert find_cycle({"a": {"b"}, "b": set()}) is None
+
+
+def _subpackage(module: str) -> str | None:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 2 or (len(parts) == 2 and (PACKAGE / parts[1]).is_dir()) else None
+
+
+def test_subpackages_import_one_way():
+    """Each subpackage imports only the leaves and the subpackages upstream of it (ALLOWED): no cycle between them."""
+    g = import_graph()
+    wrong = []
+    for mod, deps in g.items():
+        a = _subpackage(mod)
+        for d in deps:
+            b = _subpackage(d)
+            if a and b and a != b and b not in ALLOWED.get(a, set()):
+                wrong.append(f"{mod} -> {d}")
+            if a is None and b and mod != "shapedisplay.__main__":
+                wrong.append(f"{mod} (a leaf) -> {d}")
+    assert not wrong, "imports against the pipeline's direction:\n" + "\n".join(sorted(wrong))
+    assert set(ALLOWED) == {p.name for p in PACKAGE.iterdir() if (p / "__init__.py").exists()}
+    sub = {a: {b for b in deps} for a, deps in ALLOWED.items()}
+    assert find_cycle(sub) is None
+
+
+def test_top_level_is_small_and_modules_are_readable():
+    """At most TOP_LEVEL_LIMIT modules beside the subpackages; no hand-written module over 900 lines."""
+    top = sorted(p.name for p in PACKAGE.glob("*.py"))
+    assert len(top) <= TOP_LEVEL_LIMIT, top
+    long = [f"{p.relative_to(PACKAGE)}: {n}" for p in PACKAGE.rglob("*.py")
+            if (n := len(p.read_text(encoding="utf-8").splitlines())) > 900]
+    assert not long, long
 
 
 @pytest.mark.parametrize("package", RUNTIME_PACKAGES)
@@ -163,8 +210,8 @@ def test_dotted_names_and_paths_in_the_docs_exist():
 def test_c_runtime_checks_the_same_tick_rate_range():
     """The C runtime cannot import the range; its own check must hold the numbers of devices.TICK_RATE_RANGE."""
     import re
-    from shapedisplay.devices import TICK_RATE_RANGE
-    src = (PACKAGE / "runtime_c" / "sd_render.c").read_text()
+    from shapedisplay.table.devices import TICK_RATE_RANGE
+    src = (PACKAGE / "engine" / "sd_render.c").read_text()
     found = re.findall(r"tick_rate\s*>=\s*([\d.eE+]+)f?\s*&&\s*\w+->tick_rate\s*<=\s*([\d.eE+]+)", src)
     assert found, "sd_render.c: no tick-rate range check found"
     assert {(float(lo), float(hi)) for lo, hi in found} == {TICK_RATE_RANGE}
@@ -215,7 +262,7 @@ def test_sizes_are_printed_cols_by_rows():
     rows_first = re.compile(r"\{[^{}]*\brows?\b[^{}]*\}\s*[x×]\s*\{[^{}]*\bcols?\b[^{}]*\}|"
                             r"\{[^{}]*shape\[0\][^{}]*\}\s*[x×]\"?\s*f?\"?\s*\{[^{}]*shape\[1\]")
     found = []
-    for path in sorted([*PACKAGE.rglob("*.py"), *(PACKAGE.parent / "cli").rglob("*.py")]):
+    for path in sorted(PACKAGE.rglob("*.py")):
         for i, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
             if rows_first.search(line):
                 found.append(f"{path.relative_to(PACKAGE.parent)}:{i}: {line.strip()}")
@@ -225,7 +272,7 @@ def test_sizes_are_printed_cols_by_rows():
 
 def test_physics_page_covers_every_model_of_the_registry():
     """docs/physics.md has a section per renderer model, with its published sources listed."""
-    from shapedisplay.runtime.models import MODELS
+    from shapedisplay.render.models import MODELS
     text = (PACKAGE.parent / "docs" / "physics.md").read_text(encoding="utf-8")
     headings = [line for line in text.splitlines() if line.startswith("### ")]
     for name in MODELS:

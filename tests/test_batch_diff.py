@@ -5,9 +5,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from shapedisplay.diff import diff_tables
-from shapedisplay.table import FrictionTable, Grid, choose_quantization
-from shapedisplay_cli.main import main
+from shapedisplay.table.diff import diff_tables
+from shapedisplay.table.model import FrictionTable, Grid, choose_quantization
+from shapedisplay.cli.main import main
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "assets" / "scenes"

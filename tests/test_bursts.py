@@ -6,9 +6,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from shapedisplay.devices import load_device
-from shapedisplay.runtime.bursts import BURST_POLICIES, burst_envelope, render_bursts
-from shapedisplay.runtime.models import simulate_pad
+from shapedisplay.table.devices import load_device
+from shapedisplay.render.bursts import BURST_POLICIES, burst_envelope, render_bursts
+from shapedisplay.render.models import simulate_pad
 
 RISE, DECAY, FC, RATE = 0.005, 0.030, 300.0, 48_000.0
 CARRIER_STEP = 2.0 * math.sin(math.pi * FC / RATE)      # largest sample step of a unit carrier
@@ -184,9 +184,9 @@ def test_clipping_is_counted_sample_by_sample(policy):
 @pytest.mark.parametrize("V", [0.020, 0.030])
 def test_renderer_drive_on_the_published_pad_every_policy(V):
     """End to end: a constant N = 1 N table played by the renderer, every policy: no step, 300 Hz."""
-    from shapedisplay.runtime import Renderer
-    from shapedisplay.studies import constant_table
-    from shapedisplay.studies.presets import line_stroke
+    from shapedisplay.render import Renderer
+    from shapedisplay.reports.presets import constant_table
+    from shapedisplay.reports.studies import line_stroke
 
     dev = load_device("handheld-stick")
     table = constant_table(1.0, dev)

@@ -1,4 +1,4 @@
-"""The compiler's C kernels (``shapedisplay/sd_kernels.c``, compiled at install) against numpy, bit for bit.
+"""The compiler's C kernels (``shapedisplay/author/sd_kernels.c``, compiled at install) against numpy, bit for bit.
 
 Every kernel of ``_kernels`` runs in C; the reference here is numpy's
 arithmetic a chunk at a time (the functions below: what the package did
@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from shapedisplay import _kernels
+from shapedisplay.author import kernels as _kernels
 from shapedisplay.errors import InputError
 
 pytestmark = pytest.mark.filterwarnings("ignore::RuntimeWarning")   # the numpy reference on inf and NaN
@@ -250,7 +250,7 @@ def test_encode_into_a_strided_array_writes_back():
 def test_central_band_matches_numpy(seed, rows, cols, specials, dx, dy, data):
     """Slopes of any band of rows (first, last, inner, all), heights with huge values (differences that
     overflow to inf, edge formulas that make NaN) and signed zeros: the numpy slopes byte for byte."""
-    from shapedisplay.gradients import central_band
+    from shapedisplay.author.gradients import central_band
     rng = np.random.default_rng(seed)
     h = rng.normal(0, 1e-3, (rows, cols))
     if specials:
@@ -277,7 +277,7 @@ def test_central_band_matches_numpy(seed, rows, cols, specials, dx, dy, data):
 def test_gray_to_heights_in_c_matches_numpy(dtype, flipped):
     """Codes to heights in one C pass (rows read bottom first too, as a picture is put on the grid): the
     values numpy's convert, multiply, add give, byte for byte, with a step and offset that round."""
-    from shapedisplay.sources import gray_to_heights
+    from shapedisplay.author.sources import gray_to_heights
     rng = np.random.default_rng(7)
     top = np.iinfo(dtype).max
     g = rng.integers(0, top + 1, (300, 257)).astype(dtype)

@@ -1,4 +1,4 @@
-"""The portable C99 runtime (runtime_c/) built with the system C compiler, and its host tools.
+"""The portable C99 runtime (engine/) built with the system C compiler, and its host tools.
 
 The C sources are compiled into a temporary directory (C99, -O2, -Werror, no fast-math, no FMA
 contraction) with the vector tool (tool_vectors.c) and the header player (tool_play_header.c).
@@ -17,12 +17,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from shapedisplay.runtime.layouts import GRID, OUTPUTS, RENDER_CONFIG, record
-from shapedisplay.runtime.models import MODEL_IDS, get_model
-from shapedisplay.devices import BurstParams, load_device
+from shapedisplay.render.layouts import GRID, OUTPUTS, RENDER_CONFIG, record
+from shapedisplay.render.models import MODEL_IDS, get_model
+from shapedisplay.table.devices import BurstParams, load_device
 
 ROOT = Path(__file__).resolve().parent.parent
-CDIR = ROOT / "shapedisplay" / "runtime_c"
+CDIR = ROOT / "shapedisplay" / "engine"
 CFLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-pedantic", "-Werror", "-ffp-contract=off"]
 LIB = ("sd_pad.c", "sd_exact.c", "sd_render.c", "sd_image.c", "sd_stribeck.c", "sd_karnopp.c",
        "sd_baselines.c")      # the runtime library (no host tool)
@@ -108,9 +108,9 @@ def test_jump_stick_period_from_the_closed_form_restick_force(sd_vectors, tmp_pa
 #         i64 n, f64 x[n], y[n].
 # Output: sd_outputs_t out[n] (layouts.OUTPUTS records), i64 n_audio, f64 audio[n_audio], i64 clipped, events,
 #         events dropped.
-from shapedisplay.runtime import Renderer                      # noqa: E402
-from shapedisplay.runtime import renderer as R_                # noqa: E402
-from shapedisplay.table import FrictionTable, Grid, choose_quantization   # noqa: E402
+from shapedisplay.render import Renderer                      # noqa: E402
+from shapedisplay.render import renderer as R_                # noqa: E402
+from shapedisplay.table.model import FrictionTable, Grid, choose_quantization   # noqa: E402
 
 _DT = {"uint8": 0, "uint16": 1, "float32": 2, "float64": 3}
 
@@ -192,7 +192,7 @@ def _header_play(tmp_path, table, model, n):
     """The table's C header export played by tool_play_header.c (``model`` by ``sd_table_use_model``, jump by
     default) and by ``Renderer.step`` over ``n`` ticks of the diagonal stroke: both drives and audios, and
     the events Renderer counted."""
-    from shapedisplay.export import export_c
+    from shapedisplay.exchange.export import export_c
     header = export_c(table, tmp_path / "table.h", name="sd_table")
     exe = tmp_path / "sd_play_header"
     defs = [f'-DSD_TABLE_HEADER="{header}"']   # the header carries K_mu and every other constant

@@ -177,7 +177,7 @@ def test_phase_cap_not_reached_by_physical_inputs(plain_vectors, tmp_path, h, na
     """The cap on phase changes per tick (SD_PHASES_BASE + 4 h omega / pi) holds every tick of the
     extreme sweep on the published pad, and on an over-damped one: no tick is cut."""
     from test_c_runtime import pad_vectors
-    from shapedisplay.devices import PadParams
+    from shapedisplay.table.devices import PadParams
     exe = plain_vectors
     for pad in (None, PadParams(1e-6, 2000.0, 1.0)):
         args = _sweep(name, pad, h)
@@ -191,8 +191,8 @@ def test_degenerate_pad_takes_no_zero_length_phases(plain_vectors, tmp_path, h):
     relative velocity past zero crosses at once, so no tick cycles through zero-length phases: neither
     the vector tool nor the shipped engine reaches the phase cap, and the friction stays within mu_s N."""
     from test_c_runtime import pad_vectors
-    from shapedisplay.devices import PadParams
-    from shapedisplay.runtime.models import run_kernel
+    from shapedisplay.table.devices import PadParams
+    from shapedisplay.render.models import run_kernel
     exe = plain_vectors
     args = _sweep("exact", PadParams(1e-6, 2000.0, 0.0), h, dmus=(0.0,))
     assert pad_vectors(exe, tmp_path, *args, truncated=True) == 0
@@ -222,7 +222,7 @@ _EXTREME = st.one_of(st.floats(-1e308, 1e308), st.sampled_from([0.0, 1.0, -1.0, 
 @st.composite
 def _extreme_channel(draw, n):
     """(Quantization, codes of n values): any code type, scale and offset, codes over the type's range."""
-    from shapedisplay.table import Quantization
+    from shapedisplay.table.model import Quantization
     dtype = draw(st.sampled_from(_CODE_DTYPES))
     if dtype in ("float32", "float64"):
         vals = draw(st.lists(st.floats(allow_nan=False, allow_infinity=False, width=32 if dtype == "float32" else 64),
@@ -244,10 +244,10 @@ def test_any_table_the_reader_accepts_plays_finite_outputs(data, model, names, k
     outputs for finite cursor samples, the drive and audio within [-1, 1]; a non-finite intermediate is a
     counted value fault, never an output."""
     from shapedisplay.errors import ShapeDisplayError
-    from shapedisplay.runtime import Renderer
-    from shapedisplay.runtime import image as I
-    from shapedisplay.runtime.layouts import OUTPUTS
-    from shapedisplay.table import FrictionTable, Grid
+    from shapedisplay.render import Renderer
+    from shapedisplay.render import image as I
+    from shapedisplay.render.layouts import OUTPUTS
+    from shapedisplay.table.model import FrictionTable, Grid
     from hypothesis import assume
     names = {"normal_force", *names}
     if kmu > 0:
@@ -280,8 +280,8 @@ def test_any_table_the_reader_accepts_plays_finite_outputs(data, model, names, k
 def test_overflowing_products_are_value_faults_not_outputs():
     """A table each of whose values is finite but whose forces overflow (N near the largest double times a
     friction scale of 1e10): every tick is counted in run.value_faults and plays without contact."""
-    from shapedisplay.runtime import Renderer
-    from shapedisplay.table import FrictionTable, Grid, Quantization
+    from shapedisplay.render import Renderer
+    from shapedisplay.table.model import FrictionTable, Grid, Quantization
     codes = {"normal_force": np.full((1, 4), 255, np.uint8), "friction_scale": np.full((1, 4), 255, np.uint8)}
     quant = {"normal_force": Quantization("uint8", 1e305, 0.0), "friction_scale": Quantization("uint8", 1e10, 0.0)}
     r = Renderer(FrictionTable.from_codes(Grid(1, 4, 1e-3, 1e-3), codes, quant), model="jump",

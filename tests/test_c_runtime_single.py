@@ -3,7 +3,7 @@
 The build the Cortex-M4F runs (tests/test_m4_runtime.py runs the same vectors under QEMU), compiled
 here with the system compiler, the undefined-behaviour and address sanitizers, and
 -Wdouble-promotion -Wfloat-conversion -Werror (no implicit double anywhere). Its arithmetic is not
-the reference's, so it is held to the bounds derived in runtime_c/README.md ("Tolerance of the
+the reference's, so it is held to the bounds derived in engine/README.md ("Tolerance of the
 single-precision build", runtime_vectors.float_bounds) against the double-precision engine the package
 ships (``Renderer``): the same events, event times, drive and friction force within the bounds.
 """
@@ -118,8 +118,8 @@ def test_single_precision_plays_a_header_compiled_table(tmp_path, dtype):
     """A table compiled in from `export --format c` (tile index, float64 codes converted by integer
     operations) in the single-precision build: drive within the derived bound of every tick whose
     events lie farther than the event-time bound from its edges, the same number of audio samples."""
-    from shapedisplay.export import export_c
-    from shapedisplay.runtime import Renderer
+    from shapedisplay.exchange.export import export_c
+    from shapedisplay.render import Renderer
     from test_c_runtime import stroke, widget_table
     table = widget_table(dtype)
     table.meta["tick_rate_hz"] = 10_000.0

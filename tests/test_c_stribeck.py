@@ -16,9 +16,9 @@ import subprocess
 import numpy as np
 import pytest
 
-from shapedisplay.devices import BurstParams, DeviceProfile
-from shapedisplay.runtime.models import get_model
-from shapedisplay.runtime.studies import IMAIZUMI_FRICTION, IMAIZUMI_PAD
+from shapedisplay.table.devices import BurstParams, DeviceProfile
+from shapedisplay.render.models import get_model
+from shapedisplay.reports.imaizumi import IMAIZUMI_FRICTION, IMAIZUMI_PAD
 from test_c_runtime import CDIR, CFLAGS, LIB, _cc, pad_vectors, sd_vectors  # noqa: F401  (sd_vectors: fixture)
 
 SINGLE = ["-DSD_SINGLE", "-Wdouble-promotion", "-Wfloat-conversion"]

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from shapedisplay_cli.main import build_parser, join_negative_values, main
+from shapedisplay.cli.main import build_parser, join_negative_values, main
 
 ROOT = Path(__file__).resolve().parent.parent
 TENT = ROOT / "assets" / "maps" / "tent_profile.png"
@@ -133,7 +133,7 @@ def test_each_command_module_registers_the_commands_main_names_for_it():
     import argparse
     import importlib
 
-    from shapedisplay_cli.main import COMMAND_MODULES, OneLineParser
+    from shapedisplay.cli.main import COMMAND_MODULES, OneLineParser
     for module, commands in COMMAND_MODULES.items():
         sub = OneLineParser(prog="shapedisplay").add_subparsers(dest="command")
         importlib.import_module(module).register(sub)
@@ -160,7 +160,7 @@ OLD_SPELLINGS = [
 def test_old_option_spellings_still_work_with_a_note(argv, note, tmp_path, capsys):
     from pathlib import Path
 
-    from shapedisplay_cli.main import build_parser, main
+    from shapedisplay.cli.main import build_parser, main
     root = Path(__file__).resolve().parent.parent
     table = tmp_path / "t.npz"
     assert main(["compile", str(root / "assets/maps/tent_profile.png"), "-o", str(table), "--size", "60x4mm",
@@ -171,7 +171,7 @@ def test_old_option_spellings_still_work_with_a_note(argv, note, tmp_path, capsy
         pytest.importorskip("pyvista")
         args = build_parser().parse_args(argv)          # the parse is what changed; drawing is tested elsewhere
         assert args.size == "60x24mm" and args.pixels == "320x200"
-        from shapedisplay_cli.main import CommandLine
+        from shapedisplay.cli.main import CommandLine
         assert any(note in n for n in CommandLine(build_parser(), argv).notes)
         return
     capsys.readouterr()
@@ -181,8 +181,8 @@ def test_old_option_spellings_still_work_with_a_note(argv, note, tmp_path, capsy
 
 
 def test_preview_size_without_a_unit_is_the_old_pixel_size(capsys):
-    from shapedisplay_cli.cmd_preview import picture_size
-    from shapedisplay_cli.main import build_parser
+    from shapedisplay.cli.cmd_preview import picture_size
+    from shapedisplay.cli.main import build_parser
     args = build_parser().parse_args(["preview", "t.npz", "--size", "1200x800"])
     assert picture_size(args) == (None, "1200x800")
     assert "write --pixels 1200x800" in capsys.readouterr().err
@@ -197,7 +197,7 @@ def test_no_option_name_has_two_meanings():
     file/sample format, --timeout reply wait/run time) now mean one."""
     import argparse
 
-    from shapedisplay_cli.main import build_parser
+    from shapedisplay.cli.main import build_parser
     seen: dict = {}
 
     def walk(parser, name):
@@ -228,7 +228,7 @@ def test_the_command_line_asks_blas_for_one_thread_unless_the_user_chose(env, ex
     import sys
     base = {k: v for k, v in os.environ.items()
             if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}
-    code = ("import os, sys; from shapedisplay_cli.main import main; main(['--version']); "
+    code = ("import os, sys; from shapedisplay.cli.main import main; main(['--version']); "
             "import numpy; print(os.environ.get('OPENBLAS_NUM_THREADS'), 'numpy' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], env={**base, **env}, capture_output=True, text=True,
                          check=True).stdout.split()
@@ -244,7 +244,7 @@ def test_the_command_line_asks_numpy_for_no_huge_pages_unless_the_user_chose(env
     import subprocess
     import sys
     base = {k: v for k, v in os.environ.items() if k != "NUMPY_MADVISE_HUGEPAGE"}
-    code = ("from shapedisplay_cli.main import main; main(['--version']); "
+    code = ("from shapedisplay.cli.main import main; main(['--version']); "
             "from numpy._core import multiarray; print(multiarray._get_madvise_hugepage())")
     out = subprocess.run([sys.executable, "-c", code], env={**base, **env}, capture_output=True, text=True,
                          check=True).stdout.split()
@@ -257,7 +257,7 @@ def test_argparse_words_are_used_as_written(capsys):
     import argparse
     import gettext
 
-    from shapedisplay_cli.main import main
+    from shapedisplay.cli.main import main
     with pytest.raises(SystemExit) as exit_:
         main(["play"])
     assert exit_.value.code == 2
@@ -267,7 +267,7 @@ def test_argparse_words_are_used_as_written(capsys):
     assert argparse._("usage: ") == "usage: "
 
 
-@pytest.mark.parametrize("module", ["shapedisplay_cli.main", "shapedisplay"])
+@pytest.mark.parametrize("module", ["shapedisplay.cli.main", "shapedisplay"])
 def test_the_program_exits_with_the_commands_status(module):
     """``entry`` (the installed ``shapedisplay`` program, ``python -m``) exits with main's status: 0, or 2
     and one line for a usage error."""

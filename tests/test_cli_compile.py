@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from shapedisplay.imageio import write_png
-from shapedisplay_cli.main import main
+from shapedisplay.author.imageio import write_png
+from shapedisplay.cli.main import main
 
 ROOT = Path(__file__).resolve().parent.parent
 TENT = ROOT / "assets" / "maps" / "tent_profile.png"
@@ -53,7 +53,7 @@ def test_mapping_gains_and_device_options(tmp_path, capsys):
     assert code == 0, err
     rep = json.loads(out)
     assert rep["kept"] == ["normal_force", "grad_x", "grad_y", "lateral_x", "lateral_y"]
-    from shapedisplay.table import FrictionTable
+    from shapedisplay.table.model import FrictionTable
     meta = FrictionTable.load(t).meta
     assert meta["mapping"]["lateral_gain"] == 0.8 and meta["mapping"]["slope_friction_gain"] == 0.3
     assert meta["compile"]["gradient_method"] == "gaussian"
@@ -153,7 +153,7 @@ def test_bad_tables(tmp_path, capsys):
     with np.load(t) as z:
         header = json.loads(bytes(z["header"]).decode())
         codes = z["normal_force"].copy()
-    from shapedisplay.table import _checksum
+    from shapedisplay.table.model import _checksum
     h2 = dict(header, format_version=2)
     h2["checksum"] = _checksum(h2, {"normal_force": codes})
     np.savez(tmp_path / "v2.npz", header=np.frombuffer(json.dumps(h2).encode(), np.uint8), normal_force=codes)
@@ -171,7 +171,7 @@ def test_bad_tables(tmp_path, capsys):
 
 def test_foreign_tables_with_recomputed_checksum_never_trace_back(tmp_path, capsys):
     """inspect/export on headers that pass the checksum but not the format: one line, exit 2."""
-    from shapedisplay.table import _checksum
+    from shapedisplay.table.model import _checksum
     t = _table_file(tmp_path, capsys)
     with np.load(t) as z:
         header = json.loads(bytes(z["header"]).decode())
@@ -212,8 +212,8 @@ def test_console_script_and_light_imports(tmp_path):
     r = subprocess.run([sys.executable, "-m", "shapedisplay", "inspect", str(tmp_path / "t.npz")],
                        capture_output=True, text=True)
     assert r.returncode == 0 and "normal_force" in r.stdout
-    code = ("import sys, shapedisplay, shapedisplay.compile, shapedisplay.sources, shapedisplay.export; "
-            "import shapedisplay_cli.main as m; m.build_parser(); "
+    code = ("import sys, shapedisplay, shapedisplay.author.compile, shapedisplay.author.sources, shapedisplay.exchange.export; "
+            "import shapedisplay.cli.main as m; m.build_parser(); "
             "print([k for k in ('trimesh', 'pyvista', 'serial', 'matplotlib') if k in sys.modules])")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert r.stdout.strip() == "[]"
@@ -234,7 +234,7 @@ def test_mesh_source_passes_mesh_options(tmp_path, capsys):
 
 
 def test_stretch_perceptual_and_coding_options(tmp_path, capsys):
-    from shapedisplay.table import FrictionTable
+    from shapedisplay.table.model import FrictionTable
     t = tmp_path / "s.npz"
     code, out, err = run(["compile", TENT, "-o", t, "--size", "60x4mm", "--height", "0:0.4mm",
                           "--device", "skin-stretch-tactor", "--mapping", "height+stretch+perceptual",

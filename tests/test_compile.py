@@ -11,13 +11,13 @@ import pytest
 from hypothesis import given, settings, strategies as st
 from hypothesis.extra import numpy as hnp
 
-from shapedisplay import sources
-from shapedisplay.compile import CompileOptions, compile_heightfield, quantization_for
-from shapedisplay.devices import load_device
+from shapedisplay.author import sources
+from shapedisplay.author.compile import CompileOptions, compile_heightfield, quantization_for
+from shapedisplay.table.devices import load_device
 from shapedisplay.errors import InputError
-from shapedisplay.export import c_header, export_c, export_json
-from shapedisplay.forces import MappingOptions
-from shapedisplay.table import CHANNELS, FrictionTable
+from shapedisplay.exchange.export import c_header, export_c, export_json
+from shapedisplay.author.forces import MappingOptions
+from shapedisplay.table.model import CHANNELS, FrictionTable
 
 ASSETS = Path(__file__).resolve().parent.parent / "assets" / "maps"
 RIG = load_device("desktop-rig")
@@ -41,7 +41,7 @@ def test_tent_height_map_reproduces_published_tent():
 
 
 def test_bundled_tent_png_reproduces_published_tent():
-    from shapedisplay.sources import load_image
+    from shapedisplay.author.sources import load_image
     hf = load_image(ASSETS / "tent_profile.png", "60x4mm", "0:2mm")
     res = compile_heightfield(hf, None, MappingOptions.parse("height", n_base="0.5N", n_gain="2N/mm"))
     n = res.table.dense("normal_force")
@@ -82,8 +82,8 @@ def test_stated_errors_hold_and_output_is_finite(heights, spec, quantize):
     m = MappingOptions.parse(spec)
     dev = RIG
     res = compile_heightfield(hf, dev, m, CompileOptions(quantize=quantize, limit_walls=False, max_slope=float("inf")))
-    from shapedisplay.forces import force_channels
-    from shapedisplay.gradients import gradient
+    from shapedisplay.author.forces import force_channels
+    from shapedisplay.author.gradients import gradient
     exact = force_channels(hf, dev, m, grad=gradient(hf))
     assert sorted(exact) == res.table.channels
     for name, q in res.report["quantization"].items():
@@ -238,9 +238,9 @@ def test_c_header_rejects_bad_names():
 
 
 def test_fast_kernels_match_numpy_bit_for_bit():
-    from shapedisplay.compile import _encode, _minmax
-    from shapedisplay.gradients import limit_walls
-    from shapedisplay.table import Quantization
+    from shapedisplay.author.compile import _encode, _minmax
+    from shapedisplay.author.gradients import limit_walls
+    from shapedisplay.table.model import Quantization
     rng = np.random.default_rng(5)
     v = rng.uniform(0.5, 4.5, 70000)          # above KERNEL_MIN_SIZE: the chunked path (not a multiple of CHUNK)
     v[:100] = 0.5 + (np.arange(100) + 0.5) * (4.0 / 255)       # exact ties between codes
@@ -252,7 +252,7 @@ def test_fast_kernels_match_numpy_bit_for_bit():
     fast = limit_walls(gx, gy, 1.5)
     slow = limit_walls(gx[:, ::1].T.copy().T, gy.T.copy().T, 1.5)   # Fortran order: numpy path
     assert np.allclose(fast[0], slow[0], rtol=1e-14) and np.allclose(fast[1], slow[1], rtol=1e-14)
-    from shapedisplay.gradients import detect_walls
+    from shapedisplay.author.gradients import detect_walls
     hf = sources.from_array(np.zeros((300, 300)), 1e-4)
     a, b = detect_walls(hf, gx, gy, 1.5), detect_walls(hf, gx.T.copy().T, gy.T.copy().T, 1.5)
     assert (a.count, a.steepest, a.regions, a.boxes_mm) == (b.count, b.steepest, b.regions, b.boxes_mm)
@@ -294,7 +294,7 @@ def test_pruning_property(heights, keep):
 
 def test_chunked_kernels_equal_whole_array_arithmetic():
     """Chunk boundaries change nothing: the chunked passes give the whole-array numpy results bit for bit."""
-    from shapedisplay import _kernels
+    from shapedisplay.author import kernels as _kernels
     rng = np.random.default_rng(11)
     n = 3 * _kernels.CHUNK + 1234
     gx, gy = rng.normal(0, 2, n), rng.normal(0, 2, n)
@@ -322,7 +322,7 @@ def test_chunked_kernels_equal_whole_array_arithmetic():
 
 
 def test_limit_walls_given_the_wall_report_visits_only_walls_with_the_same_result():
-    from shapedisplay.gradients import detect_walls, limit_walls
+    from shapedisplay.author.gradients import detect_walls, limit_walls
     rng = np.random.default_rng(8)
     gx, gy = rng.normal(0, 2, (300, 300)), rng.normal(0, 2, (300, 300))
     hf = sources.from_array(np.zeros((300, 300)), 1e-4)
@@ -338,7 +338,7 @@ def test_limit_walls_given_the_wall_report_visits_only_walls_with_the_same_resul
 def test_compile_of_a_walled_map_is_unchanged_by_the_shared_scratch_and_the_masked_clipping(monkeypatch):
     """The scratch array shared by the wall labels and N, and wall clipping that visits only the walls, give
     the table that fresh arrays and a clipping pass over every sample give (codes channel for channel)."""
-    from shapedisplay import compile as compile_mod
+    from shapedisplay.author import compile as compile_mod
     rng = np.random.default_rng(3)
     h = np.cumsum(rng.normal(0, 2e-5, (300, 320)), axis=1) + rng.normal(0, 3e-5, (300, 320))
     hf = sources.from_array(h, 0.1e-3)
@@ -356,7 +356,7 @@ def test_compile_of_a_walled_map_is_unchanged_by_the_shared_scratch_and_the_mask
 
 
 def test_normal_force_written_into_a_given_array():
-    from shapedisplay.forces import normal_force
+    from shapedisplay.author.forces import normal_force
     h = np.random.default_rng(1).uniform(-1e-3, 3e-3, (40, 50))
     hf = sources.from_array(h, 0.1e-3)
     for m in (MappingOptions.parse("height"), MappingOptions.parse("height+perceptual", perceptual_exponent=0.6)):
@@ -373,7 +373,7 @@ def test_wall_regions_load_no_scipy_ndimage(tmp_path):
     imported, and the count is scipy's."""
     code = (
         "import sys, numpy as np\n"
-        "from shapedisplay.gradients import wall_regions\n"
+        "from shapedisplay.author.gradients import wall_regions\n"
         "mask = np.random.default_rng(4).random((300, 300)) < 0.4\n"
         "n, top, spans = wall_regions(mask, 5)\n"
         "print('scipy.ndimage' in sys.modules)\n"
@@ -398,7 +398,8 @@ def test_heights_whose_sum_overflows_are_still_finite():
 def _compile_both_ways(monkeypatch, hf, device, mapping, options=CompileOptions(), chunk=1024, band_samples=4096):
     """(banded, whole-array) compiles of ``hf`` (None if it is not compiled band by band): small chunks and
     bands so that a small map has many of both."""
-    from shapedisplay import _kernels, compile as compile_mod, gradients
+    from shapedisplay.author import compile as compile_mod
+    from shapedisplay.author import kernels as _kernels, gradients
     monkeypatch.setattr(_kernels, "CHUNK", chunk)
     monkeypatch.setattr(gradients, "KERNEL_MIN_SIZE", 1)      # both ways through the chunked passes
     monkeypatch.setattr(compile_mod, "KERNEL_MIN_SIZE", 1)
@@ -458,7 +459,7 @@ def test_banded_compile_property(seed, rows, cols, noise, gain, base, max_slope,
             assume(both is not None)
             banded, whole = both
         except InputError as exc:       # refused: the whole-array compile refuses with the same message
-            mp.setattr("shapedisplay.compile.BANDS_MIN_SIZE", 1 << 60)
+            mp.setattr("shapedisplay.author.compile.BANDS_MIN_SIZE", 1 << 60)
             with pytest.raises(InputError) as again:
                 compile_heightfield(hf, RIG, m, opts)
             assert str(again.value) == str(exc)
@@ -474,15 +475,15 @@ def test_banded_compile_refuses_overflowing_slopes_as_the_whole_array_compile(mo
     h[20, 25] = 1e300
     hf = sources.from_array(h, 1e-9)
     for size in (1, 1 << 60):
-        monkeypatch.setattr("shapedisplay.compile.BANDS_MIN_SIZE", size)
-        monkeypatch.setattr("shapedisplay.compile.BAND_SAMPLES", 256)
-        monkeypatch.setattr("shapedisplay._kernels.CHUNK", 64)
+        monkeypatch.setattr("shapedisplay.author.compile.BANDS_MIN_SIZE", size)
+        monkeypatch.setattr("shapedisplay.author.compile.BAND_SAMPLES", 256)
+        monkeypatch.setattr("shapedisplay.author.kernels.CHUNK", 64)
         with pytest.raises(InputError, match="slopes overflow float64"):
             compile_heightfield(hf, RIG, MappingOptions.parse("height+lateral"))
 
 
 def test_banded_compile_only_where_it_gives_the_same_table():
-    from shapedisplay.compile import _band_rows
+    from shapedisplay.author.compile import _band_rows
     hf = sources.from_array(np.zeros((2048, 2048)), 0.1e-3)
     kept = ["normal_force", "lateral_x", "lateral_y"]
     m = MappingOptions.parse("height+lateral")
@@ -498,7 +499,7 @@ def test_banded_compile_only_where_it_gives_the_same_table():
 def test_banded_compile_where_the_bounds_need_the_smallest_nonzero_value(monkeypatch):
     """N reaching 0 and a frictionless pad: the perceptual bounds come from the smallest nonzero |value|
     of N and of the lateral forces, which the banded compile finds in extra passes: the same table."""
-    from shapedisplay.devices import FrictionParams
+    from shapedisplay.table.devices import FrictionParams
     dev = RIG.with_(normal_force_range=(0.0, 8.0), friction=FrictionParams(mu_s=0.5, mu_k=0.0))
     h = _noisy_map(200, 256, 5)
     h[:, :40] = -1e-3                              # N = 0.5 N + 1 N/mm * h clamps at 0 here
@@ -514,7 +515,7 @@ def test_banded_compile_where_the_bounds_need_the_smallest_nonzero_value(monkeyp
 @given(rows=st.integers(3, 30), cols=st.integers(3, 12), cuts=st.lists(st.integers(1, 29), max_size=5),
        seed=st.integers(0, 2 ** 32 - 1))
 def test_central_slopes_of_bands_are_the_whole_map_slopes(rows, cols, cuts, seed):
-    from shapedisplay.gradients import central, central_band
+    from shapedisplay.author.gradients import central, central_band
     h = np.random.default_rng(seed).normal(0, 1e-3, (rows, cols))
     gx, gy = central(sources.from_array(h, 0.1e-3))
     edges = sorted({0, rows, *(c for c in cuts if c < rows)})

@@ -7,13 +7,13 @@ pytest.importorskip("serial")
 from shapedisplay.link.emulator import DeviceEmulator, EmulatorConfig
 from shapedisplay.link.engine import render_stream
 from shapedisplay.link.host import DeviceLink
-from shapedisplay.runtime import Renderer
+from shapedisplay.render import Renderer
 from test_device_render import f32, tent_table
 
 
 def test_emulator_takes_a_binary_table_image(tmp_path):
     """An upload may be the binary table image (export --format bin): same samples as the .npz."""
-    from shapedisplay.runtime.image import to_image
+    from shapedisplay.render.image import to_image
     table = tent_table()
     emu = DeviceEmulator(EmulatorConfig(model="jump"))
     emu.start()
@@ -35,9 +35,9 @@ def test_cli_emulate_plays_an_uploaded_image(tmp_path, capsys):
     import subprocess
     import sys
     import time
-    from shapedisplay_cli.main import main
+    from shapedisplay.cli.main import main
     port_file = tmp_path / "port"
-    proc = subprocess.Popen([sys.executable, "-m", "shapedisplay_cli.main", "device", "emulate",
+    proc = subprocess.Popen([sys.executable, "-m", "shapedisplay.cli.main", "device", "emulate",
                              "--stop-after", "60", "--port-file", str(port_file)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=dict(os.environ))
     try:
@@ -45,7 +45,7 @@ def test_cli_emulate_plays_an_uploaded_image(tmp_path, capsys):
         while not port_file.exists():
             assert proc.poll() is None and time.monotonic() < t_end, proc.stderr.read() if proc.poll() else "slow"
             time.sleep(0.05)
-        from shapedisplay.runtime.image import export_image
+        from shapedisplay.render.image import export_image
         table = str(export_image(tent_table(), tmp_path / "t.sdt"))      # the binary image, uploaded as is
         out = tmp_path / "played.npz"
         assert main(["device", "play", table, port_file.read_text().strip(), "--stroke",

@@ -10,7 +10,7 @@ import pytest
 
 pytest.importorskip("serial")
 
-from shapedisplay_cli.main import main
+from shapedisplay.cli.main import main
 from test_device_render import tent_table
 
 
@@ -18,7 +18,7 @@ from test_device_render import tent_table
 def emulator(tmp_path_factory):
     d = tmp_path_factory.mktemp("emu")
     port_file = d / "port"
-    proc = subprocess.Popen([sys.executable, "-m", "shapedisplay_cli.main", "device", "emulate", "--stop-after", "60",
+    proc = subprocess.Popen([sys.executable, "-m", "shapedisplay.cli.main", "device", "emulate", "--stop-after", "60",
                              "--memory", "64 KiB", "--port-file", str(port_file)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     t_end = time.monotonic() + 60
@@ -96,7 +96,7 @@ def test_bad_input_is_one_line_exit_2(emulator, table_path, capsys, argv, messag
 
 def test_table_too_large_for_device(emulator, tmp_path, capsys):
     _, port, _ = emulator
-    from shapedisplay.table import FrictionTable, Grid, choose_quantization
+    from shapedisplay.table.model import FrictionTable, Grid, choose_quantization
     rng = np.random.default_rng(0)
     nf = rng.random((1, 20000))
     big = FrictionTable.from_dense(Grid(1, 20000, 1e-4, 1e-4), {"normal_force": nf},
@@ -142,13 +142,13 @@ def test_silent_port_times_out(tmp_path, capsys):
 
 def test_emulator_killed_mid_play_is_one_line_exit_2(table_path, tmp_path):
     port_file = tmp_path / "port"
-    emu = subprocess.Popen([sys.executable, "-m", "shapedisplay_cli.main", "device", "emulate", "--stop-after", "60",
+    emu = subprocess.Popen([sys.executable, "-m", "shapedisplay.cli.main", "device", "emulate", "--stop-after", "60",
                             "--port-file", str(port_file)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         t_end = time.monotonic() + 60
         while not port_file.exists() and emu.poll() is None and time.monotonic() < t_end:
             time.sleep(0.05)
-        host = subprocess.Popen([sys.executable, "-m", "shapedisplay_cli.main", "device", "play", table_path,
+        host = subprocess.Popen([sys.executable, "-m", "shapedisplay.cli.main", "device", "play", table_path,
                                  port_file.read_text().strip(), "--stroke", "0,0 <-> 60,0 @ 20 mm/s x3"],
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                 env={**os.environ, "PYTHONUNBUFFERED": "1"})

@@ -13,7 +13,7 @@ from shapedisplay.link.emulator import DeviceEmulator, EmulatorConfig, parse_tab
 from shapedisplay.link.framing import crc32, encode_frame
 from shapedisplay.link.host import (DeviceDisconnected, DeviceLink, DeviceRefused, DeviceResetError,
                                       LinkError, LinkTimeout, ProtocolVersionError)
-from shapedisplay.table import FrictionTable, Grid, choose_quantization
+from shapedisplay.table.model import FrictionTable, Grid, choose_quantization
 
 
 class ProbeEngine:

@@ -8,9 +8,9 @@ from shapedisplay.link import protocol as P
 from shapedisplay.link.emulator import DeviceEmulator, EmulatorConfig
 from shapedisplay.link.engine import force_to_position, render_stream, step_period
 from shapedisplay.link.host import DeviceLink, DeviceRefused
-from shapedisplay.devices import load_device
-from shapedisplay.runtime import Renderer
-from shapedisplay.table import FrictionTable, Grid, choose_quantization
+from shapedisplay.table.devices import load_device
+from shapedisplay.render import Renderer
+from shapedisplay.table.model import FrictionTable, Grid, choose_quantization
 
 
 def tent_table(device="handheld-stick"):

@@ -3,7 +3,7 @@ import math
 
 import pytest
 
-from shapedisplay.devices import DeviceProfile, bundled_devices, load_device
+from shapedisplay.table.devices import DeviceProfile, bundled_devices, load_device
 from shapedisplay.errors import FileFormatError, InputError, ModelError, UnitError
 
 

@@ -136,7 +136,7 @@ def run_document(doc: str, folder: Path) -> list[dict]:
     import signal
     import traceback
 
-    from shapedisplay_cli.main import main
+    from shapedisplay.cli.main import main
 
     os.chdir(folder)
     os.environ["PATH"] = os.path.dirname(sys.executable) + os.pathsep + os.environ.get("PATH", "")

@@ -8,10 +8,10 @@ import pytest
 from shapedisplay.errors import InputError
 from shapedisplay.exchange.ahap import (MAX_CURVE_POINTS, ahap_document, ahap_of_result, check_ahap,
                                         drive_envelope, sharpness_of_carrier, write_drive_csv)
-from shapedisplay.runtime.cursor import parse_stroke
-from shapedisplay.runtime.renderer import Renderer
-from shapedisplay.table import FrictionTable, Grid, choose_quantization
-from shapedisplay_cli.main import main
+from shapedisplay.render.cursor import parse_stroke
+from shapedisplay.render.renderer import Renderer
+from shapedisplay.table.model import FrictionTable, Grid, choose_quantization
+from shapedisplay.cli.main import main
 
 
 def tent_table(tmp_path=None):

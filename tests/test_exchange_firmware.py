@@ -15,14 +15,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from shapedisplay.exchange.widgetmap import toggle_states, widget_map
-from shapedisplay.export import c_header, export_c, export_json
-from shapedisplay.runtime.renderer import Renderer
-from shapedisplay.scene import compile_scene
-from shapedisplay.scene.compiler import select_state
+from shapedisplay.table.widgets import toggle_states, widget_map
+from shapedisplay.exchange.export import c_header, export_c, export_json
+from shapedisplay.render.renderer import Renderer
+from shapedisplay.author.scene import compile_scene
+from shapedisplay.author.scene.compiler import select_state
 
 ROOT = Path(__file__).resolve().parent.parent
-CDIR = ROOT / "shapedisplay" / "runtime_c"
+CDIR = ROOT / "shapedisplay" / "engine"
 STRICT = ["-std=c99", "-O2", "-Wall", "-Wextra", "-pedantic", "-Werror", "-ffp-contract=off"]
 
 

@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from shapedisplay.devices import load_device
+from shapedisplay.table.devices import load_device
 from shapedisplay.exchange import export_table
 from shapedisplay.exchange.friction_png import export_friction_png, quantity_map, read_friction_png
-from shapedisplay.table import FrictionTable, Grid, choose_quantization
-from shapedisplay_cli.main import main
+from shapedisplay.table.model import FrictionTable, Grid, choose_quantization
+from shapedisplay.cli.main import main
 
 
 def corner_table(with_scale=True):

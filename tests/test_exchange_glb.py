@@ -5,11 +5,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from shapedisplay.devices import load_device
+from shapedisplay.table.devices import load_device
 from shapedisplay.exchange.glb import EXTENSION, compile_haptic_glb, export_glb, read_glb, read_haptic_glb
-from shapedisplay.forces import MappingOptions
-from shapedisplay.table import FrictionTable, Grid, choose_quantization
-from shapedisplay_cli.main import main
+from shapedisplay.author.forces import MappingOptions
+from shapedisplay.table.model import FrictionTable, Grid, choose_quantization
+from shapedisplay.cli.main import main
 
 SCHEMAS = Path(__file__).resolve().parent / "data" / "gltf_schema"
 BASE = "https://schemas.invalid/gltf/"
@@ -113,7 +113,7 @@ def test_textures_round_trip_within_their_scale_and_are_the_top_view(tmp_path):
 def test_preview_renders_the_glb_off_screen(tmp_path):
     pytest.importorskip("pyvista")
     from shapedisplay import viewer
-    from shapedisplay.mesh import mesh_to_heightfield
+    from shapedisplay.author.mesh import mesh_to_heightfield
     t, h = bump_table()
     hf = mesh_to_heightfield(export_glb(t, tmp_path / "b.glb"), resolution=0.5e-3, units="m")
     assert hf.heights.max() == pytest.approx(h.max(), rel=0.02)

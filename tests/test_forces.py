@@ -3,11 +3,11 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from shapedisplay import sources
-from shapedisplay.devices import load_device
+from shapedisplay.author import sources
+from shapedisplay.table.devices import load_device
 from shapedisplay.errors import InputError
-from shapedisplay.gradients import gradient
-from shapedisplay.forces import (EXPONENTS, MappingOptions, force_channels, lateral_force, needed_channels,
+from shapedisplay.author.gradients import gradient
+from shapedisplay.author.forces import (EXPONENTS, MappingOptions, force_channels, lateral_force, needed_channels,
                                    perceived, perceptual_scale)
 
 RIG = load_device("desktop-rig")          # burst + lateral, N range 0.5..8 N, lateral max 1.5 N
@@ -156,7 +156,7 @@ def test_needed_channels_follow_device_outputs():
     assert "skin_stretch" in kept and "lateral_x" not in kept
     kept, left = needed_channels(RIG, m, is_1d=True)
     assert "grad_y" not in kept and "lateral_y" not in kept and "1-D" in left["lateral_y"]
-    assert set(kept) | set(left) == set(__import__("shapedisplay.table", fromlist=["CHANNELS"]).CHANNELS)
+    assert set(kept) | set(left) == set(__import__("shapedisplay.table.model", fromlist=["CHANNELS"]).CHANNELS)
 
 
 @settings(max_examples=40, deadline=None)
@@ -175,7 +175,7 @@ def test_no_nan_from_finite_input(values, spec):
 
 def test_equal_steps_is_the_one_inverted_power_law():
     """psi of equal_steps(t) is linear in t, with and without a threshold; the plain form is exact."""
-    from shapedisplay.forces import equal_steps
+    from shapedisplay.author.forces import equal_steps
     t = np.linspace(0.0, 1.0, 11)
     for lo, hi, beta, th in ((0.0, 4.0, 0.76, 0.0), (0.8, 1.5, 1.26, 0.0), (0.5, 2.0, 0.6, 0.3), (0.3, 2.0, 0.6, 0.3)):
         psi = perceived(equal_steps(t, lo, hi, beta, th), 1.0, beta, th)

@@ -30,7 +30,7 @@ import pytest
 
 from hostile import documented_checksum, npy_bytes, npz_bytes, small_table, table_bytes, zip_of
 from shapedisplay.errors import ShapeDisplayError
-from shapedisplay.table import FrictionTable
+from shapedisplay.table.model import FrictionTable
 
 ROOT = Path(__file__).resolve().parent.parent
 SEED = 20261123
@@ -84,7 +84,7 @@ def _run_case(tally: Tally, kind: str, label: str, read, accept, allowance=lambd
 
 # ------------------------------------------------------------------ what an accepted table must do
 def _check_accepted_table(t: FrictionTable, label: str) -> None:
-    from shapedisplay.runtime.renderer import Renderer
+    from shapedisplay.render.renderer import Renderer
     for name in t.channels:
         assert np.isfinite(t.dense(name)).all(), (label, name)
     text = json.dumps(t.to_json(), allow_nan=False)          # export --format json must not fail later
@@ -261,7 +261,7 @@ def run_table_fuzz(seed: int = SEED) -> dict:
     """
     import resource
 
-    from shapedisplay.runtime.image import read_image, to_image
+    from shapedisplay.render.image import read_image, to_image
     rng = random.Random(seed)
     table = small_table()
     good = table_bytes(table)
@@ -347,7 +347,7 @@ def test_mutants_through_the_real_command(tmp_path):
     for i, data in enumerate(cases):
         p = tmp_path / f"m{i}.npz"
         p.write_bytes(data)
-        out = subprocess.run([sys.executable, "-m", "shapedisplay_cli.main", "inspect", str(p)],
+        out = subprocess.run([sys.executable, "-m", "shapedisplay.cli.main", "inspect", str(p)],
                              capture_output=True, text=True, timeout=120)
         assert out.returncode in (0, 2), out
         if out.returncode == 2:
@@ -406,10 +406,10 @@ def _check_cursor(cp, label):
 
 
 def test_two_thousand_malformed_strokes_traces_scenes_and_command_lines(tmp_path, capsys):
-    from shapedisplay.runtime.cursor import load_force_csv, load_trace_csv, parse_stroke
-    from shapedisplay.scene import check_scene, load_scene
-    from shapedisplay.sinks import read_trace
-    from shapedisplay_cli.main import main
+    from shapedisplay.render.cursor import load_force_csv, load_trace_csv, parse_stroke
+    from shapedisplay.author.scene import check_scene, load_scene
+    from shapedisplay.render.sinks import read_trace
+    from shapedisplay.cli.main import main
     rng = random.Random(SEED + 3)
     tally = Tally()
     t0 = time.perf_counter()
@@ -478,9 +478,9 @@ def test_two_thousand_malformed_strokes_traces_scenes_and_command_lines(tmp_path
 
 
 def _trace_npz_bytes(tmp_path) -> bytes:
-    from shapedisplay.runtime.cursor import parse_stroke
-    from shapedisplay.runtime.renderer import Renderer
-    from shapedisplay.sinks import write_trace
+    from shapedisplay.render.cursor import parse_stroke
+    from shapedisplay.render.renderer import Renderer
+    from shapedisplay.render.sinks import write_trace
     table = small_table()
     r = Renderer(table, model="jump")
     res = r.render(parse_stroke("0,3 -> 9,3 @ 50mm/s", r.tick_rate))

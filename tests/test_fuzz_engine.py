@@ -1,10 +1,10 @@
-"""The libFuzzer harness of the C engine (runtime_c/fuzz/fuzz_engine.c), a bounded smoke run per build.
+"""The libFuzzer harness of the C engine (engine/fuzz/fuzz_engine.c), a bounded smoke run per build.
 
 Both precisions are built with clang's -fsanitize=fuzzer,address,undefined into a temporary
-directory and run for SECONDS each from a seed corpus of small table images (runtime_c/fuzz/seeds.py
+directory and run for SECONDS each from a seed corpus of small table images (engine/fuzz/seeds.py
 wraps them): no sanitizer report, no failed check of the harness (a load is SD_OK or an
 SD_ERR_IMAGE_* code, loaded values finite, every output finite, drive and audio in [-1, 1]).
-`make -C shapedisplay/runtime_c fuzz` is the long run. Skipped where clang cannot link libFuzzer
+`make -C shapedisplay/engine fuzz` is the long run. Skipped where clang cannot link libFuzzer
 (Debian: libclang-rt-dev, scripts/install-system-deps.sh --with-toolchains).
 """
 import importlib.util
@@ -38,7 +38,7 @@ def fuzz_dir(tmp_path_factory):
     why = _libfuzzer_missing(tmp)
     if why:
         pytest.skip(why)
-    from shapedisplay.runtime import image as I
+    from shapedisplay.render import image as I
     spec = importlib.util.spec_from_file_location("fuzz_seeds", CDIR / "fuzz" / "seeds.py")
     seeds = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(seeds)

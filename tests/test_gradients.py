@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from shapedisplay import sources
+from shapedisplay.author import sources
 from shapedisplay.errors import InputError
-from shapedisplay.gradients import (GRADIENT_METHODS, detect_walls, gradient, limit_walls, slope_along,
+from shapedisplay.author.gradients import (GRADIENT_METHODS, detect_walls, gradient, limit_walls, slope_along,
                                     slope_magnitude)
 
 A, S = 1e-3, 2e-3          # bump height and sigma, m
@@ -151,7 +151,7 @@ def test_max_slope_must_be_positive():
 @pytest.mark.parametrize("cols", [8, 512])   # numpy path and C kernel path
 def test_overflowing_slopes_are_refused_not_zeroed(cols):
     """|g|^2 overflowing to inf used to clip the wall slopes to 0 (direction lost)."""
-    from shapedisplay.heightfield import HeightField
+    from shapedisplay.author.heightfield import HeightField
     h = np.zeros((max(2, (1 << 16) // cols + 1), cols))
     h[:, cols // 2:] = 1e-3
     hf = HeightField(h, 1e-300, 1e-300)
@@ -191,7 +191,7 @@ def _regions_by_scipy(mask, k):
 
 def _regions_both_ways(mask, k):
     """wall_regions' result (the C count), as the lists _regions_by_scipy gives (one way: the engine's)."""
-    from shapedisplay import gradients
+    from shapedisplay.author import gradients
     n, top, spans = gradients.wall_regions(mask, k)
     assert top.dtype == np.int64 and all(type(v) is int for box in spans for v in box)
     return [(n, top.tolist(), spans)]
@@ -245,7 +245,7 @@ def test_wall_regions_out_of_memory_is_one_line(monkeypatch):
     """The C count reports that it ran out of memory (-1): one line naming the map, no partial result."""
     import types
 
-    from shapedisplay import _kernels, gradients
+    from shapedisplay.author import kernels as _kernels, gradients
     mask = np.random.default_rng(8).random((60, 70)) < 0.5
     monkeypatch.setattr(_kernels, "library", lambda: types.SimpleNamespace(sd_regions=lambda *args: -1))
     with pytest.raises(InputError, match=r"not enough memory to count the wall regions of a 70 x 60 map"):

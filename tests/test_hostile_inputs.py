@@ -20,8 +20,8 @@ import pytest
 
 from hostile import documented_checksum, npy_bytes, npz_bytes, small_table, table_bytes, zip_bomb, zip_of
 from shapedisplay.errors import FileFormatError, InputError, ModelError, ShapeDisplayError, TableError
-from shapedisplay.table import FrictionTable
-from shapedisplay_cli.main import main
+from shapedisplay.table.model import FrictionTable
+from shapedisplay.cli.main import main
 
 ROOT = Path(__file__).resolve().parent.parent
 TENT = ROOT / "assets" / "maps" / "tent_profile.png"
@@ -162,7 +162,7 @@ def test_zip_bomb_is_refused_with_bounded_memory(tmp_path, table, mode):
     assert path.stat().st_size < 1 << 20
     code = textwrap.dedent(f"""
         import resource
-        from shapedisplay.table import FrictionTable
+        from shapedisplay.table.model import FrictionTable
         from shapedisplay.errors import TableError
         from shapedisplay.link.emulator import parse_table_image
         data = open({str(path)!r}, 'rb').read()
@@ -223,7 +223,7 @@ def test_wrong_header_values_are_refused_with_a_valid_checksum(table, edit, matc
 
 
 def test_integer_codes_that_decode_beyond_a_float_are_refused():
-    from shapedisplay.table import Grid, choose_quantization
+    from shapedisplay.table.model import Grid, choose_quantization
     vals = np.linspace(0.5, 3.0, 12).reshape(3, 4)
     t = FrictionTable.from_dense(Grid(3, 4, 1e-3, 1e-3), {"normal_force": vals},
                                  {"normal_force": choose_quantization(vals, "uint16")})
@@ -252,7 +252,7 @@ def test_accepted_header_survives_play_and_json_export(tmp_path, table):
 
 # ------------------------------------------------------------------ traces
 def test_trace_reader_is_bounded_and_checks_values(tmp_path):
-    from shapedisplay.sinks import read_trace
+    from shapedisplay.render.sinks import read_trace
     p = tmp_path / "t.npz"
     n = 5
     arrays = {k: np.zeros(n) for k in ("t", "x", "y", "vx", "vy", "normal_force", "friction_force", "lateral_x",
@@ -384,7 +384,7 @@ def test_sigkill_during_a_write_leaves_a_part_file_that_the_next_write_removes(t
 @pytest.mark.parametrize("stroke", ["0,2 <-> 60,2 @ 20mm/s x30000000", "0,2 <-> 60,2 @ 20mm/s x1000000000",
                                     "0,2 <-> 60,2 @ 20mm/s x" + "9" * 40])
 def test_repeated_stroke_is_refused_before_its_points_are_built(stroke):
-    from shapedisplay.runtime.cursor import parse_stroke
+    from shapedisplay.render.cursor import parse_stroke
     tracemalloc.start()
     try:
         with pytest.raises(InputError, match="ticks of one offline render"):
@@ -396,7 +396,7 @@ def test_repeated_stroke_is_refused_before_its_points_are_built(stroke):
 
 
 def test_csv_recordings_are_capped_while_read(tmp_path, monkeypatch):
-    from shapedisplay.runtime import cursor
+    from shapedisplay.render import cursor
     p = tmp_path / "trace.csv"
     p.write_text("".join(f"{i * 1e-3},{i},0\n" for i in range(50)))
     monkeypatch.setattr(cursor, "MAX_TICKS", 20)
@@ -408,7 +408,7 @@ def test_csv_recordings_are_capped_while_read(tmp_path, monkeypatch):
 
 
 def test_binary_stl_declaring_too_many_triangles_is_refused(tmp_path, monkeypatch):
-    from shapedisplay import mesh
+    from shapedisplay.author import mesh
     monkeypatch.setattr(mesh, "MAX_MESH_TRIANGLES", 10)
     p = tmp_path / "m.stl"
     p.write_bytes(b"\0" * 80 + struct.pack("<I", 11) + b"\0" * 50 * 11)
@@ -418,8 +418,8 @@ def test_binary_stl_declaring_too_many_triangles_is_refused(tmp_path, monkeypatc
 
 # ------------------------------------------------------------------ physics inputs
 def test_stribeck_refuses_a_pad_it_cannot_resolve(table):
-    from shapedisplay.devices import DeviceProfile, PadParams
-    from shapedisplay.runtime.renderer import Renderer
+    from shapedisplay.table.devices import DeviceProfile, PadParams
+    from shapedisplay.render.renderer import Renderer
     tiny = DeviceProfile(pad=PadParams(mass=1e-12, stiffness=2000.0, damping=0.01))
     with pytest.raises(ModelError, match="model 'stribeck' cannot resolve this pad"):
         Renderer(table, device=tiny, model="stribeck")
@@ -429,7 +429,7 @@ def test_stribeck_refuses_a_pad_it_cannot_resolve(table):
 @pytest.mark.parametrize("model", ["jump", "stribeck", "tanh", "exact"])
 @pytest.mark.parametrize("where", [1e300, -1e300, 2e3])
 def test_absurd_positions_are_refused(table, model, where):
-    from shapedisplay.runtime.cursor import CursorPath, parse_stroke
+    from shapedisplay.render.cursor import CursorPath, parse_stroke
     t = np.arange(10) * 1e-4
     with pytest.raises(InputError, match=r"must be within \+-1000 m"):
         CursorPath(t, np.where(t > 4e-4, where, 0.0), np.zeros(10), 10_000.0, "jump")
@@ -438,7 +438,7 @@ def test_absurd_positions_are_refused(table, model, where):
 
 
 def test_absurd_speed_is_refused():
-    from shapedisplay.runtime.cursor import parse_stroke
+    from shapedisplay.render.cursor import parse_stroke
     with pytest.raises(InputError, match=r"speed must be <= 1000 m/s"):
         parse_stroke("0,0 -> 10,0 @ 1e9 m/s", 10_000)
 
@@ -515,7 +515,7 @@ def test_online_step_holds_absurd_positions_and_counts_them(table, model):
     """A stream (device host, studio) cannot be refused sample by sample: the last valid position is held."""
     import math
 
-    from shapedisplay.runtime.renderer import Renderer
+    from shapedisplay.render.renderer import Renderer
     r = Renderer(table, model=model)
     for x in (0.0, 0.001, 1e300, 0.002, -1e300, float("nan"), 0.003, 1e3, 0.004, float("inf"), 0.005):
         drive = r.step(x, 0.002)
@@ -525,7 +525,7 @@ def test_online_step_holds_absurd_positions_and_counts_them(table, model):
     assert r.held_positions == 0
 
 
-_CONTACTOR_TOML = (ROOT / "shapedisplay" / "data" / "devices" / "lateral-contactor.toml").read_text()
+_CONTACTOR_TOML = (ROOT / "shapedisplay" / "table" / "data" / "devices" / "lateral-contactor.toml").read_text()
 
 
 @pytest.mark.parametrize("value, shown", [("0.0", "0.0"), ("0.5", "0.5"), ('"fast"', "fast"), ("-1e-6", "-1e-06"),
@@ -543,8 +543,8 @@ def test_stribeck_tolerance_out_of_range_is_refused(tmp_path, compiled, capsys, 
 
 
 def test_stribeck_tolerance_option_and_profile_key(tmp_path, compiled, capsys):
-    from shapedisplay.devices import load_device
-    from shapedisplay.runtime.models import get_model
+    from shapedisplay.table.devices import load_device
+    from shapedisplay.render.models import get_model
     dev = tmp_path / "dev.toml"
     dev.write_text(_CONTACTOR_TOML.replace("[stribeck]\n", "[stribeck]\ntolerance = 1e-5\n"))
     assert get_model("stribeck", load_device(dev)).pack()["stribeck_tol"] == 1e-5
@@ -586,7 +586,7 @@ def test_compile_writes_no_table_its_reader_refuses(tmp_path, capsys, s):
 def test_table_writer_and_reader_share_one_rule(table, tmp_path):
     """The rule that refuses a table on reading refuses it on writing: save, to_bytes; nothing left behind."""
     import dataclasses
-    from shapedisplay.table import Grid
+    from shapedisplay.table.model import Grid
     far = dataclasses.replace(table, grid=Grid(table.grid.rows, table.grid.cols, 2e3, table.grid.dy))
     for write in (lambda: far.save(tmp_path / "far.npz"), far.to_bytes):
         with pytest.raises(TableError, match=r"header 'grid.dx_m' must be within 0..1000 \(got 2000.0\); not "
@@ -619,5 +619,5 @@ def test_no_numpy_warning_before_a_mesh_error(tmp_path, capsys):
             code, out, err = run(["compile", obj, "-o", tmp_path / "t.npz", *extra], capsys)
             assert code == 2 and err.count("\n") == 1, err
             assert err.startswith(f"shapedisplay compile: error: mesh '{obj}': vertex coordinates must be within "
-                                  f"+-1e+60 (file units; shapedisplay.mesh.MAX_COORDINATE): 4 vertices beyond")
+                                  f"+-1e+60 (file units; shapedisplay.author.mesh.MAX_COORDINATE): 4 vertices beyond")
     assert sorted(p.suffix for p in tmp_path.iterdir()) == [".obj", ".obj"]

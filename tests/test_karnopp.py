@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from shapedisplay.devices import load_device
-from shapedisplay.runtime.models import simulate_pad
+from shapedisplay.table.devices import load_device
+from shapedisplay.render.models import simulate_pad
 
 KK, VT = 1500.0, 0.0125                     # N/m, m/s: the model's defaults ([karnopp] of the tactor profile)
 FR = load_device("skin-stretch-tactor").friction    # mu_s 0.6, mu_k 0.54 = 0.9 mu_s

@@ -10,11 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from shapedisplay.runtime import codegen, layouts, renderer
-from shapedisplay.runtime.layouts import BURST_POLICIES, LAYOUTS, SLOTS, ctypes_struct
-from shapedisplay.runtime.models import MODEL_IDS, MODELS
+from shapedisplay.render import codegen, layouts, renderer
+from shapedisplay.render.layouts import BURST_POLICIES, LAYOUTS, SLOTS, ctypes_struct
+from shapedisplay.render.models import MODEL_IDS, MODELS
 
-CDIR = Path(layouts.__file__).resolve().parent.parent / "runtime_c"
+CDIR = Path(layouts.__file__).resolve().parent.parent / "engine"
 
 
 def _cc():
@@ -36,7 +36,7 @@ def _members(dt: np.dtype, prefix=""):
 
 
 def test_generated_header_is_current():
-    """runtime_c/sd_layout.h is what `make generate` writes from the layouts and the model registry."""
+    """engine/sd_layout.h is what `make generate` writes from the layouts and the model registry."""
     assert codegen.stale_files() == []
 
 
@@ -130,7 +130,7 @@ def test_javascript_wrapper_numbers_models_policies_and_outputs_as_c():
     """sd_wasm.js passes model and policy numbers to the WebAssembly build and names its outputs."""
     import json
     import re
-    from shapedisplay.runtime.native import C_MODELS
+    from shapedisplay.render.native import C_MODELS
     js = (CDIR / "wasm" / "sd_wasm.js").read_text()
 
     def const(name):

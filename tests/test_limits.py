@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from shapedisplay.errors import InputError
-from shapedisplay.heightfield import MAX_SIDE, check_grid_size
-from shapedisplay_cli.main import main
+from shapedisplay.author.heightfield import MAX_SIDE, check_grid_size
+from shapedisplay.cli.main import main
 
 
 def run(argv, capsys):
@@ -60,7 +60,7 @@ def test_grid_side_limit_is_one_rule():
     for rows, cols in ((MAX_SIDE + 1, 1), (1, MAX_SIDE + 1)):
         with pytest.raises(InputError, match=rf"side of {MAX_SIDE + 1} samples, beyond the limit of {MAX_SIDE} a "
                                              rf"side \(aspect ratio at most {MAX_SIDE}:1; "
-                                             rf"shapedisplay.heightfield.MAX_SIDE\); crop it"):
+                                             rf"shapedisplay.author.heightfield.MAX_SIDE\); crop it"):
             check_grid_size(rows, cols, "profile", "crop it")
 
 
@@ -79,7 +79,7 @@ def test_picture_of_1_x_100_million_pixels_is_refused_from_its_header(tmp_path, 
     assert code == 2 and not out.exists()
     assert line == (f"shapedisplay compile: error: image '{src}': grid of 1 x 100000000 samples has a side of "
                     f"100000000 samples, beyond the limit of 65536 a side (aspect ratio at most 65536:1; "
-                    f"shapedisplay.heightfield.MAX_SIDE); crop or resample the picture")
+                    f"shapedisplay.author.heightfield.MAX_SIDE); crop or resample the picture")
     assert peak < 50 * 2**20 and elapsed < 10
 
 
@@ -90,7 +90,7 @@ def test_picture_at_the_side_limit_compiles_with_its_row_stored_once(tmp_path, c
     code, _, err = run(["compile", src, "-o", out, "--size", "60x4mm", "--height", "0:2mm", "-q"], capsys)
     assert code == 0 and not err
     assert time.perf_counter() - t0 < 15          # one patch per row: 5 s before
-    from shapedisplay.table import FrictionTable
+    from shapedisplay.table.model import FrictionTable
     t = FrictionTable.load(out)
     assert t.patch_shapes == [(1, 1)] and len(t.blocks) == MAX_SIDE
 

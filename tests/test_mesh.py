@@ -11,8 +11,8 @@ from hypothesis import given, settings, strategies as st
 
 trimesh = pytest.importorskip("trimesh")
 
-from shapedisplay import mesh, raster  # noqa: E402
-from shapedisplay.heightfield import HeightField  # noqa: E402
+from shapedisplay.author import mesh, raster  # noqa: E402
+from shapedisplay.author.heightfield import HeightField  # noqa: E402
 
 MM = 1e-3
 ROOT = Path(__file__).resolve().parents[1]
@@ -365,7 +365,7 @@ def test_save_heightmap_png_npy_npz(tmp_path):
         np.testing.assert_array_equal(z["heights"], hf.heights)
         assert float(z["dx"]) == hf.dx
     mesh.save_heightmap(hf, tmp_path / "h.png")
-    from shapedisplay.imageio import read_picture
+    from shapedisplay.author.imageio import read_picture
     gray = read_picture(tmp_path / "h.png").values[::-1]
     assert gray.dtype == np.uint16 and gray.shape == hf.shape
     lo, hi = hf.heights.min(), hf.heights.max()
@@ -408,7 +408,7 @@ def test_keycap_asset_is_reproducible_and_matches_its_formula(tmp_path):
 
 
 def test_box_sides_are_reported_as_walls_by_gradient_analysis():
-    from shapedisplay.gradients import detect_walls, gradient
+    from shapedisplay.author.gradients import detect_walls, gradient
     box = trimesh.creation.box(extents=(20, 10, 5))
     hf = mesh.mesh_to_heightfield(box, resolution=0.5 * MM, margin=2 * MM)
     gx, gy = gradient(hf, "central")

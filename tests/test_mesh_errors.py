@@ -9,7 +9,7 @@ import pytest
 
 trimesh = pytest.importorskip("trimesh")
 
-from shapedisplay import mesh  # noqa: E402
+from shapedisplay.author import mesh  # noqa: E402
 from shapedisplay.errors import (  # noqa: E402
     FileFormatError, InputError, MissingDependencyError, ShapeDisplayError, UnitError,
 )
@@ -243,7 +243,7 @@ def test_obj_face_of_80000_vertices_is_refused_before_triangulating(tmp_path, ca
     """One face line of 80,000 vertices took 47.5 s (its fan rasterised sliver by sliver)."""
     import time
 
-    from shapedisplay_cli.main import main
+    from shapedisplay.cli.main import main
     path = tmp_path / "polygon.obj"
     _polygon_obj(path, 80_000)
     t0 = time.perf_counter()
@@ -252,7 +252,7 @@ def test_obj_face_of_80000_vertices_is_refused_before_triangulating(tmp_path, ca
     out, err = capsys.readouterr()
     assert code == 2 and not out and not (tmp_path / "t.npz").exists()
     assert err == (f"shapedisplay compile: error: mesh '{path}': face on line 80001 has 80000 vertices, beyond the "
-                   f"limit of {mesh.MAX_FACE_VERTICES} a face (shapedisplay.mesh.MAX_FACE_VERTICES); triangulate "
+                   f"limit of {mesh.MAX_FACE_VERTICES} a face (shapedisplay.author.mesh.MAX_FACE_VERTICES); triangulate "
                    f"the polygon in a modelling program first\n")
     assert elapsed < 5
 

@@ -9,11 +9,11 @@ import pytest
 
 trimesh = pytest.importorskip("trimesh")
 
-from shapedisplay import mesh  # noqa: E402
-from shapedisplay.compile import compile_heightfield  # noqa: E402
-from shapedisplay.forces import MappingOptions  # noqa: E402
-from shapedisplay.sources import load_source, raised_cosine_bump  # noqa: E402
-from shapedisplay_cli.main import main  # noqa: E402
+from shapedisplay.author import mesh  # noqa: E402
+from shapedisplay.author.compile import compile_heightfield  # noqa: E402
+from shapedisplay.author.forces import MappingOptions  # noqa: E402
+from shapedisplay.author.sources import load_source, raised_cosine_bump  # noqa: E402
+from shapedisplay.cli.main import main  # noqa: E402
 
 MM = 1e-3
 ROOT = Path(__file__).resolve().parents[1]
@@ -162,7 +162,7 @@ def test_heightmap_command_bad_files(tmp_path, capsys):
                                         ("--margin", "1mm")])
 def test_heightmap_mesh_options_on_an_image_are_refused(tmp_path, capsys, opt, value):
     """Mesh options used to be silently ignored for image sources."""
-    from shapedisplay.imageio import write_png
+    from shapedisplay.author.imageio import write_png
     write_png(tmp_path / "a.png", np.arange(12, dtype=np.uint8).reshape(3, 4))
     rc = main(["heightmap", str(tmp_path / "a.png"), "-o", str(tmp_path / "m.npy"), "--size", "4x3mm",
                "--height", "0:1mm", opt, value])
@@ -195,7 +195,7 @@ def test_compile_command_takes_a_mesh(tmp_path, capsys):
     out = tmp_path / "keycap.npz"
     rc = main(["compile", str(KEYCAP), "-o", str(out), "--resolution", "0.5mm", "--up", "z", "--units", "mm"])
     assert rc == 0 and out.is_file()
-    from shapedisplay.table import FrictionTable
+    from shapedisplay.table.model import FrictionTable
     table = FrictionTable.load(out)
     ref = mesh.mesh_to_heightfield(KEYCAP, resolution=0.5 * MM)
     assert (table.grid.rows, table.grid.cols) == ref.shape

@@ -8,11 +8,11 @@ import pytest
 
 trimesh = pytest.importorskip("trimesh")
 
-from shapedisplay import mesh  # noqa: E402
-from shapedisplay.compile import compile_heightfield  # noqa: E402
-from shapedisplay.forces import MappingOptions  # noqa: E402
-from shapedisplay.runtime import Renderer, parse_stroke  # noqa: E402
-from shapedisplay.sources import raised_cosine_bump  # noqa: E402
+from shapedisplay.author import mesh  # noqa: E402
+from shapedisplay.author.compile import compile_heightfield  # noqa: E402
+from shapedisplay.author.forces import MappingOptions  # noqa: E402
+from shapedisplay.render import Renderer, parse_stroke  # noqa: E402
+from shapedisplay.author.sources import raised_cosine_bump  # noqa: E402
 from test_mesh_pipeline import bump_mesh  # noqa: E402  (the same bump mesh as the pipeline tests)
 
 MM = 1e-3

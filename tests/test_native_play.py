@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from shapedisplay.errors import InputError
-from shapedisplay.runtime import native
-from shapedisplay.runtime.cursor import parse_stroke
-from shapedisplay.runtime.renderer import Renderer
-from shapedisplay.scene import compile_scene
-from shapedisplay_cli.main import main
+from shapedisplay.render import native
+from shapedisplay.render.cursor import parse_stroke
+from shapedisplay.render.renderer import Renderer
+from shapedisplay.author.scene import compile_scene
+from shapedisplay.cli.main import main
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "assets" / "scenes"
@@ -26,7 +26,7 @@ def phone():
 
 def test_a_table_without_normal_force_plays_the_headers_constant(tmp_path):
     """A slope-only mapping stores no normal_force: every model plays the header's constant N (1.5 N here)."""
-    from shapedisplay.table import FrictionTable
+    from shapedisplay.table.model import FrictionTable
     src = tmp_path / "ramp.npy"
     np.save(src, np.tile(np.r_[np.zeros(40), np.linspace(0.0, 1e-3, 40)], (3, 1)))
     out = tmp_path / "t.npz"
@@ -68,7 +68,7 @@ def test_play_imports_no_numba_and_no_scipy(tmp_path):
     """What keeps a warm play short: playing a table never loads numba (nor scipy, which numba pulls in)."""
     table = tmp_path / "phone.npz"
     assert main(["compile", str(SCENES / "phone.toml"), "-o", str(table)]) == 0
-    code = ("import sys\nfrom shapedisplay_cli.main import main\n"
+    code = ("import sys\nfrom shapedisplay.cli.main import main\n"
             f"rc = main(['play', {str(table)!r}, '--stroke', '62,2 -> 62,60 @ 30mm/s', '-o', "
             f"{str(tmp_path / 'o.wav')!r}])\n"
             "heavy = sorted({m.split('.')[0] for m in sys.modules} & {'numba', 'scipy', 'llvmlite'})\n"

@@ -8,9 +8,9 @@ round every time.
 import numpy as np
 import pytest
 
-from shapedisplay import mesh, sources
-from shapedisplay.imageio import read_picture, write_png
-from shapedisplay_cli.main import main
+from shapedisplay.author import mesh, sources
+from shapedisplay.author.imageio import read_picture, write_png
+from shapedisplay.cli.main import main
 
 ROWS, COLS = 30, 20          # picture rows (top to bottom), columns (left to right); 1 mm pixels
 
@@ -29,7 +29,7 @@ def _agree(a, b) -> float:
 
 
 def test_picture_is_the_top_view_in_the_compiled_table(tmp_path):
-    from shapedisplay.compile import compile_heightfield
+    from shapedisplay.author.compile import compile_heightfield
     write_png(tmp_path / "F.png", glyph())
     t = compile_heightfield(sources.load_image(tmp_path / "F.png", "20x30mm", "0:1mm")).table
     n = lambda x_mm, y_mm: float(t.sample("normal_force", x_mm * 1e-3, y_mm * 1e-3))   # noqa: E731

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from shapedisplay import sources
+from shapedisplay.author import sources
 from shapedisplay.errors import FileFormatError, InputError
-from shapedisplay.imageio import (BT709, PictureWarning, frankot_chellappa, looks_like_normal_map, picture_info,
+from shapedisplay.author.imageio import (BT709, PictureWarning, frankot_chellappa, looks_like_normal_map, picture_info,
                                   png_text, read_picture, write_png)
 
 
@@ -130,7 +130,7 @@ def test_palette_png_expands_through_its_palette(tmp_path):
 
 
 def test_alpha_is_a_mask_and_outside_is_not_stored(tmp_path):
-    from shapedisplay.compile import compile_heightfield
+    from shapedisplay.author.compile import compile_heightfield
     rows, cols = 96, 128
     la = np.zeros((rows, cols, 2), np.uint8)
     la[..., 0] = np.arange(cols)[None, :] * 2
@@ -222,7 +222,7 @@ def test_decompression_bomb_refused_from_the_header(tmp_path, monkeypatch):
     with pytest.raises(InputError, match="refused before decoding"):
         picture_info(p)
     # below Pillow's own limit ours applies, also before decoding
-    monkeypatch.setattr("shapedisplay.heightfield.MAX_SAMPLES", 1000)
+    monkeypatch.setattr("shapedisplay.author.heightfield.MAX_SAMPLES", 1000)
     with pytest.raises(InputError, match=r"30 x 40 = 1200 samples .* exceeds the limit of 1000"):
         read_picture(tmp_path / "small.png")
 
@@ -308,7 +308,7 @@ def test_npy_sources(tmp_path):
 def test_grey_pictures_decoded_into_the_array_equal_pillows_pixels(tmp_path, kind, monkeypatch):
     """8- and 16-bit grey pictures are decoded straight into a numpy array (no copies through bytes): the
     same pixels as numpy.asarray of the Pillow image, for every layout; other modes take the usual path."""
-    import shapedisplay.imageio as imageio
+    import shapedisplay.author.imageio as imageio
     g16 = (np.random.default_rng(2).integers(0, 65536, (37, 53))).astype(np.uint16)
     p = tmp_path / "m.png"
     if kind == "8-bit":
@@ -354,11 +354,11 @@ def test_truncated_grey_png_decoded_into_the_array_is_refused(tmp_path):
 def small_pictures_too(monkeypatch):
     """The path without Pillow for the small pictures of these tests (it otherwise starts at
     gradients.KERNEL_MIN_SIZE pixels, below which Pillow reads them without building the C kernels)."""
-    monkeypatch.setattr("shapedisplay.gradients.KERNEL_MIN_SIZE", 1)
+    monkeypatch.setattr("shapedisplay.author.gradients.KERNEL_MIN_SIZE", 1)
 
 
 def test_small_sixteen_bit_grey_png_is_read_by_pillow(tmp_path):
-    import shapedisplay.imageio as imageio
+    import shapedisplay.author.imageio as imageio
     g = np.arange(20 * 30, dtype=np.uint16).reshape(20, 30) * 99
     write_png(tmp_path / "s.png", g)
     assert imageio._gray16_png_pixels(tmp_path / "s.png") is None
@@ -405,8 +405,8 @@ def _pillow_pixels(p):
 def test_sixteen_bit_grey_png_is_unfiltered_as_pillow_does(small_pictures_too, tmp_path, shape, kind):
     """Every PNG filter, on pixels that carry and borrow in both bytes, in IDAT chunks cut anywhere: the
     pixels Pillow decodes, without Pillow decoding them."""
-    import shapedisplay.imageio as imageio
-    from shapedisplay import _kernels
+    import shapedisplay.author.imageio as imageio
+    from shapedisplay.author import kernels as _kernels
     if _kernels.c_kernels() is None:
         pytest.skip("needs a C compiler")
     pytest.importorskip("deflate")
@@ -424,7 +424,7 @@ def test_sixteen_bit_grey_png_is_unfiltered_as_pillow_does(small_pictures_too, t
 
 def test_sixteen_bit_grey_png_written_by_pillow_reads_the_same_both_ways(small_pictures_too, tmp_path, monkeypatch):
     """A file Pillow's encoder wrote (its own choice of filters, text chunks before the data)."""
-    import shapedisplay.imageio as imageio
+    import shapedisplay.author.imageio as imageio
     g = (np.random.default_rng(5).normal(30000, 9000, (64, 70)).clip(0, 65535)).astype(np.uint16)
     write_png(tmp_path / "w.png", g, text={"height_max_m": "0.002"})
     fast = read_picture(tmp_path / "w.png")
@@ -436,7 +436,7 @@ def test_sixteen_bit_grey_png_written_by_pillow_reads_the_same_both_ways(small_p
 @pytest.mark.parametrize("damage", ["filter type 5", "truncated", "bad stream", "length past the end"])
 def test_corrupt_sixteen_bit_grey_png_is_left_to_pillow_which_refuses_it(small_pictures_too, tmp_path, damage):
     """What the fast path does not take goes to Pillow, whose verdict stands (its errors, or its pixels)."""
-    import shapedisplay.imageio as imageio
+    import shapedisplay.author.imageio as imageio
     g = np.arange(12 * 10, dtype=np.uint16).reshape(12, 10) * 500
     data = bytearray(_gray16_png(g, [4] * 12))
     if damage == "filter type 5":
@@ -463,7 +463,7 @@ def test_corrupt_sixteen_bit_grey_png_is_left_to_pillow_which_refuses_it(small_p
 
 def test_sixteen_bit_grey_png_without_libdeflate_is_decoded_by_pillow(small_pictures_too, tmp_path, monkeypatch):
     import sys
-    import shapedisplay.imageio as imageio
+    import shapedisplay.author.imageio as imageio
     g = np.arange(6 * 9, dtype=np.uint16).reshape(6, 9) * 1111
     write_png(tmp_path / "g.png", g)
     monkeypatch.setitem(sys.modules, "deflate", None)           # import deflate raises ImportError
@@ -483,7 +483,7 @@ def _with_chunk_before_data(png: bytes, kind: bytes, body: bytes, crc_ok=True) -
 def test_other_sixteen_bit_grey_pngs_are_read_by_pillow(small_pictures_too, tmp_path, monkeypatch, case):
     """Only plain files take the path without Pillow; every other one reads as Pillow reads it (or is
     refused as Pillow refuses it). Ancillary chunks with valid CRCs (text) keep a file plain."""
-    import shapedisplay.imageio as imageio
+    import shapedisplay.author.imageio as imageio
     g = (np.arange(9 * 11, dtype=np.uint16).reshape(9, 11) * 601)
     png = _gray16_png(g, [0, 1, 2, 3, 4, 4, 3, 2, 1])
     if case == "transparency":
@@ -521,10 +521,10 @@ def test_other_sixteen_bit_grey_pngs_are_read_by_pillow(small_pictures_too, tmp_
 
 def test_sixteen_bit_grey_png_over_the_sample_limit_is_refused_from_its_header(small_pictures_too, tmp_path, monkeypatch):
     """The path without Pillow checks the size limit from the header too, before anything is decoded."""
-    import shapedisplay.imageio as imageio
-    monkeypatch.setattr("shapedisplay._kernels.png_gray16", lambda *a: pytest.fail("decoded"))
+    import shapedisplay.author.imageio as imageio
+    monkeypatch.setattr("shapedisplay.author.kernels.png_gray16", lambda *a: pytest.fail("decoded"))
     p = tmp_path / "big.png"
     p.write_bytes(_gray16_png(np.zeros((30, 40), np.uint16), [0] * 30))
-    monkeypatch.setattr("shapedisplay.heightfield.MAX_SAMPLES", 1000)
+    monkeypatch.setattr("shapedisplay.author.heightfield.MAX_SAMPLES", 1000)
     with pytest.raises(InputError, match=r"40 x 30 = 1200 samples .* exceeds the limit of 1000"):
         imageio._gray16_png_pixels(p)

@@ -2,7 +2,7 @@
 import numpy as np
 from hypothesis import given, settings, strategies as st
 
-from shapedisplay.table import choose_quantization
+from shapedisplay.table.model import choose_quantization
 
 
 @settings(max_examples=200, deadline=None)

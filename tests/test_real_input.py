@@ -4,9 +4,9 @@ import json
 import numpy as np
 import pytest
 
-from shapedisplay import mesh
-from shapedisplay.table import FrictionTable
-from shapedisplay_cli.main import main
+from shapedisplay.author import mesh
+from shapedisplay.table.model import FrictionTable
+from shapedisplay.cli.main import main
 
 trimesh = pytest.importorskip("trimesh")
 
@@ -175,6 +175,6 @@ def test_mesh_options_on_preview_and_heightmap_take_negative_axes(tmp_path, caps
     out = capsys.readouterr().out
     assert "31 x 16 samples" in out or "16 x 31 samples" in out
     assert np.load(tmp_path / "u.npy").max() == pytest.approx(1e-3)
-    from shapedisplay.sources import source_options
+    from shapedisplay.author.sources import source_options
     assert source_options(tmp_path / "tray.glb", up="-y", units="m", size="60mm", flags={"size": "--extent"}) == {
         "up": "-y", "units": "m", "size": pytest.approx(0.06)}

@@ -12,7 +12,7 @@ import pytest
 from shapedisplay.reports import common
 from shapedisplay.reports.peers import konyo_ivp, stribeck_ivp
 from shapedisplay.reports.stability import energy_bound, stribeck_slope, theory_limit, theory_stable
-from shapedisplay_cli.main import main
+from shapedisplay.cli.main import main
 
 
 def _strict_load(path):
@@ -319,15 +319,15 @@ def test_stribeck_slope_sign():
 
 
 def test_energy_bound_holds_for_exact_model():
-    from shapedisplay.runtime.models import simulate_pad
+    from shapedisplay.render.models import simulate_pad
     r = simulate_pad("exact", V=0.05, N=2.0, tick_rate=96000, duration=0.05)
     E = 0.5 * 2000 * r.x ** 2 + 0.5 * 1e-6 * r.v ** 2
     assert E.max() <= energy_bound(1e-6, 2000.0, 0.01, 0.5, 2.0, 0.05)
 
 
 def test_konyo_peer_matches_exact_and_belt_closed_form():
-    from shapedisplay.devices import FrictionParams, PadParams
-    from shapedisplay.runtime.models import simulate_pad
+    from shapedisplay.table.devices import FrictionParams, PadParams
+    from shapedisplay.render.models import simulate_pad
     r = simulate_pad("exact", V=0.05, N=2.0, tick_rate=10000, duration=0.03)
     p = konyo_ivp("LSODA", 1e-10, m=1e-6, k=2000.0, c=0.01, mu_s=0.5, mu_k=0.3, V=lambda t: 0.05,
                   N=lambda t: 2.0, t_end=0.03)
@@ -341,8 +341,8 @@ def test_konyo_peer_matches_exact_and_belt_closed_form():
 
 
 def test_stribeck_peer_agrees_with_kernel():
-    from shapedisplay.devices import FrictionParams, PadParams
-    from shapedisplay.runtime.models import simulate_pad
+    from shapedisplay.table.devices import FrictionParams, PadParams
+    from shapedisplay.render.models import simulate_pad
     r = simulate_pad("stribeck", V=0.1, N=1.0, pad=PadParams(1e-4, 1e3, 1.0), friction=FrictionParams(2.1, 1.4),
                      tick_rate=1000, duration=0.12, contactor_hz=9.0, contactor_amplitude_m=1.25e-3, substep_s=5e-7)
     p = stribeck_ivp("LSODA", 1e-9, m=1e-4, k=1e3, c=1.0, mu_s=2.1, mu_k=1.4, a=55.0, b=1.9, W=1.0, V=0.1,
@@ -483,7 +483,7 @@ def test_stuck_floor_runs_the_model_on_ticks_that_all_stay_stuck():
     """The model alone's second floor is what its name says: the cheapest model over a path on which the pad
     never breaks away (every tick stuck, no event), and a positive CPU time per call."""
     from shapedisplay.reports.common import stuck_floor, stuck_path
-    from shapedisplay.runtime.models import run_kernel
+    from shapedisplay.render.models import run_kernel
     for n in (2, 9001, 100_001):
         model, inputs = stuck_path(n)
         assert model.name == "jump"

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from shapedisplay.errors import FileFormatError, InputError, UnitError
-from shapedisplay.runtime.cursor import CursorPath, force_input, load_force_csv, load_trace_csv, parse_stroke
-from shapedisplay.sinks import read_trace, read_wav, write_trace, write_wav
-from shapedisplay.table import FrictionTable, Grid, choose_quantization
-from shapedisplay_cli.main import main
+from shapedisplay.render.cursor import CursorPath, force_input, load_force_csv, load_trace_csv, parse_stroke
+from shapedisplay.render.sinks import read_trace, read_wav, write_trace, write_wav
+from shapedisplay.table.model import FrictionTable, Grid, choose_quantization
+from shapedisplay.cli.main import main
 
 
 # ------------------------------------------------------------------ cursor
@@ -265,8 +265,8 @@ def test_cli_study_imaizumi(capsys):
 def test_runtime_imports_nothing_from_the_authoring_side():
     import subprocess
     import sys
-    code = ("import sys, shapedisplay.runtime.renderer, shapedisplay.runtime.studies, shapedisplay.sinks\n"
+    code = ("import sys, shapedisplay.render.renderer, shapedisplay.reports.imaizumi, shapedisplay.render.sinks\n"
             "print(sorted(m for m in sys.modules if m.startswith('shapedisplay')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     mods = {m.split(".")[1] for m in eval(out) if m.count(".") >= 1}
-    assert mods <= {"runtime", "table", "container", "devices", "units", "errors", "atomic", "sinks"}, mods
+    assert mods <= {"render", "table", "reports", "units", "errors", "atomic", "extensions"}, mods

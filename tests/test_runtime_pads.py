@@ -10,9 +10,9 @@ from hypothesis import assume, given, settings, strategies as st
 from scipy.integrate import solve_ivp
 from scipy.linalg import expm
 
-from shapedisplay.devices import BurstParams, FrictionParams, PadParams, load_device
+from shapedisplay.table.devices import BurstParams, FrictionParams, PadParams, load_device
 from shapedisplay.errors import InputError, ModelError
-from shapedisplay.runtime.models import MODELS, JumpModel, get_model, run_kernel, simulate_pad
+from shapedisplay.render.models import MODELS, JumpModel, get_model, run_kernel, simulate_pad
 
 KONYO = PadParams(1.0e-6, 2000.0, 0.01)
 
@@ -306,7 +306,7 @@ def test_registry_and_bad_inputs():
 
 
 def test_stribeck_converges_with_substep_and_tick_rate():
-    from shapedisplay.runtime.studies import IMAIZUMI_FRICTION, IMAIZUMI_PAD
+    from shapedisplay.reports.imaizumi import IMAIZUMI_FRICTION, IMAIZUMI_PAD
     for hz, amp, v in ((9.0, 1.25e-3, 0.1), (0.0, 0.0, 0.04)):
         runs = []
         for rate, hsub in ((10_000, 2e-6), (10_000, 5e-7), (2000, 2e-6)):
@@ -321,7 +321,7 @@ def test_stribeck_converges_with_substep_and_tick_rate():
 
 
 def test_stribeck_premax_variant_is_finite_and_counts_region_exits():
-    from shapedisplay.runtime.studies import IMAIZUMI_FRICTION, IMAIZUMI_PAD
+    from shapedisplay.reports.imaizumi import IMAIZUMI_FRICTION, IMAIZUMI_PAD
     r = simulate_pad("stribeck", V=0.04, N=1.0, pad=IMAIZUMI_PAD, friction=IMAIZUMI_FRICTION, tick_rate=1000,
                      duration=0.3, variant="premax", contactor_hz=6.0, contactor_amplitude_m=1.25e-3)
     assert np.all(np.isfinite(r.friction_force))
@@ -394,7 +394,7 @@ def test_imaizumi_study_matches_quasi_static_sliding_and_rises_as_relative_speed
     """At 100 mm/s stimuli #0-#3 never stick: the pad follows the finger and the mean friction is the
     cycle average of mu(|V - x_c'|) W. #4 (contactor peak 71 mm/s) brings the relative speed close to zero,
     the negative Stribeck slope makes the pad stick-slip, and the friction rises most."""
-    from shapedisplay.runtime.studies import imaizumi_study
+    from shapedisplay.reports.imaizumi import imaizumi_study
     rows = [r for r in imaizumi_study(duration=1.0) if r["finger_speed_m_s"] == 0.1]
     th = np.linspace(0.0, 2 * np.pi, 200_001)[:-1]
     for r in rows[:4]:

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from shapedisplay.devices import BurstParams, load_device
+from shapedisplay.table.devices import BurstParams, load_device
 from shapedisplay.errors import InputError, ModelError, TableError
-from shapedisplay.runtime.cursor import CursorPath, parse_stroke
-from shapedisplay.runtime.models import simulate_pad
-from shapedisplay.runtime.renderer import Renderer
-from shapedisplay.table import FrictionTable, Grid, choose_quantization
+from shapedisplay.render.cursor import CursorPath, parse_stroke
+from shapedisplay.render.models import simulate_pad
+from shapedisplay.render.renderer import Renderer
+from shapedisplay.table.model import FrictionTable, Grid, choose_quantization
 
 
 def make_table(channels: dict, rows=1, cols=121, dx=0.5e-3, meta=None):
@@ -352,7 +352,7 @@ def test_off_grid_paths_are_resampled_onto_the_tick_grid():
 def test_friction_limits_by_hand():
     """Breakaway and kinetic force at rest: N clamped at 0, mu times friction_scale, or the stored forces where
     present; kinetic never above breakaway."""
-    from shapedisplay.runtime.renderer import friction_limits
+    from shapedisplay.render.renderer import friction_limits
     n = np.array([-1.0, 0.0, 0.5, 2.0])
     bk, kn = friction_limits({"normal_force": n, "friction_scale": np.array([1.0, 2.0, 0.5, 3.0])}, 0.5, 0.3)
     np.testing.assert_allclose(bk, [0.0, 0.0, 0.5 * 0.5 * 0.5, 0.5 * 3.0 * 2.0], rtol=1e-15, atol=0)
@@ -371,7 +371,7 @@ def test_events_dropped_when_the_event_ring_overflows():
     """A flood of bursts (Karnopp on a touch of 0.3 mN at 192 kHz: thousands within one burst's 35 ms) overflows
     the engine's event ring: the render says how many bursts left the audio, keeps every event, and stepping
     the path counts the same; a path with fewer than half the ring sounding at once drops none."""
-    from shapedisplay.runtime.native import renderer_layout
+    from shapedisplay.render.native import renderer_layout
     ring = renderer_layout()["event_ring"]
     window = 0.005 + 0.030
     for N, floods in ((3e-4, True), (1e-3, False)):
@@ -389,7 +389,7 @@ def test_events_dropped_when_the_event_ring_overflows():
         assert r.event_count == et.size and r.events_dropped == res.events_dropped
         if not floods:
             b = r.device.burst
-            from shapedisplay.runtime.bursts import render_bursts
+            from shapedisplay.render.bursts import render_bursts
             audio, _ = render_bursts(et, res.event_amplitude, res.t[0], res.duration, r.audio_rate, b.carrier_hz,
                                      b.rise_s, b.decay_s, r.burst_policy)
             assert np.max(np.abs(audio - res.audio)) <= 1e-12
@@ -400,8 +400,8 @@ def test_events_dropped_when_the_event_ring_overflows():
 def test_render_is_its_model_over_its_inputs_and_the_bursts_of_its_events(model, policy):
     """What render plays is the model run alone (run_kernel) over the per-tick inputs (model_inputs), and its
     audio is the bursts of its events (render_bursts): the pieces the reports and the docs use compose."""
-    from shapedisplay.runtime.bursts import render_bursts
-    from shapedisplay.runtime.models import run_kernel
+    from shapedisplay.render.bursts import render_bursts
+    from shapedisplay.render.models import run_kernel
     r = Renderer(ramp_table(), device=quiet_device(), model=model, tick_rate=10_000, burst_policy=policy)
     cp = parse_stroke("0,0 <-> 60,0 @ 40 mm/s", 10_000)
     res = r.render(cp)
@@ -422,7 +422,7 @@ def test_render_is_its_model_over_its_inputs_and_the_bursts_of_its_events(model,
 def test_run_kernel_carries_its_state_and_keeps_every_event(model):
     """run_kernel over a run cut in two, the second half from the first's final state, gives the whole run's
     rows and events; a light touch at 100 Hz slips many times per tick (more events than its first buffer)."""
-    from shapedisplay.runtime.models import get_model, run_kernel
+    from shapedisplay.render.models import get_model, run_kernel
     dev = load_device(None)
     m = get_model(model, dev)
     mus, muk, one = np.array([dev.friction.mu_s]), np.array([dev.friction.mu_k]), np.ones(1)

@@ -8,13 +8,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from shapedisplay.compile import CompileOptions
-from shapedisplay.gradients import detect_walls, gradient, limit_walls
-from shapedisplay.forces import EXPONENTS, force_channels, perceived
-from shapedisplay.scene import check_scene, compile_scene, load_scene, scene_heightfield, select_state
-from shapedisplay.scene.compiler import composite
-from shapedisplay.sources import ramp_force, tent_force
-from shapedisplay.table import CHANNELS, FrictionTable
+from shapedisplay.author.compile import CompileOptions
+from shapedisplay.author.gradients import detect_walls, gradient, limit_walls
+from shapedisplay.author.forces import EXPONENTS, force_channels, perceived
+from shapedisplay.author.scene import check_scene, compile_scene, load_scene, scene_heightfield, select_state
+from shapedisplay.author.scene.compiler import composite
+from shapedisplay.author.sources import ramp_force, tent_force
+from shapedisplay.table.model import CHANNELS, FrictionTable
 
 SCENES = Path(__file__).resolve().parent.parent / "assets" / "scenes"
 
@@ -297,7 +297,7 @@ track_depth = "0.3 mm"
 
 
 def test_image_widget_places_the_height_map(tmp_path):
-    from shapedisplay.imageio import write_png
+    from shapedisplay.author.imageio import write_png
     gray = np.array([[0, 1000, 2000, 3000], [4000, 5000, 6000, 65535]], dtype=np.uint16)
     write_png(tmp_path / "m.png", gray)
     p = write(tmp_path, """
@@ -335,7 +335,7 @@ size = "{size}"
 def test_mesh_widget(tmp_path):
     src = Path(__file__).resolve().parent.parent / "assets" / "meshes" / "keycap.stl"
     pytest.importorskip("trimesh")
-    from shapedisplay.mesh import mesh_to_heightfield
+    from shapedisplay.author.mesh import mesh_to_heightfield
     hf = mesh_to_heightfield(src, resolution=0.25e-3)
     t = mesh_table(tmp_path, src, "20,10 mm", f"{hf.size_m[0] * 1e3:g}x{hf.size_m[1] * 1e3:g} mm")
     n = t.dense("normal_force")
@@ -540,7 +540,7 @@ size = "200x100 px"
 
 
 def test_new_scene_template_is_valid(tmp_path):
-    from shapedisplay_cli.main import main
+    from shapedisplay.cli.main import main
     out = tmp_path / "mine.toml"
     assert main(["new", "scene", "mine", "-o", str(out)]) == 0
     assert check_scene(out) == []
@@ -552,7 +552,7 @@ def test_new_scene_template_is_valid(tmp_path):
 def test_template_commented_examples_compile_when_uncommented(tmp_path):
     """The template's commented ridge, image and data widgets are valid as written (given the image)."""
     import shutil
-    from shapedisplay.scene.template import render_template
+    from shapedisplay.author.scene.template import render_template
     lines, block = [], False
     for line in render_template("t", "t.toml").splitlines():
         block = line.startswith("# [[widget]]") or (block and line.startswith("# "))
@@ -565,7 +565,7 @@ def test_template_commented_examples_compile_when_uncommented(tmp_path):
 
 
 def test_cli_compile_inspect_and_check(tmp_path, capsys):
-    from shapedisplay_cli.main import main
+    from shapedisplay.cli.main import main
     out = tmp_path / "phone.npz"
     assert main(["compile", str(SCENES / "phone.toml"), "-o", str(out)]) == 0
     capsys.readouterr()

@@ -6,7 +6,7 @@ import re
 import pytest
 
 from shapedisplay.errors import FileFormatError, InputError, ShapeDisplayError, UnitError
-from shapedisplay.scene import check_scene, compile_scene, load_scene
+from shapedisplay.author.scene import check_scene, compile_scene, load_scene
 
 HEAD = """
 [canvas]
@@ -181,7 +181,7 @@ def test_data_layer_errors(tmp_path):
 
 
 def test_cli_errors_are_one_line_exit_2(tmp_path, capsys):
-    from shapedisplay_cli.main import main
+    from shapedisplay.cli.main import main
     p = scene(tmp_path, BUTTON.replace('"button"', '"buton"'))
     assert main(["check", str(p)]) == 2
     e = capsys.readouterr().err
@@ -286,7 +286,7 @@ def test_unit_hints_propose_millimetres_and_newtons(tmp_path):
 
 # --------------------------------------------------------------- limits checked as the scene is read
 def _cli_one_line(args, capsys) -> str:
-    from shapedisplay_cli.main import main
+    from shapedisplay.cli.main import main
     assert main(args) == 2
     e = capsys.readouterr().err
     assert e.count("\n") == 1 and "Traceback" not in e, e[:2000]
@@ -299,7 +299,7 @@ def _cli_one_line(args, capsys) -> str:
     "[" * 33 + "1" + "]" * 33,                                 # one level past the limit
 ])
 def test_deep_nesting_is_one_line_exit_2(tmp_path, capsys, value):
-    from shapedisplay.scene.spec import MAX_NESTING
+    from shapedisplay.author.scene.spec import MAX_NESTING
     p = scene(tmp_path, BUTTON + f"label = {value}\n")
     for cmd in (["check", str(p)], ["compile", str(p), "-o", str(tmp_path / "t.npz")]):
         e = _cli_one_line(cmd, capsys)
@@ -324,7 +324,7 @@ def test_deep_dotted_keys_are_refused(tmp_path, capsys):
     ("size", '["1e308 mm", "5 mm"]'), ("ramp", '"1e308 mm"'), ("height", '"1e300 mm"'),
 ])
 def test_huge_geometry_is_refused_naming_key_and_value(tmp_path, capsys, key, value):
-    from shapedisplay.scene.fields import MAX_LENGTH_M
+    from shapedisplay.author.scene.fields import MAX_LENGTH_M
     text = BUTTON.replace(f"{key} = ", f"{key}_old = ") if key in BUTTON else BUTTON
     text = "\n".join(line for line in text.splitlines() if not line.startswith(f"{key}_old")) + f"\n{key} = {value}\n"
     p = scene(tmp_path, text)
@@ -334,7 +334,7 @@ def test_huge_geometry_is_refused_naming_key_and_value(tmp_path, capsys, key, va
 
 
 def test_a_widget_box_too_large_for_the_grid_is_refused(tmp_path):
-    from shapedisplay.scene.widgets import MAX_WIDGET_SAMPLES
+    from shapedisplay.author.scene.widgets import MAX_WIDGET_SAMPLES
     text = BUTTON.replace('size = "20x10 mm"', 'size = "900x900 m"')
     with pytest.raises(InputError, match=f"more than the limit of {MAX_WIDGET_SAMPLES}"):
         check_scene(scene(tmp_path, text))
@@ -349,7 +349,7 @@ def test_huge_canvas_resolution_is_one_line(tmp_path, capsys):
 def test_widget_count_limit_is_checked_before_any_work(tmp_path, capsys, monkeypatch):
     import time
 
-    from shapedisplay.scene import spec
+    from shapedisplay.author.scene import spec
     n = spec.MAX_WIDGETS + 1
     text = "".join(f'[[widget]]\nid = "b{i}"\ntype = "button"\nposition = "1,1 mm"\nsize = "2x2 mm"\n'
                    for i in range(n))
@@ -368,7 +368,7 @@ def test_widget_count_limit_is_checked_before_any_work(tmp_path, capsys, monkeyp
 def test_overlapping_pairs_equal_every_pair_checked():
     import random
 
-    from shapedisplay.scene.compiler import _overlap, overlapping_pairs
+    from shapedisplay.author.scene.compiler import _overlap, overlapping_pairs
     rng = random.Random(7)
     for n in (0, 1, 2, 50, 300):
         boxes = []
@@ -391,8 +391,8 @@ def _grid_of_buttons(n: int) -> str:
 def test_many_widgets_cost_about_n_pair_checks_and_the_table_reads_back(tmp_path, monkeypatch):
     """2,000 touching buttons (one block): ~n box comparisons, not n^2/2; the report lists a bounded
     number of ids per widget, so the table's header stays within what the reader takes."""
-    from shapedisplay.scene import compiler
-    from shapedisplay.table import FrictionTable
+    from shapedisplay.author.scene import compiler
+    from shapedisplay.table.model import FrictionTable
     n = 2000
     p = tmp_path / "many.toml"
     p.write_text(_grid_of_buttons(n))
@@ -412,7 +412,7 @@ def test_many_widgets_cost_about_n_pair_checks_and_the_table_reads_back(tmp_path
 
 
 def test_widgets_stacked_on_one_another_are_refused_past_the_pair_limit(tmp_path, capsys):
-    from shapedisplay.scene.compiler import MAX_OVERLAP_PAIRS
+    from shapedisplay.author.scene.compiler import MAX_OVERLAP_PAIRS
     n = int((2 * MAX_OVERLAP_PAIRS) ** 0.5) + 2
     text = "".join(f'[[widget]]\nid = "b{i}"\ntype = "button"\nposition = "10,10 mm"\nsize = "20x10 mm"\n'
                    for i in range(n))
@@ -422,7 +422,7 @@ def test_widgets_stacked_on_one_another_are_refused_past_the_pair_limit(tmp_path
 
 def test_deeply_nested_svg_groups_are_one_line(tmp_path, capsys):
     pytest.importorskip("svgelements")
-    from shapedisplay.scene.svg import MAX_SVG_DEPTH
+    from shapedisplay.author.scene.svg import MAX_SVG_DEPTH
     n = 3000
     p = tmp_path / "deep.svg"
     p.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="20mm" height="20mm" viewBox="0 0 20 20">'

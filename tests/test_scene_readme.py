@@ -70,7 +70,7 @@ def test_sections_show_commands():
 
 def test_every_command_parses_and_reads_only_files_that_exist_or_were_written_before():
     """Run in reading order from a fresh clone: inputs exist or were written, output folders exist."""
-    from shapedisplay_cli.main import build_parser
+    from shapedisplay.cli.main import build_parser
     parser = build_parser()
     written: set = set()
     made: set = set()

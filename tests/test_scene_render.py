@@ -6,10 +6,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from shapedisplay.runtime.cursor import parse_stroke
-from shapedisplay.runtime.renderer import Renderer
-from shapedisplay.scene import compile_scene, load_scene, select_state
-from shapedisplay.table import FrictionTable
+from shapedisplay.render.cursor import parse_stroke
+from shapedisplay.render.renderer import Renderer
+from shapedisplay.author.scene import compile_scene, load_scene, select_state
+from shapedisplay.table.model import FrictionTable
 
 SCENES = Path(__file__).resolve().parent.parent / "assets" / "scenes"
 

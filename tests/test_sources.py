@@ -4,9 +4,9 @@ import pytest
 from hypothesis import given, settings, strategies as st
 from hypothesis.extra import numpy as hnp
 
-from shapedisplay import sources
+from shapedisplay.author import sources
 from shapedisplay.errors import FileFormatError, InputError, UnitError
-from shapedisplay.imageio import write_png
+from shapedisplay.author.imageio import write_png
 
 
 # ----------------------------------------------------------------- published profiles
@@ -144,7 +144,7 @@ def test_load_source_dispatch(tmp_path):
 
 
 def test_source_options_parse_command_line_strings():
-    from shapedisplay.sources import resolution_option, source_options
+    from shapedisplay.author.sources import resolution_option, source_options
     assert source_options("m.png", size="60x4mm", height="0:2mm") == {
         "size": pytest.approx((0.06, 0.004)), "height_range": pytest.approx((0.0, 0.002))}
     assert source_options("m.npy", resolution="0.1mm", z_units="nm") == {
@@ -166,7 +166,7 @@ def test_source_options_parse_command_line_strings():
 
 def test_source_kind_and_option_applicability_live_in_the_library(tmp_path):
     """One table says which command-line option applies to which source; every command asks it."""
-    from shapedisplay.sources import check_applicable, source_kind, source_options
+    from shapedisplay.author.sources import check_applicable, source_kind, source_options
     assert [source_kind(p) for p in ("t.npz", "s.TOML", "a.png", "b.npy", "c.stl", "d.glb", "m.svg")] == \
         ["table", "scene", "image", "image", "mesh", "mesh", "svg"]
     with pytest.raises(InputError, match=r"unknown source type '\.pgn'"):

@@ -19,10 +19,10 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from shapedisplay.devices import DeviceProfile, FrictionParams, PadParams
+from shapedisplay.table.devices import DeviceProfile, FrictionParams, PadParams
 from shapedisplay.reports.peers import stribeck_ivp
-from shapedisplay.runtime.models import get_model, run_kernel, simulate_pad
-from shapedisplay.runtime.studies import IMAIZUMI_FRICTION, IMAIZUMI_PAD
+from shapedisplay.render.models import get_model, run_kernel, simulate_pad
+from shapedisplay.reports.imaizumi import IMAIZUMI_FRICTION, IMAIZUMI_PAD
 
 
 @pytest.mark.parametrize("hz,amp,v,duration", [(9.0, 1.25e-3, 0.1, 0.15), (0.0, 0.0, 0.04, 0.12)])

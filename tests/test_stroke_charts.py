@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from shapedisplay.strokes import arc_length, density_window, slip_density, widget_spans
+from shapedisplay.render.strokes import arc_length, density_window, slip_density, widget_spans
 
 
 def _direct_density(t, state, events, period, window):
@@ -47,8 +47,8 @@ def test_slip_density_equals_a_direct_count_over_the_event_list():
 
 
 def test_slip_density_of_the_renderer_matches_its_summary_and_events():
-    from shapedisplay.runtime.cursor import parse_stroke
-    from shapedisplay.runtime.renderer import Renderer
+    from shapedisplay.render.cursor import parse_stroke
+    from shapedisplay.render.renderer import Renderer
     table = _phone_table()
     r = Renderer(table, model="exact", tick_rate=10000.0)
     res = r.render(parse_stroke("62,20 -> 62,80 @ 30mm/s", r.tick_rate))
@@ -75,13 +75,13 @@ def _phone_table():
     if _PHONE is None:
         from pathlib import Path
 
-        from shapedisplay.scene import compile_scene
+        from shapedisplay.author.scene import compile_scene
         _PHONE = compile_scene(Path(__file__).resolve().parents[1] / "assets" / "scenes" / "phone.toml").table
     return _PHONE
 
 
 def test_widget_spans_of_a_straight_stroke_are_the_widget_extents():
-    from shapedisplay.exchange.widgetmap import widget_map
+    from shapedisplay.table.widgets import widget_map
     widgets = widget_map(_phone_table())
     assert len(widgets) >= 8
     x_mm, y0_mm, y1_mm = 62.0, 2.0, 156.0
@@ -143,10 +143,10 @@ def test_play_plot_marks_widgets_and_is_byte_stable(tmp_path):
     pytest.importorskip("matplotlib")
     from PIL import Image
 
-    from shapedisplay.exchange.widgetmap import widget_map
-    from shapedisplay.runtime.cursor import parse_stroke
-    from shapedisplay.runtime.renderer import Renderer
-    from shapedisplay.sinks import plot_trace
+    from shapedisplay.table.widgets import widget_map
+    from shapedisplay.render.cursor import parse_stroke
+    from shapedisplay.render.renderer import Renderer
+    from shapedisplay.render.sinks import plot_trace
     table = _phone_table()
     r = Renderer(table, model="exact", tick_rate=10000.0)
     res = r.render(parse_stroke("62,20 -> 62,80 @ 30mm/s", r.tick_rate))

@@ -6,10 +6,10 @@ import os
 import numpy as np
 import pytest
 
-from shapedisplay.devices import load_device
+from shapedisplay.table.devices import load_device
 from shapedisplay.errors import InputError, TableError
-from shapedisplay.studies import STUDIES, STUDY_STICK_LIMIT, run_study, study_conditions
-from shapedisplay_cli.main import main
+from shapedisplay.reports.presets import STUDIES, STUDY_STICK_LIMIT, run_study, study_conditions
+from shapedisplay.cli.main import main
 
 PAD = load_device("handheld-stick").pad          # the published Konyo pad
 B = 0.25                                         # 1/N, the handheld profile's burst gain
@@ -118,9 +118,9 @@ def test_slope_height_limit_keeps_the_height_contrast():
 @pytest.mark.parametrize("model", ["exact", "jump"])
 def test_stick_period_limit_keeps_amplitudes_3_4_6(model):
     """Constant N = 3, 4, 6 N at 20 mm/s with the limit at 20 ms (natural sticks 25.6-51.1 ms)."""
-    from shapedisplay.runtime import Renderer
-    from shapedisplay.studies import constant_table
-    from shapedisplay.studies.presets import line_stroke
+    from shapedisplay.render import Renderer
+    from shapedisplay.reports.presets import constant_table
+    from shapedisplay.reports.studies import line_stroke
 
     dev = load_device("handheld-stick")
     wd = math.sqrt(PAD.stiffness / PAD.mass) * math.sqrt(1 - PAD.zeta ** 2)
@@ -140,8 +140,8 @@ def test_stick_period_limit_keeps_amplitudes_3_4_6(model):
 
 
 def test_bump_study_bursts_follow_the_tent_profile(tmp_path):
-    from shapedisplay.sinks import read_trace
-    from shapedisplay.sources import tent_force
+    from shapedisplay.render.sinks import read_trace
+    from shapedisplay.author.sources import tent_force
 
     res = run_study("bump", tmp_path / "bump", only="tent-dN[26]N-L20mm")
     assert [r["condition"] for r in res.rows] == ["tent-dN2N-L20mm", "tent-dN6N-L20mm"]
@@ -166,7 +166,7 @@ def test_bump_study_bursts_follow_the_tent_profile(tmp_path):
 
 def test_imaizumi_preset_reproduces_the_table_free_study():
     """The preset plays a constant-N table through the renderer; the older study drives the pad directly."""
-    from shapedisplay.runtime.studies import imaizumi_study
+    from shapedisplay.reports.imaizumi import imaizumi_study
 
     res = run_study("imaizumi", duration=0.2)
     ref = imaizumi_study(duration=0.2)
@@ -182,7 +182,7 @@ def test_imaizumi_preset_reproduces_the_table_free_study():
 
 
 def test_cli_study_writes_every_file_and_never_overwrites(tmp_path, capsys):
-    from shapedisplay.sinks import read_trace, read_wav
+    from shapedisplay.render.sinks import read_trace, read_wav
 
     out = tmp_path / "fr"
     assert main(["study", "friction", "-o", str(out), "--only", "*-mus0.500-dmu0.2", "--duration", "0.3s"]) == 0
@@ -247,9 +247,9 @@ def test_study_written_twice_leaves_one_complete_folder_and_no_temporary_files(t
 # ------------------------------------------------------------------ constant-N tables
 def test_slope_only_table_plays_its_constant_normal_force(tmp_path, capsys):
     """`compile --mapping slope` leaves normal_force out; play takes N = n_base from the header."""
-    from shapedisplay.runtime import Renderer, parse_stroke
-    from shapedisplay.sinks import read_trace
-    from shapedisplay.table import FrictionTable
+    from shapedisplay.render import Renderer, parse_stroke
+    from shapedisplay.render.sinks import read_trace
+    from shapedisplay.table.model import FrictionTable
 
     src = tmp_path / "flat.npy"
     np.save(src, np.zeros((1, 80)))
@@ -275,8 +275,8 @@ def test_slope_only_table_plays_its_constant_normal_force(tmp_path, capsys):
 
 
 def test_table_without_normal_force_or_constant_is_refused():
-    from shapedisplay.runtime import Renderer
-    from shapedisplay.table import FrictionTable, Grid, choose_quantization
+    from shapedisplay.render import Renderer
+    from shapedisplay.table.model import FrictionTable, Grid, choose_quantization
 
     z = np.zeros((1, 10))
     t = FrictionTable.from_dense(Grid(1, 10, 1e-3, 1e-3), {"grad_x": z}, {"grad_x": choose_quantization(z, "uint8")},

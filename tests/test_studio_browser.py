@@ -31,11 +31,11 @@ if sync_playwright is None or not Path(CHROMIUM).is_file():
                     pytrace=False)
     pytest.skip("needs Debian's chromium and the playwright package", allow_module_level=True)
 
-from shapedisplay.exchange.widgetmap import widget_map  # noqa: E402
-from shapedisplay.runtime import Renderer  # noqa: E402
-from shapedisplay.runtime.cursor import CursorPath, load_trace_csv  # noqa: E402
-from shapedisplay.runtime.native import C_MODELS  # noqa: E402
-from shapedisplay.table import FrictionTable  # noqa: E402
+from shapedisplay.table.widgets import widget_map  # noqa: E402
+from shapedisplay.render import Renderer  # noqa: E402
+from shapedisplay.render.cursor import CursorPath, load_trace_csv  # noqa: E402
+from shapedisplay.render.native import C_MODELS  # noqa: E402
+from shapedisplay.table.model import FrictionTable  # noqa: E402
 
 from studio_helpers import PHONE, StudioProcess  # noqa: E402
 
@@ -187,7 +187,7 @@ def test_scripted_stroke_offline_and_live_match_the_python_renderer(page, tmp_pa
     assert et.size == len(live["event_time"])
     assert np.max(np.abs(et - np.asarray(live["event_time"]))) <= 1e-6
     # ... and the drive: the page's WAV download and the replay's WAV hold the same samples
-    from shapedisplay.sinks import read_wav
+    from shapedisplay.render.sinks import read_wav
     replay, rate = read_wav(tmp_path / "replay.wav")
     (tmp_path / "page.wav").write_bytes(live["wav"])
     mine, rate2 = read_wav(tmp_path / "page.wav")

@@ -17,11 +17,11 @@ import shutil
 import numpy as np
 import pytest
 
-from shapedisplay.devices import BUNDLED_DEVICES
+from shapedisplay.table.devices import BUNDLED_DEVICES
 from shapedisplay.errors import InputError
-from shapedisplay.scene import WIDGET_TYPES, compile_scene
-from shapedisplay.scene.spec import PATH_KEYS, path_keys, widget_file_keys
-from shapedisplay.scene.svg import _ROOT_KEYS
+from shapedisplay.author.scene import WIDGET_TYPES, compile_scene
+from shapedisplay.author.scene.spec import PATH_KEYS, path_keys, widget_file_keys
+from shapedisplay.author.scene.svg import _ROOT_KEYS
 from shapedisplay.studio.session import Session
 
 HEAD = '[canvas]\nsize = "20x20 mm"\nresolution = "1 mm"\n'

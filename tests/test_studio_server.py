@@ -14,10 +14,10 @@ pytest.importorskip("uvicorn")
 pytest.importorskip("watchfiles")
 
 from shapedisplay.errors import InputError, ShapeDisplayError  # noqa: E402
-from shapedisplay.scene import compile_scene  # noqa: E402
+from shapedisplay.author.scene import compile_scene  # noqa: E402
 from shapedisplay.studio.lines import error_line  # noqa: E402
 from shapedisplay.studio.server import check_host  # noqa: E402
-from shapedisplay.table import FrictionTable  # noqa: E402
+from shapedisplay.table.model import FrictionTable  # noqa: E402
 
 from studio_helpers import PHONE, StudioProcess  # noqa: E402
 
@@ -76,7 +76,7 @@ def test_websocket_needs_token_and_own_origin(studio):
 
 
 def test_runtime_gets_the_tables_binary_image(studio):
-    from shapedisplay.runtime.image import read_image
+    from shapedisplay.render.image import read_image
     status, body = studio.get("/api/runtime")
     assert status == 200
     n = int.from_bytes(body[:4], "little")
@@ -92,10 +92,10 @@ def test_runtime_sends_each_offered_models_pad_parameters(studio):
     """Every model the page offers comes with its whole PAD_PARAMS block as the Python model derives it."""
     import base64
 
-    from shapedisplay.runtime import Renderer
-    from shapedisplay.runtime.layouts import PAD_PARAMS
-    from shapedisplay.runtime.models import MODEL_IDS, get_model
-    from shapedisplay.runtime.native import C_MODELS
+    from shapedisplay.render import Renderer
+    from shapedisplay.render.layouts import PAD_PARAMS
+    from shapedisplay.render.models import MODEL_IDS, get_model
+    from shapedisplay.render.native import C_MODELS
     status, body = studio.get("/api/runtime")
     n = int.from_bytes(body[:4], "little")
     layout = json.loads(body[4:4 + n])                       # plain JSON: no Infinity or NaN tokens
@@ -170,7 +170,7 @@ def test_save_from_page_writes_the_scene_and_exports_go_to_the_output_folder(stu
     assert {"table", "json", "c", "bin"} <= set(st["export_formats"])
     for fmt in st["export_formats"]:                       # every format the library exports, as buttons
         assert studio.get(f"/api/export/{fmt}")[0] == 200, fmt
-    from shapedisplay.runtime.image import read_image
+    from shapedisplay.render.image import read_image
     assert read_image((out / "phone.bin").read_bytes()).checksum() == \
         FrictionTable.load(out / "phone.npz").checksum()
     assert studio.get("/api/export/../../etc")[0] in (400, 404)

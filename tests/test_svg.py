@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from shapedisplay.errors import FileFormatError, InputError
-from shapedisplay.scene import compile_scene, import_svg, load_scene
-from shapedisplay_cli.main import main
+from shapedisplay.author.scene import compile_scene, import_svg, load_scene
+from shapedisplay.cli.main import main
 
 pytest.importorskip("svgelements")
 ROOT = Path(__file__).resolve().parent.parent
@@ -174,13 +174,13 @@ def _zigzag(n):
                                "M 1 1 L 2 2 M 5 5 L 6 6 Z M 8 8", "M 5 5", ""])
 def test_path_segments_are_counted_as_svgelements_draws_them(d):
     import svgelements as se
-    from shapedisplay.scene.svg import _path_segment_count
+    from shapedisplay.author.scene.svg import _path_segment_count
     drawn = [s for s in se.Path(d).segments() if not isinstance(s, se.Move)]
     assert _path_segment_count(d) == len(drawn)
 
 
 def test_path_polyline_and_polygon_past_the_segment_limit_are_refused_in_one_line(tmp_path, monkeypatch):
-    from shapedisplay.scene import svg
+    from shapedisplay.author.scene import svg
     monkeypatch.setattr(svg, "MAX_PATH_SEGMENTS", 40)
     pts = " ".join(f"{5 + i},{10 + i % 2}" for i in range(41))       # 41 points: 40 segments, 41 closed
     ok = _svg(tmp_path, f'<path id="ridge-a" d="{_zigzag(40)}"/><polyline id="ridge-b" points="{pts}"/>')
@@ -191,13 +191,13 @@ def test_path_polyline_and_polygon_past_the_segment_limit_are_refused_in_one_lin
             svg.svg_scene_data(_svg(tmp_path, body))
         msg = str(info.value)
         assert what in msg and "more than the limit of 40 (svg.MAX_PATH_SEGMENTS, docs/limits.md)" in msg
-        assert "raise shapedisplay.scene.svg.MAX_PATH_SEGMENTS" in msg and "\n" not in msg
+        assert "raise shapedisplay.author.scene.svg.MAX_PATH_SEGMENTS" in msg and "\n" not in msg
 
 
 def test_long_ridge_path_and_many_elements_are_refused_before_parsing(tmp_path):
     """200,000 segments (2.6 MB) or 100,000 rects (5 MB): refused by the first pass over the XML."""
     import time
-    from shapedisplay.scene.svg import MAX_PATH_SEGMENTS, MAX_SVG_ELEMENTS
+    from shapedisplay.author.scene.svg import MAX_PATH_SEGMENTS, MAX_SVG_ELEMENTS
     long_path = _svg(tmp_path, f'<path id="ridge-long" d="{_zigzag(200_000)}" stroke-width="0.5"/>')
     t = time.perf_counter()
     with pytest.raises(FileFormatError, match=rf"has 200000 segments, more than the limit of {MAX_PATH_SEGMENTS} "):

@@ -8,7 +8,7 @@ from hypothesis import given, settings, strategies as st
 from hypothesis.extra import numpy as hnp
 
 from shapedisplay.errors import FileFormatError, InputError, TableError
-from shapedisplay.table import (CHANNELS, FORMAT_VERSION, FrictionTable, Grid, Quantization,
+from shapedisplay.table.model import (CHANNELS, FORMAT_VERSION, FrictionTable, Grid, Quantization,
                                 choose_quantization)
 
 
@@ -71,7 +71,7 @@ def test_readable_without_the_package(tmp_path):
 
 
 def _rewrite(path, out, header_edit=None, array_edit=None, fix_checksum=False):
-    from shapedisplay.table import _checksum
+    from shapedisplay.table.model import _checksum
     with np.load(path) as z:
         header = json.loads(bytes(z["header"]).decode())
         arrays = {k: z[k] for k in z.files if k != "header"}
@@ -177,7 +177,7 @@ def test_save_is_atomic(tmp_path, monkeypatch):
     def boom(fh, arrays):
         fh.write(b"partial")
         raise RuntimeError("disk full")
-    monkeypatch.setattr("shapedisplay.table.write_npz", boom)
+    monkeypatch.setattr("shapedisplay.table.model.write_npz", boom)
     with pytest.raises(RuntimeError):
         t.save(target)
     assert list(tmp_path.iterdir()) == []
@@ -335,7 +335,7 @@ def _writestr_npz(arrays) -> bytes:
     import io
     import zipfile
 
-    from shapedisplay.container import entry_compression
+    from shapedisplay.table.container import entry_compression
     expected = io.BytesIO()
     with zipfile.ZipFile(expected, "w", allowZip64=True) as zf:
         for name, a in arrays.items():
@@ -348,7 +348,7 @@ def _writestr_npz(arrays) -> bytes:
 
 
 def _streamed_arrays():
-    from shapedisplay.container import _CHUNK
+    from shapedisplay.table.container import _CHUNK
     rng = np.random.default_rng(9)
     y, x = np.mgrid[0:1500, 0:1700]
     return {"header": np.frombuffer(b'{"a": 1}', np.uint8),
@@ -366,7 +366,7 @@ def test_streamed_npz_matches_writestr_of_the_whole_npy():
     import io
     import zipfile
 
-    from shapedisplay.container import write_npz
+    from shapedisplay.table.container import write_npz
     arrays = _streamed_arrays()
     expected = _writestr_npz(arrays)
     got = io.BytesIO()
@@ -398,7 +398,7 @@ def test_streamed_npz_without_isal_is_byte_for_byte_writestr(monkeypatch):
     byte for byte what ZipFile.writestr of numpy.save's whole output gives."""
     import io
 
-    from shapedisplay import container
+    from shapedisplay.table import container
     monkeypatch.setattr(container, "_isal_zlib", lambda: None)
     arrays = _streamed_arrays()
     got = io.BytesIO()

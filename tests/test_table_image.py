@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from shapedisplay.errors import TableError
-from shapedisplay.runtime import image as I
-from shapedisplay.table import FrictionTable, Grid, choose_quantization
+from shapedisplay.render import image as I
+from shapedisplay.table.model import FrictionTable, Grid, choose_quantization
 
 from runtime_vectors import CASES, case_setup, image_payload, parse_outputs
 from test_c_runtime import CDIR, CFLAGS, LIB, _cc, assert_outputs_equal, py_render, widget_table
@@ -34,7 +34,7 @@ def test_image_round_trip_keeps_the_table():
 
 def test_image_slots_are_the_renderer_and_c_slots():
     import re
-    from shapedisplay.runtime.renderer import SLOTS
+    from shapedisplay.render.renderer import SLOTS
     assert I.SLOTS == SLOTS
     header = (CDIR / "sd_layout.h").read_text()         # the C enums, generated from runtime.layouts
     enum = re.search(r"enum \{\s*(SD_SLOT_NORMAL_FORCE.*?)SD_NSLOT", header, re.S).group(1)
@@ -44,7 +44,7 @@ def test_image_slots_are_the_renderer_and_c_slots():
 
 
 def test_image_header_holds_the_renderer_settings():
-    from shapedisplay.runtime import Renderer
+    from shapedisplay.render import Renderer
     table = widget_table("uint16")
     h = I.parse_header(I.to_image(table))
     r = Renderer(table, model="jump")
@@ -168,7 +168,7 @@ def test_float_channel_nan_codes_are_refused(sd_vectors_image, tmp_path):
     img = bytearray(I.to_image(table))
     h = I.parse_header(bytes(img))
     struct.pack_into("<f", img, h["normal_force_data_off"] + 8, float("inf"))
-    from shapedisplay.runtime import Renderer
+    from shapedisplay.render import Renderer
     r = Renderer(table, model="jump")
     res, _ = _run_image(sd_vectors_image, image_payload(_reseal(img), r, [0.0, 1e-4], [0.0, 0.0]), tmp_path)
     assert res.returncode == 4 and "(-16)" in res.stderr
@@ -177,9 +177,9 @@ def test_float_channel_nan_codes_are_refused(sd_vectors_image, tmp_path):
 def test_constant_n_table_image_plays_bit_exact(sd_vectors_image, tmp_path):
     """A table without normal_force carries its constant N in the image (param 14); the image alone plays it as
     the host's Renderer plays the table."""
-    from shapedisplay.devices import load_device
-    from shapedisplay.runtime import Renderer
-    from shapedisplay.studies import constant_table
+    from shapedisplay.table.devices import load_device
+    from shapedisplay.render import Renderer
+    from shapedisplay.reports.presets import constant_table
     dev = load_device("handheld-stick")
     table = constant_table(2.5, dev)
     r = Renderer(table, model="exact", tick_rate=10_000.0, audio_rate=48_000.0, burst_policy="add")
@@ -222,7 +222,7 @@ def sd_vectors_image_single(tmp_path_factory):
 
 
 def _load_code(exe, img, table, tmp_path):
-    from shapedisplay.runtime import Renderer
+    from shapedisplay.render import Renderer
     r = Renderer(table, model="jump")
     res, _ = _run_image(exe, image_payload(img, r, [0.0, 1e-4], [0.0, 0.0]), tmp_path)
     if res.returncode == 0:
@@ -261,7 +261,7 @@ def test_single_build_refuses_values_beyond_float_range(sd_vectors_image, sd_vec
 def test_python_reader_refuses_what_the_c_loader_refuses(scale, offset):
     """The same rule in the Python reader (the table schema of table.py, which read_image and FrictionTable.load
     apply): offset +/- scale x the code type's largest code finite, else a TableError naming the channel."""
-    from shapedisplay.table import Quantization
+    from shapedisplay.table.model import Quantization
     g = Grid(1, 4, 1e-3, 1e-3)
     table = FrictionTable.from_codes(g, {"normal_force": np.array([[0, 1, 2, 65535]], np.uint16)},
                                      {"normal_force": Quantization("uint16", scale, offset)})

@@ -9,8 +9,8 @@ import pytest
 
 from shapedisplay import viewer
 from shapedisplay.errors import FileFormatError, InputError, MissingDependencyError, ShapeDisplayError, TableError
-from shapedisplay.heightfield import HeightField
-from shapedisplay.table import FrictionTable, Grid, choose_quantization
+from shapedisplay.author.heightfield import HeightField
+from shapedisplay.table.model import FrictionTable, Grid, choose_quantization
 
 pytest.importorskip("pyvista")   # the viewer extra; installed by `make test`
 
@@ -50,7 +50,7 @@ def two_widget_table(tmp_path) -> FrictionTable:
 
 
 def write_trace(path, table: FrictionTable, checksum: str | None = None, n: int = 1500):
-    """A stroke across both widgets in the format of shapedisplay.sinks.write_trace."""
+    """A stroke across both widgets in the format of shapedisplay.render.sinks.write_trace."""
     t = np.linspace(0.0, 1.5, n)
     x = np.linspace(2e-3, 48e-3, n)
     y = np.full(n, 15e-3)
@@ -416,7 +416,7 @@ MAPS = os.path.join(os.path.dirname(__file__), os.pardir, "assets", "maps")
 
 
 def run_cli(argv):
-    from shapedisplay_cli import main as cli_main
+    from shapedisplay.cli import main as cli_main
     return cli_main.main(argv)
 
 
@@ -524,7 +524,7 @@ SCENES = os.path.join(os.path.dirname(__file__), os.pardir, "assets", "scenes")
 
 
 def test_scene_file_preview_has_scene_heights_and_widget_ids():
-    from shapedisplay.scene import load_scene, scene_heightfield
+    from shapedisplay.author.scene import load_scene, scene_heightfield
     path = os.path.join(SCENES, "phone.toml")
     m = viewer.load_model(path)
     sc = load_scene(path)
@@ -542,7 +542,7 @@ def test_scene_file_preview_has_scene_heights_and_widget_ids():
 
 def test_scene_file_preview_has_its_data_layers():
     """The map's rainfall layer (friction_scale) is colourable and scales breakaway force, as in its table."""
-    from shapedisplay.scene import compile_scene, load_scene
+    from shapedisplay.author.scene import compile_scene, load_scene
     path = os.path.join(SCENES, "map.toml")
     m = viewer.load_model(path)
     t = compile_scene(path).table
@@ -556,7 +556,7 @@ def test_scene_file_preview_has_its_data_layers():
 
 
 def test_compiled_scene_table_shows_outlines_and_left_out(tmp_path):
-    from shapedisplay.scene import compile_scene
+    from shapedisplay.author.scene import compile_scene
     res = compile_scene(os.path.join(SCENES, "phone.toml"))
     path = tmp_path / "phone.npz"
     res.table.save(path)
@@ -564,7 +564,7 @@ def test_compiled_scene_table_shows_outlines_and_left_out(tmp_path):
     assert {w["id"] for w in m.widgets} >= {"app-1", "call", "home", "volume"}
     assert m.stored is not None and 0.1 < m.stored.mean() < 0.9      # empty screen between widgets left out
     # the relief recovered from N = n_base + n_gain h matches the scene's heights where stored
-    from shapedisplay.scene import scene_heightfield
+    from shapedisplay.author.scene import scene_heightfield
     h = scene_heightfield(os.path.join(SCENES, "phone.toml")).heights
     q = res.table.quant["normal_force"].max_error / res.table.meta["mapping"]["n_gain"]
     assert np.max(np.abs(m.fields["height"] - h)[m.stored]) <= q + 1e-12
@@ -598,7 +598,7 @@ def test_every_widget_id_is_drawn_even_where_labels_overlap():
 
 
 def test_one_dimensional_scene_is_a_strip_with_full_width_outlines():
-    from shapedisplay.scene import compile_scene
+    from shapedisplay.author.scene import compile_scene
     res = compile_scene(os.path.join(SCENES, "media-player.toml"))
     m = viewer.model_from_table(res.table)
     assert res.table.is_1d and m.strip and m.relief.shape == (2, res.table.grid.cols)
@@ -639,7 +639,7 @@ def test_envelope_indices_keep_extremes_of_every_bin():
 
 def test_trace_written_by_the_runtime_is_drawn_and_checked(tmp_path, table, capsys):
     """End to end: compile a scene, play a stroke with the runtime, preview it; another table refuses it."""
-    from shapedisplay.scene import compile_scene
+    from shapedisplay.author.scene import compile_scene
     tab = tmp_path / "mp.npz"
     compile_scene(os.path.join(SCENES, "media-player.toml")).table.save(tab)
     trace = tmp_path / "mp-trace.npz"

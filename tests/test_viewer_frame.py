@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from shapedisplay import viewer
-from shapedisplay.heightfield import HeightField
+from shapedisplay.author.heightfield import HeightField
 
 pytest.importorskip("pyvista")
 

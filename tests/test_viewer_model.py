@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 
-from shapedisplay.runtime.renderer import friction_limits
+from shapedisplay.render.renderer import friction_limits
 
 ROOT = os.path.join(os.path.dirname(__file__), os.pardir)
 SCENES = os.path.join(ROOT, "assets", "scenes")
@@ -19,7 +19,7 @@ def test_model_of_scene_and_table_loads_no_vtk(tmp_path):
     code = f"""
 import sys
 from shapedisplay import viewer
-from shapedisplay.scene import compile_scene
+from shapedisplay.author.scene import compile_scene
 m = viewer.load_model({os.path.join(SCENES, 'phone.toml')!r})
 res = compile_scene({os.path.join(SCENES, 'phone.toml')!r})
 res.table.save({str(tmp_path / 't.npz')!r})
@@ -50,10 +50,10 @@ def test_friction_limits_follow_the_renderers_rule():
 
 def test_friction_limits_equal_what_the_renderer_plays(tmp_path):
     """A slow stroke on a table with friction_scale: the renderer's mu_s N equals the preview's at each tick."""
-    from shapedisplay.devices import load_device
-    from shapedisplay.runtime.cursor import CursorPath
-    from shapedisplay.runtime.renderer import Renderer
-    from shapedisplay.table import FrictionTable, Grid, choose_quantization
+    from shapedisplay.table.devices import load_device
+    from shapedisplay.render.cursor import CursorPath
+    from shapedisplay.render.renderer import Renderer
+    from shapedisplay.table.model import FrictionTable, Grid, choose_quantization
 
     g = Grid(1, 50, 1e-3, 1e-3)
     x = np.arange(50) * 1e-3

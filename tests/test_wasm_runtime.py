@@ -1,4 +1,4 @@
-"""The WebAssembly build (runtime_c/wasm/sd_runtime.wasm) in wasmtime on the shared vectors.
+"""The WebAssembly build (engine/wasm/sd_runtime.wasm) in wasmtime on the shared vectors.
 
 The module links wasi-libc's libm (musl), not glibc's: exp/sin/cos may differ by an ulp, so
 the comparison is by the derived bounds of runtime_vectors.derived_bounds (event counts and
@@ -10,9 +10,9 @@ import subprocess
 import numpy as np
 import pytest
 
-from shapedisplay.runtime import Renderer, wasm
-from shapedisplay.runtime.layouts import OUTPUTS
-from shapedisplay.runtime.models import MODEL_IDS
+from shapedisplay.render import Renderer, wasm
+from shapedisplay.render.layouts import OUTPUTS
+from shapedisplay.render.models import MODEL_IDS
 
 from runtime_vectors import (CASES, WasmRunner, assert_within_derived_bounds, assert_within_float_bounds, case_setup,
                              derived_bounds, py_render_events, wasm_play_events)
@@ -23,7 +23,7 @@ pytest.importorskip("wasmtime", reason="wasmtime (pip install 'shapedisplay[test
 
 def test_shipped_module_is_built_from_the_shipped_sources():
     assert wasm.MODULE.is_file() and wasm.WRAPPER.is_file() and wasm.WORKLET.is_file()
-    assert wasm.is_current(), ("runtime_c/wasm/sd_runtime.wasm is older than the C sources: "
+    assert wasm.is_current(), ("engine/wasm/sd_runtime.wasm is older than the C sources: "
                                "run make -C runtime-c wasm-package")
 
 
@@ -86,8 +86,8 @@ def test_wasm_plays_models_from_the_pad_block(model):
     """karnopp and stribeck read pad fields the image does not carry: configured with the block the studio
     sends (studio.wasm.model_blocks), the module plays as the host C runtime (Renderer) does; without one,
     or with a damaged one, configure refuses and the playing model stays."""
-    from shapedisplay.runtime.cursor import CursorPath
-    from shapedisplay.runtime.layouts import PAD_PARAMS
+    from shapedisplay.render.cursor import CursorPath
+    from shapedisplay.render.layouts import PAD_PARAMS
     from shapedisplay.studio.wasm import model_blocks
     import base64
     table, r, x, y, img = case_setup("uint16", "teleports", "retrigger", 10_000.0, 48_000.0, model, seconds=0.2)

@@ -39,8 +39,8 @@ def _run(argv, cwd, env, timeout=600):
 
 
 def tracked_files() -> list[str]:
-    """The checkout's files under shapedisplay/ and cli/ as git tracks them (a clean clone's tree)."""
-    res = subprocess.run(["git", "ls-files", "-z", "shapedisplay", "cli", "pyproject.toml", "setup.py",
+    """The checkout's files under shapedisplay/ as git tracks them (a clean clone's tree)."""
+    res = subprocess.run(["git", "ls-files", "-z", "shapedisplay", "pyproject.toml", "setup.py",
                           "README.md"], cwd=ROOT,
                          capture_output=True, text=True)
     if res.returncode != 0:
@@ -70,10 +70,9 @@ def test_wheel_holds_every_package_and_the_data_read_at_run_time(wheel):
     files = [f for f in tracked_files() if f.startswith("shapedisplay/") and not Path(f).name.startswith(".")]
     missing = sorted(f for f in files if f not in names)
     assert not missing, f"missing from the wheel: {missing}"
-    assert any(f.startswith("shapedisplay/data/devices/") and f.endswith(".toml") for f in files)
-    assert any(f.startswith("shapedisplay/runtime_c/") and f.endswith(".c") for f in files)
-    cli = [f.replace("cli/", "shapedisplay_cli/", 1) for f in tracked_files() if f.startswith("cli/") and f.endswith(".py")]
-    assert cli and not sorted(set(cli) - names)
+    assert any(f.startswith("shapedisplay/table/data/devices/") and f.endswith(".toml") for f in files)
+    assert any(f.startswith("shapedisplay/engine/") and f.endswith(".c") for f in files)
+    assert any(f.startswith("shapedisplay/cli/") and f.endswith(".py") for f in files)
     assert not any(n.startswith(("tests/", "cli/", "assets/")) for n in names)
     # the C runtime and kernels, compiled at build time for this platform
     for module in ("_engine", "_kernels_c"):
@@ -170,9 +169,9 @@ def test_installed_wheel_runs_without_a_c_compiler_and_compiles_nothing(wheel, t
     (site / "test-deps.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
     env = _no_compiler_env(tmp_path, venv)
     home = Path(env["HOME"])
-    where = _run(["python", "-c", "import shapedisplay, shapedisplay_cli; print(shapedisplay.__file__); "
-                                  "print(shapedisplay_cli.__file__); from shapedisplay.runtime import native; "
-                                  "from shapedisplay import _kernels; print(native.library_path()); "
+    where = _run(["python", "-c", "import shapedisplay, shapedisplay.cli; print(shapedisplay.__file__); "
+                                  "print(shapedisplay.cli.__file__); from shapedisplay.render import native; "
+                                  "from shapedisplay.author import kernels as _kernels; print(native.library_path()); "
                                   "print(_kernels.c_kernels()._name)"], tmp_path, env).split()
     assert all(Path(w).is_relative_to(venv) for w in where), where     # the wheel, not the checkout
     sd = shutil.which("shapedisplay", path=env["PATH"])
@@ -211,8 +210,8 @@ def test_installed_wheel_runs_without_a_c_compiler_and_compiles_nothing(wheel, t
     names = {r.split(";")[0].split("[")[0].split("<")[0].split(">")[0].split("=")[0].strip().lower() for r in required}
     assert not names & {"numba", "llvmlite"}, sorted(names)
     # and nothing the package runs imports them, whatever the environment holds
-    loaded = _run(["python", "-c", "import sys, shapedisplay.runtime as r, shapedisplay.reports.accuracy, "
-                                   "shapedisplay.studies, shapedisplay.compile, shapedisplay.mesh, shapedisplay.raster; "
+    loaded = _run(["python", "-c", "import sys, shapedisplay.render as r, shapedisplay.reports.accuracy, "
+                                   "shapedisplay.reports.presets, shapedisplay.author.compile, shapedisplay.author.mesh, shapedisplay.author.raster; "
                                    "r.Renderer; r.simulate_pad('stribeck', duration=0.01); "
                                    "print(sorted(m for m in sys.modules if m.split('.')[0] in ('numba', 'llvmlite')))"],
                   work, env)

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from shapedisplay import sources
-from shapedisplay.imageio import write_png
+from shapedisplay.author import sources
+from shapedisplay.author.imageio import write_png
 
 HERE = Path(__file__).resolve().parent
 

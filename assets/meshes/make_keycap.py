@@ -100,7 +100,7 @@ def keycap() -> tuple[np.ndarray, np.ndarray]:
 
 
 def main(argv=None) -> int:
-    from shapedisplay.mesh import save_mesh
+    from shapedisplay.author.mesh import save_mesh
 
     out = Path(argv[0]) if argv else Path(__file__).with_name("keycap.stl")
     v, f = keycap()

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from shapedisplay.imageio import write_png
+from shapedisplay.author.imageio import write_png
 
 HERE = Path(__file__).resolve().parent
 

@@ -22,13 +22,13 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from ..errors import InputError, unknown_key
+from shapedisplay.errors import InputError, unknown_key
 
 #: Export format -> ("module:function", options it takes); modules are imported only when used.
 EXPORTERS = {
-    "json": ("shapedisplay.export:export_json", ()),
-    "c": ("shapedisplay.export:export_c", ("name",)),
-    "bin": ("shapedisplay.runtime.image:export_image", ()),
+    "json": ("shapedisplay.exchange.export:export_json", ()),
+    "c": ("shapedisplay.exchange.export:export_c", ("name",)),
+    "bin": ("shapedisplay.render.image:export_image", ()),
     "friction-png": ("shapedisplay.exchange.friction_png:export_friction_png", ("quantity", "bits")),
     "glb": ("shapedisplay.exchange.glb:export_glb", ()),
 }

@@ -40,8 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_path, write_text
-from ..errors import InputError
+from shapedisplay.atomic import atomic_path, write_text
+from shapedisplay.errors import InputError
 
 AHAP_VERSION = 1.0
 #: Most control points Core Haptics takes in one parameter curve.
@@ -259,7 +259,7 @@ def check_ahap(doc) -> None:
 
 
 def ahap_of_result(result, carrier_hz: float, envelope: bool = True, description: str = "") -> dict:
-    """:func:`ahap_document` of a :class:`~shapedisplay.runtime.renderer.RenderResult`."""
+    """:func:`ahap_document` of a :class:`~shapedisplay.render.renderer.RenderResult`."""
     return ahap_document(result.event_time, result.event_amplitude, result.audio, result.audio_rate, carrier_hz,
                          t0=float(result.t[0]) if result.t.size else 0.0, envelope=envelope,
                          description=description)

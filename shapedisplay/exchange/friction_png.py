@@ -31,16 +31,16 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_path
-from ..errors import InputError, unknown_key
-from ..heightfield import grid_from_picture, picture_from_grid
+from shapedisplay.atomic import atomic_path
+from shapedisplay.errors import InputError, unknown_key
+from shapedisplay.author.heightfield import grid_from_picture, picture_from_grid
 
 QUANTITIES = {"mu": "1", "normal_force": "N", "breakaway_force": "N"}
 BITS = (8, 16)
 
 
 def _device(table):
-    from ..export import _device_of
+    from shapedisplay.exchange.export import _device_of
     return _device_of(table.meta)
 
 
@@ -49,7 +49,7 @@ def quantity_map(table, quantity: str = "mu") -> np.ndarray:
     if quantity not in QUANTITIES:
         raise unknown_key("friction bitmap quantity", quantity, QUANTITIES)
     table.require("normal_force")
-    from ..runtime.renderer import friction_limits
+    from shapedisplay.render.renderer import friction_limits
     dev = _device(table)
     ch = {n: table.dense(n) for n in table.channels}
     N = np.maximum(ch["normal_force"], 0.0)

@@ -41,9 +41,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import write_bytes
-from ..errors import FileFormatError, InputError
-from ..heightfield import grid_from_picture, picture_from_grid
+from shapedisplay.atomic import write_bytes
+from shapedisplay.errors import FileFormatError, InputError
+from shapedisplay.author.heightfield import grid_from_picture, picture_from_grid
 
 EXTENSION = "MPEG_haptic_material"
 #: Haptic texture -> (quantity, unit): the textures written, in this order.
@@ -56,15 +56,15 @@ _FLOAT, _UINT = 5126, 5125
 
 
 def _mapping(meta: dict):
-    from ..forces import MappingOptions
+    from shapedisplay.author.forces import MappingOptions
     mp = meta.get("mapping") if isinstance(meta, dict) else None
     return MappingOptions.from_json(mp) if isinstance(mp, dict) else None
 
 
 def haptic_channels(table) -> dict:
     """The three texture quantities on the canvas, (rows, cols), SI, row r at y0 + r*dy."""
-    from ..export import _device_of
-    from .friction_png import quantity_map
+    from shapedisplay.exchange.export import _device_of
+    from shapedisplay.exchange.friction_png import quantity_map
     dev = _device_of(table.meta)
     gain = table.dense("burst_gain") if "burst_gain" in table.channels else np.ones((table.grid.rows, table.grid.cols))
     return {"stiffness": quantity_map(table, "normal_force"), "friction": quantity_map(table, "mu"),
@@ -245,14 +245,14 @@ def read_haptic_glb(path) -> dict:
 
     Returns
     -------
-    dict with ``grid`` (:class:`~shapedisplay.table.Grid`), ``channels``
+    dict with ``grid`` (:class:`~shapedisplay.table.model.Grid`), ``channels``
     {stiffness, friction, vibration: ndarray (rows, cols), row r at y0 + r*dy},
     ``scales`` {name: extras}, ``mapping`` and ``device`` (dicts or None),
     ``heights`` (ndarray from the mesh's z on the same grid).
     """
     from PIL import Image
 
-    from ..table import Grid
+    from shapedisplay.table.model import Grid
     doc, binary = read_glb(path)
     where = f"glb '{path}'"
     ext = (doc.get("extensions") or {}).get(EXTENSION)
@@ -329,11 +329,11 @@ def compile_haptic_glb(path, device=None, mapping=None, options=None):
     -------
     CompileResult
     """
-    from ..compile import CompileOptions, compile_heightfield
-    from ..devices import DeviceProfile, load_device
-    from ..forces import MappingOptions
-    from ..heightfield import HeightField
-    from ..table import FrictionTable, choose_quantization
+    from shapedisplay.author.compile import CompileOptions, compile_heightfield
+    from shapedisplay.table.devices import DeviceProfile, load_device
+    from shapedisplay.author.forces import MappingOptions
+    from shapedisplay.author.heightfield import HeightField
+    from shapedisplay.table.model import FrictionTable, choose_quantization
     got = read_haptic_glb(path)
     g = got["grid"]
     if mapping is None:

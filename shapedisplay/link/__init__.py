@@ -11,7 +11,7 @@
 * :mod:`.emulator` — :class:`~.emulator.DeviceEmulator`, firmware behaviour
   on a pseudo-terminal (transport, upload, queue, fault injection), rendering
   through :mod:`.engine` (the C engine's ticks, through
-  :class:`~shapedisplay.runtime.Renderer`).
+  :class:`~shapedisplay.render.Renderer`).
 
 Nothing here opens a port or imports pyserial at import time.
 """

@@ -40,11 +40,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..devices import TICK_RATE_RANGE
-from ..errors import FileFormatError
-from . import protocol as P
-from .engine import RenderEngine, warm_engine
-from .framing import Frame, FrameDecoder, crc32, encode_frame
+from shapedisplay.table.devices import TICK_RATE_RANGE
+from shapedisplay.errors import FileFormatError
+from shapedisplay.link import protocol as P
+from shapedisplay.link.engine import RenderEngine, warm_engine
+from shapedisplay.link.framing import Frame, FrameDecoder, crc32, encode_frame
 
 #: Actuator full scale; a drive sample with |value| > 1 is clipped and counted.
 DAC_RANGE = 1.0
@@ -70,8 +70,8 @@ class EmulatorConfig:
     event_interval_s: float = 0.05       # at most one EVENT of a kind per interval
 
     def __post_init__(self):
-        from ..errors import InputError
-        from .framing import MAX_FRAME
+        from shapedisplay.errors import InputError
+        from shapedisplay.link.framing import MAX_FRAME
         ints = {"max_table_bytes": (1, 2**31), "chunk_size": (1, MAX_FRAME - 64), "upload_window": (1, 255),
                 "queue_capacity": (1, 65535), "stream_rate_hz": (1, 65535), "tick_rate_hz": tuple(int(r) for r in TICK_RATE_RANGE),
                 "baud": (0, 100_000_000), "flow_every": (1, 65535), "protocol_version": (1, 255)}
@@ -93,8 +93,8 @@ class EmulatorConfig:
         (ignored without a renderer); the record's own rules (ranges, the tick
         rate a multiple of the stream rate) are checked on construction.
         """
-        from ..errors import InputError, unknown_key
-        from ..units import parse_byte_size, parse_quantity
+        from shapedisplay.errors import InputError, unknown_key
+        from shapedisplay.units import parse_byte_size, parse_quantity
         mem = parse_byte_size(memory, "memory", lo=1024, hi=2**31)
         rates = {}
         for name, text in (("tick_rate_hz", tick_rate), ("stream_rate_hz", stream_rate)):
@@ -103,7 +103,7 @@ class EmulatorConfig:
                 raise InputError(f"emulator `{name}` must be a whole number of hertz (got {text!r})")
             rates[name] = int(v)
         if renderer:
-            from ..runtime.models import MODELS
+            from shapedisplay.render.models import MODELS
             if model not in MODELS:
                 raise unknown_key("model", model, MODELS)
         # ranges, the multiple rule, queue and baud: __post_init__, the one place for the record's rules
@@ -153,11 +153,11 @@ def parse_table_image(image: bytes, max_bytes: int | None = None):
 
     Goes through the same bounded reader as a table file; ``max_bytes`` caps
     the channel data it may unpack to. Returns a
-    :class:`~shapedisplay.table.FrictionTable`; raises
+    :class:`~shapedisplay.table.model.FrictionTable`; raises
     :class:`~shapedisplay.errors.TableError` naming what is wrong.
     """
-    from ..runtime.image import is_image, read_image
-    from ..table import FrictionTable
+    from shapedisplay.render.image import is_image, read_image
+    from shapedisplay.table.model import FrictionTable
     if is_image(image):
         return read_image(image, "uploaded table image")
     return FrictionTable.from_bytes(image, "uploaded table", max_bytes=max_bytes)
@@ -633,7 +633,7 @@ class DeviceEmulator:
             self.state = P.State.IDLE
             return self._nak(f, P.Err.CHECKSUM, actual,
                              f"whole-table CRC-32 is {actual:08x}, host says {crc:08x}; upload discarded")
-        from ..errors import ShapeDisplayError
+        from shapedisplay.errors import ShapeDisplayError
         try:
             table = parse_table_image(bytes(up["buf"]), max_bytes=TABLE_EXPANSION * self.config.max_table_bytes)
             if self.config.renderer:
@@ -694,7 +694,7 @@ class DeviceEmulator:
                 return self._nak(f, P.Err.UNSUPPORTED, mode, "this device has no renderer; use actuator mode")
             if self.active_table is None:
                 return self._nak(f, P.Err.NO_TABLE, 0, "no committed table; upload one first")
-            from ..errors import ShapeDisplayError
+            from shapedisplay.errors import ShapeDisplayError
             try:
                 engine = self.engine_factory(self.active_table, self.config.model, self.config.tick_rate_hz,
                                              self.config.stream_rate_hz, inp)

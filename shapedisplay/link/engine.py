@@ -3,7 +3,7 @@
 One engine for every place that renders a stream the way the firmware does:
 the emulated device (:mod:`.emulator`), the host's actuator-stream mode
 (``shapedisplay device play --mode actuator``); the ticks are the C engine's
-(:class:`~shapedisplay.runtime.Renderer`), as on the firmware. Between two cursor samples
+(:class:`~shapedisplay.render.Renderer`), as on the firmware. Between two cursor samples
 the cursor moves linearly over ``tick_rate_hz // stream_rate_hz`` ticks
 (:func:`step_period`); force input integrates ``v = alpha f`` per sample
 (:func:`force_to_position`). No transport, no fault injection: those are the
@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import protocol as P
+from shapedisplay.link import protocol as P
 
 
 def step_period(renderer, prev, x: float, y: float, per: int, out: np.ndarray) -> int:
@@ -79,7 +79,7 @@ def force_to_position(prev_pos, prev_v, fx: float, fy: float, alpha: float, dt: 
 class RenderEngine:
     """Device-side renderer: one cursor sample in, the drive of each renderer tick out.
 
-    Wraps :class:`shapedisplay.runtime.Renderer` through :func:`step_period`,
+    Wraps :class:`shapedisplay.render.Renderer` through :func:`step_period`,
     exactly as the host's :func:`render_stream`, so host and emulated device
     produce identical samples. Input ``FORCE`` integrates ``v = alpha f``
     with the table's device cursor gain.
@@ -87,8 +87,8 @@ class RenderEngine:
 
     def __init__(self, table, model: str, tick_rate_hz: int, stream_rate_hz: int, input_kind: int,
                  renderer=None):
-        from ..errors import InputError
-        from ..runtime import Renderer
+        from shapedisplay.errors import InputError
+        from shapedisplay.render import Renderer
         self.per = max(1, tick_rate_hz // stream_rate_hz)
         self.input_kind = input_kind
         self.renderer = renderer if renderer is not None else Renderer(table, model=model,
@@ -113,7 +113,7 @@ class RenderEngine:
 
 def warm_engine(model: str, tick_rate_hz: int, stream_rate_hz: int, engine=None) -> None:
     """Load and compile the runtime kernels once, on a one-sample table (not on a device's I/O path)."""
-    from ..table import FrictionTable, Grid, choose_quantization
+    from shapedisplay.table.model import FrictionTable, Grid, choose_quantization
     z = np.full((1, 2), 1.0)
     t = FrictionTable.from_dense(Grid(1, 2, 1e-3, 1e-3), {"normal_force": z},
                                  {"normal_force": choose_quantization(z, "float32")})

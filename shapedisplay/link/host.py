@@ -33,9 +33,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError, ShapeDisplayError, require
-from . import protocol as P
-from .framing import Frame, FrameDecoder, crc32, encode_frame
+from shapedisplay.errors import InputError, ShapeDisplayError, require
+from shapedisplay.link import protocol as P
+from shapedisplay.link.framing import Frame, FrameDecoder, crc32, encode_frame
 
 DEFAULT_BAUD = 921_600
 WRITE_TIMEOUT_S = 5.0     # a write that cannot go out for this long means nothing reads the line

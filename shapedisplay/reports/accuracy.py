@@ -32,10 +32,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..atomic import prepare_output_dir
-from ..errors import ShapeDisplayError
-from . import common
-from .peers import PEER_METHODS, konyo_ivp, stribeck_ivp
+from shapedisplay.atomic import prepare_output_dir
+from shapedisplay.errors import ShapeDisplayError
+from shapedisplay.reports import common
+from shapedisplay.reports.peers import PEER_METHODS, konyo_ivp, stribeck_ivp
 
 KONYO = dict(m=1.0e-6, k=2000.0, c=0.01, mu_s=0.5, mu_k=0.3)
 IMAIZUMI = dict(m=1.0e-4, k=1.0e3, c=1.0, mu_s=2.1, mu_k=1.4, a=55.0, b=1.9)
@@ -172,7 +172,7 @@ def build_cases(quick: bool) -> list[Case]:
 
 # ================================================================ building blocks
 def _device(case: Case):
-    from ..devices import BurstParams, DeviceProfile, FrictionParams, PadParams
+    from shapedisplay.table.devices import BurstParams, DeviceProfile, FrictionParams, PadParams
     p = case.params
     extra = {"karnopp": {"spring": f"{p['k']} N/m"}}
     if case.kind == "stribeck":
@@ -184,9 +184,9 @@ def _device(case: Case):
 
 def _table(case: Case, dx, quantize, device):
     """Table the renderer plays: a flat table at N (konyo/stribeck cases) or the compiled tent bump."""
-    from ..compile import CompileOptions, compile_heightfield
-    from ..forces import MappingOptions
-    from ..sources import from_array, tent_profile
+    from shapedisplay.author.compile import CompileOptions, compile_heightfield
+    from shapedisplay.author.forces import MappingOptions
+    from shapedisplay.author.sources import from_array, tent_profile
     if dx is None:
         hf = from_array(np.zeros((1, 4)), 1e-3)
         mp = MappingOptions(n_base=float(case.N(0.0)), n_gain=1.0)
@@ -199,7 +199,7 @@ def _table(case: Case, dx, quantize, device):
 
 def _cursor(case: Case, rate):
     """Cursor path on the tick grid (x = integral of V; exact for V held per millisecond)."""
-    from ..runtime.cursor import CursorPath
+    from shapedisplay.render.cursor import CursorPath
     n = int(round(case.duration * rate)) + 1
     t = np.arange(n) / rate
     if case.name == "reversal":
@@ -228,7 +228,7 @@ def _reference_inputs(case: Case, rate):
 
 def reference(case: Case, quick: bool) -> dict:
     """Reference events of a case, with the cross-check and (belt) the closed-form check."""
-    from ..runtime.models import get_model, run_kernel
+    from shapedisplay.render.models import get_model, run_kernel
     p = case.params
     out = {}
     if case.kind == "konyo":
@@ -277,7 +277,7 @@ def reference(case: Case, quick: bool) -> dict:
                       omega=2 * math.pi * case.contactor["hz"], t_end=case.duration)
     out.update(kind="Radau", rtol=rtol, event_time=pr.event_time, event_amplitude=pr.event_amplitude,
                description=f"solve_ivp Radau at rtol {rtol:g} with stick/slip events (no closed form exists)")
-    from ..runtime.models import STRIBECK_TOLERANCE, get_model, run_kernel
+    from shapedisplay.render.models import STRIBECK_TOLERANCE, get_model, run_kernel
     t0 = time.process_time()
     model = get_model("stribeck", _device(case), contactor_hz=case.contactor["hz"],
                       contactor_amplitude_m=case.contactor["amplitude_m"])
@@ -328,8 +328,8 @@ QUICK_PEERS = {"reversal": ("LSODA",), "bump_table": ("LSODA",)}
 
 
 def _run_renderer(case, s, device, ref, repeats, online_ticks, min_batch_s=0.02):
-    from ..runtime.models import run_kernel
-    from ..runtime.renderer import Renderer
+    from shapedisplay.render.models import run_kernel
+    from shapedisplay.render.renderer import Renderer
     opts = {}
     if case.kind == "stribeck":
         opts = {"contactor_hz": case.contactor["hz"], "contactor_amplitude_m": case.contactor["amplitude_m"],

@@ -12,8 +12,8 @@ import time
 
 import numpy as np
 
-from ..atomic import write_text
-from ..errors import require
+from shapedisplay.atomic import write_text
+from shapedisplay.errors import require
 
 
 # ================================================================ events and errors
@@ -111,7 +111,7 @@ def waveform_error(ref_t, ref_a, got_t, got_a, duration, scale, audio_rate=8000.
     5 ms rise, 30 ms decay, retrigger) at ``audio_rate`` after dividing the
     amplitudes by ``scale`` (so nothing clips). None if the reference is silent.
     """
-    from ..runtime.bursts import render_bursts
+    from shapedisplay.render.bursts import render_bursts
 
     def synth(t, a):
         order = np.argsort(t, kind="stable")
@@ -180,14 +180,14 @@ _FLOORS = None
 def _floors():
     """The engine library (:func:`..runtime.native.library`) with the timing floors' argument types declared.
 
-    The floors are C loops in ``shapedisplay/runtime/sd_floors.c``, compiled
+    The floors are C loops in ``shapedisplay/render/sd_floors.c``, compiled
     into the engine with the runtime's own flags; bound here once.
     """
     global _FLOORS
     if _FLOORS is None:
         import ctypes
 
-        from ..runtime.native import library
+        from shapedisplay.render.native import library
         lib = library()
         vp, i64, f64 = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
         for name, args in (("sd_floor_tick", [vp, vp, i64, f64]),
@@ -265,7 +265,7 @@ def stuck_floor(n, runs=3, min_batch_s=0.02):
     the path reaches): min of ``runs`` runs of at least ``min_batch_s`` each,
     after a warm-up.
     """
-    from ..runtime.models import run_kernel
+    from shapedisplay.render.models import run_kernel
     model, inputs = stuck_path(n)
     per_call, _ = cpu_per_call(lambda: run_kernel(model, *inputs), runs=runs, min_batch_s=min_batch_s)
     return min(per_call)
@@ -275,7 +275,7 @@ def stuck_path(n):
     """The model and the ``run_kernel`` inputs ``(t, V, N, mu_s, mu_k, gain)`` of :func:`stuck_floor`: ``n``
     ticks 1 ms apart at 1 mm/s under 1 MN (the stick force after them, k x, stays orders of magnitude below
     the static limit)."""
-    from ..runtime.models import get_model
+    from shapedisplay.render.models import get_model
     n = int(n)
     one = np.ones(n)
     return get_model("jump"), (np.arange(n) * 1e-3, np.full(n, 1e-3), np.full(n, 1e6), one, one, one)
@@ -418,7 +418,7 @@ def save_figure(fig, path):
     The saved area grows to hold everything drawn (nothing cropped), and the
     file carries no software version: the same figure gives the same bytes.
     """
-    from ..atomic import atomic_path
+    from shapedisplay.atomic import atomic_path
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight", pad_inches=0.08,
                     metadata={"Software": None})

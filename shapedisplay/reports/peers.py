@@ -18,7 +18,7 @@ Two systems
 :func:`stribeck_ivp`
     The Imaizumi pad with Stribeck friction on a vibrating contactor
     (Imaizumi et al.), same conventions as the ``stribeck`` kernel
-    (:func:`shapedisplay.runtime.pads.stribeck_tick`): ``u`` is the spring
+    (:func:`shapedisplay.render.pads.stribeck_tick`): ``u`` is the spring
     stretch, ``vr = u' + V - x_c'`` the relative velocity, stick while the
     needed friction ``m x_c'' + c u' + k u`` stays within ``mu_s W``.
 

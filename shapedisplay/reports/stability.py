@@ -46,10 +46,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..atomic import prepare_output_dir
-from ..errors import ShapeDisplayError
-from . import common
-from .peers import stribeck_mu
+from shapedisplay.atomic import prepare_output_dir
+from shapedisplay.errors import ShapeDisplayError
+from shapedisplay.reports import common
+from shapedisplay.reports.peers import stribeck_mu
 
 VERDICTS = ("stable", "physically self-excited", "numerically unstable", "rejected")
 #: Models the renderer uses by default for the Konyo pad (must never give NaN/inf).
@@ -203,7 +203,7 @@ def build_sweeps(quick: bool) -> list[Case]:
 
 # ================================================================ running
 def _device(p, stribeck=False):
-    from ..devices import BurstParams, DeviceProfile, FrictionParams, PadParams
+    from shapedisplay.table.devices import BurstParams, DeviceProfile, FrictionParams, PadParams
     extra = {"stribeck": {"a": p["a"], "b": p["b"]}} if stribeck else {}
     return DeviceProfile(name="stability", pad=PadParams(p["m"], p["k"], p["c"]),
                          friction=FrictionParams(p["mu_s"], p["mu_k"]), burst=BurstParams(gain=1.0),
@@ -227,9 +227,9 @@ def _run_pad(p, model_name, rate, duration, stribeck=False, substep_s=None):
     negative friction slope shows up as a growing oscillation that ends in
     stick-slip, and a positive one as a decaying perturbation.
     """
-    from ..runtime.models import get_model, run_kernel
-    from ..errors import InputError
-    from ..devices import check_tick_rate
+    from shapedisplay.render.models import get_model, run_kernel
+    from shapedisplay.errors import InputError
+    from shapedisplay.table.devices import check_tick_rate
     rate = check_tick_rate(rate)
     for name in ("N", "V"):
         if not math.isfinite(p[name]):
@@ -347,7 +347,7 @@ def slip_mode_growth(p, r):
 
 
 def _higher(rate):
-    from ..devices import TICK_RATE_RANGE
+    from shapedisplay.table.devices import TICK_RATE_RANGE
     return [min(2 * rate, TICK_RATE_RANGE[1]), min(4 * rate, TICK_RATE_RANGE[1])]
 
 
@@ -386,8 +386,8 @@ def run_case(case: Case, quick: bool) -> dict:
 
 
 def _run_bad(p):
-    from ..compile import compile_heightfield
-    from ..sources import from_array
+    from shapedisplay.author.compile import compile_heightfield
+    from shapedisplay.author.sources import from_array
     h = p.get("heights")
     if h is not None:
         arr = {"nan": np.array([[0.0, np.nan, 0.0]]), "inf": np.array([[0.0, np.inf, 0.0]]),
@@ -502,11 +502,11 @@ def _run_pad_case(case, rec, quick):
 
 
 def _run_table_case(case, rec, quick):
-    from ..compile import CompileOptions, compile_heightfield
-    from ..forces import MappingOptions
-    from ..runtime.cursor import CursorPath
-    from ..runtime.renderer import Renderer
-    from ..sources import step_edge
+    from shapedisplay.author.compile import CompileOptions, compile_heightfield
+    from shapedisplay.author.forces import MappingOptions
+    from shapedisplay.render.cursor import CursorPath
+    from shapedisplay.render.renderer import Renderer
+    from shapedisplay.author.sources import step_edge
     p = case.params
     dev = _device(p)
     hf = step_edge(p["step_mm"] * 1e-3, (0.04, 0.004), 2e-4)

@@ -31,7 +31,7 @@ import time
 from pathlib import Path
 from urllib.parse import parse_qs
 
-from ..errors import InputError, ShapeDisplayError
+from shapedisplay.errors import InputError, ShapeDisplayError
 
 WEB = Path(__file__).resolve().parent / "web"
 #: Files served under /static/ (nothing else from disk is ever served).
@@ -97,8 +97,8 @@ class Studio:
     # -------------------------------------------------------------- compile + broadcast
     def compile_and_prepare(self) -> bool:
         """Compile (in a worker thread) and prepare everything the page will fetch for a new table."""
-        from .views import channel_range, colour_map_png
-        from .wasm import table_payload
+        from shapedisplay.studio.views import channel_range, colour_map_png
+        from shapedisplay.studio.wasm import table_payload
         if not self.session.compile():
             return False
         cur = self.session.current
@@ -125,7 +125,7 @@ class Studio:
                 self.clients.discard(ws)
 
     def state(self) -> dict:
-        from .exports import formats
+        from shapedisplay.studio.exports import formats
         d = self.session.state()
         prep = self.prepared
         if prep is not None:
@@ -141,7 +141,7 @@ class Studio:
         return self.prepared["layout"], self.prepared["image"]
 
     def colour_map(self, channel: str) -> bytes:
-        from .views import colour_map_png
+        from shapedisplay.studio.views import colour_map_png
         prep = self.prepared
         if channel not in prep["maps"]:
             prep["maps"][channel] = colour_map_png(self.session.current.table, channel)
@@ -188,7 +188,7 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
         name = request.path_params["name"]
         if name not in STATIC:
             return PlainTextResponse("not found", status_code=404)
-        from ..runtime.wasm import WRAPPER
+        from shapedisplay.render.wasm import WRAPPER
         path = WRAPPER if name == "sd_wasm.js" else WEB / name
         body = path.read_text(encoding="utf-8").replace("{{TOKEN}}", token)   # module imports carry the token
         return Response(body, media_type=STATIC[name], headers={"Cache-Control": "no-store"})
@@ -205,7 +205,7 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
                         headers={"Content-Disposition": f'attachment; filename="{session.source.stem}.npz"'})
 
     async def runtime_wasm(request):
-        from .wasm import module_bytes
+        from shapedisplay.studio.wasm import module_bytes
         loop = asyncio.get_running_loop()
         try:
             data = await loop.run_in_executor(None, module_bytes)
@@ -250,7 +250,7 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
         return JSONResponse({"saved": session.source.name})
 
     async def export(request):
-        from .exports import export_bytes
+        from shapedisplay.studio.exports import export_bytes
         fmt = request.path_params["fmt"]
         try:
             cur = need_table()
@@ -262,7 +262,7 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
                         headers={"Content-Disposition": f'attachment; filename="{name}"'})
 
     async def snapshot(request):
-        from .views import snapshot_png
+        from shapedisplay.studio.views import snapshot_png
         try:
             body = await _body(request)
             cur = need_table()

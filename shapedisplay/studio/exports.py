@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import unknown_key
+from shapedisplay.errors import unknown_key
 
 #: File suffix of each export format the library knows (new formats get ".FORMAT").
 SUFFIXES = {"table": ".npz", "json": ".json", "c": ".h", "bin": ".bin", "glb": ".glb", "friction-png": ".png",
@@ -12,13 +12,13 @@ SUFFIXES = {"table": ".npz", "json": ".json", "c": ".h", "bin": ".bin", "glb": "
 
 def formats() -> list[str]:
     """Every format the page offers: the table itself and each of ``shapedisplay export``."""
-    from ..exchange import FORMATS
+    from shapedisplay.exchange import FORMATS
     return ["table", *FORMATS]
 
 
 def export_bytes(table, fmt: str, out_dir: Path, stem: str) -> tuple[str, bytes]:
     """Write ``table`` as ``fmt`` to ``out_dir/STEM.SUFFIX`` and return (file name, bytes)."""
-    from ..exchange import export_table
+    from shapedisplay.exchange import export_table
     if fmt not in formats():
         raise unknown_key("export format", fmt, formats())
     out_dir = Path(out_dir)

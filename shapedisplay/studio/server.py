@@ -7,7 +7,7 @@ import socket
 import sys
 from pathlib import Path
 
-from ..errors import InputError, require
+from shapedisplay.errors import InputError, require
 
 LOOPBACK = "127.0.0.1"
 #: The port the studio listens on unless told otherwise; when it is taken, the next free one of
@@ -41,9 +41,9 @@ def serve(source, device=None, port: int | None = None, host: str = LOOPBACK, al
     require("starlette", "studio", "the studio")
     uvicorn = require("uvicorn", "studio", "the studio")
     require("watchfiles", "studio", "the studio")
-    from .app import build_app
-    from .session import Session
-    from .wasm import check_model
+    from shapedisplay.studio.app import build_app
+    from shapedisplay.studio.session import Session
+    from shapedisplay.studio.wasm import check_model
 
     check_model(model)
 

@@ -21,8 +21,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import FileFormatError, InputError, ShapeDisplayError, unknown_key
-from ..sources import source_kind
+from shapedisplay.errors import FileFormatError, InputError, ShapeDisplayError, unknown_key
+from shapedisplay.author.sources import source_kind
 
 #: Largest scene text the page may save, bytes.
 MAX_SCENE_BYTES = 1 << 20
@@ -72,7 +72,7 @@ class Session:
     out_dir : Path
         The only folder (besides the scene file itself) the studio writes to.
     source_options : dict
-        Options of an image or mesh source (as :func:`shapedisplay.sources.load_source` takes).
+        Options of an image or mesh source (as :func:`shapedisplay.author.sources.load_source` takes).
     """
 
     source: Path
@@ -91,7 +91,7 @@ class Session:
         self.kind = source_kind(src)
         self.source = src.resolve()
         self.root = self.source.parent
-        from ..scene.spec import is_device_path
+        from shapedisplay.author.scene.spec import is_device_path
         if self.device is not None and is_device_path(self.device):
             dev = Path(self.device)
             dev = dev if dev.is_absolute() else Path.cwd() / dev
@@ -110,7 +110,7 @@ class Session:
 
     def save_source_text(self, text: str) -> None:
         """Replace the scene text atomically (the page's editor); the file watcher recompiles."""
-        from ..atomic import write_text
+        from shapedisplay.atomic import write_text
         if self.kind != "scene":
             raise InputError(f"studio source '{self.source.name}' is a {self.kind}, not a scene: cannot save text")
         data = text.encode("utf-8")
@@ -135,7 +135,7 @@ class Session:
                 message = str(exc)
                 line = None
                 if self.kind == "scene":
-                    from .lines import error_line
+                    from shapedisplay.studio.lines import error_line
                     try:
                         text = self.source.read_text(encoding="utf-8")
                         line = error_line(text, message)
@@ -148,21 +148,21 @@ class Session:
             return True
 
     def _compile_source(self):
-        from ..compile import compile_heightfield, format_report
+        from shapedisplay.author.compile import compile_heightfield, format_report
         if self.kind == "table":
-            from ..table import FrictionTable
+            from shapedisplay.table.model import FrictionTable
             table = FrictionTable.load(self.source)
             report = table.meta.get("report") or {}
             return table, report, (format_report(report) if report.get("grid") else "")
         if self.kind in ("scene", "svg"):
-            from ..scene import compile_scene, format_widget_report
+            from shapedisplay.author.scene import compile_scene, format_widget_report
             device = self._device() if self.device else None
             result = compile_scene(self.source, device=device, confine=True)
             report_text = format_report(result.report) + "\n" + format_widget_report(result.report)
             return result.table, result.report, report_text
-        from ..sources import load_source
+        from shapedisplay.author.sources import load_source
         if self.kind == "mesh":
-            from ..scene.widgets import check_mesh_confined
+            from shapedisplay.author.scene.widgets import check_mesh_confined
             check_mesh_confined(self.source, f"studio source '{self.source.name}'")
         hf = load_source(self.source, **self.source_options)
         result = compile_heightfield(hf, self._device())
@@ -171,8 +171,8 @@ class Session:
     def _device(self):
         """The ``--device`` profile: a file checked to lie under the folder, or a bundled name
         (never a file of the current directory that happens to have that name)."""
-        from ..devices import BUNDLED_DEVICES, load_device
-        from ..scene.spec import is_device_path
+        from shapedisplay.table.devices import BUNDLED_DEVICES, load_device
+        from shapedisplay.author.scene.spec import is_device_path
         if self.device is None or is_device_path(self.device):
             return load_device(self.device)
         bundled = BUNDLED_DEVICES / f"{self.device}.toml"

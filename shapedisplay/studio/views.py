@@ -10,7 +10,7 @@ import io
 
 import numpy as np
 
-from ..errors import InputError, unknown_key
+from shapedisplay.errors import InputError, unknown_key
 
 #: Viridis at 16 evenly spaced points (the preview's default colour map), 8-bit RGB.
 VIRIDIS = np.array([(68, 1, 84), (72, 26, 108), (71, 47, 125), (65, 68, 135), (57, 86, 140), (49, 104, 142),
@@ -61,7 +61,7 @@ def check_stroke(stroke) -> dict:
     (``viewer.TRACE_ARRAYS``) and whose values are flat lists of numbers; what
     the numbers must satisfy (finite, equal lengths, ...) the trace checks.
     """
-    from ..viewer import TRACE_ARRAYS
+    from shapedisplay.viewer import TRACE_ARRAYS
     if not isinstance(stroke, dict):
         raise InputError(f"snapshot `stroke` must be a JSON object of arrays (got {type(stroke).__name__})")
     out = {}
@@ -86,7 +86,7 @@ def snapshot_png(table, channel: str = "normal_force", stroke: dict | None = Non
     """
     from PIL import Image
 
-    from .. import viewer
+    from shapedisplay import viewer
     arrays = check_stroke(stroke) if stroke else None     # a malformed stroke is refused before any work
     model = viewer.model_from_table(table)
     trace = None

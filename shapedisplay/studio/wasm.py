@@ -1,7 +1,7 @@
 """The WebAssembly C runtime for the studio page, and tables as it loads them.
 
 The page plays tables with the C runtime compiled to WebAssembly
-(``runtime_c/wasm/sd_runtime.wasm``, built by ``make -C runtime-c
+(``engine/wasm/sd_runtime.wasm``, built by ``make -C runtime-c
 wasm-package`` and shipped in the package, with its JavaScript wrapper
 ``sd_wasm.js``): the same C sources as firmware. There is no renderer written
 in JavaScript.
@@ -9,8 +9,8 @@ in JavaScript.
 :func:`table_payload` gives the module a table: its binary image
 (``shapedisplay export --format bin``, validated and bound in place by
 ``sd_image_load``), the rates, policy and model the Python
-:class:`~shapedisplay.runtime.Renderer` resolves for it, and the pad
-parameters of every model the page offers (:data:`~shapedisplay.runtime.native.C_MODELS`)
+:class:`~shapedisplay.render.Renderer` resolves for it, and the pad
+parameters of every model the page offers (:data:`~shapedisplay.render.native.C_MODELS`)
 as the Python model classes derive them: the image carries only the basic pad
 parameters, so the page hands a model's whole block to the module when it
 switches to it (``sd_wasm_pad_block``, then ``sd_wasm_configure``).
@@ -20,7 +20,7 @@ from __future__ import annotations
 import base64
 import sys
 
-from ..errors import InputError, MissingDependencyError, ShapeDisplayError
+from shapedisplay.errors import InputError, MissingDependencyError, ShapeDisplayError
 
 _MODULE: bytes | None = None
 
@@ -29,7 +29,7 @@ def module_bytes() -> bytes:
     """The shipped WebAssembly module (a warning if it was built from other C sources)."""
     global _MODULE
     if _MODULE is None:
-        from ..runtime.wasm import MODULE, is_current
+        from shapedisplay.render.wasm import MODULE, is_current
         if not MODULE.is_file():
             raise MissingDependencyError(f"the studio needs the WebAssembly C runtime {MODULE}; "
                                          "build it with: make -C runtime-c wasm-package")
@@ -49,24 +49,24 @@ def table_payload(table, model: str = "exact") -> tuple[dict, bytes]:
         ``grid`` (rows, cols, dx, dy, x0, y0); ``channels`` (stored renderer
         channels: name and slot); ``tick_rate``, ``audio_rate`` (Hz),
         ``policy`` and ``model`` (the C runtime's codes) as the Python
-        :class:`~shapedisplay.runtime.Renderer` resolves them for this table
+        :class:`~shapedisplay.render.Renderer` resolves them for this table
         (the one place they are validated); ``out_names`` (the renderer's
         per-tick outputs, in C order); ``cursor_gain`` (m/(N s), the device's
         alpha); ``bytes`` (image length); ``models``: for each model the page
-        offers, in :data:`~shapedisplay.runtime.native.C_MODELS` order,
+        offers, in :data:`~shapedisplay.render.native.C_MODELS` order,
         ``{"id": C model id, "pad": base64}`` with ``pad`` the model's
-        :data:`~shapedisplay.runtime.layouts.PAD_PARAMS` record for this
+        :data:`~shapedisplay.render.layouts.PAD_PARAMS` record for this
         table's device (``get_model(name, device).params``) as little-endian
         float64, one per field in field order (integers as whole numbers;
         ``substep`` may be inf, which JSON cannot hold), or ``{"id": ...,
         "error": message}`` for a model that refuses the device;
         ``pad_fields`` (the field names).
     image : bytes
-        The flat binary table image (:func:`shapedisplay.runtime.image.to_image`).
+        The flat binary table image (:func:`shapedisplay.render.image.to_image`).
     """
-    from ..runtime import Renderer
-    from ..runtime.image import SLOTS, to_image
-    from ..runtime.layouts import PAD_PARAMS
+    from shapedisplay.render import Renderer
+    from shapedisplay.render.image import SLOTS, to_image
+    from shapedisplay.render.layouts import PAD_PARAMS
     check_model(model)
     py = Renderer(table, model=model)
     image = to_image(table, py.device)
@@ -80,8 +80,8 @@ def table_payload(table, model: str = "exact") -> tuple[dict, bytes]:
 
 
 def check_model(model: str) -> str:
-    """``model`` if the page offers it (:data:`~shapedisplay.runtime.native.C_MODELS`), else an error."""
-    from ..runtime.native import C_MODELS
+    """``model`` if the page offers it (:data:`~shapedisplay.render.native.C_MODELS`), else an error."""
+    from shapedisplay.render.native import C_MODELS
     if model not in C_MODELS:
         raise InputError(f"`model` must be one of {', '.join(C_MODELS)} for the page's C runtime (got {model!r})")
     return model
@@ -91,9 +91,9 @@ def model_blocks(device) -> dict:
     """Each offered model's id and pad parameters for ``device`` (see :func:`table_payload`)."""
     import numpy as np
 
-    from ..runtime.layouts import PAD_PARAMS
-    from ..runtime.models import MODEL_IDS, get_model
-    from ..runtime.native import C_MODELS
+    from shapedisplay.render.layouts import PAD_PARAMS
+    from shapedisplay.render.models import MODEL_IDS, get_model
+    from shapedisplay.render.native import C_MODELS
     out = {}
     for name in C_MODELS:
         try:

@@ -16,14 +16,14 @@ loads neither pyvista nor VTK.
 """
 from __future__ import annotations
 
-from .draw import VIEWS, Preview, draw_stride, fit_in_frame, frame_coordinates, render
-from .model import (
+from shapedisplay.viewer.draw import VIEWS, Preview, draw_stride, fit_in_frame, frame_coordinates, render
+from shapedisplay.viewer.model import (
     ALIASES, AUTO_RELIEF_FRACTION, DERIVED, MAX_AUTO_EXAGGERATION, STRIP_FRACTION, TRACE_ARRAYS, WALL_SLOPE,
     PreviewModel, Trace, auto_exaggeration, check_trace, envelope_indices, load_model, load_trace,
     model_from_heightfield, model_from_table, nice_number, parse_exaggeration, parse_window_size,
     scene_forces, slope_of, stroke_segments, widgets_of_scene,
 )
-from .offscreen import OFFSCREEN_WINDOWS, check_offscreen, has_display
+from shapedisplay.viewer.offscreen import OFFSCREEN_WINDOWS, check_offscreen, has_display
 
 __all__ = [
     "VIEWS", "Preview", "draw_stride", "fit_in_frame", "frame_coordinates", "render",

@@ -14,10 +14,10 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import InputError, require, unknown_key
-from .model import (WALL_SLOPE, PreviewModel, Trace, auto_exaggeration, check_trace, envelope_indices, nice_number,
+from shapedisplay.errors import InputError, require, unknown_key
+from shapedisplay.viewer.model import (WALL_SLOPE, PreviewModel, Trace, auto_exaggeration, check_trace, envelope_indices, nice_number,
                     parse_exaggeration, parse_window_size, stroke_segments)
-from .offscreen import load_pyvista
+from shapedisplay.viewer.offscreen import load_pyvista
 
 #: Most surface samples drawn (larger grids are drawn at a stride; read-outs use every sample).
 MAX_DRAWN_SAMPLES = 1_000_000
@@ -152,7 +152,7 @@ class Preview:
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write the frame to ``path`` as PNG, atomically."""
-        from ..atomic import atomic_path
+        from shapedisplay.atomic import atomic_path
         path = Path(path)
         if path.suffix.lower() != ".png":
             raise InputError(f"output '{path}': preview pictures are PNG files (name must end in .png)")
@@ -552,7 +552,7 @@ def _draw_chart(pv, pl, preview: Preview, trace: Trace, widgets: list) -> None:
         xlabel = "distance along stroke [mm]"
     chart = pv.Chart2D(size=(0.9, 0.92), loc=(0.02, 0.04), x_label=xlabel, y_label="force [N]")
     if xlabel.startswith("distance") and widgets:   # the widgets crossed: a band below the curves
-        from ..strokes import widget_spans
+        from shapedisplay.render.strokes import widget_spans
         spans = widget_spans(trace.x, trace.y, widgets)
         top = float(max(np.max(trace.normal_force), np.max(trace.friction_force), 0.0)) or 1.0
         level = min(float(np.min(trace.friction_force)), 0.0) - 0.1 * top

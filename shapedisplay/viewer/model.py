@@ -4,9 +4,9 @@
 what the compiler left out and widget outlines, on one regular grid;
 :class:`Trace` is a played stroke. The channels are not computed here: a
 table's come from the table, a scene's from the scene compiler
-(:func:`shapedisplay.scene.compiler.scene_force_channels`), and the friction
+(:func:`shapedisplay.author.scene.compiler.scene_force_channels`), and the friction
 limits mu_s N and mu_k N from the renderer's own derivation
-(:func:`shapedisplay.runtime.renderer.friction_limits`). This module adds only
+(:func:`shapedisplay.render.renderer.friction_limits`). This module adds only
 what is drawn (slope, walls, |F_lat|) and the choices of the drawing
 (exaggeration, stroke segments, chart envelope).
 
@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FileFormatError, InputError, ShapeDisplayError, TableError, unknown_key
+from shapedisplay.errors import FileFormatError, InputError, ShapeDisplayError, TableError, unknown_key
 
 #: Slope |grad h| at and above which a sample counts as a wall (45 degrees).
 WALL_SLOPE = 1.0
@@ -64,7 +64,7 @@ TRACE_ARRAYS = {
 # ---------------------------------------------------------------------------------------------
 @dataclass
 class Trace:
-    """A played stroke, as written by ``shapedisplay.sinks.write_trace``.
+    """A played stroke, as written by ``shapedisplay.render.sinks.write_trace``.
 
     Attributes
     ----------
@@ -90,7 +90,7 @@ class Trace:
     source: str = ""
 
     def __post_init__(self):
-        from ..sinks import check_trace_arrays
+        from shapedisplay.render.sinks import check_trace_arrays
         for name in TRACE_ARRAYS:
             a = np.asarray(getattr(self, name)).ravel()
             setattr(self, name, a if name == "state" else a.astype(np.float64))
@@ -112,8 +112,8 @@ class Trace:
 
 
 def load_trace(path: str | os.PathLike) -> Trace:
-    """Read a trace ``.npz`` written by ``shapedisplay.sinks.write_trace`` (through its bounded reader)."""
-    from ..sinks import read_trace
+    """Read a trace ``.npz`` written by ``shapedisplay.render.sinks.write_trace`` (through its bounded reader)."""
+    from shapedisplay.render.sinks import read_trace
 
     d = read_trace(path, required=(*TRACE_ARRAYS,))
     if "table_checksum" not in d:
@@ -239,8 +239,8 @@ def _bilinear(arr: np.ndarray, fr, fc):
 
 def slope_of(heights: np.ndarray, dx: float, dy: float) -> np.ndarray:
     """|grad h| of ``heights`` (rows, cols) metres, as the compiler's default gradient computes it."""
-    from ..gradients import central, slope_magnitude
-    from ..heightfield import HeightField
+    from shapedisplay.author.gradients import central, slope_magnitude
+    from shapedisplay.author.heightfield import HeightField
     return slope_magnitude(*central(HeightField(np.asarray(heights, dtype=np.float64), dx, dy)))
 
 
@@ -252,7 +252,7 @@ def _widen(model_rows: dict, y0: float, length: float) -> tuple[np.ndarray, dict
 
 
 def model_from_heightfield(hf, title: str | None = None) -> PreviewModel:
-    """A preview of a :class:`~shapedisplay.heightfield.HeightField`: height, slope, walls."""
+    """A preview of a :class:`~shapedisplay.author.heightfield.HeightField`: height, slope, walls."""
     h = hf.heights
     slope = slope_of(h, hf.dx, hf.dy)
     fields = {"height": h, "slope": slope, "walls": (slope >= WALL_SLOPE).astype(np.float64)}
@@ -272,7 +272,7 @@ def _height_mapping(meta: dict):
     raw = meta.get("mapping") if isinstance(meta, dict) else None
     if not isinstance(raw, dict) or raw.get("n_gain") is None:
         return None
-    from ..forces import MappingOptions
+    from shapedisplay.author.forces import MappingOptions
     try:
         mapping = MappingOptions.from_json(raw)
     except (ShapeDisplayError, TypeError, ValueError):
@@ -283,7 +283,7 @@ def _height_mapping(meta: dict):
 
 
 def model_from_table(table, title: str | None = None, widgets: list | None = None) -> PreviewModel:
-    """A preview of a compiled :class:`~shapedisplay.table.FrictionTable`.
+    """A preview of a compiled :class:`~shapedisplay.table.model.FrictionTable`.
 
     The relief is the height the normal force encodes when the table's
     ``meta["mapping"]`` gives the gain (h = (N - n_base) / n_gain); otherwise
@@ -292,7 +292,7 @@ def model_from_table(table, title: str | None = None, widgets: list | None = Non
     ``stored``. Widget outlines come from ``widgets`` or, when absent, from
     ``meta["widgets"]`` (``[{"id", "x0", "y0", "x1", "y1"}]`` metres).
     """
-    from ..table import CHANNELS
+    from shapedisplay.table.model import CHANNELS
 
     g = table.grid
     x = g.x0 + g.dx * np.arange(g.cols)
@@ -362,7 +362,7 @@ def _derive_forces(fields: dict, units: dict, labels: dict, notes: list, frictio
     mu = {k: friction.get(k) for k in ("mu_s", "mu_k")} if isinstance(friction, dict) else {}
     have_mu = all(isinstance(v, (int, float)) and math.isfinite(v) for v in mu.values()) and len(mu) == 2
     if have_mu and "normal_force" in fields and not {"breakaway_force", "kinetic_force"} <= set(fields):
-        from ..runtime.renderer import friction_limits
+        from shapedisplay.render.renderer import friction_limits
         limits = dict(zip(("breakaway_force", "kinetic_force"),
                           friction_limits(fields, float(mu["mu_s"]), float(mu["mu_k"]))))
         for name, mu_key in (("breakaway_force", "mu_s"), ("kinetic_force", "mu_k")):
@@ -375,7 +375,7 @@ def _derive_forces(fields: dict, units: dict, labels: dict, notes: list, frictio
         if name in DERIVED:
             units[name], labels[name] = DERIVED[name]
         elif name not in units:
-            from ..table import CHANNELS
+            from shapedisplay.table.model import CHANNELS
             units[name], labels[name] = CHANNELS[name][0], name.replace("_", " ")
 
 
@@ -383,11 +383,11 @@ def scene_forces(scene) -> tuple[dict, list]:
     """Force channels of a scene as its compiled table stores them, densely (SI).
 
     Returns ``({name: ndarray (rows, cols)}, notes)``: the channels of
-    :func:`shapedisplay.scene.compiler.scene_force_channels`, plus
+    :func:`shapedisplay.author.scene.compiler.scene_force_channels`, plus
     ``breakaway_force`` and ``kinetic_force`` from the device's friction as
-    the renderer derives them (:func:`shapedisplay.runtime.renderer.friction_limits`).
+    the renderer derives them (:func:`shapedisplay.render.renderer.friction_limits`).
     """
-    from ..scene.compiler import scene_force_channels
+    from shapedisplay.author.scene.compiler import scene_force_channels
     fields = scene_force_channels(scene)
     friction = {"mu_s": scene.device.friction.mu_s, "mu_k": scene.device.friction.mu_k}
     notes: list = []
@@ -434,7 +434,7 @@ def widgets_of_scene(scene) -> list:
 
 def _is_trace(path) -> bool:
     """True if ``path`` holds a trace's entries and no table header (read through the bounded reader)."""
-    from ..container import NpzReader
+    from shapedisplay.table.container import NpzReader
     try:
         with NpzReader(path, f"input '{path}'", None, max_entries=64, error=FileFormatError) as z:
             return "header" not in z and "table_checksum" in z
@@ -447,16 +447,16 @@ def load_model(path: str | os.PathLike, scene: str | os.PathLike | None = None, 
 
     ``scene`` adds the widget outlines and ids of a scene file to a table.
     ``source_opts`` (``size``, ``height_range``, ``resolution``, ... ; None
-    dropped) go to :func:`shapedisplay.sources.load_source`.
+    dropped) go to :func:`shapedisplay.author.sources.load_source`.
     """
     path = Path(os.fspath(path))
-    from ..sources import load_source, source_kind
+    from shapedisplay.author.sources import load_source, source_kind
     kind = source_kind(path)
     opts = {k: v for k, v in source_opts.items() if v is not None}
     if kind in ("table", "scene", "svg") and opts:
         raise InputError(f"{kind} '{path}': source options {sorted(opts)} apply to images and meshes only")
     if kind == "table":
-        from ..table import FrictionTable
+        from shapedisplay.table.model import FrictionTable
         try:
             table = FrictionTable.load(path)
         except TableError:
@@ -472,7 +472,7 @@ def load_model(path: str | os.PathLike, scene: str | os.PathLike | None = None, 
         return model_from_table(table, title=path.name, widgets=widgets)
     if kind in ("scene", "svg"):      # a scene file or an SVG mockup of one
         sc = _load_scene(path)
-        from ..scene import scene_heightfield
+        from shapedisplay.author.scene import scene_heightfield
         hf = scene_heightfield(sc)
         model = model_from_heightfield(hf, title=getattr(sc, "name", "") or path.name)
         forces, notes = scene_forces(sc)
@@ -491,7 +491,7 @@ def _load_scene(path):
     path = Path(os.fspath(path))
     if not path.is_file():
         raise FileFormatError(f"scene '{path}': no such file")
-    from ..scene import load_scene
+    from shapedisplay.author.scene import load_scene
     return load_scene(path)
 
 

@@ -12,7 +12,7 @@ import os
 import subprocess
 import sys
 
-from ..errors import ShapeDisplayError, require
+from shapedisplay.errors import ShapeDisplayError, require
 
 #: Window classes tried for off-screen rendering without a display, in order.
 OFFSCREEN_WINDOWS = ("vtkEGLRenderWindow", "vtkOSOpenGLRenderWindow")

@@ -35,8 +35,8 @@ CASES = [
 
 
 def play(case):
-    from shapedisplay.runtime import Renderer, parse_stroke
-    from shapedisplay.table import FrictionTable
+    from shapedisplay.render import Renderer, parse_stroke
+    from shapedisplay.table.model import FrictionTable
     name, stroke, model, policy, rate = case
     r = Renderer(FrictionTable.load(HERE / name), model=model, burst_policy=policy, tick_rate=rate)
     return r.render(parse_stroke(stroke, rate))

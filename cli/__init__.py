@@ -1,4 +1,0 @@
-"""Command-line front end of shapedisplay (installed as ``shapedisplay_cli``).
-
-Commands parse arguments and call the library; they hold no logic of their own.
-"""

@@ -1,0 +1,581 @@
+"""Height-map pictures and arrays: read and written through Pillow and numpy.
+
+Functions for turning a picture file into one channel of numbers of shape
+(rows, cols), *picture order* (row 0 is the top edge of the picture as it
+is shown), and back. :mod:`shapedisplay.author.sources` turns these values into
+heights and puts them on the height-field grid (row index growing with y,
+see :func:`shapedisplay.author.heightfield.grid_from_picture`).
+
+What is read
+------------
+Every format Pillow reads: PNG (1/2/4/8/16-bit grey, grey+alpha, RGB, RGBA,
+palette with or without transparency, interlaced or not), JPEG, TIFF
+(8/16-bit, 32-bit integer, 32-bit float), BMP, GIF, WebP. ``.npy`` arrays of
+shape (rows, cols) or (cols,) are read with numpy.
+
+* **16-bit grey PNG**, the usual height-map file, is decoded by the
+  package itself where it can (libdeflate, C unfiltering; the same pixels,
+  about twice as fast); anything else in such a file is left to Pillow.
+* **Integer pictures** keep their codes: ``full_scale`` is 255 for 8-bit
+  channels and 65535 for 16-bit ones (1/2/4-bit grey is widened to 8 bits by
+  Pillow: 0 and 255 stay the ends).
+* **Float pictures** (32-bit float TIFF) are data in a physical unit, not
+  gray values: ``full_scale`` is None.
+* **Colour** is reduced to one channel chosen by ``channel``:
+  ``luminance`` (default) is the ITU-R BT.709 luma of the stored (gamma
+  encoded) values, ``Y' = 0.2126 R' + 0.7152 G' + 0.0722 B'``, the weights of
+  HD video and sRGB; ``r``, ``g``, ``b``, ``a`` pick one channel. A palette
+  picture is expanded through its palette first.
+* **Alpha** (grey+alpha, RGBA, palette transparency) becomes a mask: samples
+  with alpha 0 are outside the shape. ``channel="a"`` uses alpha as heights
+  instead (no mask).
+* **Normal maps**: a colour picture whose pixels decode as unit vectors
+  ``n = 2 c / full_scale - 1`` pointing out of the surface (``nz > 0``, the
+  blue-violet look of a tangent-space normal map) is recognised;
+  ``channel="normal"`` returns its slopes for integration, any other reading
+  of such a picture is refused with that advice unless a channel is named.
+
+Limits
+------
+The picture size is read from the file header (Pillow opens lazily) and
+checked against :data:`shapedisplay.author.heightfield.MAX_SAMPLES` and
+:data:`~shapedisplay.author.heightfield.MAX_SIDE` (samples a side) *before* any
+pixel data is decoded, so an oversized or hostile file (a decompression
+bomb, a picture of 1 x 100,000,000 pixels) is refused without exhausting
+memory.
+
+Pillow reads 16-bit-per-channel RGB/RGBA PNG at 8 bits per channel; such a
+file is read that way with a warning that says so (convert it to 16-bit grey
+to keep the depth).
+
+Written pictures are 16-bit grey PNG through Pillow, with ``tEXt`` chunks
+recording the height range and spacing.
+"""
+from __future__ import annotations
+
+import os
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from shapedisplay.atomic import atomic_path
+from shapedisplay.errors import FileFormatError, InputError, unknown_key
+from shapedisplay.author.heightfield import check_grid_size
+
+#: Suffixes read as pictures through Pillow.
+PICTURE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".gif", ".webp")
+#: Channel choices; "normal" integrates a tangent-space normal map.
+CHANNELS = ("luminance", "r", "g", "b", "a", "normal")
+#: ITU-R BT.709 luma weights of R', G', B'.
+BT709 = (0.2126, 0.7152, 0.0722)
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+#: How a picture beyond the size limits gets within them (one sample per pixel: no option resamples it).
+PICTURE_FIX = "crop or resample the picture"
+
+
+class PictureWarning(UserWarning):
+    """A picture was read with a loss the user should know about (bit depth, frames)."""
+
+
+@dataclass(frozen=True)
+class Picture:
+    """One channel of a picture file, in picture order (row 0 = top edge).
+
+    Attributes
+    ----------
+    values : ndarray of shape (rows, cols)
+        uint8/uint16 codes of an integer picture, float64 for luminance of a
+        colour picture (still on the 0..full_scale scale), float32/float64
+        for float data.
+    full_scale : float or None
+        Code of full scale (255, 65535) for integer pictures; None for float
+        data (values in a physical unit).
+    mask : ndarray of shape (rows, cols), bool, or None
+        True where the picture is opaque (alpha > 0); None without alpha.
+    slopes : tuple of two ndarrays or None
+        ``channel="normal"``: (dh/dx, dh/dy) per pixel, picture order, x to the
+        right and y *up* the picture.
+    description : str
+        Mode, bit depth and channel, for reports ("RGBA 8-bit, luminance BT.709").
+    notes : list of str
+        What was dropped or converted (alpha used as mask, frames ignored...).
+    """
+
+    values: np.ndarray
+    full_scale: float | None
+    mask: np.ndarray | None = None
+    slopes: tuple | None = None
+    description: str = ""
+    notes: list = field(default_factory=list)
+
+
+# ----------------------------------------------------------------- reading
+def _open(path: Path):
+    from PIL import Image
+    if not path.exists():
+        raise FileFormatError(f"image '{path}': no such file")
+    if path.is_dir():
+        raise FileFormatError(f"image '{path}': is a directory, not a file")
+    try:
+        with warnings.catch_warnings():
+            # Pillow warns above its quiet limit; the caller checks the size against ours next
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            return Image.open(path)
+    except PermissionError as exc:
+        raise FileFormatError(f"image '{path}': unreadable ({exc.strerror or exc})") from None
+    except Image.DecompressionBombError as exc:   # Pillow's own header check (its limit is below ours)
+        raise InputError(f"image '{path}': refused before decoding: {exc}") from None
+    except Exception as exc:  # UnidentifiedImageError, SyntaxError (broken header), OSError
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise FileFormatError(f"image '{path}': not a picture Pillow can read ({msg}); readable: "
+                              f"{', '.join(PICTURE_SUFFIXES)} or .npy") from None
+
+
+def picture_info(path: str | os.PathLike) -> dict:
+    """Size, mode and bit depth from the file header alone.
+
+    Returns ``{"cols", "rows", "mode", "bit_depth", "format"}``; raises
+    :class:`InputError` for a picture larger than the sample limit (nothing
+    decoded yet).
+    """
+    path = Path(path)
+    with _open(path) as im:
+        cols, rows = im.size
+        if cols == 0 or rows == 0:
+            raise FileFormatError(f"image '{path}': empty image ({cols}x{rows} pixels)")
+        check_grid_size(rows, cols, f"image '{path}'", PICTURE_FIX)
+        return {"cols": cols, "rows": rows, "mode": im.mode, "bit_depth": _bit_depth(im, path),
+                "format": im.format}
+
+
+def _bit_depth(im, path: Path) -> int:
+    """Bits per channel as stored in the file (PNG header read directly for 16-bit colour)."""
+    if im.format == "PNG":
+        with open(path, "rb") as fh:
+            head = fh.read(33)
+        if len(head) == 33 and head.startswith(PNG_SIGNATURE):
+            return head[24]
+    if im.mode in ("I;16", "I;16B", "I;16L", "I;16N"):
+        return 16
+    if im.mode in ("I", "F"):
+        return 32
+    return 8
+
+
+def read_picture(path: str | os.PathLike, channel: str | None = None) -> Picture:
+    """Read one channel of a picture (see the module docstring).
+
+    Parameters
+    ----------
+    path : path-like
+        Any picture Pillow reads (PNG, JPEG, TIFF, ...).
+    channel : {"luminance", "r", "g", "b", "a", "normal"} or None
+        Which channel of a colour picture; None = luminance, refusing a
+        picture that looks like a normal map. Grey pictures take None,
+        "luminance" (the grey value) or "a" (their alpha).
+
+    Returns
+    -------
+    Picture
+
+    Raises
+    ------
+    FileFormatError
+        Missing, unreadable, truncated or corrupt file; a channel the picture
+        does not have.
+    InputError
+        The header announces a picture too large to hold in memory; a normal
+        map read without ``channel``.
+    """
+    path = Path(path)
+    if channel is not None and channel not in CHANNELS:
+        raise unknown_key("image channel", channel, CHANNELS)
+    pixels = _gray16_png_pixels(path)
+    if pixels is not None:
+        return _channel(_Gray16, path, channel, 16, [], pixels)
+    with _open(path) as im:
+        cols, rows = im.size
+        if cols == 0 or rows == 0:
+            raise FileFormatError(f"image '{path}': empty image ({cols}x{rows} pixels)")
+        check_grid_size(rows, cols, f"image '{path}'", PICTURE_FIX)     # before any pixel is decoded
+        depth = _bit_depth(im, path)
+        notes = []
+        if getattr(im, "n_frames", 1) > 1:
+            notes.append(f"first of {im.n_frames} frames used")
+        from PIL import Image
+        pixels, target = _decode_target(im)
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", Image.DecompressionBombWarning)   # our limit was checked
+                im.load()
+        except Exception as exc:   # truncated data, bad CRC, decoder errors
+            msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise FileFormatError(f"image '{path}': corrupt or truncated pixel data ({msg})") from None
+        if pixels is not None and im.im is not target:    # Pillow decoded into memory of its own
+            pixels = None
+        return _channel(im, path, channel, depth, notes, pixels)
+
+
+#: Modes Pillow can decode straight into a numpy array (grey 8 and 16 bits): numpy dtype of their pixels.
+_DIRECT_MODES = {"L": np.dtype(np.uint8), "I;16": np.dtype("<u2")}
+
+
+#: Pillow's default ``Image.MAX_IMAGE_PIXELS``: a 16-bit grey PNG larger than this is left to Pillow,
+#: whose header check warns above it and refuses above twice it (see :func:`_open`).
+PILLOW_QUIET_PIXELS = 89_478_485
+#: Chunks that change how a grey PNG's pixels read (transparency colour, animation): such files go to Pillow.
+_PIXEL_CHUNKS = (b"tRNS", b"acTL", b"fcTL", b"fdAT")
+
+
+def _gray16_png_pixels(path: Path):
+    """The pixels of a plain 16-bit grey PNG, read without Pillow, or None (Pillow then reads the file).
+
+    Height maps are mostly such files, and decoding them is most of reading
+    them: here the header and chunks are read directly (no Pillow import),
+    the image data is inflated by libdeflate (the ``deflate`` package;
+    about twice as fast as the zlib Pillow uses) and unfiltered by the
+    package's C kernels: a 4096x4096 noisy map in about 0.2 s instead of
+    0.35 s. Plain: non-interlaced, at least
+    :data:`shapedisplay.author.gradients.KERNEL_MIN_SIZE` pixels (a smaller picture
+    is read by Pillow, without building the C kernels for it), at most
+    :data:`PILLOW_QUIET_PIXELS` pixels, and
+    before the image data only ancillary chunks with valid CRCs, none of
+    :data:`_PIXEL_CHUNKS`. None for any other file, where ``deflate`` or the
+    C kernels are missing, or for data these do not take (truncated,
+    corrupt): Pillow then decodes the file as any other, and reports what is
+    wrong. Like Pillow, the image data chunks' CRCs are not checked; the zlib
+    stream's Adler-32 is. The size limit is checked from the header before
+    anything is decoded, as for any picture.
+    """
+    import struct
+    import zlib
+    try:
+        fh = open(path, "rb")
+    except OSError:
+        return None
+    with fh:
+        size = os.fstat(fh.fileno()).st_size
+        head = fh.read(33)
+        if len(head) < 33 or not head.startswith(PNG_SIGNATURE) or head[8:16] != b"\0\0\0\rIHDR" \
+                or zlib.crc32(head[12:29]) != int.from_bytes(head[29:33], "big"):
+            return None
+        cols, rows, depth, colour, compression, filtering, interlace = struct.unpack(">IIBBBBB", head[16:29])
+        if (depth, colour, compression, filtering, interlace) != (16, 0, 0, 0, 0) or not 0 < rows * cols \
+                <= PILLOW_QUIET_PIXELS:
+            return None
+        check_grid_size(rows, cols, f"image '{path}'", PICTURE_FIX)     # before any pixel is decoded
+        from shapedisplay.author.gradients import KERNEL_MIN_SIZE
+        if rows * cols < KERNEL_MIN_SIZE:
+            return None
+        parts, at = [], 33                                 # (file offset, length) of each IDAT chunk's data
+        while at + 12 <= size:
+            fh.seek(at)
+            head = fh.read(8)
+            length, kind = int.from_bytes(head[:4], "big"), head[4:]
+            if length + 12 > size - at:                    # a length past the end of the file: truncated
+                return None
+            if kind == b"IDAT":
+                parts.append((at + 8, length))
+            elif parts:                                    # the end of the image data
+                break
+            elif not 97 <= kind[0] <= 122 or kind in _PIXEL_CHUNKS or length > 1 << 20:
+                return None                                # critical, changes the pixels, or large: Pillow's
+            else:
+                body = fh.read(length + 4)
+                if zlib.crc32(kind + body[:length]) != int.from_bytes(body[length:], "big"):
+                    return None
+            at += 12 + length
+        if not parts:
+            return None
+        try:
+            import deflate
+        except ImportError:
+            return None
+        from shapedisplay.author import kernels as _kernels
+        if _kernels.c_kernels() is None:
+            return None
+        stream = bytearray(sum(n for _, n in parts))      # read once into one buffer: no joining copy
+        view, filled = memoryview(stream), 0
+        for offset, length in parts:
+            fh.seek(offset)
+            if fh.readinto(view[filled:filled + length]) != length:
+                return None
+            filled += length
+    try:
+        data = deflate.zlib_decompress(stream, rows * (2 * cols + 1))
+    except deflate.DeflateError:
+        return None
+    return _kernels.png_gray16(data, rows, cols)
+
+
+class _Gray16:
+    """What :func:`_channel` reads of a Pillow image, for a 16-bit grey PNG read without Pillow."""
+    mode = "I;16"
+
+
+def _decode_target(im):
+    """``(array, Pillow image core)``: a numpy array for Pillow to decode ``im`` into, or ``(None, None)``.
+
+    ``numpy.asarray`` of a Pillow image copies its pixels twice (``tobytes``
+    gathers encoded chunks, then joins them): for a 4096x4096 16-bit map
+    64 MiB of fresh memory and about 0.05 s. A grey picture is decoded
+    into an array mapped as the image's memory instead; the caller checks
+    that Pillow kept that memory (``im.im is core``) before using it.
+    """
+    dtype = _DIRECT_MODES.get(im.mode)
+    if dtype is None or getattr(im, "_im", True) is not None:
+        return None, None
+    from PIL import Image
+    cols, rows = im.size
+    pixels = np.empty((rows, cols), dtype=dtype)
+    try:
+        core = Image.frombuffer(im.mode, im.size, pixels, "raw", im.mode, 0, 1).im
+        im.im = core
+    except Exception:   # a Pillow without these hooks: decode the usual way
+        return None, None
+    return pixels, core
+
+
+def _channel(im, path: Path, channel: str | None, depth: int, notes: list, pixels=None) -> Picture:
+    mode = im.mode
+    where = f"image '{path}'"
+    if mode == "P":
+        im = im.convert("RGBA" if "transparency" in im.info else "RGB")
+        notes.append("palette expanded")
+        mode = im.mode
+    elif mode == "PA":
+        im, mode = im.convert("RGBA"), "RGBA"
+        notes.append("palette expanded")
+    elif mode in ("CMYK", "YCbCr", "LAB", "HSV", "RGBX", "RGBa"):
+        im, mode = im.convert("RGB"), "RGB"
+    elif mode == "La":
+        im, mode = im.convert("LA"), "LA"
+    elif mode == "1":
+        im, mode = im.convert("L"), "L"
+    elif mode == "I;16B" or mode == "I;16L" or mode == "I;16N":
+        im, mode = im.convert("I;16"), "I;16"
+    grey = mode in ("L", "LA", "I;16", "I", "F")
+    has_alpha = mode in ("LA", "RGBA")
+    colour = mode in ("RGB", "RGBA")
+    if not (grey or colour):
+        raise FileFormatError(f"{where}: picture mode {mode} is not supported; save it as grey or RGB(A)")
+    if colour and depth == 16:
+        warnings.warn(f"{where}: 16-bit-per-channel colour is read at 8 bits per channel (Pillow's limit); "
+                      f"save the height map as 16-bit grey to keep its depth", PictureWarning, stacklevel=3)
+        notes.append("16-bit colour read at 8 bits per channel")
+    arr = pixels if pixels is not None and mode == im.mode and im.mode in _DIRECT_MODES else np.asarray(im)
+    if mode == "I":
+        # 32-bit integer TIFF, or 16-bit data Pillow widened
+        full = 65535.0 if depth <= 16 else float(2 ** 32 - 1)
+        vmin = int(arr.min()) if arr.size else 0
+        if vmin < 0:
+            raise FileFormatError(f"{where}: signed 32-bit integer pixels (min {vmin}) are not supported; "
+                                  f"save the heights as 32-bit float TIFF or .npy")
+        arr = arr.astype(np.uint16) if full == 65535.0 else arr.astype(np.float64)
+    elif mode == "F":
+        return Picture(np.array(arr, dtype=np.float32), None, None, None, "32-bit float", notes)
+    else:
+        full = 65535.0 if mode == "I;16" else 255.0
+
+    if channel == "normal":
+        if not colour:
+            raise FileFormatError(f"{where}: `channel` 'normal' needs an RGB normal map (got a {mode} picture)")
+        slopes = _normal_slopes(arr[..., :3], full, where, strict=True)
+        return Picture(np.zeros(arr.shape[:2]), full, _mask(arr, has_alpha), slopes,
+                       f"{mode} {depth}-bit tangent-space normal map (+y green)", notes)
+    if channel == "a":
+        if not has_alpha:
+            raise FileFormatError(f"{where}: has no alpha channel (mode {mode}); choose luminance, r, g or b")
+        return Picture(np.ascontiguousarray(arr[..., -1]), full, None, None, f"{mode} {depth}-bit, alpha", notes)
+    if grey:
+        if channel in ("r", "g", "b"):
+            raise FileFormatError(f"{where}: is a grey picture (mode {mode}); `channel` '{channel}' needs colour "
+                                  f"(use luminance or omit it)")
+        values = np.ascontiguousarray(arr[..., 0] if has_alpha else arr)
+        desc = f"grey {depth}-bit" + (" + alpha (mask)" if has_alpha else "")
+    else:
+        rgb = arr[..., :3]
+        if channel is None and looks_like_normal_map(rgb, full):
+            raise InputError(
+                f"{where}: looks like a tangent-space normal map (pixels are unit vectors pointing out of the "
+                f"surface); pass `--channel normal` to integrate it into heights (Frankot-Chellappa), or name "
+                f"another channel (luminance, r, g, b) to use its values as heights")
+        if channel in ("r", "g", "b"):
+            values = np.ascontiguousarray(rgb[..., "rgb".index(channel)])
+            desc = f"{mode} {depth}-bit, channel {channel}"
+        else:
+            w = BT709
+            values = rgb[..., 0] * w[0] + rgb[..., 1] * w[1] + rgb[..., 2] * w[2]   # float64
+            desc = f"{mode} {depth}-bit, luminance (ITU-R BT.709)"
+        if has_alpha:
+            desc += " + alpha (mask)"
+    mask = _mask(arr, has_alpha)
+    if mask is not None:
+        notes.append(f"alpha used as mask: {int((~mask).sum())} transparent pixels are outside the shape")
+    return Picture(values, full, mask, None, desc, notes)
+
+
+def _mask(arr: np.ndarray, has_alpha: bool):
+    if not has_alpha:
+        return None
+    m = arr[..., -1] > 0
+    return None if m.all() else m
+
+
+def _normal_vectors(rgb: np.ndarray, full: float) -> np.ndarray:
+    return rgb.astype(np.float64) * (2.0 / full) - 1.0
+
+
+def looks_like_normal_map(rgb: np.ndarray, full: float) -> bool:
+    """True if most pixels decode as unit normals facing out of the surface.
+
+    Rule: with ``n = 2 c / full_scale - 1``, at least 95 % of the pixels have
+    ``| |n| - 1 | < 0.1`` and ``nz > 0``, and the mean ``nz`` exceeds 0.5 (a
+    flat area encodes as (128, 128, 255)). Photographs and screenshots fail
+    the unit-length test almost everywhere.
+    """
+    step = max(1, int(np.sqrt(rgb.shape[0] * rgb.shape[1] / 65536)))   # a sample of at most ~64k pixels
+    n = _normal_vectors(rgb[::step, ::step], full)
+    length = np.sqrt((n * n).sum(axis=-1))
+    unit = (np.abs(length - 1.0) < 0.1) & (n[..., 2] > 0)
+    return bool(unit.mean() >= 0.95 and n[..., 2].mean() > 0.5)
+
+
+def _normal_slopes(rgb: np.ndarray, full: float, where: str, strict: bool):
+    n = _normal_vectors(rgb, full)
+    nz = n[..., 2]
+    bad = nz <= 0.05
+    if strict and bad.mean() > 0.05:
+        raise InputError(f"{where}: is not a tangent-space normal map: {bad.mean() * 100:.3g} % of the pixels point "
+                         f"sideways or into the surface (blue below 0.525 of full scale)")
+    nz = np.maximum(nz, 0.05)       # a slope of at most ~20 per pixel: a wall, bounded
+    # picture order: +x to the right, green = +y up the picture (OpenGL convention)
+    return (-n[..., 0] / nz, -n[..., 1] / nz)
+
+
+def frankot_chellappa(p: np.ndarray, q: np.ndarray, dx: float = 1.0, dy: float = 1.0) -> np.ndarray:
+    """Integrate a gradient field into heights (Frankot and Chellappa 1988).
+
+    The least-squares integrable surface in the Fourier domain:
+    ``Z = F^-1[ -i (wx P + wy Q) / (wx^2 + wy^2) ]`` with the mean height 0.
+    The field is mirrored to four times its size first, which makes it
+    periodic without the seam artefacts a plain FFT puts at the borders.
+
+    Parameters
+    ----------
+    p, q : ndarray of shape (rows, cols), float
+        dh/dx (along columns) and dh/dy (along rows, row index growing with y).
+    dx, dy : float
+        Sample spacing along x and y (any length unit; heights come out in it).
+
+    Returns
+    -------
+    ndarray of shape (rows, cols), float64
+        Heights with zero mean.
+    """
+    p = np.asarray(p, dtype=np.float64)
+    q = np.asarray(q, dtype=np.float64)
+    rows, cols = p.shape
+    # even extension: p is odd in x and even in y, q the other way round
+    P = np.block([[p, -p[:, ::-1]], [p[::-1, :], -p[::-1, ::-1]]])
+    Q = np.block([[q, q[:, ::-1]], [-q[::-1, :], -q[::-1, ::-1]]])
+    wx = 2 * np.pi * np.fft.fftfreq(2 * cols, d=dx)[None, :]
+    wy = 2 * np.pi * np.fft.fftfreq(2 * rows, d=dy)[:, None]
+    denom = wx ** 2 + wy ** 2
+    denom[0, 0] = 1.0
+    Z = (-1j * wx * np.fft.fft2(P) - 1j * wy * np.fft.fft2(Q)) / denom
+    Z[0, 0] = 0.0
+    z = np.real(np.fft.ifft2(Z))[:rows, :cols]
+    return z - z.mean()
+
+
+# ----------------------------------------------------------------- writing
+def encode_png(gray: np.ndarray, text: dict | None = None) -> bytes:
+    """Encode a grey picture as PNG bytes (picture order: row 0 is the top edge).
+
+    Parameters
+    ----------
+    gray : ndarray of shape (rows, cols), uint8 or uint16
+        Gray values (bit depth follows the dtype).
+    text : dict, optional
+        ``{keyword: value}`` written as PNG ``tEXt`` chunks (Latin-1).
+    """
+    import io
+
+    from PIL import Image
+    from PIL.PngImagePlugin import PngInfo
+
+    gray = np.asarray(gray)
+    if gray.ndim != 2 or gray.size == 0:
+        raise InputError(f"`gray` must be a non-empty 2-D array (got shape {gray.shape})")
+    if gray.dtype == np.uint8:
+        im = Image.fromarray(np.ascontiguousarray(gray))          # mode L
+    elif gray.dtype == np.uint16:
+        im = Image.frombytes("I;16", (gray.shape[1], gray.shape[0]), gray.astype("<u2").tobytes())
+    else:
+        raise InputError(f"`gray` must be uint8 or uint16 (got {gray.dtype})")
+    info = PngInfo()
+    for k, v in (text or {}).items():
+        info.add_text(str(k), str(v))
+    buf = io.BytesIO()
+    im.save(buf, format="PNG", pnginfo=info, compress_level=6)
+    return buf.getvalue()
+
+
+def write_png(path: str | os.PathLike, gray: np.ndarray, text: dict | None = None) -> Path:
+    """Write a grey PNG atomically (see :func:`encode_png`). Returns the path."""
+    data = encode_png(gray, text)
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+    return path
+
+
+def png_text(path: str | os.PathLike) -> dict:
+    """The ``tEXt`` chunks of a PNG as a dict (what :func:`write_png` recorded)."""
+    with _open(Path(path)) as im:
+        return dict(getattr(im, "text", {}) or {})
+
+
+# ----------------------------------------------------------------- npy
+def read_npy(path: str | os.PathLike) -> np.ndarray:
+    """Read a ``.npy`` height array of shape (rows, cols) or (cols,).
+
+    The shape is checked from the file header before the data is read.
+    Returns the stored array (integer or float dtype; bool and complex are
+    refused).
+    """
+    path = Path(path)
+    try:
+        fh = open(path, "rb")
+    except FileNotFoundError:
+        raise FileFormatError(f"array '{path}': no such file") from None
+    except OSError as exc:
+        raise FileFormatError(f"array '{path}': unreadable ({exc.strerror or exc})") from None
+    with fh:
+        try:
+            version = np.lib.format.read_magic(fh)
+            if version == (1, 0):
+                shape, fortran, dtype = np.lib.format.read_array_header_1_0(fh)
+            else:
+                shape, fortran, dtype = np.lib.format.read_array_header_2_0(fh)
+        except (ValueError, OSError, SyntaxError) as exc:
+            raise FileFormatError(f"array '{path}': not a .npy file ({exc})") from None
+        if len(shape) not in (1, 2):
+            raise FileFormatError(f"array '{path}': heights must have shape (rows, cols) or (cols,) (got {shape})")
+        if dtype.kind not in "uif":
+            raise FileFormatError(f"array '{path}': dtype {dtype} is not supported; use an integer or float array")
+        rows, cols = (1, shape[0]) if len(shape) == 1 else shape
+        check_grid_size(rows, cols, f"array '{path}'", "crop or resample the array")
+        fh.seek(0)
+        try:
+            arr = np.load(fh, allow_pickle=False)
+        except (ValueError, OSError, EOFError) as exc:
+            raise FileFormatError(f"array '{path}': truncated or corrupt ({exc})") from None
+    return arr
+
+
+__all__ = ["PICTURE_SUFFIXES", "CHANNELS", "BT709", "Picture", "PictureWarning", "picture_info", "read_picture",
+           "looks_like_normal_map", "frankot_chellappa", "encode_png", "write_png", "png_text", "read_npy"]

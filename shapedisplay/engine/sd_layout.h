@@ -1,0 +1,299 @@
+/* sd_layout.h -- memory layouts and numberings shared with the Python runtime.
+ *
+ * GENERATED from shapedisplay/render/layouts.py and the model registry by `make generate`;
+ * do not edit. tests/test_layouts.py checks that this file is current and that a C compiler
+ * places every member at the offset numpy gives it. */
+#ifndef SD_LAYOUT_H
+#define SD_LAYOUT_H
+
+#include <stdint.h>
+
+/* sd_real: the real type of the runtime -- double in the reference build (bit-exact with the
+ * Python records, whose reals are float64), float with -DSD_SINGLE (single-precision FPUs). */
+#ifndef SD_REAL_DEFINED
+#define SD_REAL_DEFINED
+#ifdef SD_SINGLE
+typedef float sd_real;
+#else
+typedef double sd_real;
+#endif
+#endif
+
+/* pad models (ids shared with shapedisplay.render.models.MODELS) */
+enum {
+    SD_MODEL_EXACT = 0,
+    SD_MODEL_JUMP = 1,
+    SD_MODEL_KARNOPP = 2,
+    SD_MODEL_STRIBECK = 3,
+    SD_MODEL_EULER = 4,
+    SD_MODEL_RK4 = 5,
+    SD_MODEL_TANH = 6,
+    SD_NMODEL = 7
+};
+
+/* burst overlap policies */
+enum { SD_RETRIGGER = 0, SD_ADD = 1, SD_MAX = 2 };
+
+/* renderer slots: the table channels the renderer reads */
+enum {
+    SD_SLOT_NORMAL_FORCE = 0,
+    SD_SLOT_FRICTION_SCALE = 1,
+    SD_SLOT_BURST_GAIN = 2,
+    SD_SLOT_GRAD_X = 3,
+    SD_SLOT_GRAD_Y = 4,
+    SD_SLOT_LATERAL_X = 5,
+    SD_SLOT_LATERAL_Y = 6,
+    SD_SLOT_SKIN_STRETCH = 7,
+    SD_SLOT_BREAKAWAY_FORCE = 8,
+    SD_SLOT_KINETIC_FORCE = 9,
+    SD_NSLOT = 10
+};
+
+/* PAD_STATE */
+typedef struct {
+    sd_real phase;                  /* 0 stick, 1 slip */
+    sd_real x;                      /* spring stretch (pad displacement from rest relative to the finger), m */
+    sd_real v;                      /* pad velocity, m/s */
+    sd_real s;                      /* sign of the friction force in slip */
+    sd_real f;                      /* friction force on the pad at the end of the last tick, N */
+    sd_real age;                    /* time in the current stick phase while the surface moves, s */
+    sd_real work_friction;          /* work of friction on the pad during the last tick, J (exact model) */
+    sd_real work_damping;           /* energy dissipated by the damper during the last tick, J (exact model) */
+    sd_real slip_left;              /* remaining slip time, s (jump model; inf = steady sliding) */
+    sd_real x_restick;              /* spring stretch at the coming re-stick, m (jump model) */
+    sd_real diverged_at;            /* time an explicit baseline blew up, s (when diverged != 0) */
+    int64_t diverged;               /* 1 once an explicit baseline blew up (outputs frozen at zero) */
+    int64_t truncated;              /* ticks cut at the safety cap on phase changes */
+    int64_t n_events;               /* stick-to-slip events in the last tick */
+    int64_t memo_valid;             /* 1 if the memo_* fields hold the last slip outcome (jump and exact models) */
+    sd_real memo_s;                 /* memo input: slip direction */
+    sd_real memo_x;                 /* memo input: spring stretch at breakaway (exact: at the slip start), m */
+    sd_real memo_v;                 /* memo input: surface velocity, m/s */
+    sd_real memo_muk;               /* memo input: kinetic coefficient */
+    sd_real memo_n;                 /* memo input: normal force, N */
+    sd_real memo_slip_time;         /* memo output: slip time, s */
+    sd_real memo_x_restick;         /* memo output: spring stretch at re-stick (exact: from the slip equilibrium), m */
+    sd_real slip_step;              /* next slip step the last one proposed, s (stribeck exponential steps; 0 = none) */
+} sd_pad_state_t;
+#define SD_FIELDS_PAD_STATE(X) \
+    X(F64, phase) \
+    X(F64, x) \
+    X(F64, v) \
+    X(F64, s) \
+    X(F64, f) \
+    X(F64, age) \
+    X(F64, work_friction) \
+    X(F64, work_damping) \
+    X(F64, slip_left) \
+    X(F64, x_restick) \
+    X(F64, diverged_at) \
+    X(I64, diverged) \
+    X(I64, truncated) \
+    X(I64, n_events) \
+    X(I64, memo_valid) \
+    X(F64, memo_s) \
+    X(F64, memo_x) \
+    X(F64, memo_v) \
+    X(F64, memo_muk) \
+    X(F64, memo_n) \
+    X(F64, memo_slip_time) \
+    X(F64, memo_x_restick) \
+    X(F64, slip_step)
+
+/* PAD_PARAMS */
+typedef struct {
+    sd_real mass;                   /* pad mass m, kg */
+    sd_real stiffness;              /* pad stiffness k, N/m */
+    sd_real damping;                /* pad damping c, N s/m */
+    sd_real burst_gain;             /* B: burst amplitude per newton of breakaway force */
+    sd_real max_stick_period;       /* force a slip after this long stuck, s (0 = off) */
+    sd_real substep;                /* largest integration substep, s (stribeck, tanh) */
+    sd_real karnopp_spring;         /* Karnopp virtual spring k_K, N/m */
+    sd_real karnopp_v_threshold;    /* Karnopp re-stick speed v_T, m/s */
+    sd_real stribeck_a;             /* Stribeck decay a */
+    sd_real stribeck_b;             /* Stribeck viscous term b */
+    sd_real stribeck_p;             /* pre-maximum slope p */
+    sd_real stribeck_d;             /* pre-maximum width d */
+    int64_t stribeck_variant;       /* 0 Stribeck curve, 1 with pre-maximum static region */
+    sd_real stribeck_tol;           /* Stribeck slip: local error allowed per step, relative to the pad's scales */
+    sd_real contactor_amplitude;    /* lateral contactor amplitude, m */
+    sd_real contactor_omega;        /* lateral contactor angular frequency, rad/s */
+    sd_real tanh_eps;               /* tanh regularisation width (breakaway slip speed), m/s */
+} sd_pad_params_t;
+#define SD_FIELDS_PAD_PARAMS(X) \
+    X(F64, mass) \
+    X(F64, stiffness) \
+    X(F64, damping) \
+    X(F64, burst_gain) \
+    X(F64, max_stick_period) \
+    X(F64, substep) \
+    X(F64, karnopp_spring) \
+    X(F64, karnopp_v_threshold) \
+    X(F64, stribeck_a) \
+    X(F64, stribeck_b) \
+    X(F64, stribeck_p) \
+    X(F64, stribeck_d) \
+    X(I64, stribeck_variant) \
+    X(F64, stribeck_tol) \
+    X(F64, contactor_amplitude) \
+    X(F64, contactor_omega) \
+    X(F64, tanh_eps)
+
+/* GRID */
+typedef struct {
+    int32_t rows;                   /* canvas samples along y */
+    int32_t cols;                   /* canvas samples along x; sample (r, c) at (x0 + c dx, y0 + r dy) */
+    sd_real dx;                     /* sample spacing along x, m */
+    sd_real dy;                     /* sample spacing along y, m */
+    sd_real x0;                     /* x of column 0, m */
+    sd_real y0;                     /* y of row 0, m */
+} sd_grid_t;
+#define SD_FIELDS_GRID(X) \
+    X(I32, rows) \
+    X(I32, cols) \
+    X(F64, dx) \
+    X(F64, dy) \
+    X(F64, x0) \
+    X(F64, y0)
+
+/* RENDER_CONFIG */
+typedef struct {
+    sd_pad_params_t pad;            /* pad model parameters */
+    sd_real mu_s;                   /* device static friction coefficient */
+    sd_real mu_k;                   /* device kinetic friction coefficient */
+    sd_real k_mu;                   /* slope friction gain (table meta mapping.slope_friction_gain) */
+    sd_real skin_target;            /* default skin-stretch target, m */
+    sd_real normal_force_constant;  /* N of a table without a normal_force channel, N (C: the channel is required) */
+    sd_real tick_rate;              /* Hz, 100 .. 192000 */
+    sd_real audio_rate;             /* Hz, 1000 .. 384000 (C: 0 = no audio, drive per tick only) */
+    sd_real carrier_hz;             /* burst carrier frequency, Hz */
+    sd_real rise_s;                 /* burst envelope rise, s */
+    sd_real decay_s;                /* burst envelope decay, s */
+    int32_t policy;                 /* burst overlap policy (SD_RETRIGGER, SD_ADD, SD_MAX) */
+    int32_t model;                  /* pad model id (SD_MODEL_*) */
+} sd_config_t;
+#define SD_FIELDS_RENDER_CONFIG(X) \
+    X(PAD_PARAMS, pad) \
+    X(F64, mu_s) \
+    X(F64, mu_k) \
+    X(F64, k_mu) \
+    X(F64, skin_target) \
+    X(F64, normal_force_constant) \
+    X(F64, tick_rate) \
+    X(F64, audio_rate) \
+    X(F64, carrier_hz) \
+    X(F64, rise_s) \
+    X(F64, decay_s) \
+    X(I32, policy) \
+    X(I32, model)
+
+/* RUN_STATE */
+typedef struct {
+    sd_real tick;                   /* ticks since reset (the next tick's number) */
+    sd_real xp;                     /* cursor x at the previous tick, m */
+    sd_real yp;                     /* cursor y at the previous tick, m */
+    sd_real ax;                     /* pad axis x (follows the motion; a reversal gives a negative pad speed) */
+    sd_real ay;                     /* pad axis y */
+    sd_real t0;                     /* cursor time of tick 0, s */
+    int64_t next_sample;            /* index of the next audio sample */
+    int64_t n_recent;               /* bursts held in the event ring */
+    int64_t clipped;                /* audio samples limited to full scale */
+    int64_t events_total;           /* stick-to-slip events since reset */
+    int64_t events_dropped;         /* events that did not fit the event ring */
+    int64_t value_faults;           /* ticks with a non-finite value replaced: table products overflowing (played without contact), pad state reset, NaN drive played as 0, skin stretch as 0 */
+} sd_run_state_t;
+#define SD_FIELDS_RUN_STATE(X) \
+    X(F64, tick) \
+    X(F64, xp) \
+    X(F64, yp) \
+    X(F64, ax) \
+    X(F64, ay) \
+    X(F64, t0) \
+    X(I64, next_sample) \
+    X(I64, n_recent) \
+    X(I64, clipped) \
+    X(I64, events_total) \
+    X(I64, events_dropped) \
+    X(I64, value_faults)
+
+/* OUTPUTS */
+typedef struct {
+    sd_real t;                      /* tick time, s */
+    sd_real x;                      /* cursor x, m */
+    sd_real y;                      /* cursor y, m */
+    sd_real vx;                     /* cursor velocity x, m/s */
+    sd_real vy;                     /* cursor velocity y, m/s */
+    sd_real normal_force;           /* N */
+    sd_real friction_force;         /* friction on the pad, N, signed along the pad axis */
+    sd_real state;                  /* 0 stick, 1 slip at the end of the tick */
+    sd_real lateral_x;              /* lateral-force cue x, N */
+    sd_real lateral_y;              /* lateral-force cue y, N */
+    sd_real skin_stretch;           /* skin stretch, m */
+    sd_real events;                 /* stick-to-slip events in the tick */
+    sd_real drive;                  /* burst drive at the tick time, in [-1, 1] */
+    sd_real audio_samples;          /* audio samples written for the tick */
+    sd_real pad_speed;              /* surface speed along the pad axis, m/s */
+    sd_real mu_s;                   /* static friction coefficient of the tick (device, table scale and slope term) */
+    sd_real mu_k;                   /* kinetic friction coefficient of the tick */
+    sd_real burst_gain;             /* burst-gain multiplier of the tick (table channel, 1 if absent) */
+} sd_outputs_t;
+#define SD_FIELDS_OUTPUTS(X) \
+    X(F64, t) \
+    X(F64, x) \
+    X(F64, y) \
+    X(F64, vx) \
+    X(F64, vy) \
+    X(F64, normal_force) \
+    X(F64, friction_force) \
+    X(F64, state) \
+    X(F64, lateral_x) \
+    X(F64, lateral_y) \
+    X(F64, skin_stretch) \
+    X(F64, events) \
+    X(F64, drive) \
+    X(F64, audio_samples) \
+    X(F64, pad_speed) \
+    X(F64, mu_s) \
+    X(F64, mu_k) \
+    X(F64, burst_gain)
+
+/* BURST_STATE */
+typedef struct {
+    int64_t i_in;                   /* events entered (their time has passed) */
+    int64_t i_mid;                  /* events whose burst turned from rise to decay (add) */
+    int64_t i_out;                  /* events whose burst ended (add) */
+    sd_real te;                     /* start of the playing envelope segment, s (retrigger, max) */
+    sd_real e0;                     /* envelope at the segment's start (retrigger, max) */
+    sd_real a;                      /* peak of the segment (retrigger, max) */
+    sd_real tref;                   /* reference time of add's running sums, s */
+    sd_real ra;                     /* add: sum of the rising bursts' peaks */
+    sd_real rat;                    /* add: sum of peak * (event time - tref) of the rising bursts, s */
+    sd_real q0;                     /* add: decays q0 - 2 q1 x + q2 x^2, x = (t - tref) / decay */
+    sd_real q1;                     /* add: see q0 */
+    sd_real q2;                     /* add: see q0 */
+    sd_real cc;                     /* carrier cos at the last sample written */
+    sd_real cs;                     /* carrier sin at the last sample written */
+    int64_t cj;                     /* index + 1 of the last sample written (-1 before the first) */
+    sd_real rc;                     /* rotation per sample: cos(2 pi carrier / audio rate) */
+    sd_real rs;                     /* rotation per sample: sin(2 pi carrier / audio rate) */
+} sd_burst_state_t;
+#define SD_FIELDS_BURST_STATE(X) \
+    X(I64, i_in) \
+    X(I64, i_mid) \
+    X(I64, i_out) \
+    X(F64, te) \
+    X(F64, e0) \
+    X(F64, a) \
+    X(F64, tref) \
+    X(F64, ra) \
+    X(F64, rat) \
+    X(F64, q0) \
+    X(F64, q1) \
+    X(F64, q2) \
+    X(F64, cc) \
+    X(F64, cs) \
+    X(I64, cj) \
+    X(F64, rc) \
+    X(F64, rs)
+
+#endif
