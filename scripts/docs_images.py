@@ -46,7 +46,7 @@ def _phone(work: Path):
     r = Renderer(table, model="exact", tick_rate=10000.0)
     res = r.render(parse_stroke(PHONE_STROKE, r.tick_rate))
     trace = work / "phone-trace.npz"
-    write_trace(trace, res, table.checksum())
+    write_trace(trace, res, table.checksum)
     return table, r, res, trace
 
 

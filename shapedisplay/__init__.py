@@ -24,6 +24,9 @@ from shapedisplay.errors import (  # noqa: E402  (light, always needed)
 )
 
 _LAZY = {
+    "compile": "api",
+    "load": "api",
+    "Table": "render.playable",
     "HeightField": "author.heightfield",
     "FrictionTable": "table.model",
     "DeviceProfile": "table.devices",

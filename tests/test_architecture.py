@@ -32,6 +32,8 @@ ALLOWED = {
     "studio": {"table", "render", "author", "exchange", "viewer"},
     "cli": {"table", "render", "link", "author", "exchange", "viewer", "reports", "studio"},
 }
+#: Top-level modules that sit above everything: ``python -m shapedisplay`` and the API's front door.
+FRONT_DOORS = ("shapedisplay.__main__", "shapedisplay.api")
 #: Top-level modules besides subpackages (the leaves and the ``python -m`` entry point).
 TOP_LEVEL_LIMIT = 8
 
@@ -137,8 +139,10 @@ def test_subpackages_import_one_way():
             b = _subpackage(d)
             if a and b and a != b and b not in ALLOWED.get(a, set()):
                 wrong.append(f"{mod} -> {d}")
-            if a is None and b and mod != "shapedisplay.__main__":
+            if a is None and b and mod not in FRONT_DOORS:
                 wrong.append(f"{mod} (a leaf) -> {d}")
+            if a and d in FRONT_DOORS:
+                wrong.append(f"{mod} -> {d} (a front door: nothing inside the package imports it)")
     assert not wrong, "imports against the pipeline's direction:\n" + "\n".join(sorted(wrong))
     assert set(ALLOWED) == {p.name for p in PACKAGE.iterdir() if (p / "__init__.py").exists()}
     sub = {a: {b for b in deps} for a, deps in ALLOWED.items()}

@@ -163,7 +163,7 @@ def test_compiled_table_round_trips_bit_exact(tmp_path):
     res = compile_heightfield(_rand_field(3), RIG, MappingOptions.parse("height+lateral+slope"))
     p = res.table.save(tmp_path / "t.npz")
     u = FrictionTable.load(p)
-    assert u.checksum() == res.table.checksum() and u.meta == res.table.meta
+    assert u.checksum == res.table.checksum and u.meta == res.table.meta
     for n in u.channels:
         assert u.codes[n].tobytes() == res.table.codes[n].tobytes()
 

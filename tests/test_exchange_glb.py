@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from shapedisplay.table.devices import load_device
-from shapedisplay.exchange.glb import EXTENSION, compile_haptic_glb, export_glb, read_glb, read_haptic_glb
+from shapedisplay.author.glb import EXTENSION, compile_haptic_glb, read_glb, read_haptic_glb
+from shapedisplay.exchange.glb import export_glb
 from shapedisplay.author.forces import MappingOptions
 from shapedisplay.table.model import FrictionTable, Grid, choose_quantization
 from shapedisplay.cli.main import main

@@ -58,7 +58,7 @@ def refused(data: bytes, match: str, cls=TableError):
 
 def test_good_table_reads(table, good):
     t = FrictionTable.from_bytes(good)
-    assert t.checksum() == table.checksum() and t.quant["grad_x"].dtype == "float32"
+    assert t.checksum == table.checksum and t.quant["grad_x"].dtype == "float32"
 
 
 # ------------------------------------------------------------------ crashes of the old loader
@@ -594,7 +594,7 @@ def test_table_writer_and_reader_share_one_rule(table, tmp_path):
             write()
         assert "\n" not in str(e.value)
     assert list(tmp_path.iterdir()) == []
-    assert FrictionTable.from_bytes(table.to_bytes()).checksum() == table.checksum()
+    assert FrictionTable.from_bytes(table.to_bytes()).checksum == table.checksum
 
 
 def test_error_lines_escape_control_and_bidi_characters(table, tmp_path, capsys):

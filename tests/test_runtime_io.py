@@ -150,7 +150,7 @@ def test_cli_play_writes_wav_trace_plot(tiny_table, tmp_path, capsys):
     text = capsys.readouterr().out
     assert "stick-slip events" in text and "clipped 0" in text
     d = read_trace(tr)
-    assert d["table_checksum"] == table.checksum() and d["model"] == "exact"
+    assert d["table_checksum"] == table.checksum and d["model"] == "exact"
     n = d["t"].size
     assert n == 30001 and np.isclose(d["t"][-1], 3.0)
     for name in ("x", "y", "normal_force", "friction_force", "state", "lateral_x", "lateral_y",

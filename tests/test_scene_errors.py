@@ -408,7 +408,7 @@ def test_many_widgets_cost_about_n_pair_checks_and_the_table_reads_back(tmp_path
     assert len(result.report["widgets"]) == n
     out = tmp_path / "many.npz"
     out.write_bytes(result.table.to_bytes())
-    assert FrictionTable.load(out).checksum() == result.table.checksum()
+    assert FrictionTable.load(out).checksum == result.table.checksum
 
 
 def test_widgets_stacked_on_one_another_are_refused_past_the_pair_limit(tmp_path, capsys):

@@ -158,7 +158,7 @@ def test_scene_key_inside_the_folder_compiles(tmp_path, key):
     src.write_text(scene_text(key, ref))
     s = studio_compile(src)
     assert s.error is None and s.current is not None
-    assert s.current.table.checksum() == compile_scene(src).table.checksum()
+    assert s.current.table.checksum == compile_scene(src).table.checksum
 
 
 # --------------------------------------------------------------- SVG mockups

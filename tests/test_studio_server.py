@@ -41,7 +41,7 @@ def test_prints_url_serves_page_and_table_only_with_token(studio):
     status, body = studio.get("/api/table")
     assert status == 200
     table = FrictionTable.from_bytes(body, "studio table")
-    assert table.checksum() == compile_scene(studio.folder / "phone.toml").table.checksum()
+    assert table.checksum == compile_scene(studio.folder / "phone.toml").table.checksum
 
 
 def test_wrong_token_and_every_route_refused_without_it(studio):
@@ -83,7 +83,7 @@ def test_runtime_gets_the_tables_binary_image(studio):
     layout = json.loads(body[4:4 + n])
     image = body[4 + n:]
     table = FrictionTable.from_bytes(studio.get("/api/table")[1])
-    assert len(image) == layout["bytes"] and read_image(image).checksum() == table.checksum()
+    assert len(image) == layout["bytes"] and read_image(image).checksum == table.checksum
     assert sorted(c["name"] for c in layout["channels"]) == table.channels
     assert layout["tick_rate"] == 10000.0 and layout["audio_rate"] == 48000.0 and layout["model"] == "exact"
 
@@ -171,8 +171,8 @@ def test_save_from_page_writes_the_scene_and_exports_go_to_the_output_folder(stu
     for fmt in st["export_formats"]:                       # every format the library exports, as buttons
         assert studio.get(f"/api/export/{fmt}")[0] == 200, fmt
     from shapedisplay.render.image import read_image
-    assert read_image((out / "phone.bin").read_bytes()).checksum() == \
-        FrictionTable.load(out / "phone.npz").checksum()
+    assert read_image((out / "phone.bin").read_bytes()).checksum == \
+        FrictionTable.load(out / "phone.npz").checksum
     assert studio.get("/api/export/../../etc")[0] in (400, 404)
     assert studio.get("/api/export/nope")[0] == 400
     before = sorted(p.name for p in studio.folder.iterdir())

@@ -36,7 +36,7 @@ def test_save_load_round_trip_is_bit_exact(tmp_path_factory, values, dtype, name
     t.save(path)
     u = FrictionTable.load(path)
     assert u.grid == t.grid and u.channels == t.channels
-    assert u.meta == t.meta and u.quant == t.quant and u.checksum() == t.checksum()
+    assert u.meta == t.meta and u.quant == t.quant and u.checksum == t.checksum
     for n in t.channels:
         assert u.codes[n].dtype == t.codes[n].dtype
         assert u.codes[n].tobytes() == t.codes[n].tobytes()
@@ -249,7 +249,7 @@ def test_from_codes_matches_from_dense():
     t, n = _table(6, 9, "uint16")
     q = t.quant["normal_force"]
     u = FrictionTable.from_codes(t.grid, {"normal_force": q.encode(n)}, {"normal_force": q}, None, t.meta)
-    assert u.checksum() == t.checksum()
+    assert u.checksum == t.checksum
     with pytest.raises(InputError, match="must be uint16 of shape"):
         FrictionTable.from_codes(t.grid, {"normal_force": q.encode(n)[:2]}, {"normal_force": q})
 
@@ -280,7 +280,7 @@ def test_from_bytes_reads_the_same_table_as_load(tmp_path):
     t = FrictionTable.from_dense(grid, {"normal_force": vals}, {"normal_force": choose_quantization(vals, "uint16")})
     path = t.save(tmp_path / "t.npz")
     u = FrictionTable.from_bytes(path.read_bytes())
-    assert u.checksum() == FrictionTable.load(path).checksum()
+    assert u.checksum == FrictionTable.load(path).checksum
     np.testing.assert_array_equal(u.dense("normal_force"), t.dense("normal_force"))
     with pytest.raises(TableError, match="uploaded table: unreadable or truncated"):
         FrictionTable.from_bytes(path.read_bytes()[:50])
@@ -309,7 +309,7 @@ def test_large_table_written_fast_reads_as_the_numpy_written_file(tmp_path):
     legacy = io.BytesIO()
     np.savez_compressed(legacy, **t._arrays())
     old, new = FrictionTable.from_bytes(legacy.getvalue()), FrictionTable.from_bytes(data)
-    assert old.checksum() == new.checksum() and old.quant == new.quant and old.meta == new.meta
+    assert old.checksum == new.checksum and old.quant == new.quant and old.meta == new.meta
     with np.load(io.BytesIO(data)) as z, np.load(io.BytesIO(legacy.getvalue())) as zl:
         assert sorted(z.files) == sorted(zl.files)
         for name in z.files:
@@ -327,7 +327,7 @@ def test_negative_zero_channel_keeps_its_checksum(tmp_path):
                                  {"normal_force": choose_quantization(values, "uint8")}, {})
     t.save(tmp_path / "t.npz")
     u = FrictionTable.load(tmp_path / "t.npz")
-    assert u.checksum() == t.checksum() and u.quant == t.quant
+    assert u.checksum == t.checksum and u.quant == t.quant
 
 
 def _writestr_npz(arrays) -> bytes:

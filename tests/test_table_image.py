@@ -27,7 +27,7 @@ def test_image_round_trip_keeps_the_table():
         img = I.to_image(table)
         assert len(img) % 4 == 0 and img[:4] == b"SDTI"
         back = I.read_image(img)
-        assert back.checksum() == table.checksum()
+        assert back.checksum == table.checksum
         for name in table.channels:
             np.testing.assert_array_equal(back.codes[name], table.codes[name])
 
@@ -63,7 +63,7 @@ def test_export_bin_cli_and_refusals(tmp_path):
                          capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stderr
     data = out.read_bytes()
-    assert I.read_image(data, str(out)).checksum() == table.checksum()
+    assert I.read_image(data, str(out)).checksum == table.checksum
     with pytest.raises(TableError, match="CRC mismatch"):
         I.read_image(data[:600] + bytes([data[600] ^ 1]) + data[601:])
     with pytest.raises(TableError, match="truncated or padded"):

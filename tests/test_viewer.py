@@ -60,7 +60,7 @@ def write_trace(path, table: FrictionTable, checksum: str | None = None, n: int 
     ev = t[np.flatnonzero(np.diff(state) == 1) + 1]
     amp = np.interp(ev, t, nf)
     np.savez(path, t=t, x=x, y=y, normal_force=nf, friction_force=ff, state=state, event_time=ev,
-             event_amplitude=amp, table_checksum=np.array(checksum or table.checksum()))
+             event_amplitude=amp, table_checksum=np.array(checksum or table.checksum))
     return path
 
 
@@ -128,7 +128,7 @@ def test_table_model_recovers_height_from_mapping_and_marks_left_out(table):
     # |(0.3, 0.4)| = 0.5 N where stored, background 0 elsewhere
     np.testing.assert_allclose(m.fields["lateral"], np.where(expected, 0.5, 0.0), atol=1e-12)
     assert [w["id"] for w in m.widgets] == ["ok", "cancel"]
-    assert m.checksum == table.checksum()
+    assert m.checksum == table.checksum
 
 
 def test_table_without_mapping_draws_normal_force_as_relief(tmp_path):
@@ -176,7 +176,7 @@ def test_unknown_channel_lists_valid_ones(table):
 
 def test_trace_round_trip_and_checksum_refusal(tmp_path, table, trace_path):
     tr = viewer.load_trace(trace_path)
-    assert tr.table_checksum == table.checksum() and tr.state.dtype == np.int8
+    assert tr.table_checksum == table.checksum and tr.state.dtype == np.int8
     viewer.check_trace(tr, viewer.model_from_table(table))
     other = write_trace(tmp_path / "other.npz", table, checksum="sha256:" + "0" * 64)
     with pytest.raises(TableError, match="different table"):

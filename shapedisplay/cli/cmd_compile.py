@@ -3,9 +3,6 @@ from __future__ import annotations
 
 import argparse
 
-_SOURCE_OPTS = ("size", "height", "resolution", "channel", "z_units", "up", "units")
-_MAPPING_OPTS = ("n_base", "n_gain", "slope_gain", "lateral_gain", "skin_stretch", "perceptual")
-
 
 def register(sub) -> None:
     p = sub.add_parser(
@@ -100,86 +97,21 @@ class warnings_as_lines:
         return False
 
 
-def _float(text, name):
-    from shapedisplay.errors import InputError
-    try:
-        return float(text)
-    except ValueError:
-        raise InputError(f"`{name}` must be a number (got {text!r})") from None
-
-
-def build_options(args):
-    """(MappingOptions, CompileOptions) from parsed arguments."""
-    from shapedisplay.author.compile import CompileOptions
-    from shapedisplay.author.forces import MappingOptions
-    from shapedisplay.units import parse_quantity
-
-    def q(value, unit, name, bare_ok=False):
-        return None if value is None else parse_quantity(value, unit, name, bare_ok=bare_ok)
-
-    mapping = MappingOptions.parse(
-        args.mapping,
-        n_base=q(args.n_base, "N", "--n-base"),
-        n_gain=q(args.n_gain, "N/m", "--n-gain"),
-        slope_friction_gain=q(args.slope_gain, "1", "--slope-gain", bare_ok=True),
-        lateral_gain=q(args.lateral_gain, "N", "--lateral-gain"),
-        skin_stretch=q(args.skin_stretch, "m", "--skin-stretch"),
-        perceptual_exponent=args.perceptual,
-    )
-    gkw = {}
-    if args.sigma is not None:
-        gkw["sigma"] = q(args.sigma, "m", "--sigma")
-    if args.window is not None:
-        gkw["window"] = int(args.window) if args.window.isdigit() else args.window
-    if args.order is not None:
-        gkw["order"] = args.order
-    kw = {}
-    if args.max_slope is not None:
-        kw["max_slope"] = _float(args.max_slope, "--max-slope")
-    if args.weber is not None:
-        kw["weber_fraction"] = _float(args.weber, "--weber")
-    keep = tuple(k.strip() for k in args.keep.split(",") if k.strip()) if args.keep else ()
-    options = CompileOptions(quantize=args.quantize, gradient_method=args.gradient, gradient_kw=gkw,
-                             limit_walls=not args.no_limit_walls, keep=keep, **kw)
-    return mapping, options
+def compile_options(args) -> dict:
+    """The compile options given on the command line, by name (None = not given), for the compile policy."""
+    from shapedisplay.author.policy import OPTIONS
+    given = {name: getattr(args, name, None) for name in OPTIONS if name != "limit_walls"}
+    if given.get("mapping") == "height":          # the default: a scene keeps its own [mapping]
+        given["mapping"] = None
+    given["limit_walls"] = False if getattr(args, "no_limit_walls", False) else None
+    return given
 
 
 def compile_source(args, source):
-    """Compile one source with the options in ``args``; returns the CompileResult."""
-    from shapedisplay.author.compile import compile_heightfield
-    from shapedisplay.table.devices import load_device
-    from shapedisplay.exchange.glb import has_haptic_textures
-    from shapedisplay.author.sources import check_applicable, load_source, source_options
-
-    mapping, options = build_options(args)
-    given = {o: getattr(args, o) for o in _MAPPING_OPTS}
-    given["mapping"] = None if args.mapping == "height" else args.mapping
-    kind = check_applicable(source, given, kinds={o: ("image", "mesh") for o in given})
-    if has_haptic_textures(source):
-        # a glb written by `export --format glb`: its textures carry N, mu and B on their own grid
-        from shapedisplay.exchange.glb import compile_haptic_glb, refuse_geometry_options
-        refuse_geometry_options(source, **source_given(args))
-        custom = any(v is not None for v in given.values())
-        return compile_haptic_glb(source, device=args.device, mapping=mapping if custom else None,
-                                  options=options)
-    opts = source_options(source, **source_given(args))
-    if kind in ("scene", "svg"):
-        from shapedisplay.author.scene import compile_scene
-        # Without --device the scene's own [device] applies.
-        device = load_device(args.device) if args.device else None
-        with warnings_as_lines("compile"):
-            result = compile_scene(source, device=device, options=options)
-    else:
-        device = load_device(args.device)
-        with warnings_as_lines("compile"):
-            hf = load_source(source, **opts)
-        from shapedisplay.author.forces import fit_to_force_range
-        from shapedisplay.author.sources import fits_force_range_by_default
-        if fits_force_range_by_default(hf, n_gain_given=args.n_gain is not None,
-                                       height_given=args.height is not None):
-            hf = fit_to_force_range(hf, device, mapping)
-        result = compile_heightfield(hf, device, mapping, options)
-    return result
+    """Compile one source with the options in ``args`` (:func:`shapedisplay.author.policy.compile_file`)."""
+    from shapedisplay.author.policy import CLI_FLAGS, compile_file
+    with warnings_as_lines("compile"):
+        return compile_file(source, device=args.device, flags=CLI_FLAGS, **compile_options(args))
 
 
 def run(args) -> int:

@@ -89,7 +89,7 @@ def run(args) -> int:
     source = (f"stroke {args.stroke}" if args.stroke is not None else
               f"cursor {args.cursor_csv}" if args.cursor_csv is not None else f"force {args.force_csv}")
     res = play_to_files(r, cursor, args.output, args.sample_format, trace=args.trace_out, plot=args.plot,
-                        table_checksum=table.checksum(), ahap=args.ahap, drive_csv=args.drive_csv,
+                        table_checksum=table.checksum, ahap=args.ahap, drive_csv=args.drive_csv,
                         ahap_envelope=args.ahap_envelope == "on", description=f"{args.table}: {source}")
     s = res.summary()
     if s["events_dropped"]:

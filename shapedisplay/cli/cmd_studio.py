@@ -32,7 +32,8 @@ def run(args) -> int:
     from shapedisplay.author.sources import source_options
     from shapedisplay.studio.server import serve
 
-    opts = source_options(args.source, size=args.size, height=args.height, resolution=args.resolution)
+    given = {"size": args.size, "height": args.height, "resolution": args.resolution}
+    source_options(args.source, **given)             # refused options fail here, before the server starts
     serve(args.source, device=args.device, port=args.port, host=args.host, allow_remote=args.allow_remote,
-          open_browser=not args.no_browser, out_dir=args.out, source_options=opts, model=args.model)
+          open_browser=not args.no_browser, out_dir=args.out, options=given, model=args.model)
     return 0

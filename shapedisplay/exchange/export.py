@@ -428,7 +428,7 @@ def c_header(table: FrictionTable, prefix: str = "sd_table") -> str:
         f"static const double {p}_dy_m = {_c_float(g.dy)};",
         f"static const double {p}_x0_m = {_c_float(g.x0)};",
         f"static const double {p}_y0_m = {_c_float(g.y0)};",
-        f'static const char {p}_checksum[] = "{table.checksum()}";',
+        f'static const char {p}_checksum[] = "{table.checksum}";',
         f"static const int32_t {p}_blocks[{P}_N_BLOCKS][5] = {{",
         *(f"    {{{', '.join(str(int(v)) for v in b)}}}," for b in blocks),
         "};",

@@ -103,7 +103,7 @@ def friction_image(table, quantity: str = "mu", bits: int = 16) -> tuple[np.ndar
         "rule": "value = offset + scale * grey",
         "pixel_m": [g.dx, g.dy], "origin_m": [g.x0, g.y0], "size_px": [g.cols, g.rows],
         "orientation": "top view: image row 0 is the largest y (top of the screen), column 0 the smallest x",
-        "table_checksum": table.checksum(), "lost": lost,
+        "table_checksum": table.checksum, "lost": lost,
     }
     return grey, info
 

@@ -120,7 +120,7 @@ def to_image(table: FrictionTable, device=None) -> bytes:
                       dtype="<i4").reshape(-1, 5)
     tr, tc, ty, tx, start, entries = tile_index(g.rows, g.cols, blocks)
     header_json = table.header()
-    header_json["checksum"] = table.checksum()
+    header_json["checksum"] = table.checksum
     meta = json.dumps(header_json, sort_keys=True, allow_nan=False).encode("utf-8")
 
     pos = HEADER_SIZE

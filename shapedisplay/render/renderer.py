@@ -71,6 +71,7 @@ import numpy as np
 
 from shapedisplay.errors import InputError, ModelError
 from shapedisplay.table.model import FrictionTable
+from shapedisplay.table.widgets import widget_map
 from shapedisplay.render.cursor import CursorPath
 from shapedisplay.render.image import to_image
 from shapedisplay.render.layouts import NSLOT, OUTPUTS, PAD_STATE, RUN_STATE, SLOTS
@@ -232,6 +233,8 @@ class Renderer:
         self.audio_block = self._online.audio[:int(math.ceil(self.audio_rate / self.tick_rate)) + 2]
         #: Per-tick outputs of the last :meth:`step`: an OUTPUTS record (a view; ``last["drive"]``).
         self.last = self._online.out
+        #: The table's scene widgets, ``(id, (x0, y0, x1, y1))`` in m: what each event's ``widget`` names.
+        self.widgets = tuple((w["id"], tuple(w["bbox_m"])) for w in widget_map(table))
         self.reset()
 
     # ------------------------------------------------------------------ offline
@@ -302,7 +305,7 @@ class Renderer:
         return RenderResult(t, x, y, col["vx"], col["vy"], col["normal_force"], col["friction_force"],
                             out["state"].astype(np.int8), col["lateral_x"], col["lateral_y"], col["skin_stretch"],
                             ev[0].copy(), ev[1].copy(), audio, self.audio_rate, int(counts[2]), self.model.name,
-                            self.tick_rate, self.burst_policy, col["mu_s"], int(counts[3]))
+                            self.tick_rate, self.burst_policy, col["mu_s"], int(counts[3]), self.widgets)
 
     # ------------------------------------------------------------------ online
     def reset(self, t0: float = 0.0) -> None:

@@ -2,8 +2,26 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
+
+
+class Event(NamedTuple):
+    """One stick-to-slip event: when and where it fired, under what load, how loud, on which widget.
+
+    t : s; ``x, y`` : m, the cursor at ``t`` (along the played path);
+    normal_force : N, of the tick the event fired in; ``amplitude`` : full
+    scale, of its burst; ``widget`` : the id of the scene widget whose box
+    holds ``(x, y)`` (the topmost, the last in scene order), or None.
+    """
+
+    t: float
+    x: float
+    y: float
+    normal_force: float
+    amplitude: float
+    widget: str | None
 
 
 @dataclass
@@ -23,6 +41,8 @@ class RenderResult:
     mu_s : (n,), the static friction coefficient of each tick
     events_dropped : int, events the engine's event ring could not hold while they sounded: their bursts are
         missing from ``audio`` (``event_time`` keeps them); 0 unless thousands of bursts sound at once
+    widgets : the table's widgets as ``(id, (x0, y0, x1, y1))`` boxes in m (a scene table; else empty)
+    events : (see :attr:`events`) the stick-slip events as :class:`Event` records
 
     ``t``, ``x`` and ``y`` are those of the path played: resampled onto the tick grid
     ``t[0] + k / tick_rate`` if the path was not on it.
@@ -49,6 +69,24 @@ class RenderResult:
     burst_policy: str = "retrigger"
     mu_s: np.ndarray = field(default=None, repr=False)
     events_dropped: int = 0
+    widgets: tuple = ()
+
+    @property
+    def events(self) -> tuple:
+        """The stick-to-slip events as :class:`Event` records (t, x, y, normal_force, amplitude, widget), in time order."""
+        et = np.asarray(self.event_time, dtype=np.float64)
+        if et.size == 0:
+            return ()
+        x = np.interp(et, self.t, self.x)
+        y = np.interp(et, self.t, self.y)
+        k = np.clip(np.searchsorted(self.t, et, side="left"), 0, self.t.size - 1)
+        n = np.asarray(self.normal_force)[k]
+        wid = np.full(et.size, -1)
+        for i, (_, (x0, y0, x1, y1)) in enumerate(self.widgets):
+            wid[(x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)] = i
+        names = [w[0] for w in self.widgets]
+        return tuple(Event(float(et[j]), float(x[j]), float(y[j]), float(n[j]), float(self.event_amplitude[j]),
+                           names[wid[j]] if wid[j] >= 0 else None) for j in range(et.size))
 
     @property
     def duration(self) -> float:

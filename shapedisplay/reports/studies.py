@@ -423,13 +423,13 @@ def run_study(name, out_dir=None, *, duration: float | None = None, tick_rate: f
             rows.append(row)
             if tmp is not None:
                 write_wav(tmp / f"{cond.name}.wav", res.audio, res.audio_rate)
-                write_trace(tmp / f"{cond.name}.npz", res, table.checksum())
+                write_trace(tmp / f"{cond.name}.npz", res, table.checksum)
                 entries.append({"name": cond.name, "params": cond.params, "device": cond.device.name,
                                 "model": res.model, "tick_rate_hz": res.tick_rate, "audio_rate_hz": res.audio_rate,
                                 "max_stick_period_s": r.device.burst.max_stick_period_s,
                                 "burst_gain": r.device.burst.gain, "burst_policy": res.burst_policy,
                                 "mu_s": r.device.friction.mu_s, "mu_k": r.device.friction.mu_k,
-                                "table_checksum": table.checksum(), "wav": f"{cond.name}.wav",
+                                "table_checksum": table.checksum, "wav": f"{cond.name}.wav",
                                 "trace": f"{cond.name}.npz", "summary": row})
         if tmp is None:
             return StudyResult(st, rows)

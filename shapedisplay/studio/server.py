@@ -30,7 +30,7 @@ def check_host(host: str, allow_remote: bool) -> str:
 
 
 def serve(source, device=None, port: int | None = None, host: str = LOOPBACK, allow_remote: bool = False,
-          open_browser: bool = True, out_dir=None, source_options=None, model: str = "exact",
+          open_browser: bool = True, out_dir=None, options=None, model: str = "exact",
           out=sys.stdout, err=sys.stderr) -> None:
     """Serve the studio on ``host:port`` until interrupted (Ctrl-C).
 
@@ -48,7 +48,7 @@ def serve(source, device=None, port: int | None = None, host: str = LOOPBACK, al
     check_model(model)
 
     host = check_host(host, allow_remote)
-    session = Session(Path(source), device=device, out_dir=out_dir, source_options=source_options or {})
+    session = Session(Path(source), device=device, out_dir=out_dir, options=options or {})
     family = socket.AF_INET6 if ":" in host else socket.AF_INET
     sock = bind_port(host, port)
     sock.listen(128)

@@ -71,14 +71,16 @@ class Session:
         None keeps the scene's or the table's own.
     out_dir : Path
         The only folder (besides the scene file itself) the studio writes to.
-    source_options : dict
-        Options of an image or mesh source (as :func:`shapedisplay.author.sources.load_source` takes).
+    options : dict
+        Compile options by name as the command line's, unit strings
+        (``{"size": "60x4mm"}``): the source compiles through
+        :func:`shapedisplay.author.policy.compile_file`, as ``shapedisplay compile`` does.
     """
 
     source: Path
     device: str | None = None
     out_dir: Path | None = None
-    source_options: dict = field(default_factory=dict)
+    options: dict = field(default_factory=dict)
     current: Compiled | None = None
     error: SourceError | None = None
     generation: int = 0
@@ -148,25 +150,20 @@ class Session:
             return True
 
     def _compile_source(self):
-        from shapedisplay.author.compile import compile_heightfield, format_report
+        from shapedisplay.author.compile import format_report
         if self.kind == "table":
             from shapedisplay.table.model import FrictionTable
             table = FrictionTable.load(self.source)
             report = table.meta.get("report") or {}
             return table, report, (format_report(report) if report.get("grid") else "")
+        from shapedisplay.author.policy import compile_file
+        result = compile_file(self.source, device=self._device() if self.device else None, confine=True,
+                              **self.options)
+        report_text = format_report(result.report)
         if self.kind in ("scene", "svg"):
-            from shapedisplay.author.scene import compile_scene, format_widget_report
-            device = self._device() if self.device else None
-            result = compile_scene(self.source, device=device, confine=True)
-            report_text = format_report(result.report) + "\n" + format_widget_report(result.report)
-            return result.table, result.report, report_text
-        from shapedisplay.author.sources import load_source
-        if self.kind == "mesh":
-            from shapedisplay.author.scene.widgets import check_mesh_confined
-            check_mesh_confined(self.source, f"studio source '{self.source.name}'")
-        hf = load_source(self.source, **self.source_options)
-        result = compile_heightfield(hf, self._device())
-        return result.table, result.report, format_report(result.report)
+            from shapedisplay.author.scene import format_widget_report
+            report_text += "\n" + format_widget_report(result.report)
+        return result.table, result.report, report_text
 
     def _device(self):
         """The ``--device`` profile: a file checked to lie under the folder, or a bundled name
@@ -198,7 +195,7 @@ class Session:
                 "widgets": (t.meta.get("scene") or {}).get("widgets", []),
                 "report": cur.report_text,
                 "compile_seconds": cur.seconds,
-                "checksum": t.checksum(),
+                "checksum": t.checksum,
             })
         return d
 

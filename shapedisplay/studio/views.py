@@ -92,7 +92,7 @@ def snapshot_png(table, channel: str = "normal_force", stroke: dict | None = Non
     trace = None
     if arrays is not None:
         trace = viewer.Trace(**{k: arrays.get(k, np.zeros(0)) for k in viewer.TRACE_ARRAYS},
-                             table_checksum=table.checksum(), source="studio")
+                             table_checksum=table.checksum, source="studio")
     preview = viewer.render(model, channel, trace=trace, size=size, off_screen=True)
     try:
         img = preview.screenshot()

@@ -43,7 +43,7 @@ def diff_tables(a, b) -> dict:
     """
     ga, gb = a.grid.to_json(), b.grid.to_json()
     same_grid = ga == gb
-    out = {"checksums": [a.checksum(), b.checksum()], "grid": {"same": same_grid, "a": ga, "b": gb},
+    out = {"checksums": [a.checksum, b.checksum], "grid": {"same": same_grid, "a": ga, "b": gb},
            "channels": {}, "meta": []}
     for name in sorted(set(a.channels) | set(b.channels)):
         if name not in b.channels:

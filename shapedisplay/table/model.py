@@ -357,7 +357,9 @@ class FrictionTable:
         t._check_layout()
         return t
 
+    @property
     def checksum(self) -> str:
+        """The table's SHA-256 over its header and stored codes, as ``inspect --json`` prints it (hex)."""
         return _checksum(self.header(), self.codes)
 
     def _check_layout(self) -> None:
@@ -520,7 +522,7 @@ class FrictionTable:
         return {
             "format": FORMAT_NAME,
             "format_version": FORMAT_VERSION,
-            "checksum": self.checksum(),
+            "checksum": self.checksum,
             "grid": self.grid.to_json(),
             "channels": {n: {"unit": CHANNELS[n][0], "max_error": self.quant[n].max_error,
                              "values": self.dense(n).tolist()} for n in self.channels},
@@ -531,7 +533,7 @@ class FrictionTable:
         """Sizes, channels and ranges for ``inspect``."""
         return {
             "format_version": FORMAT_VERSION,
-            "checksum": self.checksum(),
+            "checksum": self.checksum,
             "grid": self.grid.to_json(),
             "is_1d": self.is_1d,
             "channels": {n: {"unit": CHANNELS[n][0], "dtype": self.quant[n].dtype,

@@ -75,7 +75,7 @@ class Trace:
     event_time, event_amplitude : ndarray of shape (m,), float64
         Stick-to-slip transitions (s) and their burst amplitude (device units).
     table_checksum : str
-        ``FrictionTable.checksum()`` of the table the stroke was played on.
+        ``FrictionTable.checksum`` of the table the stroke was played on.
     """
 
     t: np.ndarray
@@ -347,7 +347,7 @@ def model_from_table(table, title: str | None = None, widgets: list | None = Non
     default_title = src.get("description", "") if isinstance(src, dict) else ""
     model = PreviewModel(x=x, y=y, relief=relief, relief_unit=relief_unit, fields=fields, units=units,
                         labels=labels, stored=stored, widgets=[],
-                        checksum=table.checksum(), strip=strip, ground=ground,
+                        checksum=table.checksum, strip=strip, ground=ground,
                         title=title if title is not None else (default_title or "friction table"), notes=notes)
     model.widgets = _strip_widgets(_clean_widgets(widgets), model)
     return model
