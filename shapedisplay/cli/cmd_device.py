@@ -60,18 +60,19 @@ def register(sub) -> None:
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 
 
-def _link(args):
-    from shapedisplay.link.host import DeviceLink
+def _session(args):
+    """The device on ``args.port`` with the link options; nothing is sent until it is used."""
+    from shapedisplay.link.session import DeviceSession
     if args.timeout <= 0 or args.retries < 0:
         from shapedisplay.errors import InputError
         raise InputError(f"`--timeout` must be > 0 and `--retries` >= 0 (got {args.timeout}, {args.retries})")
-    return DeviceLink(args.port, baudrate=args.baud, timeout=args.timeout, retries=args.retries)
+    return DeviceSession(args.port, baudrate=args.baud, timeout=args.timeout, retries=args.retries)
 
 
 def run_info(args) -> int:
     import json
-    with _link(args) as link:
-        caps, st = link.caps, link.status()
+    with _session(args) as dev:
+        caps, st = dev.caps, dev.status()
     if args.json:
         print(json.dumps({"port": args.port, "caps": caps.to_json(), "status": st.to_json()}, indent=2))
         return 0
@@ -90,65 +91,28 @@ def run_info(args) -> int:
     return 0
 
 
-def _read_table(path):
-    from shapedisplay.render.image import load_table_or_image
-    return load_table_or_image(path)          # verified locally before anything is sent
-
-
-def _upload(link, image, quiet=False):
-    rep = link.upload(image)
-    if not quiet:
-        print(f"uploaded {rep.size} bytes in {rep.chunks} chunks, {rep.seconds:.3f} s "
-              f"({rep.throughput_bytes_per_s / 1e3:.1f} kB/s), crc32 {rep.crc32:08x}; committed")
-        if rep.retransmits or rep.restarts or link.resends:
-            print(f"  link repaired: {rep.retransmits} chunk retransmits, {link.resends} request resends, "
-                  f"{rep.restarts} restarts after a device reset")
-    return rep
+def _print_upload(dev, rep) -> None:
+    print(f"uploaded {rep.size} bytes in {rep.chunks} chunks, {rep.seconds:.3f} s "
+          f"({rep.throughput_bytes_per_s / 1e3:.1f} kB/s), crc32 {rep.crc32:08x}; committed", flush=True)
+    if rep.retransmits or rep.restarts or dev.link.resends:
+        print(f"  link repaired: {rep.retransmits} chunk retransmits, {dev.link.resends} request resends, "
+              f"{rep.restarts} restarts after a device reset")
 
 
 def run_upload(args) -> int:
-    _, image = _read_table(args.table)
-    with _link(args) as link:
-        _upload(link, image)
+    with _session(args) as dev:
+        _print_upload(dev, dev.upload(args.table))       # the table is verified before anything is sent
     return 0
 
 
 def run_play(args) -> int:
-    import numpy as np
-
-    from shapedisplay.link.engine import actuator_blocks
-    from shapedisplay.link.framing import crc32
-    from shapedisplay.render import Renderer, parse_stroke
-    table, image = _read_table(args.table)
-    if args.output:
-        from pathlib import Path
-        folder = Path(args.output).parent
-        if not folder.is_dir():          # refuse before playing, not after a long stroke
-            from shapedisplay.errors import InputError
-            raise InputError(f"output '{args.output}': directory '{folder}' does not exist")
-    with _link(args) as link:
-        caps = link.caps
-        if args.mode == "cursor" and not caps.has_renderer:
-            from shapedisplay.errors import InputError
-            raise InputError(f"device on '{args.port}' has no renderer; use --mode actuator")
-        if args.mode == "cursor" and link.status().active_crc != crc32(image):
-            _upload(link, image)
-        cursor = parse_stroke(args.stroke, float(caps.stream_rate_hz))
-        if args.mode == "cursor":
-            rep = link.stream(cursor.x, cursor.y, monitor=bool(args.output))
-        else:
-            r = Renderer(table, model=args.model, tick_rate=float(caps.tick_rate_hz))
-            blocks = actuator_blocks(r, cursor.x, cursor.y, caps.samples_per_cursor)
-            rep = link.stream(blocks, mode="actuator", monitor=bool(args.output))
+    with _session(args) as dev:
+        rep = dev.play(args.table, args.stroke, mode=args.mode, model=args.model, record=args.output or None,
+                       on_upload=lambda up: _print_upload(dev, up))
     print(f"played {rep.rendered} of {rep.sent} cursor samples in {rep.seconds:.3f} s on {args.port}")
     for line in rep.problems():
         print(f"warning: {line}")
-    if args.output:
-        from shapedisplay.atomic import atomic_path
-        with atomic_path(args.output, suffix=".npz") as tmp:
-            with open(tmp, "wb") as fh:
-                np.savez(fh, drive=rep.outputs, latency_s=rep.latencies_s,
-                         tick_rate_hz=caps.tick_rate_hz, stream_rate_hz=caps.stream_rate_hz)
+    if rep.record is not None:
         print(f"wrote {args.output}")
     return 1 if rep.overruns else 0
 

@@ -11,7 +11,11 @@
 * :mod:`.emulator` — :class:`~.emulator.DeviceEmulator`, firmware behaviour
   on a pseudo-terminal (transport, upload, queue, fault injection), rendering
   through :mod:`.engine` (the C engine's ticks, through
-  :class:`~shapedisplay.render.Renderer`).
+  :class:`~shapedisplay.render.Renderer`);
+* :mod:`.session` — :class:`~.session.DeviceSession` (and the shortcuts
+  :func:`~.session.upload`, :func:`~.session.play`): upload a table and play
+  a stroke from Python, recording what the device played; the library
+  behind ``shapedisplay device upload|play``.
 
 Nothing here opens a port or imports pyserial at import time.
 """
