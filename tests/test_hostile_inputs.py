@@ -408,8 +408,8 @@ def test_csv_recordings_are_capped_while_read(tmp_path, monkeypatch):
 
 
 def test_binary_stl_declaring_too_many_triangles_is_refused(tmp_path, monkeypatch):
-    from shapedisplay.author import mesh
-    monkeypatch.setattr(mesh, "MAX_MESH_TRIANGLES", 10)
+    from shapedisplay.author import mesh, meshfiles
+    monkeypatch.setattr(meshfiles, "MAX_MESH_TRIANGLES", 10)
     p = tmp_path / "m.stl"
     p.write_bytes(b"\0" * 80 + struct.pack("<I", 11) + b"\0" * 50 * 11)
     with pytest.raises(FileFormatError, match="11 triangles exceed the limit of 10"):
@@ -619,5 +619,5 @@ def test_no_numpy_warning_before_a_mesh_error(tmp_path, capsys):
             code, out, err = run(["compile", obj, "-o", tmp_path / "t.npz", *extra], capsys)
             assert code == 2 and err.count("\n") == 1, err
             assert err.startswith(f"shapedisplay compile: error: mesh '{obj}': vertex coordinates must be within "
-                                  f"+-1e+60 (file units; shapedisplay.author.mesh.MAX_COORDINATE): 4 vertices beyond")
+                                  f"+-1e+60 (file units; shapedisplay.author.meshfiles.MAX_COORDINATE): 4 vertices beyond")
     assert sorted(p.suffix for p in tmp_path.iterdir()) == [".obj", ".obj"]

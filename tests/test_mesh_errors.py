@@ -9,7 +9,7 @@ import pytest
 
 trimesh = pytest.importorskip("trimesh")
 
-from shapedisplay.author import mesh  # noqa: E402
+from shapedisplay.author import mesh, meshfiles  # noqa: E402
 from shapedisplay.errors import (  # noqa: E402
     FileFormatError, InputError, MissingDependencyError, ShapeDisplayError, UnitError,
 )
@@ -252,17 +252,17 @@ def test_obj_face_of_80000_vertices_is_refused_before_triangulating(tmp_path, ca
     out, err = capsys.readouterr()
     assert code == 2 and not out and not (tmp_path / "t.npz").exists()
     assert err == (f"shapedisplay compile: error: mesh '{path}': face on line 80001 has 80000 vertices, beyond the "
-                   f"limit of {mesh.MAX_FACE_VERTICES} a face (shapedisplay.author.mesh.MAX_FACE_VERTICES); triangulate "
+                   f"limit of {meshfiles.MAX_FACE_VERTICES} a face (shapedisplay.author.meshfiles.MAX_FACE_VERTICES); triangulate "
                    f"the polygon in a modelling program first\n")
     assert elapsed < 5
 
 
 def test_obj_face_at_the_vertex_limit_still_reads(tmp_path):
     path = tmp_path / "polygon.obj"
-    _polygon_obj(path, mesh.MAX_FACE_VERTICES)
+    _polygon_obj(path, meshfiles.MAX_FACE_VERTICES)
     verts, faces, _ = mesh.load_mesh(path)
-    assert len(verts) == mesh.MAX_FACE_VERTICES and len(faces) == mesh.MAX_FACE_VERTICES - 2
-    path.write_text("f " + " ".join(["1"] * (mesh.MAX_FACE_VERTICES + 1)) + "\n")   # the first line too
+    assert len(verts) == meshfiles.MAX_FACE_VERTICES and len(faces) == meshfiles.MAX_FACE_VERTICES - 2
+    path.write_text("f " + " ".join(["1"] * (meshfiles.MAX_FACE_VERTICES + 1)) + "\n")   # the first line too
     with pytest.raises(FileFormatError, match=r"face on line 1 has 4097 vertices"):
         mesh.load_mesh(path)
 
@@ -274,3 +274,91 @@ def test_size_scales_a_footprint_far_from_the_origin(tmp_path):
     hf = mesh.mesh_to_heightfield((v, [[0, 1, 2], [1, 3, 2]]), size="60mm")
     assert hf.size_m[0] == pytest.approx(60 * MM, rel=0.01) and np.isfinite(hf.heights).all()
     assert hf.heights.max() == pytest.approx(30 * MM, rel=0.01)
+
+
+def _ring(n: int) -> np.ndarray:
+    a = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+    return np.column_stack([10 + 5 * np.cos(a), 10 + 5 * np.sin(a), np.ones(n)])
+
+
+def _polygon_off(path, n: int) -> None:
+    with open(path, "w") as f:
+        f.write(f"OFF\n{n} 1 0\n")
+        np.savetxt(f, _ring(n), fmt="%.5f")
+        f.write(f"{n} " + " ".join(map(str, range(n))) + "\n")
+
+
+def _polygon_ply(path, n: int, binary: bool, extra_triangles: int = 0) -> None:
+    """One n-gon (and some triangles after it) in an ASCII or binary little-endian PLY."""
+    head = (f"ply\nformat {'binary_little_endian' if binary else 'ascii'} 1.0\nelement vertex {n}\n"
+            f"property float x\nproperty float y\nproperty float z\nelement face {1 + extra_triangles}\n"
+            f"property list uchar int vertex_indices\nend_header\n" if n < 256 else
+            f"ply\nformat {'binary_little_endian' if binary else 'ascii'} 1.0\nelement vertex {n}\n"
+            f"property float x\nproperty float y\nproperty float z\nelement face {1 + extra_triangles}\n"
+            f"property list uint int vertex_indices\nend_header\n")
+    v = _ring(n)
+    ctype = "<u1" if n < 256 else "<u4"
+    with open(path, "wb") as f:
+        f.write(head.encode())
+        if binary:
+            f.write(v.astype("<f4").tobytes())
+            f.write(np.array([n], ctype).tobytes() + np.arange(n, dtype="<i4").tobytes())
+            for _ in range(extra_triangles):
+                f.write(np.array([3], ctype).tobytes() + np.arange(3, dtype="<i4").tobytes())
+        else:
+            np.savetxt(f, v, fmt="%.5f")
+            f.write((f"{n} " + " ".join(map(str, range(n))) + "\n").encode())
+            f.write(b"3 0 1 2\n" * extra_triangles)
+
+
+@pytest.mark.parametrize("kind", ["off", "ply-ascii", "ply-binary"])
+def test_off_and_ply_polygons_beyond_the_vertex_limit_are_refused_before_triangulating(tmp_path, capsys, kind):
+    """An 800,000-vertex OFF face took 17 s and 480 MB to compile; OFF and PLY polygons now meet the OBJ rule."""
+    import time
+
+    from shapedisplay.cli.main import main
+    n = 80_000
+    path = tmp_path / ("polygon." + kind.split("-")[0])
+    if kind == "off":
+        _polygon_off(path, n)
+    else:
+        _polygon_ply(path, n, binary=kind == "ply-binary", extra_triangles=5)
+    t0 = time.perf_counter()
+    code = main(["compile", str(path), "-o", str(tmp_path / "t.npz")])
+    elapsed = time.perf_counter() - t0
+    out, err = capsys.readouterr()
+    assert code == 2 and not out and not (tmp_path / "t.npz").exists()
+    where = "#0" if kind == "ply-binary" else f"on line {n + (3 if kind == 'off' else 10)}"
+    assert err == (f"shapedisplay compile: error: mesh '{path}': face {where} has {n} vertices, beyond the limit of "
+                   f"{meshfiles.MAX_FACE_VERTICES} a face (shapedisplay.author.meshfiles.MAX_FACE_VERTICES); "
+                   f"triangulate the polygon in a modelling program first\n")
+    assert elapsed < 5
+
+
+@pytest.mark.parametrize("binary", [False, True])
+def test_ply_polygons_at_the_limit_and_mixed_sizes_still_read(tmp_path, binary):
+    m = meshfiles.MAX_FACE_VERTICES
+    path = tmp_path / "ok.ply"
+    extra = 0 if binary else 3          # (trimesh reads a binary PLY of mixed uint-counted lists as truncated)
+    _polygon_ply(path, m, binary=binary, extra_triangles=extra)
+    verts, faces, _ = mesh.load_mesh(path)
+    assert len(verts) == m and len(faces) == (m - 2) + extra
+    if not binary:                      # (trimesh reads binary PLY faces of mixed sizes as truncated)
+        path = tmp_path / "small.ply"
+        _polygon_ply(path, 6, binary=binary, extra_triangles=2)      # a hexagon and triangles: mixed sizes
+        verts, faces, _ = mesh.load_mesh(path)
+        assert len(faces) == 4 + 2
+
+
+def test_binary_ply_with_a_big_polygon_after_triangles_is_refused(tmp_path):
+    """Mixed polygon sizes are walked record by record: a big one after small ones is found."""
+    n = meshfiles.MAX_FACE_VERTICES + 1
+    path = tmp_path / "late.ply"
+    v = _ring(n)
+    head = (f"ply\nformat binary_little_endian 1.0\nelement vertex {n}\nproperty float x\nproperty float y\n"
+            f"property float z\nelement face 3\nproperty list ushort int vertex_indices\nend_header\n")
+    tri = np.array([3], "<u2").tobytes() + np.arange(3, dtype="<i4").tobytes()
+    big = np.array([n], "<u2").tobytes() + np.arange(n, dtype="<i4").tobytes()
+    path.write_bytes(head.encode() + v.astype("<f4").tobytes() + tri + tri + big)
+    with pytest.raises(FileFormatError, match=r"face #2 has 4097 vertices"):
+        mesh.load_mesh(path)

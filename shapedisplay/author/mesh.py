@@ -62,6 +62,7 @@ import numpy as np
 
 from shapedisplay.errors import FileFormatError, InputError, require, unknown_key
 from shapedisplay.author.heightfield import HeightField, check_grid_size
+from shapedisplay.author.meshfiles import MAX_COORDINATE, check_mesh_file
 
 #: File suffixes read through trimesh.
 MESH_SUFFIXES = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf")
@@ -81,76 +82,12 @@ DEFAULT_LONG_SIDE = 512
 _AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 
 
-#: Largest mesh file read, bytes, checked before the file is parsed.
-MAX_MESH_BYTES = 512 * 1024 * 1024
-#: Most triangles a binary STL may declare in its header (10 M triangles = 500 MB of STL).
-MAX_MESH_TRIANGLES = 10_000_000
-#: Largest magnitude of a vertex coordinate, file units: the footprint, areas and normals are
-#: products of up to four coordinates, finite in float64 below this (an STL's float32 stays under 3.4e38).
-MAX_COORDINATE = 1e60
-#: Most vertices of one OBJ face (polygon), checked before trimesh splits it into a fan of
-#: triangles: each slice of a fan spans the polygon, and rasterising them costs the polygon's
-#: area per vertex (80,000 vertices: 47.5 s).
-MAX_FACE_VERTICES = 4096
-
-
 class ImplausibleSizeWarning(UserWarning):
     """The mesh footprint is implausibly small or large for a screen (unit confusion?)."""
 
 
 # ---------------------------------------------------------------------------
 # loading
-
-def _check_stl(path: Path) -> None:
-    """Detect truncated STL files, which trimesh reads as empty without complaint."""
-    size = path.stat().st_size
-    with open(path, "rb") as f:
-        head = f.read(84)
-    if len(head) >= 84:
-        (n,) = struct.unpack("<I", head[80:84])
-        if size == 84 + 50 * n:
-            if n > MAX_MESH_TRIANGLES:
-                raise FileFormatError(f"mesh '{path}': {n} triangles exceed the limit of {MAX_MESH_TRIANGLES}")
-            return  # consistent binary STL
-    if head[:5].lower() == b"solid":
-        with open(path, "rb") as f:
-            f.seek(max(0, size - 512))
-            tail = f.read().lower()
-        if b"endsolid" in tail:
-            return  # ASCII STL with its closing line
-        if b"facet" in head.lower() or size < 84:
-            raise FileFormatError(f"mesh '{path}': ASCII STL is truncated (no closing 'endsolid' line)")
-    if len(head) < 84:
-        raise FileFormatError(f"mesh '{path}': binary STL is truncated ({size} bytes, the header alone is 84)")
-    raise FileFormatError(
-        f"mesh '{path}': binary STL is truncated or corrupt: header says {n} triangles "
-        f"({84 + 50 * n} bytes) but the file has {size} bytes"
-    )
-
-
-def _check_obj_faces(path: Path) -> None:
-    """Refuse an OBJ face line of more than :data:`MAX_FACE_VERTICES` vertices, before trimesh reads it.
-
-    Only face lines long enough to hold that many vertices (two bytes each at
-    least) are split, found by a regular-expression pass over the mapped file
-    (about 3 ms per MB; trimesh reads an OBJ in about 55 ms per MB).
-    """
-    import itertools
-    import mmap
-    import re
-    face = rb"[ \t]*f[ \t][^\n]{%d,}" % (2 * MAX_FACE_VERTICES - 1)
-    with open(path, "rb") as fh, mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as data:
-        first = re.compile(face).match(data)
-        for match in itertools.chain([first] if first else [], re.compile(rb"\n" + face).finditer(data)):
-            n = len(match.group().split()) - 1
-            if n > MAX_FACE_VERTICES:
-                start = match.start() + (data[match.start():match.start() + 1] == b"\n")
-                line = data[:start].count(b"\n") + 1
-                raise FileFormatError(
-                    f"mesh '{path}': face on line {line} has {n} vertices, beyond the "
-                    f"limit of {MAX_FACE_VERTICES} a face (shapedisplay.author.mesh.MAX_FACE_VERTICES); triangulate "
-                    f"the polygon in a modelling program first")
-
 
 def load_mesh(path) -> tuple[np.ndarray, np.ndarray, dict]:
     """Read a mesh file and merge its scene into one triangle list.
@@ -174,19 +111,7 @@ def load_mesh(path) -> tuple[np.ndarray, np.ndarray, dict]:
         raise FileFormatError(
             f"mesh '{path}': unsupported suffix '{suffix}'; readable: {', '.join(MESH_SUFFIXES)}"
         )
-    if not path.is_file():
-        raise FileFormatError(f"mesh '{path}': file not found")
-    if not os.access(path, os.R_OK):
-        raise FileFormatError(f"mesh '{path}': file is not readable (permission denied)")
-    if path.stat().st_size == 0:
-        raise FileFormatError(f"mesh '{path}': file is empty (0 bytes)")
-    if path.stat().st_size > MAX_MESH_BYTES:
-        raise FileFormatError(f"mesh '{path}': {path.stat().st_size} bytes exceed the limit of {MAX_MESH_BYTES} "
-                              f"(simplify the mesh)")
-    if suffix == ".stl":
-        _check_stl(path)
-    elif suffix == ".obj":
-        _check_obj_faces(path)
+    check_mesh_file(path, suffix)
     trimesh = require("trimesh", "mesh", "Loading meshes")
     try:
         with warnings.catch_warnings():
@@ -485,7 +410,7 @@ def mesh_to_heightfield(path, resolution=None, grid=None, up="z", units=None, ba
         i = int(np.flatnonzero(bad)[0])
         raise InputError(
             f"{where}: vertex coordinates must be within +-{MAX_COORDINATE:g} (file units; "
-            f"shapedisplay.author.mesh.MAX_COORDINATE): {int(bad.sum())} vertices beyond, first #{i} = {verts[i].tolist()}"
+            f"shapedisplay.author.meshfiles.MAX_COORDINATE): {int(bad.sum())} vertices beyond, first #{i} = {verts[i].tolist()}"
         )
 
     # coordinates as contiguous columns (fast gathers and reductions), metres, rotated
