@@ -209,3 +209,38 @@ def test_long_ridge_path_and_many_elements_are_refused_before_parsing(tmp_path):
                                               r"\(svg.MAX_SVG_ELEMENTS, docs/limits.md\)"):
         load_scene(many)
     assert time.perf_counter() - t < 5.0            # svgelements alone takes 5 s for the rects, 6 s for the path
+
+
+def test_use_copies_count_toward_the_element_limit_before_parsing(tmp_path):
+    """200 <use> of a 1,000-rect group: svgelements built 200,000 copies (25.7 s, 375 MB); refused in one pass now."""
+    import time
+    from shapedisplay.author.scene.svg import MAX_SVG_ELEMENTS
+    rects = "".join(f'<rect x="{i % 50}" y="{i // 50}" width="0.5" height="0.5"/>' for i in range(1000))
+    uses = "".join(f'<use href="#g" x="{i % 20}"/>' for i in range(200))
+    path = _svg(tmp_path, f'<defs><g id="g">{rects}</g></defs>{uses}<rect id="button-a" x="1" y="1" width="5" height="5"/>')
+    t = time.perf_counter()
+    with pytest.raises(FileFormatError, match=rf"(\d+) elements with the copies its <use> elements make, more than "
+                                              rf"the limit of {MAX_SVG_ELEMENTS}"):
+        load_scene(path)
+    assert time.perf_counter() - t < 3.0
+
+
+def test_use_copies_of_copies_are_counted_and_a_use_of_itself_is_refused(tmp_path):
+    """Copies nest: 40 uses of a group holding 40 uses of a 40-rect group are 64,000 elements."""
+    rects = "".join(f'<rect x="{i}" y="0" width="0.5" height="0.5"/>' for i in range(40))
+    inner = "".join('<use href="#a"/>' for _ in range(40))
+    outer = "".join('<use xmlns:xlink="http://www.w3.org/1999/xlink" xlink:href="#b"/>' for _ in range(40))
+    path = _svg(tmp_path, f'<defs><g id="a">{rects}</g><g id="b">{inner}</g></defs>{outer}')
+    with pytest.raises(FileFormatError, match=r"elements with the copies its <use> elements make"):
+        load_scene(path)
+    path = _svg(tmp_path, '<g id="a"><use href="#b"/></g><g id="b"><use href="#a"/></g>'
+                          '<rect id="button-a" x="1" y="1" width="5" height="5"/>')
+    with pytest.raises(FileFormatError, match=r"<use> of '#\w' copies itself"):
+        load_scene(path)
+
+
+def test_a_few_use_copies_still_compile(tmp_path):
+    rects = "".join(f'<rect x="{i}" y="0" width="0.5" height="0.5"/>' for i in range(10))
+    path = _svg(tmp_path, f'<defs><g id="deco">{rects}</g></defs><use href="#deco"/><use href="#deco" x="20"/>'
+                          '<rect id="button-a" x="10" y="10" width="5" height="5"/>')
+    assert [w.id for w in load_scene(path).widgets] == ["button-a"]

@@ -246,18 +246,32 @@ def _check_structure(path: Path, where: str) -> None:
     than MAX_SVG_ELEMENTS elements, or a ``path``, ``polyline`` or
     ``polygon`` of more than MAX_PATH_SEGMENTS segments (counted from its
     text: svgelements builds objects per segment, and each segment of a
-    ridge, edge or groove is a widget).
+    ridge, edge or groove is a widget). Each ``<use>`` counts the elements it
+    copies (svgelements builds every copy, and copies of copies): a few
+    hundred uses of a large group are refused here, not after the parse.
     """
     from xml.etree.ElementTree import ParseError, iterparse
     depth = elements = 0
+    frames = [[0, []]]                       # per open element: [elements in its subtree, <use> targets inside]
+    subtree: dict = {}                       # id -> (elements, <use> targets) of that element's subtree
     try:
         for event, el in iterparse(str(path), events=("start", "end")):
             if event == "end":
                 depth -= 1
+                count, uses = frames.pop()
+                if el.get("id"):
+                    subtree[el.get("id")] = (count, uses)
+                frames[-1][0] += count
+                frames[-1][1].extend(uses)
                 el.clear()                    # the pass keeps no tree
                 continue
             depth += 1
             elements += 1
+            frames.append([1, []])
+            if el.tag.rsplit("}", 1)[-1] == "use":
+                href = el.get("href") or el.get("{http://www.w3.org/1999/xlink}href") or ""
+                if href.startswith("#"):
+                    frames[-1][1].append(href[1:])
             if depth > MAX_SVG_DEPTH:
                 raise FileFormatError(f"{where}: elements nest more than {MAX_SVG_DEPTH} levels deep, beyond the "
                                       f"limit of {MAX_SVG_DEPTH} (svg.MAX_SVG_DEPTH, docs/limits.md)")
@@ -276,6 +290,40 @@ def _check_structure(path: Path, where: str) -> None:
                                           f"the path, or raise shapedisplay.author.scene.svg.MAX_PATH_SEGMENTS")
     except ParseError as exc:
         raise FileFormatError(f"{where}: cannot read the SVG ({exc})") from None
+    total = elements + _copies(frames[0][1], subtree, where)
+    if total > MAX_SVG_ELEMENTS:
+        raise FileFormatError(f"{where}: {total} elements with the copies its <use> elements make, more than the "
+                              f"limit of {MAX_SVG_ELEMENTS} (svg.MAX_SVG_ELEMENTS, docs/limits.md); use fewer copies, "
+                              f"or raise shapedisplay.author.scene.svg.MAX_SVG_ELEMENTS")
+
+
+def _copies(targets: list, subtree: dict, where: str) -> int:
+    """Elements the ``<use>`` elements with these targets add (copies of copies included), capped past the limit.
+
+    A ``<use>`` whose target contains a ``<use>`` of itself (directly or not) is refused: it never ends.
+    """
+    memo: dict = {}
+
+    def size(ref: str, open_refs: tuple) -> int:
+        if ref in open_refs:
+            raise FileFormatError(f"{where}: <use> of '#{ref}' copies itself (a <use> inside '#{ref}' leads back "
+                                  f"to it)")
+        if ref not in memo:
+            count, uses = subtree.get(ref, (0, []))
+            n = count
+            for u in uses:
+                n += size(u, open_refs + (ref,))
+                if n > MAX_SVG_ELEMENTS:
+                    break
+            memo[ref] = n
+        return memo[ref]
+
+    total = 0
+    for ref in targets:
+        total += size(ref, ())
+        if total > MAX_SVG_ELEMENTS:
+            break
+    return total
 
 
 def _path_segment_count(d: str) -> int:
