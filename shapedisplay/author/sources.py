@@ -32,12 +32,13 @@ import numpy as np
 from shapedisplay.errors import FileFormatError, InputError, unknown_key
 from shapedisplay.author.heightfield import HeightField, check_grid_size, check_spacing, height_range as _height_range, height_scale
 from shapedisplay.author.imageio import PICTURE_SUFFIXES   # numpy only; Pillow is imported when a picture is read
+from shapedisplay.author.shapes import PRIMITIVE_EDGES, rounded_rect_distance
 from shapedisplay.units import parse_quantity
 
 #: Suffixes load_source understands, by kind.
 IMAGE_SUFFIXES = PICTURE_SUFFIXES + (".npy",)
 MESH_SUFFIXES = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf")
-EDGE_PROFILES = ("ramp", "cosine", "step")
+EDGE_PROFILES = tuple(PRIMITIVE_EDGES)          # "ramp", "cosine", "step" (author/shapes.py)
 LINE_PROFILES = ("cosine", "tent", "box")
 
 
@@ -286,18 +287,6 @@ def raised_cosine_bump(height, radius, size, dx, *, dy=None, center=None) -> Hei
                   primitive="raised_cosine_bump", height=a, radius=rad, center=[cx, cy])
 
 
-def _edge(t: np.ndarray, edge: str) -> np.ndarray:
-    """Edge profile on t = inward distance / edge width (0 at the rim, 1 inside)."""
-    if edge == "step":
-        return (t >= 0).astype(np.float64)
-    t = np.clip(t, 0.0, 1.0)
-    if edge == "ramp":
-        return t
-    if edge == "cosine":
-        return 0.5 * (1 - np.cos(np.pi * t))
-    raise unknown_key("edge profile", edge, EDGE_PROFILES)
-
-
 def rounded_button(width, depth, height, size, dx, *, dy=None, center=None, corner_radius=0.0,
                    edge="cosine", edge_width=None) -> HeightField:
     """Rounded-rectangle button (negative ``height``: a recessed well).
@@ -329,13 +318,8 @@ def rounded_button(width, depth, height, size, dx, *, dy=None, center=None, corn
     ew = 0.2 * min(w, d) if edge_width is None else _length(edge_width, "edge_width", positive=True)
     X, Y, dx, dy, ext = _grid(size, dx, dy)
     cx, cy = _center(center, ext)
-    # signed distance to the rounded rectangle (negative inside)
-    qx = np.abs(X - cx) - (w / 2 - rc)
-    qy = np.abs(Y - cy) - (d / 2 - rc)
-    outside = np.hypot(np.maximum(qx, 0.0), np.maximum(qy, 0.0))
-    sdf = outside + np.minimum(np.maximum(qx, qy), 0.0) - rc
-    inward = -sdf
-    h = a * (_edge(inward, "step") * (inward > 0) if edge == "step" else _edge(inward / ew, edge))
+    inward = -rounded_rect_distance(X - cx, Y - cy, w / 2, d / 2, rc)
+    h = a * PRIMITIVE_EDGES[edge](inward / ew)       # "step": 1 wherever inward > 0, whatever the width
     return _field(h, dx, dy, f"rounded button {w * 1e3:g}x{d * 1e3:g} mm h={a * 1e3:g} mm edge={edge}",
                   primitive="rounded_button", width=w, depth=d, height=a, corner_radius=rc, edge=edge,
                   edge_width=ew, center=[cx, cy])

@@ -8,9 +8,11 @@ side: a table plus a profile is all a host needs.
 """
 from __future__ import annotations
 
+import functools
 import math
 import sys
-from dataclasses import asdict, dataclass, field, replace
+import typing
+from dataclasses import MISSING, asdict, dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 
 from shapedisplay.errors import FileFormatError, InputError, ModelError, unknown_key
@@ -162,25 +164,61 @@ class DeviceProfile:
         return self
 
     def to_json(self) -> dict:
-        d = asdict(self)
-        d["outputs"] = list(self.outputs)
-        d["normal_force_range"] = list(self.normal_force_range)
-        d["velocity_range"] = list(self.velocity_range)
-        return d
+        """Every field by name (a table header's ``device``): sections as objects, tuples as lists."""
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
 
     @classmethod
     def from_json(cls, d: dict) -> "DeviceProfile":
+        """The validated profile :meth:`to_json` wrote; a missing key keeps the field's default."""
         d = dict(d)
-        d["pad"] = PadParams(**d.get("pad", {}))
-        d["friction"] = FrictionParams(**d.get("friction", {}))
-        d["burst"] = BurstParams(**d.get("burst", {}))
-        d["outputs"] = tuple(d.get("outputs", ("burst",)))
-        d["normal_force_range"] = tuple(d.get("normal_force_range", (0.0, 10.0)))
-        d["velocity_range"] = tuple(d.get("velocity_range", (1e-4, 0.5)))
+        for name, kind in field_types(cls).items():
+            if is_dataclass(kind):
+                d[name] = kind(**d.get(name, {}))
+            elif kind is tuple and name in d:
+                d[name] = tuple(d[name])
         return cls(**d).validate()
 
     def with_(self, **changes) -> "DeviceProfile":
         return replace(self, **changes).validate()
+
+
+@functools.lru_cache(maxsize=None)
+def field_types(cls) -> dict:
+    """Field name -> type of dataclass ``cls`` (its annotations resolved: ``float``, ``tuple``, ``PadParams``, ...)."""
+    hints = typing.get_type_hints(cls)
+    return {f.name: hints[f.name] for f in fields(cls)}
+
+
+#: The JSON kind a header holds a field of each type as (see :func:`header_kinds`).
+_TYPE_KINDS = {str: "str", bool: "bool", float: "number", int: "number", float | None: "number?", dict: "object"}
+
+
+@functools.lru_cache(maxsize=None)
+def header_kinds(cls) -> dict:
+    """Field name -> the kind of JSON value a table header holds each field of dataclass ``cls`` as.
+
+    The header schema of :class:`DeviceProfile` (``header["device"]``,
+    checked by ``table.model.check_meta``) is derived here from the fields,
+    so a field added to the dataclass is checked with no other edit. Kinds:
+    "str", "bool", "number", "number?" (``float | None``: a number or null),
+    "object" (a dict), "names" (a tuple of strings, as the default is), an
+    int n (a tuple of n numbers, as the default is) or, for a nested
+    dataclass, the dict of its own fields' kinds. A field type with no JSON
+    form is a TypeError.
+    """
+    kinds = {}
+    for f in fields(cls):
+        kind = field_types(cls)[f.name]
+        if is_dataclass(kind):
+            kinds[f.name] = header_kinds(kind)
+        elif kind is tuple:
+            default = f.default_factory() if f.default is MISSING else f.default
+            kinds[f.name] = "names" if all(isinstance(v, str) for v in default) else len(default)
+        elif kind in _TYPE_KINDS:
+            kinds[f.name] = _TYPE_KINDS[kind]
+        else:
+            raise TypeError(f"{cls.__name__}.{f.name}: a table header has no form for type {kind!r}")
+    return kinds
 
 
 # TOML key -> (attribute, unit, kind) ; kind: q quantity, r range of 2, s str, l list

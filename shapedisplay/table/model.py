@@ -744,60 +744,55 @@ def _parse_layout(header: dict, arrays: dict):
 
 
 # ------------------------------------------------------------------ header schema
-def _device_schema(d: dict) -> None:
-    strings = ("name", "description")
-    numbers = ("tick_rate_hz", "audio_rate_hz", "cursor_gain", "force_sample_rate_hz", "resolution_m",
-               "lateral_force_max", "skin_stretch_max")
-    sections = {"pad": ("mass", "stiffness", "damping"), "friction": ("mu_s", "mu_k"),
-                "burst": ("carrier_hz", "rise_s", "decay_s", "gain", "max_stick_period_s")}
+#: The header's ``mapping`` (what the authoring side's ``MappingOptions.to_json()`` writes: its fields and
+#: ``spec``): key -> kind as :func:`~shapedisplay.table.devices.header_kinds` derives it. The table side does
+#: not import the authoring side, so the list lives here; tests/test_one_home.py holds it to the dataclass.
+MAPPING_KINDS = {"height": "bool", "n_base": "number", "n_gain": "number", "slope_friction_gain": "number",
+                 "lateral": "str", "lateral_gain": "number", "skin_stretch": "number",
+                 "perceptual_exponent": "number?", "perceptual_threshold": "number", "spec": "str"}
+#: Kind -> (test of a value, what the value must be) for the kinds checked by type alone.
+_KIND_TESTS = {"str": (lambda v: isinstance(v, str), "a string"),
+               "bool": (lambda v: isinstance(v, bool), "true or false"),
+               "number?": (lambda v: v is None or _is_num(v), "a finite number or null"),
+               "names": (lambda v: isinstance(v, list) and all(isinstance(x, str) for x in v), "a list of strings")}
+
+
+def _check_kinds(d: dict, where: str, kinds: dict, strict: bool = True) -> None:
+    """Check header object ``d`` (at ``where``) value by value against ``kinds``; unknown keys refused if ``strict``."""
     for key, v in d.items():
-        where = f"device.{key}"
-        if key in strings:
-            if not isinstance(v, str):
-                raise TableError(f"header '{where}' must be a string (got {_short(v)})")
-        elif key in numbers:
-            _number(d, key, "device")
-        elif key in ("normal_force_range", "velocity_range"):
-            if not (isinstance(v, list) and len(v) == 2 and all(_is_num(x) for x in v)):
-                raise TableError(f"header '{where}' must be 2 finite numbers (got {_short(v)})")
-        elif key == "outputs":
-            if not (isinstance(v, list) and all(isinstance(x, str) for x in v)):
-                raise TableError(f"header '{where}' must be a list of strings (got {_short(v)})")
-        elif key in sections:
-            sec = _object(v, where)
-            for k in sec:
-                if k not in sections[key]:
-                    raise TableError(f"header '{where}' has unknown key {_short(k)}")
-                _number(sec, k, where)
-        elif key == "extra":
-            _object(v, where)
+        kind, at = kinds.get(key), f"{where}.{key}"
+        if kind is None:
+            if strict:
+                raise TableError(f"header '{where}' has unknown key {_short(key)}")
+        elif isinstance(kind, dict):
+            _check_kinds(_object(v, at), at, kind)
+        elif kind == "number":
+            _number(d, key, where)
+        elif kind == "object":
+            _object(v, at)
         else:
-            raise TableError(f"header 'device' has unknown key {_short(key)}")
-    from shapedisplay.table.devices import DeviceProfile     # runtime side; imported here to keep `import table` light
+            test, what = _KIND_TESTS.get(kind) or (
+                lambda v: isinstance(v, list) and len(v) == kind and all(_is_num(x) for x in v),
+                f"{kind} finite numbers")
+            if not test(v):
+                raise TableError(f"header '{at}' must be {what} (got {_short(v)})")
+
+
+def _device_schema(d: dict) -> None:
+    # runtime side; imported here to keep `import table` light
+    from shapedisplay.table.devices import DeviceProfile, header_kinds
+    _check_kinds(d, "device", header_kinds(DeviceProfile))
     try:
         DeviceProfile.from_json(d)
     except (InputError, TypeError, ValueError) as exc:
         raise TableError(f"header 'device' is not a valid device profile ({exc})") from None
 
 
-_MAPPING_NUMBERS = ("n_base", "n_gain", "slope_friction_gain", "lateral_gain", "skin_stretch",
-                    "perceptual_threshold")
-
-
 def _mapping_schema(m: dict) -> None:
-    for key, v in m.items():
-        where = f"mapping.{key}"
-        if key in _MAPPING_NUMBERS:
-            _number(m, key, "mapping")
-        elif key == "perceptual_exponent":
-            if v is not None and not (_is_num(v) and v > 0):
-                raise TableError(f"header '{where}' must be a number > 0 or null (got {_short(v)})")
-        elif key == "height":
-            if not isinstance(v, bool):
-                raise TableError(f"header '{where}' must be true or false (got {_short(v)})")
-        elif key in ("lateral", "spec"):
-            if not isinstance(v, str):
-                raise TableError(f"header '{where}' must be a string (got {_short(v)})")
+    _check_kinds(m, "mapping", MAPPING_KINDS, strict=False)     # keys a newer writer adds pass (plain JSON)
+    b = m.get("perceptual_exponent")
+    if b is not None and not b > 0:
+        raise TableError(f"header 'mapping.perceptual_exponent' must be a number > 0 or null (got {_short(b)})")
 
 
 def _scene_schema(sc: dict) -> None:

@@ -30,11 +30,12 @@ import numpy as np
 from shapedisplay.author.forces import EXPONENTS, equal_steps
 from shapedisplay.author.scene.fields import (MAX_LENGTH_M, Canvas, Ctx, OVERLAP_RULES, SceneError, Widget, choice, length, number,
                      pair, quantity, wrap_unit_errors)
+from shapedisplay.author.shapes import WIDGET_EDGES, rounded_rect_distance
 
 #: Published starting points: ramp spans of 10-30 mm were studied;
 #: perception saturates above ~15 mm at 0.15 N/mm.
 DEFAULT_RAMP = "10 mm"
-EDGES = ("linear", "cosine", "tent")
+EDGES = tuple(WIDGET_EDGES)           # "linear", "cosine", "tent" (author/shapes.py)
 #: Largest box a widget may span on the canvas grid (samples), checked before its geometry is
 #: built (a mesh is rasterised on the whole box, also where it reaches past the canvas).
 MAX_WIDGET_SAMPLES = 4096 * 4096
@@ -42,22 +43,15 @@ MAX_WIDGET_SAMPLES = 4096 * 4096
 
 # --------------------------------------------------------------- shapes
 def edge_profile(t, kind: str):
-    """Edge rise from 0 (outer edge, t=0) to 1 (top of the ramp, t>=1)."""
-    t = np.clip(t, 0.0, 1.0)
-    if kind == "cosine":
-        return 0.5 - 0.5 * np.cos(np.pi * t)
-    return t  # linear and tent
+    """Edge rise from 0 (outer edge, t=0) to 1 (top of the ramp, t>=1); ``kind`` one of :data:`EDGES`."""
+    return WIDGET_EDGES[kind](t)
 
 
 def inside_distance(u, v, W: float, H: float, r: float, is_1d: bool):
     """Distance from the edge of the rounded rectangle [0,W]x[0,H] (corner radius r), >0 inside."""
     if is_1d:
         return np.minimum(u, W - u) + 0.0 * v
-    r = min(r, W / 2, H / 2)
-    qx = np.abs(u - W / 2) - (W / 2 - r)
-    qy = np.abs(v - H / 2) - (H / 2 - r)
-    outside = np.hypot(np.maximum(qx, 0.0), np.maximum(qy, 0.0)) + np.minimum(np.maximum(qx, qy), 0.0) - r
-    return -outside
+    return -rounded_rect_distance(u - W / 2, v - H / 2, W / 2, H / 2, r)
 
 
 def raised_cosine(r, radius: float):
@@ -518,7 +512,7 @@ class Ridge(WidgetType):
             t = np.clip(((u - ax) * ex + (v - ay) * ey) / ll, 0.0, 1.0) if ll > 0 else 0.0 * u
             dist = np.hypot(u - (ax + t * ex), v - (ay + t * ey))
         half = p["width"] / 2
-        prof = edge_profile(1.0 - dist / half, "linear" if p["profile"] == "linear" else "cosine")
+        prof = edge_profile(1.0 - dist / half, p["profile"])
         return np.where(dist < half, p["height"] * prof, 0.0)
 
 
