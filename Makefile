@@ -6,14 +6,14 @@ SD     := $(VENV)/bin/shapedisplay
 STAMP  := $(VENV)/.installed
 OUT    := out
 
-.PHONY: install test demo bench report generate docs-images fuzz clean
+.PHONY: install test demo bench report generate docs docs-images fuzz clean
 
 # the C engine and kernels are compiled by the install: a changed C source or setup.py installs again
 ENGINE_SRC := setup.py $(wildcard shapedisplay/engine/sd_*.[ch] shapedisplay/render/sd_*.c shapedisplay/author/sd_kernels.c shapedisplay/_module.c)
 $(STAMP): pyproject.toml scripts/install-system-deps.sh $(ENGINE_SRC)
 	sh scripts/install-system-deps.sh --with-xvfb --with-studio --with-toolchains
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install -q -e '.[all,test]'
+	$(PY) -m pip install -q -e '.[all,test,docs]'
 	@touch $@
 
 install: $(STAMP)
@@ -48,6 +48,12 @@ report: $(STAMP)
 # KERNEL_SOURCES_SHA256 lines): run after changing a kernel or adding a model; tests check they are current.
 generate: $(STAMP)
 	$(PY) -m shapedisplay.render.codegen
+
+# The API reference from the docstrings (docs/api, Sphinx autodoc), warnings as errors, into $(OUT)/docs;
+# tests/test_docs_build.py builds it the same way in make test.
+docs: $(STAMP)
+	$(PY) -m sphinx -W --keep-going -q -b html docs/api $(OUT)/docs
+	@echo "API reference: $(OUT)/docs/index.html"
 
 # Every picture in docs/images from the shipped samples, byte-stable (tests/test_docs_images.py compares them);
 # previews need off-screen OpenGL, the studio screenshot Chromium (skipped with a note where missing). ~2 min.

@@ -14,7 +14,7 @@ coarse). With ``w`` the friction Weber fraction (``weber_fraction``, default
 0.1), half a just-noticeable difference is not felt, so:
 
 ``normal_force`` (and other force/ratio channels)
-    error <= w/2 * (smallest nonzero |value| of the channel): every rendered
+    error <= w/2 * (smallest nonzero ``|value|`` of the channel): every rendered
     force is reproduced to within half a JND of itself.
 ``lateral_x``, ``lateral_y``
     error <= w/2 * mu_k * N_min: the lateral cue adds to the tangential force

@@ -176,7 +176,7 @@ class MappingOptions:
             if opts.get("lateral") == "normal":
                 raise InputError(f"`lateral_gain` is K of the 'lateral' law F = -K grad h; 'lateral-normal' uses N "
                                  f"instead (got lateral_gain={kw['lateral_gain']!r} with mapping {spec!r})")
-            # like the other gains, giving K asks for its term (it was silently ignored)
+            # like the other gains, giving K asks for its term
             opts["lateral"] = "gradient"
         opts.update(kw)
         return cls(**opts)

@@ -145,7 +145,7 @@ def savgol(hf: HeightField, window=7, order: int = 2) -> tuple[np.ndarray, np.nd
     return gx, gy
 
 
-#: name -> function(hf, **kw) -> (gx, gy)
+#: name -> ``function(hf, **kw) -> (gx, gy)``
 GRADIENT_METHODS = {"central": central, "gaussian": gaussian, "savgol": savgol}
 _METHOD_KW = {"central": (), "gaussian": ("sigma",), "savgol": ("window", "order")}
 
@@ -199,7 +199,7 @@ def slope_along(gx: np.ndarray, gy: np.ndarray, direction) -> np.ndarray:
 
 
 def slope_magnitude(gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
-    """|grad h| (dimensionless), shape of ``gx``."""
+    """``|grad h|`` (dimensionless), shape of ``gx``."""
     return np.hypot(gx, gy)
 
 

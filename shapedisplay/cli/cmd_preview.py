@@ -62,17 +62,17 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-#: A size of bare whole numbers, ``1200x800``: the picture size in pixels ``--size`` used to mean.
+#: A size of bare whole numbers, ``1200x800``: a picture size in pixels (a physical size has a unit).
 _PIXELS = re.compile(r"^\s*\d+\s*[x×]\s*\d+\s*$")
 
 
 def picture_size(args) -> tuple[str | None, str]:
-    """(physical size, pixel size) from the options; ``--size 1200x800`` without a unit is the old pixel size.
+    """(physical size, pixel size) from the options; ``--size 1200x800`` without a unit is a pixel size.
 
     ``--size`` is the physical size in every command (with its unit, ``120x80mm``);
-    before, ``preview --size`` was the picture size in pixels. A value of bare
-    whole numbers cannot be a physical size (units are required), so it is
-    read the old way, with a note saying to write ``--pixels``.
+    the picture size in pixels is ``--pixels``. A value of bare whole numbers
+    cannot be a physical size (units are required), so ``--size`` given one is
+    read as the picture size in pixels, with a note saying to write ``--pixels``.
     """
     import sys
     size = getattr(args, "size", None)

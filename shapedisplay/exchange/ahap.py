@@ -12,7 +12,7 @@ A JSON pattern with ``Version`` 1.0, ``Metadata`` and a ``Pattern`` list:
   80 Hz → 0, 320 Hz → 1, so the default 300 Hz carrier is 0.95);
 * ``HapticContinuous`` events at intensity 1 covering the stroke (at most
   30 s each), with ``HapticIntensityControl`` parameter curves that follow
-  the drive envelope (:func:`drive_envelope`: the peak of |drive| over each
+  the drive envelope (:func:`drive_envelope`: the peak of ``|drive|`` over each
   carrier period, normalised to the stroke's peak, simplified to a
   piecewise-linear curve within ``tolerance`` of full scale and split into
   curves of at most 16 control points that join end to start).
@@ -64,7 +64,7 @@ def sharpness_of_carrier(carrier_hz: float) -> float:
 
 
 def drive_envelope(drive: np.ndarray, rate: float, carrier_hz: float) -> tuple[np.ndarray, np.ndarray]:
-    """Envelope of a burst drive: the peak of |drive| over each carrier period.
+    """Envelope of a burst drive: the peak of ``|drive|`` over each carrier period.
 
     Parameters
     ----------

@@ -46,7 +46,7 @@ from shapedisplay.link import protocol as P
 from shapedisplay.link.engine import RenderEngine, warm_engine
 from shapedisplay.link.framing import Frame, FrameDecoder, crc32, encode_frame
 
-#: Actuator full scale; a drive sample with |value| > 1 is clipped and counted.
+#: Actuator full scale; a drive sample with ``|value| > 1`` is clipped and counted.
 DAC_RANGE = 1.0
 
 

@@ -40,7 +40,7 @@ from shapedisplay.reports.peers import PEER_METHODS, konyo_ivp, stribeck_ivp
 KONYO = dict(m=1.0e-6, k=2000.0, c=0.01, mu_s=0.5, mu_k=0.3)
 IMAIZUMI = dict(m=1.0e-4, k=1.0e3, c=1.0, mu_s=2.1, mu_k=1.4, a=55.0, b=1.9)
 BELT = dict(m=1.0, k=1.0, c=0.0, mu_s=1.0, mu_k=0.5)
-#: The belt with Stribeck friction mu = mu_k + (mu_s - mu_k) exp(-a |v|/W) + b |v|/W (negative slope at 0.2 m/s).
+#: The belt with Stribeck friction ``mu = mu_k + (mu_s - mu_k) exp(-a |v|/W) + b |v|/W`` (negative slope at 0.2 m/s).
 BELT_STRIBECK = dict(BELT, a=3.0, b=0.1)
 #: Slip tolerances the ``stribeck`` model runs at (None: its default, Taylor steps at 1e-13; the looser ones take
 #: exponential Rosenbrock steps as long as the accuracy allows), in full and quick mode.

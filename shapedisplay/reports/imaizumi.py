@@ -39,7 +39,7 @@ def imaizumi_study(duration: float = 1.0, settle: float = 0.2, tick_rate: float 
     list of dict
         One row per (stimulus, speed): ``stimulus``, ``frequency_hz``,
         ``amplitude_m``, ``finger_speed_m_s``, ``mean_friction_n`` (mean of
-        |F|), ``max_friction_n``, ``events`` (stick-to-slip transitions),
+        ``|F|``), ``max_friction_n``, ``events`` (stick-to-slip transitions),
         ``stick_fraction``.
     """
     rows = []

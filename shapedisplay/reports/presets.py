@@ -26,7 +26,7 @@ Summary columns (over the analysed window, or a region of the stroke)
 ``stick_period_s`` (median interval between successive events: one stick
 and its slip), ``longest_stick_s`` (the longest such interval),
 ``burst_amplitude`` (median peak amplitude A of the bursts, full scale),
-``mean_friction_n`` / ``max_friction_n`` (of |f|), ``clipped`` (audio
+``mean_friction_n`` / ``max_friction_n`` (of ``|f|``), ``clipped`` (audio
 samples limited to full scale). Ramp and bump studies add the same numbers
 for the base (``base_*``) and the top of the profile (``top_*``).
 

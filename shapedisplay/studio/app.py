@@ -8,7 +8,7 @@ Security (the page can make a sound card drive a tactor, and it edits files):
 * a request whose ``Host`` is not the studio's own address, or whose
   ``Origin`` (when sent) is not the studio's own origin, is refused: a page
   on another site, or a DNS-rebinding name pointing at 127.0.0.1, gets 403;
-* files are read only under the source's folder (see :mod:`.session`) and
+* files are read only under the source's folder (see :mod:`~shapedisplay.studio.session`) and
   written only to the scene file being edited and under the output folder.
 
 Routes (all under the token):

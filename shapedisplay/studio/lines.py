@@ -2,8 +2,8 @@
 
 Scene errors name the place the way the file is written: a TOML syntax error
 says "at line 12, column 5"; a validation error names the widget
-(``widget[3] 'app-4'``) and the field in backticks (`` `size` ``,
-`` `canvas.size` ``, `` `defaults.button.ramp` ``). :func:`error_line` maps
+(``widget[3] 'app-4'``) and the field in backticks (```size```,
+```canvas.size```, ```defaults.button.ramp```). :func:`error_line` maps
 such a message back to the line that holds the field, by reading the text's
 table headers and keys (one line per key; the studio does not need a full TOML
 parser for this, and a value spanning several lines still starts on the key's

@@ -2,7 +2,7 @@
 
 pyvista is an optional extra, imported only when drawing (through
 :func:`.offscreen.load_pyvista`). What is drawn is decided by the numpy
-model (:mod:`.model`); this module only turns it into VTK actors.
+model (:mod:`~shapedisplay.viewer.model`); this module only turns it into VTK actors.
 """
 from __future__ import annotations
 

@@ -7,7 +7,7 @@ table's come from the table, a scene's from the scene compiler
 (:func:`shapedisplay.author.scene.compiler.scene_force_channels`), and the friction
 limits mu_s N and mu_k N from the renderer's own derivation
 (:func:`shapedisplay.render.renderer.friction_limits`). This module adds only
-what is drawn (slope, walls, |F_lat|) and the choices of the drawing
+what is drawn (slope, walls, ``|F_lat|``) and the choices of the drawing
 (exaggeration, stroke segments, chart envelope).
 
 Display coordinates are millimetres: x and y as on the surface, z the
@@ -24,7 +24,7 @@ import numpy as np
 
 from shapedisplay.errors import FileFormatError, InputError, ShapeDisplayError, TableError, unknown_key
 
-#: Slope |grad h| at and above which a sample counts as a wall (45 degrees).
+#: Slope ``|grad h|`` at and above which a sample counts as a wall (45 degrees).
 WALL_SLOPE = 1.0
 #: Relief height, as a fraction of the larger horizontal extent, chosen by "auto" exaggeration.
 AUTO_RELIEF_FRACTION = 0.15
@@ -238,7 +238,7 @@ def _bilinear(arr: np.ndarray, fr, fc):
 
 
 def slope_of(heights: np.ndarray, dx: float, dy: float) -> np.ndarray:
-    """|grad h| of ``heights`` (rows, cols) metres, as the compiler's default gradient computes it."""
+    """``|grad h|`` of ``heights`` (rows, cols) metres, as the compiler's default gradient computes it."""
     from shapedisplay.author.gradients import central, slope_magnitude
     from shapedisplay.author.heightfield import HeightField
     return slope_magnitude(*central(HeightField(np.asarray(heights, dtype=np.float64), dx, dy)))

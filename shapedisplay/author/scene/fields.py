@@ -4,7 +4,7 @@ Every value of a scene file goes through one of these parsers
 (:func:`length`, :func:`quantity`, :func:`pair`, :func:`number`,
 :func:`choice`, :func:`check_keys`), so an error always names the scene,
 the widget and the field as written. The scene loader (:mod:`.spec`) and the
-widget types (:mod:`.widgets`) both use them; this module imports neither.
+widget types (:mod:`~shapedisplay.author.scene.widgets`) both use them; this module imports neither.
 """
 from __future__ import annotations
 
