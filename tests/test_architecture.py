@@ -221,6 +221,15 @@ def test_c_runtime_checks_the_same_tick_rate_range():
     assert {(float(lo), float(hi)) for lo, hi in found} == {TICK_RATE_RANGE}
 
 
+def test_c_runtime_checks_the_same_h_omega_limit():
+    """sd_renderer_init's pad rule holds the number of devices.H_OMEGA_MAX (the renderer names it first)."""
+    import re
+    from shapedisplay.table.devices import H_OMEGA_MAX
+    found = re.findall(r"#define SD_H_OMEGA_MAX ([\d.eE+]+)", (PACKAGE / "engine" / "sd_runtime.h").read_text())
+    assert found and float(found[0]) == H_OMEGA_MAX
+    assert "SD_H_OMEGA_MAX * SD_H_OMEGA_MAX" in (PACKAGE / "engine" / "sd_render.c").read_text()
+
+
 def _tracked_text_files():
     import subprocess
     root = PACKAGE.parent

@@ -243,14 +243,18 @@ def test_table_from_c_header_export(tmp_path, dtype, sparse, kmu):
 
 
 def test_c_renderer_init_refuses_bad_parameters(sd_vectors, tmp_path):
-    """sd_renderer_init validates before binding: mu_k > mu_s, a 50 Hz tick, no pad mass, a model id with no C tick."""
+    """sd_renderer_init validates before binding: mu_k > mu_s, a 50 Hz tick, no pad mass, a model id with no C tick,
+    a pad whose h * omega_n exceeds devices.H_OMEGA_MAX (stiffness just past it at 10 kHz)."""
+    from shapedisplay.table.devices import H_OMEGA_MAX
     table = widget_table("uint16", kmu=0.0)
     r = Renderer(table, model="jump", tick_rate=10_000.0)
     good = render_payload(r, [0.0, 1e-4], [0.0, 0.0])
     size = RENDER_CONFIG.itemsize
     cfg = np.frombuffer(good[:size], RENDER_CONFIG).copy()
+    too_stiff = float(cfg["pad"]["mass"][0]) * (1.001 * H_OMEGA_MAX * 10_000.0) ** 2
     for field, value in (("mu_k", 0.9), ("tick_rate", 50.0), (("pad", "mass"), 0.0),
-                         ("model", len(MODEL_IDS))):      # no such model: sd_model_tick gives NULL
+                         ("model", len(MODEL_IDS)),       # no such model: sd_model_tick gives NULL
+                         (("pad", "stiffness"), too_stiff)):
         bad = cfg.copy()
         if isinstance(field, tuple):
             bad[field[0]][field[1]] = value

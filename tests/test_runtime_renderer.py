@@ -441,3 +441,30 @@ def test_run_kernel_carries_its_state_and_keeps_every_event(model):
         assert et.size > 0 and np.all(np.diff(et) >= 0)
         if rate == 100.0 and model in ("exact", "jump"):
             assert et.size > n // 8 + 1024                  # grew past run_kernel's first event buffer
+
+
+def test_a_pad_beyond_the_h_omega_limit_is_refused_by_name():
+    """A pad ringing far faster than the tick (h * omega_n > H_OMEGA_MAX) is refused in one line, not played for minutes."""
+    import dataclasses
+
+    from shapedisplay.errors import ModelError
+    from shapedisplay.table.devices import H_OMEGA_MAX, PadParams
+    table = FrictionTable.from_dense(Grid(1, 8, 1e-3, 1e-3), {"normal_force": np.ones((1, 8))},
+                                     {"normal_force": choose_quantization(np.ones((1, 8)), "float64")})
+    dev = load_device(None).with_(tick_rate_hz=20_000.0)
+    m = dev.pad.mass
+    stiff = dataclasses.replace(dev, pad=PadParams(m, m * (1.001 * H_OMEGA_MAX * 10_000.0) ** 2, dev.pad.damping))
+    Renderer(table, device=stiff)                          # resolved at the device's 20 kHz: h * omega_n = 500
+    Renderer(table, device=stiff, tick_rate=10_010.0)      # just within the limit
+    with pytest.raises(ModelError, match=r"h \* omega_n = .* = 1001, beyond the limit of 1000 \(raise the tick rate"):
+        Renderer(table, device=stiff, tick_rate=10_000.0)
+
+
+def test_a_device_profile_beyond_the_h_omega_limit_is_refused_at_load(tmp_path):
+    from shapedisplay.errors import ModelError
+    from shapedisplay.table.devices import H_OMEGA_MAX
+    stiff = 1e-6 * (1.01 * H_OMEGA_MAX * 1000.0) ** 2          # N/m at 1 kHz
+    p = tmp_path / "stiff.toml"
+    p.write_text(f'[device]\nname = "stiff"\ntick_rate = "1 kHz"\n[pad]\nmass = 1e-6\nstiffness = {stiff:.6g}\n')
+    with pytest.raises(ModelError, match=r"device pad: h \* omega_n = .* = 1010, beyond the limit of 1000"):
+        load_device(p)

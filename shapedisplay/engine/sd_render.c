@@ -526,6 +526,11 @@ int sd_renderer_init(sd_renderer_t *R, const sd_table_t *table, const sd_config_
         || !(cfg->k_mu >= SD_R(0.0)))
         return SD_ERR_PARAM;
     if (!(cfg->tick_rate >= 100.0f && cfg->tick_rate <= 192000.0f)) return SD_ERR_PARAM;   /* devices.TICK_RATE_RANGE */
+    /* the pad's natural frequency within what a tick resolves: h * omega_n <= SD_H_OMEGA_MAX (devices.H_OMEGA_MAX);
+       beyond it the pad rings through thousands of stick-slip transitions in one tick */
+    if (!((double)p->stiffness <= (double)p->mass * (SD_H_OMEGA_MAX * SD_H_OMEGA_MAX)
+                                   * (double)cfg->tick_rate * (double)cfg->tick_rate))
+        return SD_ERR_PARAM;
     if (!(cfg->audio_rate == SD_R(0.0) || (cfg->audio_rate >= SD_R(1000.0) && cfg->audio_rate <= SD_R(384000.0))))
         return SD_ERR_PARAM;
     if (!(cfg->carrier_hz > SD_R(0.0)) || !(cfg->rise_s > SD_R(0.0)) || !(cfg->decay_s > SD_R(0.0))) return SD_ERR_PARAM;

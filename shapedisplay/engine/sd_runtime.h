@@ -150,6 +150,9 @@ long sd_render_events(const sd_real *ev_t, const sd_real *ev_a, long n_ev, sd_re
 
 enum { SD_OK = 0, SD_ERR_ARG = -1, SD_ERR_TABLE = -2, SD_ERR_PARAM = -3 };
 
+/* Largest h * omega_n = sqrt(stiffness / mass) / tick_rate of a pad (devices.H_OMEGA_MAX): sd_renderer_init refuses more. */
+#define SD_H_OMEGA_MAX 1000.0
+
 /* Cursor positions farther than this from the origin (m), and non-finite ones, are faults: the
  * renderer holds the last valid position and counts them (position_faults). */
 #ifndef SD_POSITION_LIMIT_M

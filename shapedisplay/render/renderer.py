@@ -71,7 +71,7 @@ import numpy as np
 
 from shapedisplay.errors import InputError, ModelError
 from shapedisplay.table.model import FrictionTable
-from shapedisplay.table.widgets import widget_map
+from shapedisplay.table.widgets import widget_boxes
 from shapedisplay.render.cursor import CursorPath
 from shapedisplay.render.image import to_image
 from shapedisplay.render.layouts import NSLOT, OUTPUTS, PAD_STATE, RUN_STATE, SLOTS
@@ -234,7 +234,7 @@ class Renderer:
         #: Per-tick outputs of the last :meth:`step`: an OUTPUTS record (a view; ``last["drive"]``).
         self.last = self._online.out
         #: The table's scene widgets, ``(id, (x0, y0, x1, y1))`` in m: what each event's ``widget`` names.
-        self.widgets = tuple((w["id"], tuple(w["bbox_m"])) for w in widget_map(table))
+        self.widgets = widget_boxes(table)
         self.reset()
 
     # ------------------------------------------------------------------ offline

@@ -16,8 +16,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from shapedisplay.table.devices import DeviceProfile, check_tick_rate, load_device
-from shapedisplay.errors import InputError, TableError, unknown_key
+from shapedisplay.table.devices import H_OMEGA_MAX, DeviceProfile, check_tick_rate, load_device
+from shapedisplay.errors import InputError, ModelError, TableError, unknown_key
 from shapedisplay.table.model import FrictionTable
 from shapedisplay.units import parse_quantity
 from shapedisplay.render.layouts import BURST_POLICIES, RENDER_CONFIG, SLOTS, record
@@ -133,6 +133,18 @@ class RenderSettings:
     normal_force_constant: float | None
 
 
+def check_h_omega(mass: float, stiffness: float, rate: float, model: str) -> None:
+    """Refuse a pad whose natural frequency the tick cannot resolve: h * omega_n > :data:`H_OMEGA_MAX`.
+
+    The C engine holds the same rule (``sd_renderer_init``); this one names the numbers.
+    """
+    h_omega = math.sqrt(stiffness / mass) / rate
+    if not h_omega <= H_OMEGA_MAX:
+        raise ModelError(f"pad of model '{model}': h * omega_n = sqrt(stiffness / mass) / tick_rate = "
+                         f"sqrt({stiffness:g} N/m / {mass:g} kg) / {rate:g} Hz = {h_omega:.4g}, beyond the limit "
+                         f"of {H_OMEGA_MAX:g} (raise the tick rate or soften the pad)")
+
+
 def render_settings(table: FrictionTable, device=None, model="exact", tick_rate=None, audio_rate=None,
                     burst_policy="retrigger", max_stick_period=None, **model_options) -> RenderSettings:
     """Validate a renderer's options against ``table`` (arguments as :class:`~.renderer.Renderer`)."""
@@ -160,4 +172,5 @@ def render_settings(table: FrictionTable, device=None, model="exact", tick_rate=
                            carrier_hz=b.carrier_hz, rise_s=b.rise_s, decay_s=b.decay_s, policy=pid,
                            model=pad_model.model_id)
     config[0]["pad"] = pad_model.params
+    check_h_omega(float(pad_model.params["mass"]), float(pad_model.params["stiffness"]), rate, pad_model.name)
     return RenderSettings(dev, pad_model, rate, ar, burst_policy, present, config, n_const)

@@ -34,6 +34,10 @@ def toml_module():
 
 #: Tick rates a renderer runs at and a device profile may declare, Hz (the one home of this range).
 TICK_RATE_RANGE = (100.0, 192_000.0)
+#: Largest h * omega_n of a pad: its natural frequency sqrt(k/m) over the tick rate (the C engine's
+#: SD_H_OMEGA_MAX). Beyond it the pad rings through hundreds of stick-slip transitions within one tick
+#: (1,000 already gives about 140 a tick on a lightly damped pad); the stability report's sweeps reach 1,000.
+H_OMEGA_MAX = 1000.0
 
 
 def check_tick_rate(rate: float, field: str = "tick_rate") -> float:
@@ -149,6 +153,10 @@ class DeviceProfile:
             check_tick_rate(self.tick_rate_hz)
         except InputError as exc:
             raise InputError(f"device {exc}") from None
+        h_omega = self.pad.omega_n / self.tick_rate_hz
+        if not h_omega <= H_OMEGA_MAX:
+            raise ModelError(f"device pad: h * omega_n = sqrt(stiffness / mass) / tick_rate = {h_omega:.4g}, beyond "
+                             f"the limit of {H_OMEGA_MAX:g} (a stiffer or lighter pad needs a faster tick)")
         lo, hi = self.normal_force_range
         if not (0 <= lo < hi and math.isfinite(hi)):
             raise InputError(f"device `normal_force_range` must satisfy 0 <= low < high (got {lo}..{hi} N)")

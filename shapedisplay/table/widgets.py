@@ -63,6 +63,23 @@ def toggle_states(table) -> list[dict]:
     return out
 
 
+def widget_boxes(table) -> tuple:
+    """``((id, (x0, y0, x1, y1)), ...)`` of the table's scene widgets, metres, in scene order (empty without a scene).
+
+    Only the boxes: what names the widget under a point (a played event's
+    ``widget``). A table rebuilt on another layout (dense, resampled) keeps
+    its widgets' boxes even where its blocks no longer match the scene's.
+    """
+    out = []
+    for w in _scene(table).get("widgets") or []:
+        wid = str(w.get("id"))
+        bbox = [float(v) for v in w.get("bbox_m", ())]
+        if len(bbox) != 4 or not all(math.isfinite(v) for v in bbox):
+            raise TableError(f"table meta: widget '{wid}' needs a finite bbox_m [x0, y0, x1, y1] (got {bbox!r})")
+        out.append((wid, tuple(bbox)))
+    return tuple(out)
+
+
 def widget_map(table) -> list[dict]:
     """Widgets of ``table`` in scene order.
 
@@ -78,11 +95,8 @@ def widget_map(table) -> list[dict]:
     block_of = {w.get("id"): w.get("block") for w in (report.get("widgets") or []) if isinstance(w, dict)}
     toggles = {t["id"]: i for i, t in enumerate(toggle_states(table))}
     out = []
-    for w in widgets:
-        wid = str(w.get("id"))
-        bbox = [float(v) for v in w.get("bbox_m", ())]
-        if len(bbox) != 4 or not all(math.isfinite(v) for v in bbox):
-            raise TableError(f"table meta: widget '{wid}' needs a finite bbox_m [x0, y0, x1, y1] (got {bbox!r})")
+    for w, (wid, box) in zip(widgets, widget_boxes(table)):
+        bbox = list(box)
         b = block_of.get(wid)
         blocks = [int(b)] if isinstance(b, int) and 0 <= b < len(table.blocks) else []
         out.append({"id": wid, "type": str(w.get("type")), "bbox_m": bbox, "blocks": blocks,
