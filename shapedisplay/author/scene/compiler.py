@@ -689,6 +689,10 @@ def compile_scene(path, device=None, options=None, confine: bool = False):
             if len(members) > 1:
                 note.append(("block shared with " if k == 0 else f"merged into the block of '{members[0].id}' with ")
                             + _some_ids(members, w))
+            asked = scene.perception.get("contrast", {}).get(w.id)
+            if asked:                        # what `contrast = "3 jnd"` chose (spec._contrast_force)
+                note.append(f"contrast {asked['asked']} -> force {asked['force_n']:.4g} N "
+                            f"({asked['cue'].replace('_', ' ')})")
             if b["toggle"] is w:
                 extra = [p for st, p in toggles[w.id]["states"].items() if st != w.params["state"]]
                 for p in sorted(set(extra)):
@@ -748,6 +752,7 @@ def compile_scene(path, device=None, options=None, confine: bool = False):
         "ratio": table.stored_bytes / table.dense_bytes,
         "dense_rule": "dense = rows*cols * every format channel * 4 bytes (float32)",
         "warnings": warnings,
+        "contrast": dict(scene.perception.get("contrast", {})),
     }
     meta = table_meta(dev, mapping, options, report["source"], _scene_sha256(scene), report)
     meta["scene"] = {

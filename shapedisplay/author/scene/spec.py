@@ -104,6 +104,9 @@ class Scene:
     warnings: tuple = ()
     levels: dict = field(default_factory=dict)
     direction: str = "symmetric"  # [mapping] direction: "symmetric" or "one-sided"
+    #: What the legibility check reads (docs/perception.md): ``{"contrast": {id: what was asked and the
+    #: force chosen}, "distinct_from": {id: [ids]}}``.
+    perception: dict = field(default_factory=dict)
 
     def widget(self, wid: str) -> Widget:
         for w in self.widgets:
@@ -363,7 +366,8 @@ def parse_scene(data: dict, path: str = "<scene>", base_dir: Path | None = None,
     if not isinstance(raw_widgets, list) or not raw_widgets:
         raise SceneError(f"scene '{path}': the scene is empty: add at least one [[widget]] "
                          f"(types: {', '.join(sorted(WIDGET_TYPES))})")
-    widgets, seen = [], {}
+    widgets, seen, perception = [], {}, {"contrast": {}, "distinct_from": {}}
+    deferred = []                           # widgets whose `contrast` is against another widget
     for i, raw in enumerate(raw_widgets):
         if not isinstance(raw, dict):
             raise ctx.error(f"widget[{i}]", f"widget[{i}]", f"must be a table [[widget]] (got {raw!r})")
@@ -380,18 +384,124 @@ def parse_scene(data: dict, path: str = "<scene>", base_dir: Path | None = None,
             raise ctx.error(where, f"widget[{i}].type",
                             f"names an unknown widget type {wtype!r}{hint}; valid: {', '.join(sorted(WIDGET_TYPES))}")
         wt = WIDGET_TYPES[wtype]
-        check_keys(raw, wt.keys, ctx, where, f"widget[{i}].")
+        check_keys(raw, list(wt.keys) + list(PERCEPTION_KEYS), ctx, where, f"widget[{i}].")
+        raw, asked = _perception_keys(raw, wt, i, where, ctx, perception)
         merged = {k: v for k, v in common_defaults.items() if k in wt.keys}
         merged.update(type_defaults.get(wtype, {}))
         # strength keys from defaults must not fight the widget's own choice
         own_strength = [k for k in wt.strength_keys if k in raw]
-        if own_strength:
+        if own_strength or asked:
             for k in wt.strength_keys:
                 merged.pop(k, None)
         merged.update(raw)
+        if asked and asked["over"] is not None:
+            deferred.append((wt, merged, i, wid, asked))
+            continue
+        if asked:
+            merged["force"] = _contrast_force(asked, mapping.n_base, dev, mapping, ctx, where, i, perception, wid)
         widgets.append(place_widget(wt, merged, i, wid, canvas, mapping, levels, dev, ctx))
+    while deferred:                         # `contrast = "2 jnd over ID"`: once ID is placed
+        placed = {w.id: w for w in widgets}
+        ready = [d for d in deferred if d[4]["over"] in placed]
+        if not ready:
+            wt, merged, i, wid, asked = deferred[0]
+            ref = asked["over"]
+            known = ref in seen
+            raise ctx.error(f"widget[{i}] '{wid}'", f"widget[{i}].contrast",
+                            (f"is against '{ref}', whose own contrast is against this chain again (a cycle)"
+                             if known else f"names no widget '{ref}'{did_you_mean(ref, list(seen))}")
+                            + f" (got {asked['text']!r})")
+        for d in ready:
+            deferred.remove(d)
+            wt, merged, i, wid, asked = d
+            where = f"widget[{i}] '{wid}'"
+            ref = placed[asked["over"]]
+            if ref.type not in CONTRAST_REFERENCES or "height" not in ref.params:
+                raise ctx.error(where, f"widget[{i}].contrast",
+                                f"must be against a {', '.join(CONTRAST_REFERENCES)} ('{ref.id}' is a {ref.type}) "
+                                f"(got {asked['text']!r})")
+            lo, hi = dev.normal_force_range
+            n_ref = min(max(mapping.n_base + mapping.n_gain * ref.params["height"], lo), hi)
+            merged["force"] = _contrast_force(asked, n_ref, dev, mapping, ctx, where, i, perception, wid)
+            widgets.append(place_widget(wt, merged, i, wid, canvas, mapping, levels, dev, ctx))
+    widgets.sort(key=lambda w: w.index)
+    for wid, others in perception["distinct_from"].items():
+        for other in others:
+            if other not in seen or other == wid:
+                i = seen[wid]
+                raise ctx.error(f"widget[{i}] '{wid}'", f"widget[{i}].distinct_from",
+                                ("must name other widgets, not the widget itself" if other == wid else
+                                 f"names no widget '{other}'{did_you_mean(other, list(seen))}") + f" (got {other!r})")
     return Scene(path, name, description, canvas, dev, dev_src, mapping, tuple(widgets),
-                 tuple(ctx.warnings), levels, direction=direction)
+                 tuple(ctx.warnings), levels, direction=direction, perception=perception)
+
+
+# --------------------------------------------------------------- legibility keys
+#: Keys any widget may carry for the legibility check (docs/perception.md): ``contrast`` asks for a
+#: strength in JNDs, ``distinct_from`` lists widgets that must not feel alike.
+PERCEPTION_KEYS = ("contrast", "distinct_from")
+#: Widget types whose strength ``contrast`` sets: a plateau, against flat ground or another widget.
+CONTRAST_TYPES = ("button", "dent", "well")
+#: Widget types a ``contrast = "... over ID"`` may name: their ``height`` is their main feature.
+CONTRAST_REFERENCES = ("button", "dent", "well", "ridge", "edge", "groove")
+_CONTRAST = re.compile(r"^\s*(\d+(?:\.\d*)?|\.\d+)\s*jnds?\s*(?:(over|under)\s+(\S+))?\s*$", re.I)
+
+
+def _perception_keys(raw: dict, wt, i: int, where: str, ctx: Ctx, perception: dict) -> tuple[dict, dict | None]:
+    """``raw`` without the legibility keys, and the parsed ``contrast`` (None if not asked);
+    ``distinct_from`` goes into ``perception`` (checked once every id is known)."""
+    if not any(k in raw for k in PERCEPTION_KEYS):
+        return raw, None
+    fp = f"widget[{i}]."
+    wid = str(raw.get("id", f"{raw.get('type', 'widget')}-{i}"))
+    if "distinct_from" in raw:
+        v = raw["distinct_from"]
+        ids = [v] if isinstance(v, str) else v
+        if not isinstance(ids, list) or not ids or not all(isinstance(x, str) for x in ids):
+            raise ctx.error(where, fp + "distinct_from", f"must be a list of widget ids such as [\"app-1\"] (got {v!r})")
+        perception["distinct_from"][wid] = list(dict.fromkeys(ids))
+    asked = None
+    if "contrast" in raw:
+        text = raw["contrast"]
+        m = _CONTRAST.match(text) if isinstance(text, str) else None
+        if wt.name not in CONTRAST_TYPES:
+            raise ctx.error(where, fp + "contrast", f"sets the strength of a {', '.join(CONTRAST_TYPES)} only "
+                                                    f"(this is a {wt.name}) (got {text!r})")
+        if m is None or not 0 < float(m.group(1)) <= 100:
+            raise ctx.error(where, fp + "contrast", f"must look like \"3 jnd\" or \"2 jnd over ID\" (\"under ID\"), "
+                                                    f"0 < jnd <= 100 (got {text!r})")
+        given = [k for k in wt.strength_keys if k in raw]
+        if given:
+            raise ctx.error(where, fp + given[0], f"conflicts with `{fp}contrast`: give only one of contrast, "
+                                                  f"{', '.join(wt.strength_keys)}")
+        asked = {"text": text, "jnd": float(m.group(1)), "over": m.group(3),
+                 "under": (m.group(2) or "").lower() == "under", "sign": getattr(wt, "sign", 1)}
+    return {k: v for k, v in raw.items() if k not in PERCEPTION_KEYS}, asked
+
+
+def _contrast_force(asked: dict, n_ref: float, dev, mapping, ctx: Ctx, where: str, i: int, perception: dict,
+                    wid: str) -> str:
+    """The ``force`` value that gives the asked contrast (closed form, author/perception.py), recorded."""
+    from shapedisplay.author.perception import solve_contrast, typical_speed
+    fp = f"widget[{i}].contrast"
+    if mapping.n_gain <= 0:
+        raise ctx.error(where, fp, f"needs `mapping.n_gain` > 0 to turn a force into a height "
+                                   f"(got n_gain={mapping.n_gain} N/m)")
+    jnds = asked["jnd"] * asked["sign"] * (-1 if asked["under"] else 1)
+    speed = typical_speed(dev)
+    try:
+        n, cue = solve_contrast(n_ref, jnds, dev, speed, mapping)
+    except ValueError as exc:
+        raise ctx.error(where, fp, f"cannot be reached: {exc} (got {asked['text']!r})") from None
+    if (n - mapping.n_base) * asked["sign"] <= 0:
+        side = "above" if asked["sign"] > 0 else "below"
+        raise ctx.error(where, fp, f"asks for {n:.4g} N, not {side} flat ground ({mapping.n_base:g} N) as a "
+                                   f"{'raised' if asked['sign'] > 0 else 'sunk'} widget must be (got {asked['text']!r})")
+    lo, hi = dev.normal_force_range
+    perception["contrast"][wid] = {
+        "asked": asked["text"], "jnd": jnds, "against": asked["over"] or "flat ground", "reference_n": n_ref,
+        "force_n": n, "cue": cue, "speed_m_s": speed, "within_device": bool(lo <= n <= hi)}
+    return f"{n!r} N"
 
 
 def _parse_canvas(raw, ctx: Ctx) -> Canvas:
