@@ -184,6 +184,21 @@ def test_distinct_from_pairs_are_checked_and_unknown_ids_refused(tmp_path):
         load_scene(scene(tmp_path, bad))
 
 
+def test_stretch_at_the_ceiling_is_flagged_on_a_skin_stretch_device(tmp_path):
+    text = button("hi", 10, 'force = "1.5 N"') + button("lo", 50, 'force = "1.2 N"')
+    rep = check_perception(_stretch_scene(tmp_path, text))
+    assert rep["model"] == "karnopp" and [c["cue"] for c in rep["cues"]][:2] == ["burst_amplitude", "friction_force"]
+    assert "stretch" in widget(rep, "hi")["verdicts"] and "stretch" not in widget(rep, "lo")["verdicts"]
+    assert widget(rep, "hi")["skin_stretch_max_m"] == pytest.approx(0.75e-3)
+    assert any(m.startswith("stretch: 'hi'") for m in rep["warnings"])
+
+
+def _stretch_scene(tmp_path, text):
+    p = scene(tmp_path, text, device='"skin-stretch-tactor"')
+    p.write_text(p.read_text().replace('n_base = "1 N"', 'n_base = "1 N"\nskin_stretch = "0.55 mm"'))
+    return p
+
+
 # ------------------------------------------------------------------ against the closed forms
 def test_flat_ground_and_plateau_agree_with_the_jump_model_closed_forms(tmp_path):
     rep = check_perception(scene(tmp_path, button("p", 30, 'force = "3 N"', size="30x30 mm"),

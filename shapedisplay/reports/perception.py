@@ -14,8 +14,8 @@ published figures of :mod:`shapedisplay.author.perception`, and gives verdicts:
   flat ground by at least 1 JND, the finger stays on the feature (where it is
   at least half as strong as at its extreme) for at least the burst rise time,
   and, for the burst cue, at least one stick-slip event falls there;
-* **continuous**: no stick on the widget lasts longer than one burst (rise +
-  decay): beyond it the vibration stops between bursts;
+* **continuous** (devices with bursts): no stick on the widget lasts longer
+  than one burst (rise + decay): beyond it the vibration stops between bursts;
 * **saturated**: a rise longer than 15 mm at 0.15 N/mm or steeper, beyond
   which perceived height no longer grows;
 * **stretch**: skin stretch at or beyond the 0.75 mm ceiling;
@@ -444,7 +444,9 @@ class _Check:
                         f"feature, {st.events_half} stick-slip event(s) there (needs >= 1 JND for >= "
                         f"{self.rise_s * 1e3:.3g} ms with an event)")
         longest = max((x for x in stick.values() if x is not None), default=None)
-        if longest is not None and longest > self.burst_s * (1 + 1e-9):
+        if "burst" not in self.dev.outputs:   # the rule is about bursts falling silent between sticks
+            rec["continuity"] = "not applicable (no burst output)"
+        elif longest is not None and longest > self.burst_s * (1 + 1e-9):
             verdicts.append("not continuous")
             over = [sp for sp in SPEED_NAMES if stick[sp] is not None and stick[sp] > self.burst_s]
             self.warn(f"not continuous: '{w.id}' ({w.type}) sticks for up to {longest * 1e3:.3g} ms at "
@@ -462,8 +464,9 @@ class _Check:
                       f"{rise[1] * 1e-3:.3g} N/mm; beyond {HEIGHT_SATURATION_SPAN_M * 1e3:g} mm at "
                       f"{HEIGHT_SATURATION_RATE * 1e-3:g} N/mm perceived height no longer grows (shorten the ramp)")
         if "skin_stretch" in self.dev.outputs:
-            smax = max(float(np.max(np.abs(s.res.skin_stretch[s.in_box]), initial=0.0))
-                       for sp in SPEED_NAMES for s in strokes[sp])
+            rec["skin_stretch_rendered_max_m"] = max(float(np.max(np.abs(s.res.skin_stretch[s.in_box]), initial=0.0))
+                                                     for sp in SPEED_NAMES for s in strokes[sp])
+            smax = self._stretch_target(strokes["typical"])
             rec["skin_stretch_max_m"] = smax
             if smax >= STRETCH_CEILING_M * (1 - 1e-6):
                 verdicts.append("stretch")
@@ -480,6 +483,15 @@ class _Check:
 
     def warn(self, msg):
         self.warnings.append(msg)
+
+    def _stretch_target(self, strokes) -> float:
+        """The largest stretch the widget asks for: the stretch at breakaway, the table's ``skin_stretch``
+        channel (clamped to the device's maximum by the compiler) or the profile's constant target."""
+        if "skin_stretch" in self.table.channels:
+            return max(float(np.max(np.abs(self.table.sample("skin_stretch", s.res.x[s.in_box], s.res.y[s.in_box])),
+                                    initial=0.0)) for s in strokes)
+        from shapedisplay.render.settings import mapping_settings
+        return float(mapping_settings(self.table, self.dev)[1])
 
     # ---------------------------------------------------------------- features against their neighbours
     def _features(self, w, strokes) -> list:
@@ -633,7 +645,8 @@ class _Check:
                 continue
             ga, gb = find(p["a"]), find(p["b"])
             key = (ga, gb) if ga != gb else (ga,)
-            lines.setdefault(key, p)
+            if (gb, ga) not in lines:        # one line per pair of groups, whichever widget came first
+                lines.setdefault(key, p)
         v = self.speeds["typical"] * 1e3
         for key, p in lines.items():
             cue = (p["cue"] or "any cue").replace("_", " ")
@@ -678,7 +691,7 @@ def format_perception(rep: dict) -> list[str]:
         if stick is not None:
             extra.append(f"longest stick {stick * 1e3:.3g} ms")
         lines.append(f"  {r['id']:<14} {r['type']:<7} {r['contrast_jnd']:5.2f} JND {cue:<15} "
-                     f"{', '.join(r['verdicts']):<28} {', '.join(extra)}")
+                     f"{', '.join(r['verdicts']):<36} {', '.join(extra)}")
         for f in r.get("features", []):
             lines.append(f"  {'':<14} {'':<7} {f['contrast_jnd']:5.2f} JND {f['name']} against its neighbours: "
                          f"{', '.join(f['verdicts'])}")
