@@ -246,8 +246,10 @@ def test_corrupt_truncated_and_missing_files(tmp_path):
     write_png(tmp_path / "one.png", np.zeros((1, 1), np.uint8))
     with pytest.raises(InputError, match="at least 2 samples"):
         sources.load_image(tmp_path / "one.png", "1x1mm", "0:1mm")
-    with pytest.raises(InputError, match="needs `--height`"):
+    with pytest.raises(InputError, match="needs `height_range`"):
         sources.load_image(tmp_path / "good.png", "1x1mm", None)
+    with pytest.raises(InputError, match="needs `--height`"):
+        sources.load_image(tmp_path / "good.png", "1x1mm", None, flags={"height": "--height"})
 
 
 def test_written_png_records_its_scale(tmp_path):

@@ -154,13 +154,15 @@ def test_source_options_parse_command_line_strings():
     assert source_options("m.stl", size="60x40mm", up="0,1,0")["up"] == [0.0, 1.0, 0.0]
     with pytest.raises(InputError, match=r"needs `--extent`"):
         source_options("m.png", height="0:1mm", flags={"size": "--extent"})
-    with pytest.raises(InputError, match=r"`--size` must be positive"):
+    with pytest.raises(InputError, match=r"`size` must be positive"):
         source_options("m.png", size="0x4mm")
-    with pytest.raises(InputError, match=r"`--resolution` must be a length > 0"):
+    with pytest.raises(InputError, match=r"`resolution` must be a length > 0"):
         resolution_option("-1mm")
-    with pytest.raises(InputError, match=r"`--channel` applies to image sources, not to 'm.stl' \(a mesh\)"):
+    with pytest.raises(InputError, match=r"`--resolution` must be a length > 0"):
+        resolution_option("-1mm", "--resolution")
+    with pytest.raises(InputError, match=r"`channel` applies to image sources, not to 'm.stl' \(a mesh\)"):
         source_options("m.stl", channel="r")
-    with pytest.raises(InputError, match=r"`--height` must run low:high"):
+    with pytest.raises(InputError, match=r"`height` must run low:high"):
         source_options("m.png", size="1x1mm", height="2:1mm")
 
 
@@ -171,12 +173,12 @@ def test_source_kind_and_option_applicability_live_in_the_library(tmp_path):
         ["table", "scene", "image", "image", "mesh", "mesh", "svg"]
     with pytest.raises(InputError, match=r"unknown source type '\.pgn'"):
         source_kind("x.pgn")
-    with pytest.raises(InputError, match=r"`--up` applies to meshes, not to 'a\.png' \(an image\)"):
+    with pytest.raises(InputError, match=r"`up` applies to meshes, not to 'a\.png' \(an image\)"):
         check_applicable("a.png", {"up": "y"})
     with pytest.raises(InputError, match=r"`--extent` applies to images and meshes, not to 's\.toml' \(a scene"):
         source_options("s.toml", size="1x1mm", flags={"size": "--extent"})
     with pytest.raises(InputError, match=r"`--n-gain` applies to images and meshes, not to 'p\.toml' \(a scene"):
-        check_applicable("p.toml", {"n_gain": "2N/mm"}, kinds={"n_gain": ("image", "mesh")})
+        check_applicable("p.toml", {"n_gain": "2N/mm"}, flags={"n_gain": "--n-gain"}, kinds={"n_gain": ("image", "mesh")})
     assert check_applicable("p.toml", {"up": None, "size": None}) == "scene"
     assert source_options("k.stl", resolution="0.1mm", up="y") == {"resolution": pytest.approx(1e-4), "up": "y"}
     assert source_options("t.npz") == {}

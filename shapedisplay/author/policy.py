@@ -14,8 +14,8 @@ the source needs:
 * a mesh is fitted to the device's force range unless the caller chose its
   scale (``n_gain`` or ``height``);
 * options that do not apply to the kind of source are refused, naming the
-  option as the caller spells it (``flags``: ``{"n_base": "--n-base"}`` on
-  the command line; the keyword itself from Python).
+  option as the caller spells it (``flags``: the command line passes
+  ``{"n_base": "--n-base", ...}``; from Python the keyword itself).
 
 The same source with the same options gives the same table (checksum) from
 every front end.
@@ -34,10 +34,6 @@ MAPPING_OPTIONS = ("mapping", "n_base", "n_gain", "slope_gain", "lateral_gain", 
 #: Options of gradient analysis and coding (every source).
 ANALYSIS_OPTIONS = ("gradient", "sigma", "window", "order", "max_slope", "limit_walls", "quantize", "weber", "keep")
 OPTIONS = SOURCE_OPTIONS + MAPPING_OPTIONS + ANALYSIS_OPTIONS
-
-#: How the command line spells each option (messages name the option as the user typed it).
-CLI_FLAGS = {name: "--" + name.replace("_", "-") for name in OPTIONS} | {"limit_walls": "--no-limit-walls"}
-
 
 def _spell(flags: dict | None):
     return lambda name: (flags or {}).get(name, name)
@@ -145,7 +141,7 @@ def compile_file(source, device=None, *, flags: dict | None = None, confine: boo
         ``[device]``, else the built-in Konyo pad.
     flags : dict, optional
         How the caller spells each option, for messages (the command line
-        passes :data:`CLI_FLAGS`); default the keyword itself.
+        passes ``{"n_base": "--n-base", ...}``); default the keyword itself.
     confine : bool
         Read only files inside the source's folder (the studio sets it):
         every file a scene names, a mesh's companion files.
@@ -206,7 +202,7 @@ def compile_file(source, device=None, *, flags: dict | None = None, confine: boo
     if kind == "mesh" and confine:
         from shapedisplay.author.scene.widgets import check_mesh_confined
         check_mesh_confined(path, f"source '{path.name}'")
-    hf = load_source(path, **opts)
+    hf = load_source(path, flags={k: flag(k) for k in SOURCE_OPTIONS}, **opts)
     if fits_force_range_by_default(hf, n_gain_given="n_gain" in options, height_given="height" in options):
         from shapedisplay.author.forces import fit_to_force_range
         hf = fit_to_force_range(hf, profile, mapping)

@@ -464,7 +464,8 @@ def _minmax_finite(values: np.ndarray, what: str) -> tuple[float, float]:
     return float(values.min()), float(values.max())
 
 
-def load_image(path, size, height_range, *, resolution=None, channel=None, z_units=None) -> HeightField:
+def load_image(path, size, height_range, *, resolution=None, channel=None, z_units=None,
+               flags: dict | None = None) -> HeightField:
     """Height field from a picture (PNG, JPEG, TIFF, ...) or a ``.npy`` array.
 
     Pictures and arrays are in picture order: row 0 is the top edge of the
@@ -489,6 +490,8 @@ def load_image(path, size, height_range, *, resolution=None, channel=None, z_uni
         Channel of a colour picture (:func:`shapedisplay.author.imageio.read_picture`).
     z_units : {"m", "mm", "um", "nm"}, optional
         Unit of float data (default metres). Refused for integer codes.
+    flags : dict, optional
+        How the caller spells an option in messages (``{"height": "--height"}``).
 
     Returns
     -------
@@ -556,8 +559,8 @@ def load_image(path, size, height_range, *, resolution=None, channel=None, z_uni
         notes.append("normal map integrated to heights (Frankot-Chellappa; +y = green)")
     elif integer:
         if hr is None:
-            raise InputError(f"{where} needs `--height` (`height_range`: heights of gray 0 and full scale, "
-                             f"e.g. 0:2mm); it holds {desc} gray codes 0..{full:g}")
+            raise InputError(f"{where} needs `{(flags or {}).get('height', 'height_range')}` (the heights of gray 0 "
+                             f"and full scale, e.g. 0:2mm); it holds {desc} gray codes 0..{full:g}")
         vmin, vmax = _minmax_finite(values, where)
         if vmin < 0 or vmax > full:
             raise InputError(f"{where}: gray values must lie within 0..{full:g} (got {vmin:g}..{vmax:g})")
@@ -600,11 +603,11 @@ def load_image(path, size, height_range, *, resolution=None, channel=None, z_uni
     return hf
 
 
-def resolution_option(text) -> float:
-    """Parse a ``--resolution`` string ("0.1mm") into a sample spacing > 0, metres."""
-    v = parse_quantity(text, "m", "--resolution")
+def resolution_option(text, name: str = "resolution") -> float:
+    """Parse a resolution string ("0.1mm") into a sample spacing > 0, metres; errors name ``name``."""
+    v = parse_quantity(text, "m", name)
     if not v > 0:
-        raise InputError(f"`--resolution` must be a length > 0 (got {text!r})")
+        raise InputError(f"`{name}` must be a length > 0 (got {text!r})")
     return v
 
 
@@ -650,8 +653,8 @@ def check_applicable(path, given: dict, flags: dict | None = None, kinds: dict |
     given : dict name -> value
         Options as the library names them; None means not given.
     flags : dict name -> str, optional
-        How each option is spelled on the command line (default ``--name``
-        with dashes), for the message.
+        How the caller spells each option (the command line: ``--name``
+        with dashes), for the message; default the name itself.
     kinds : dict name -> tuple of kinds, optional
         Rules added to (or replacing) :data:`OPTION_KINDS`.
     """
@@ -664,17 +667,17 @@ def check_applicable(path, given: dict, flags: dict | None = None, kinds: dict |
             raise unknown_key("source option", name, rules)
         ok = rules[name]
         if kind not in ok:
-            flag = (flags or {}).get(name, "--" + name.replace("_", "-"))
+            flag = (flags or {}).get(name, name)
             raise InputError(f"`{flag}` applies to {_KIND_WORDS[tuple(ok)]}, not to '{path}' ({_WHAT[kind]})")
     return kind
 
 
-def _up_option(text: str):
+def _up_option(text: str, name: str = "up"):
     if "," in text:
         try:
             return [float(v) for v in text.split(",")]
         except ValueError:
-            raise InputError(f"`--up` direction must be three numbers 'dx,dy,dz' (got {text!r})") from None
+            raise InputError(f"`{name}` direction must be three numbers 'dx,dy,dz' (got {text!r})") from None
     return text
 
 
@@ -697,7 +700,7 @@ def source_options(path, *, flags: dict | None = None, **given) -> dict:
     ``height``, ``resolution``, ``channel``, ``z_units``, ``up``, ``units``,
     ``samples`` (COLSxROWS), ``grid`` (its former spelling, ROWSxCOLS), ...);
     ``flags`` how a caller spells one differently
-    (default ``--name``, as every command spells them). Options that do not
+    (the command line passes ``--name``; default the name itself). Options that do not
     apply to the kind of source are refused (:func:`check_applicable`). A
     scene, an SVG mockup or a table takes none and gets ``{}``.
     """
@@ -706,7 +709,7 @@ def source_options(path, *, flags: dict | None = None, **given) -> dict:
     flags = dict(flags or {})
 
     def flag(name):
-        return flags.get(name, "--" + name.replace("_", "-"))
+        return flags.get(name, name)
 
     kind = check_applicable(path, given, flags)
     if kind not in ("image", "mesh"):
@@ -728,9 +731,9 @@ def source_options(path, *, flags: dict | None = None, **given) -> dict:
             raise InputError(f"`{flag('height')}` must run low:high (got {given['height']!r})")
         opts["height_range"] = (lo, hi)
     if "resolution" in given:
-        opts["resolution"] = resolution_option(given["resolution"])
+        opts["resolution"] = resolution_option(given["resolution"], flag("resolution"))
     if "up" in given:
-        opts["up"] = _up_option(given["up"])
+        opts["up"] = _up_option(given["up"], flag("up"))
     if "samples" in given:
         if "grid" in given:
             raise InputError(f"give `{flag('samples')}` (COLSxROWS) or `{flag('grid')}` (ROWSxCOLS), not both")
@@ -763,7 +766,7 @@ def fits_force_range_by_default(hf: HeightField, *, n_gain_given: bool, height_g
     return hf.meta.get("kind") == "mesh" and not n_gain_given and not height_given
 
 
-def load_source(path, **opts) -> HeightField:
+def load_source(path, *, flags: dict | None = None, **opts) -> HeightField:
     """Load any file source as a height field, dispatching on its suffix.
 
     Pictures and ``.npy`` -> :func:`load_image` (options ``size``,
@@ -773,7 +776,8 @@ def load_source(path, **opts) -> HeightField:
     ``grid``, ``up``, ``units``, ``size``, ``height_range``, ``background``,
     ``supersample``, ``supersample_mode``, ``margin``). Options
     that are None are dropped; an option the loader does not take is an
-    error naming the nearest valid one.
+    error naming the nearest valid one. ``flags`` spells an option in
+    messages as the caller wrote it (``{"height": "--height"}``).
     """
     path = Path(os.fspath(path))
     suffix = path.suffix.lower()
@@ -794,6 +798,6 @@ def load_source(path, **opts) -> HeightField:
             if k not in valid:
                 raise unknown_key("image option", k, valid)
         return load_image(path, opts.get("size"), opts.get("height_range"), resolution=opts.get("resolution"),
-                          channel=opts.get("channel"), z_units=opts.get("z_units"))
+                          channel=opts.get("channel"), z_units=opts.get("z_units"), flags=flags)
     err = unknown_key("source type", suffix or "(no suffix)", IMAGE_SUFFIXES + MESH_SUFFIXES)
     raise InputError(f"source '{path}': {err}")

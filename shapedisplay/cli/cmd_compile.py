@@ -97,6 +97,18 @@ class warnings_as_lines:
         return False
 
 
+#: Source options of the commands beyond compile's (heightmap's mesh sampling).
+_MORE_SOURCE_OPTIONS = ("samples", "grid", "supersample", "supersample_mode", "background", "margin")
+
+
+def cli_flags() -> dict:
+    """How the command line spells every option the library names, for its messages: ``n_base`` -> ``--n-base``."""
+    from shapedisplay.author.policy import OPTIONS
+    flags = {name: "--" + name.replace("_", "-") for name in (*OPTIONS, *_MORE_SOURCE_OPTIONS)}
+    flags["limit_walls"] = "--no-limit-walls"
+    return flags
+
+
 def compile_options(args) -> dict:
     """The compile options given on the command line, by name (None = not given), for the compile policy."""
     from shapedisplay.author.policy import OPTIONS
@@ -109,9 +121,9 @@ def compile_options(args) -> dict:
 
 def compile_source(args, source):
     """Compile one source with the options in ``args`` (:func:`shapedisplay.author.policy.compile_file`)."""
-    from shapedisplay.author.policy import CLI_FLAGS, compile_file
+    from shapedisplay.author.policy import compile_file
     with warnings_as_lines("compile"):
-        return compile_file(source, device=args.device, flags=CLI_FLAGS, **compile_options(args))
+        return compile_file(source, device=args.device, flags=cli_flags(), **compile_options(args))
 
 
 def run(args) -> int:

@@ -87,6 +87,8 @@ _MESH_EXTRA = ("samples", "grid", "supersample", "supersample_mode", "background
 
 def _load(args, src, mesh):
     from shapedisplay.author.sources import load_source, source_options
+    from shapedisplay.cli.cmd_compile import cli_flags
     from shapedisplay.cli.cmd_compile import source_given
 
-    return load_source(src, **source_options(src, **source_given(args, _MESH_EXTRA)))
+    flags = cli_flags()
+    return load_source(src, flags=flags, **source_options(src, flags=flags, **source_given(args, _MESH_EXTRA)))

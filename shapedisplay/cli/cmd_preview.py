@@ -87,12 +87,13 @@ def picture_size(args) -> tuple[str | None, str]:
 def run(args) -> int:
     from shapedisplay import viewer
     from shapedisplay.author.sources import source_options
-    from shapedisplay.cli.cmd_compile import source_given
+    from shapedisplay.cli.cmd_compile import cli_flags, source_given
 
     size, pixels = picture_size(args)
     args.size = size
-    opts = source_options(args.input, **source_given(args))
-    model = viewer.load_model(args.input, scene=args.scene, **opts)
+    flags = cli_flags()
+    opts = source_options(args.input, flags=flags, **source_given(args))
+    model = viewer.load_model(args.input, scene=args.scene, flags=flags, **opts)
     trace = viewer.load_trace(args.trace) if args.trace else None
     preview = viewer.render(model, args.color, trace=trace, exaggeration=args.exaggeration, size=pixels,
                             off_screen=bool(args.output), view=args.view, cmap=args.cmap,

@@ -30,10 +30,11 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from shapedisplay.author.sources import source_options
+    from shapedisplay.cli.cmd_compile import cli_flags
     from shapedisplay.studio.server import serve
 
     given = {"size": args.size, "height": args.height, "resolution": args.resolution}
-    source_options(args.source, **given)             # refused options fail here, before the server starts
+    source_options(args.source, flags=cli_flags(), **given)   # refused options fail here, before the server starts
     serve(args.source, device=args.device, port=args.port, host=args.host, allow_remote=args.allow_remote,
           open_browser=not args.no_browser, out_dir=args.out, options=given, model=args.model)
     return 0

@@ -442,12 +442,14 @@ def _is_trace(path) -> bool:
         return False
 
 
-def load_model(path: str | os.PathLike, scene: str | os.PathLike | None = None, **source_opts) -> PreviewModel:
+def load_model(path: str | os.PathLike, scene: str | os.PathLike | None = None, flags: dict | None = None,
+               **source_opts) -> PreviewModel:
     """Preview model of a file: table (.npz), scene (.toml) or source (image, mesh).
 
     ``scene`` adds the widget outlines and ids of a scene file to a table.
     ``source_opts`` (``size``, ``height_range``, ``resolution``, ... ; None
-    dropped) go to :func:`shapedisplay.author.sources.load_source`.
+    dropped) and ``flags`` (how messages spell an option) go to
+    :func:`shapedisplay.author.sources.load_source`.
     """
     path = Path(os.fspath(path))
     from shapedisplay.author.sources import load_source, source_kind
@@ -484,7 +486,7 @@ def load_model(path: str | os.PathLike, scene: str | os.PathLike | None = None, 
         return model
     if scene:
         raise InputError(f"`--scene` draws widget outlines on a table; '{path}' is a source")
-    return model_from_heightfield(load_source(path, **opts))
+    return model_from_heightfield(load_source(path, flags=flags, **opts))
 
 
 def _load_scene(path):
