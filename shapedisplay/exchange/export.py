@@ -101,7 +101,7 @@ def _pair(v, i: int):
     return v[i] if isinstance(v, (list, tuple)) and len(v) == 2 else None
 
 
-def _device_of(meta: dict):
+def device_of(meta: dict):
     """The device profile a renderer of this table uses (the table's own, else the built-in one)."""
     from shapedisplay.table.devices import DeviceProfile, load_device
     dev = meta.get("device") if isinstance(meta, dict) else None
@@ -119,7 +119,7 @@ def run_config(meta: dict) -> list[tuple[str, float, str]]:
     slope-friction gain ``K_mu`` is 0 when the mapping has no slope term).
     """
     from shapedisplay.units import parse_quantity
-    dev = _device_of(meta)
+    dev = device_of(meta)
     mp = _section(meta, "mapping")
     tick = meta.get("tick_rate_hz", dev.tick_rate_hz)
     vel = meta.get("velocity_range_m_s") or dev.velocity_range

@@ -40,8 +40,8 @@ BITS = (8, 16)
 
 
 def _device(table):
-    from shapedisplay.exchange.export import _device_of
-    return _device_of(table.meta)
+    from shapedisplay.exchange.export import device_of
+    return device_of(table.meta)
 
 
 def quantity_map(table, quantity: str = "mu") -> np.ndarray:

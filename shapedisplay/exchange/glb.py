@@ -60,9 +60,9 @@ def _mapping(meta: dict):
 
 def haptic_channels(table) -> dict:
     """The three texture quantities on the canvas, (rows, cols), SI, row r at y0 + r*dy."""
-    from shapedisplay.exchange.export import _device_of
+    from shapedisplay.exchange.export import device_of
     from shapedisplay.exchange.friction_png import quantity_map
-    dev = _device_of(table.meta)
+    dev = device_of(table.meta)
     gain = table.dense("burst_gain") if "burst_gain" in table.channels else np.ones((table.grid.rows, table.grid.cols))
     return {"stiffness": quantity_map(table, "normal_force"), "friction": quantity_map(table, "mu"),
             "vibration": dev.burst.gain * gain}

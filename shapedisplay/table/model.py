@@ -156,9 +156,10 @@ def choose_quantization(values: np.ndarray, dtype: str = "auto", max_error: floa
 class FrictionTable:
     """A friction-envelope table in memory.
 
-    ``patches[name]`` is a list of decoded-from-codes arrays is not kept;
-    instead ``codes[name]`` is the flat code array of channel ``name`` and
-    ``patch_shapes``/``blocks`` say where each value goes on the canvas.
+    ``codes[name]`` is the flat code array of channel ``name`` over every
+    patch; ``patch_shapes`` gives each patch's (rows, cols) and ``blocks``
+    places patches on the canvas as ``(row0, col0, patch)``. Values decode
+    with ``quant[name]``; samples outside every block take ``background[name]``.
     """
 
     grid: Grid
