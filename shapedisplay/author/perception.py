@@ -98,6 +98,8 @@ HEIGHT_SATURATION_SPAN_M = figure("height_saturation_span") * 1e-3
 HEIGHT_SATURATION_RATE = figure("height_saturation_rate") * 1e3
 #: The names of the speeds of the canonical strokes, slowest first.
 SPEED_NAMES = ("slow", "typical", "fast")
+#: JNDs counted between a zero level and a non-zero one (a finite stand-in for "no end of JNDs").
+NOTHING_AGAINST_SOMETHING = 100.0
 #: What the vibrotactile detection check says without an actuator calibration.
 VIBROTACTILE_UNKNOWN = "unknown (no actuator calibration in the device profile)"
 
@@ -129,8 +131,8 @@ class Cue:
         """JNDs between levels ``a`` and ``b`` of this cue (Fechner's count, or the absolute step)."""
         if self.step is not None:
             return abs(b - a) / self.step
-        if a <= 0 or b <= 0:
-            return math.inf if a != b else 0.0
+        if a <= 0 or b <= 0:                 # nothing against something: far beyond any JND, kept finite
+            return NOTHING_AGAINST_SOMETHING if a != b else 0.0
         return abs(math.log(b / a)) / math.log1p(self.weber)
 
     def level_at(self, ref: float, jnds: float) -> float:
