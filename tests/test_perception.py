@@ -306,3 +306,22 @@ def test_check_lists_the_force_a_contrast_chose(tmp_path, capsys):
     assert main(["check", str(p)]) == 0
     out = capsys.readouterr().out
     assert re.search(r"contrast: 'c' 3 jnd \(against flat ground\) -> force \d\.\d+ N \(burst amplitude", out)
+
+
+def test_compile_of_a_scene_reports_the_check_and_keeps_the_table(tmp_path, capsys):
+    """compile runs the legibility check for a scene and prints it with the report; the table is the same without it."""
+    import json
+
+    from shapedisplay.cli.main import main
+    from shapedisplay.table.model import FrictionTable
+    scene = Path(__file__).resolve().parent.parent / "assets" / "scenes" / "keypad.toml"
+    assert main(["compile", str(scene), "-o", str(tmp_path / "a.npz")]) == 0
+    out = capsys.readouterr().out
+    assert "perception: device" in out and "JND" in out
+    assert main(["compile", str(scene), "-o", str(tmp_path / "b.npz"), "--no-perception", "--json"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    assert "perception" not in rep
+    assert main(["compile", str(scene), "-o", str(tmp_path / "c.npz"), "--json"]) == 0
+    rep = json.loads(capsys.readouterr().out)
+    assert {w["id"] for w in rep["perception"]["widgets"]} == {w["id"] for w in rep["widgets"]}
+    assert FrictionTable.load(tmp_path / "a.npz").checksum == FrictionTable.load(tmp_path / "b.npz").checksum

@@ -42,6 +42,8 @@ def register(sub) -> None:
     g.add_argument("--weber", help="friction Weber fraction for auto quantization (default 0.1)")
     g.add_argument("--keep", help="comma-separated channels to store even if the device does not use them")
     p.add_argument("--json", action="store_true", help="print the compile report as JSON")
+    p.add_argument("--no-perception", action="store_true",
+                   help="scenes: skip the legibility check (docs/perception.md) in the report")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
     p.set_defaults(func=run)
 
@@ -136,13 +138,21 @@ def run(args) -> int:
         return run_batch(args)
     result = compile_source(args, args.source[0])
     out = result.table.save(args.output)
+    report = dict(result.report)
+    if "widgets" in report and not args.no_perception:      # a scene: will each widget be felt and told apart?
+        from shapedisplay.author.scene import load_scene
+        from shapedisplay.reports.perception import check_perception
+        report["perception"] = check_perception(result.table, scene=load_scene(args.source[0], device=args.device))
     if args.json:
-        print(json.dumps(result.report, indent=2, allow_nan=False))
+        print(json.dumps(report, indent=2, allow_nan=False))
     elif not args.quiet:
-        print(format_report(result.report))
-        if "widgets" in result.report:
+        print(format_report(report))
+        if "widgets" in report:
             from shapedisplay.author.scene import format_widget_report
-            print(format_widget_report(result.report))
+            print(format_widget_report(report))
+        if "perception" in report:
+            from shapedisplay.reports.perception import format_perception
+            print("\n".join(format_perception(report["perception"])))
         print(f"wrote {out}")
     return 0
 
