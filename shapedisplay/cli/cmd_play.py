@@ -2,7 +2,8 @@
 from __future__ import annotations
 
 STROKE_HELP = ('cursor stroke in mm on the table grid: "0,10 -> 60,10 -> 60,30 @ 20 mm/s", back and forth '
-               '"0,2 <-> 60,2 @ 20mm/s x3", 1-D "0:60mm @ 50mm/s"')
+               '"0,2 <-> 60,2 @ 20mm/s x3", 1-D "0:60mm @ 50mm/s"; segments joined by ";" with presses: '
+               '"62,30 -> 62,60 @ 30mm/s; press 2N 150ms; -> 90,60 @ 20mm/s press 1N"')
 
 
 def register(sub) -> None:
@@ -13,8 +14,8 @@ def register(sub) -> None:
     p.add_argument("table", help="table file (.npz)")
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--stroke", help=STROKE_HELP)
-    src.add_argument("--cursor-csv", help="recorded cursor path, CSV t,x,y (s, mm; header x_m,y_m for metres)")
-    src.add_argument("--force-csv", help="pointing-stick force recording, CSV t,fx[,fy] (s, N); v = alpha f "
+    src.add_argument("--cursor-csv", help="recorded cursor path, CSV t,x,y[,press] (s, mm, N; header x_m,y_m for metres)")
+    src.add_argument("--force-csv", help="pointing-stick force recording, CSV t,fx[,fy[,fz]] (s, N; fz is the press); v = alpha f "
                                          "with alpha = the device's cursor_gain (a device that has one)")
     from shapedisplay.cli.main import old_spelling
     old_spelling(src, "--trace", "--cursor-csv", dest="cursor_csv",
