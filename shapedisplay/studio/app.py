@@ -19,6 +19,11 @@ its wrapper); ``GET /api/runtime``
 the current table's binary image for it (with a JSON head); ``GET /api/map.png?channel=NAME`` the top
 view; ``GET/PUT /api/scene`` the scene text; ``GET /api/export/FORMAT``;
 ``POST /api/snapshot`` the 3D preview; ``WS /ws`` a message per compile.
+Design (scenes; each change names the version of the file it was made on, a
+stale one is answered 409 with the disk's text, see :mod:`~shapedisplay.studio.scenefile`):
+``POST /api/edit`` canvas, inspector and palette operations; ``POST /api/check`` the same, validated
+only; ``POST /api/undo``, ``/api/redo``, ``/api/revert``, ``/api/resolve``; ``GET /api/schema`` the
+inspector's keys; ``POST /api/pin`` pins the current table as A (``GET /api/runtime?table=a`` plays it).
 """
 from __future__ import annotations
 
@@ -36,7 +41,7 @@ from shapedisplay.errors import InputError, ShapeDisplayError
 WEB = Path(__file__).resolve().parent / "web"
 #: Files served under /static/ (nothing else from disk is ever served).
 STATIC = {"studio.js": "text/javascript", "worklet.js": "text/javascript", "studio.css": "text/css",
-          "sd_wasm.js": "text/javascript"}
+          "sd_wasm.js": "text/javascript", "design.js": "text/javascript"}
 #: Largest request body accepted (scene text, a recorded stroke for the snapshot), bytes.
 MAX_BODY = 64 << 20
 
@@ -93,17 +98,34 @@ class Studio:
         self.clients: set = set()
         self.prepared: dict | None = None       # what the page fetches for the current table
         self.last_change: dict = {}
+        self.scenefile = None                   # the scene file's edits and history (scenes only)
+        if session.kind == "scene":
+            from shapedisplay.studio.scenefile import SceneFile
+            self.scenefile = SceneFile(session.source, session.out_dir,
+                                       device=session._device if session.device else None)
+        self.compiled_version: str | None = None   # the scene bytes the current compile read
+        self.pinned: dict | None = None         # table A: {"table", "layout", "image", "label"}
 
     # -------------------------------------------------------------- compile + broadcast
     def compile_and_prepare(self) -> bool:
         """Compile (in a worker thread) and prepare everything the page will fetch for a new table."""
         from shapedisplay.studio.views import channel_range, colour_map_png
         from shapedisplay.studio.wasm import table_payload
+        if self.scenefile is not None:
+            from shapedisplay.studio.edits import version_of
+            try:
+                self.compiled_version = version_of(self.session.source.read_bytes())
+            except OSError:
+                self.compiled_version = None
         if not self.session.compile():
             return False
         cur = self.session.current
         lay, image = table_payload(cur.table, self.model)
         lay["generation"] = cur.generation
+        lay["checksum"] = cur.table.checksum
+        if self.pinned is None:                  # A is the table as the studio opened the source, until pinned
+            self.pinned = {"table": cur.table, "layout": dict(lay, which="A"), "image": image,
+                           "label": "as opened", "generation": cur.generation}
         first = "normal_force" if "normal_force" in cur.table.channels else cur.table.channels[0]
         self.prepared = {"generation": cur.generation, "layout": lay, "image": image,
                          "ranges": {c: channel_range(cur.table, c) for c in cur.table.channels},
@@ -135,7 +157,32 @@ class Studio:
                             "models": list(lay["models"]), "cursor_gain": lay["cursor_gain"]}
         d["last_change"] = self.last_change
         d["export_formats"] = formats()
+        if self.scenefile is not None:
+            self._design_state(d)
         return d
+
+    def _design_state(self, d: dict) -> None:
+        """The design tool's part of the state: the file's version, history, values, A/B."""
+        from shapedisplay.studio.edits import version_of
+        from shapedisplay.studio.inspector import widget_values
+        try:
+            data = self.session.source.read_bytes()
+        except OSError:
+            return
+        d["scene_version"] = version_of(data)
+        d["history"] = self.scenefile.history.listing()
+        d["values"] = widget_values(data.decode("utf-8", "replace"))
+        cur = self.session.current
+        if cur is not None:
+            m = cur.table.meta.get("mapping") or {}
+            d["mapping"] = {"n_base": m.get("n_base"), "n_gain": m.get("n_gain")}
+            d["widget_params"] = {w["id"]: w.get("params", {}) for w in (cur.report.get("widgets") or [])
+                                  if isinstance(w, dict) and "id" in w}
+        if self.pinned is not None and cur is not None:
+            from shapedisplay.table.diff import widget_changes
+            d["ab"] = {"a_checksum": self.pinned["table"].checksum, "a_label": self.pinned["label"],
+                       "a_generation": self.pinned["generation"], "b_checksum": cur.table.checksum,
+                       "changes": widget_changes(self.pinned["table"], cur.table)}
 
     def layout(self) -> tuple:
         return self.prepared["layout"], self.prepared["image"]
@@ -153,6 +200,16 @@ class Studio:
         async for changes in awatch(self.session.root, stop_event=stop, step=20, debounce=400,
                                     watch_filter=lambda _change, path: self.session.watch_filter(path)):
             names = sorted({Path(p).name for _c, p in changes})
+            if self.scenefile is not None:
+                paths = {Path(p).resolve() for _c, p in changes}
+                if paths == {self.session.source}:
+                    from shapedisplay.studio.edits import version_of
+                    try:
+                        if version_of(self.session.source.read_bytes()) == self.compiled_version:
+                            continue                # the studio's own write, compiled already
+                    except OSError:
+                        pass
+                self.scenefile.sync()
             await self.recompile("changed: " + ", ".join(names))
 
 
@@ -217,6 +274,8 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
         try:
             need_table()
             lay, payload = studio.layout()
+            if request.query_params.get("table") == "a" and studio.pinned is not None:
+                lay, payload = studio.pinned["layout"], studio.pinned["image"]
         except ShapeDisplayError as exc:
             return error_response(exc, 409)
         head = json.dumps(lay).encode()
@@ -226,7 +285,17 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
         channel = request.query_params.get("channel", "normal_force")
         try:
             need_table()
-            png = studio.colour_map(channel)
+            rng = request.query_params.get("range")            # a locked colour scale: "lo:hi" in SI units
+            if rng:
+                from shapedisplay.studio.views import colour_map_png
+                try:
+                    lo, hi = (float(v) for v in rng.split(":"))
+                except ValueError:
+                    raise InputError(f"`range` must be 'lo:hi' (got {rng[:40]!r})") from None
+                png = await asyncio.get_running_loop().run_in_executor(
+                    None, colour_map_png, session.current.table, channel, (lo, hi))
+            else:
+                png = studio.colour_map(channel)
         except ShapeDisplayError as exc:
             return error_response(exc, 400)
         return Response(png, media_type="image/png", headers={"Cache-Control": "no-store"})
@@ -238,16 +307,100 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
             return error_response(exc)
 
     async def scene_put(request):
+        base = request.headers.get("x-scene-base") or request.query_params.get("base")
         try:
             text = (await _body(request)).decode("utf-8")
-            await asyncio.get_running_loop().run_in_executor(None, session.save_source_text, text)
         except UnicodeDecodeError:
             return JSONResponse({"error": "scene text must be UTF-8"}, status_code=400)
         except ShapeDisplayError as exc:
             return error_response(exc)
-        if not watch:
-            await studio.recompile("saved from the page")
-        return JSONResponse({"saved": session.source.name})
+        if studio.scenefile is None:
+            return error_response(InputError(f"studio source '{session.source.name}' is a {session.kind}, "
+                                             "not a scene: cannot save text"))
+        return await design_call(studio.scenefile.save_text, base, text, reason="saved from the page", text=text)
+
+    async def design_call(fn, *args, reason: str, text: str | None = None):
+        """Run a scene-file change in a worker thread, recompile if it wrote, answer with the new state."""
+        from shapedisplay.studio.scenefile import Conflict
+        if studio.scenefile is None:
+            return error_response(InputError(f"studio source '{session.source.name}' is a {session.kind}: "
+                                             "only a scene is edited in the page"))
+        loop = asyncio.get_running_loop()
+        try:
+            out = await loop.run_in_executor(None, fn, *args)
+        except Conflict as exc:
+            return JSONResponse(exc.payload(), status_code=409)
+        except ShapeDisplayError as exc:
+            from shapedisplay.studio.lines import error_line
+            msg = str(exc)
+            line = None
+            try:
+                line = error_line(text if text is not None else session.source_text(), msg)
+            except (ShapeDisplayError, OSError, UnicodeDecodeError):
+                pass
+            return JSONResponse({"error": msg, "line": line}, status_code=400)
+        if out.get("changed"):
+            await studio.recompile(reason + (f": {out['label']}" if out.get("label") else ""))
+        out["state"] = studio.state()
+        return JSONResponse(out)
+
+    async def design_json(request) -> dict:
+        return _json_object(await _body(request) or b"{}", "request")
+
+    async def edit(request):
+        try:
+            req = await design_json(request)
+        except ShapeDisplayError as exc:
+            return error_response(exc)
+        label = str(req.get("label") or "edit")[:120]
+        return await design_call(studio.scenefile.edit if studio.scenefile else None, req.get("base"),
+                                 req.get("ops"), label, reason=label)
+
+    async def check(request):
+        """Validate operations without writing: the inspector's live messages (the loader's, as `check`)."""
+        from shapedisplay.studio.edits import apply_ops
+        try:
+            req = await design_json(request)
+            if studio.scenefile is None:
+                raise InputError("only a scene is edited in the page")
+            text = session.source_text()
+            await asyncio.get_running_loop().run_in_executor(
+                None, apply_ops, text, req.get("ops"), session.source,
+                session._device() if session.device else None)
+        except ShapeDisplayError as exc:
+            return JSONResponse({"error": str(exc)})
+        return JSONResponse({"error": None})
+
+    def design_route(name):
+        async def handler(request):
+            try:
+                req = await design_json(request)
+            except ShapeDisplayError as exc:
+                return error_response(exc)
+            sf = studio.scenefile
+            if name == "resolve":
+                args = (req.get("choice"), req.get("base"), req.get("mine"), req.get("disk_version"))
+                fn = sf.resolve if sf else None
+            else:
+                args = (req.get("base"),)
+                fn = getattr(sf, name) if sf else None
+            return await design_call(fn, *args, reason=name)
+        return handler
+
+    async def schema(request):
+        from shapedisplay.studio.edits import NEW_WIDGET
+        from shapedisplay.studio.inspector import schema as keys
+        return JSONResponse({"types": keys(), "palette": list(NEW_WIDGET)})
+
+    async def pin(request):
+        try:
+            cur = need_table()
+        except ShapeDisplayError as exc:
+            return error_response(exc, 409)
+        lay, image = studio.layout()
+        studio.pinned = {"table": cur.table, "layout": dict(lay, which="A"), "image": image,
+                         "label": f"pinned table {cur.generation}", "generation": cur.generation}
+        return JSONResponse({"pinned": cur.table.checksum, "state": studio.state()})
 
     async def export(request):
         from shapedisplay.studio.exports import export_bytes
@@ -290,6 +443,8 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
 
     @asynccontextmanager
     async def lifespan(app):
+        if studio.scenefile is not None:
+            studio.scenefile.sync()            # a change made while the studio was closed is a step too
         await studio.recompile("start")
         stop = asyncio.Event()
         task = asyncio.create_task(studio.watch(stop)) if watch else None
@@ -310,6 +465,9 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
         Route("/api/map.png", colour_map), Route("/api/scene", scene_get, methods=["GET"]),
         Route("/api/scene", scene_put, methods=["PUT"]), Route("/api/export/{fmt}", export),
         Route("/api/snapshot", snapshot, methods=["POST"]), WebSocketRoute("/ws", ws),
+        Route("/api/edit", edit, methods=["POST"]), Route("/api/check", check, methods=["POST"]),
+        Route("/api/schema", schema), Route("/api/pin", pin, methods=["POST"]),
+        *[Route(f"/api/{name}", design_route(name), methods=["POST"]) for name in ("undo", "redo", "revert", "resolve")],
     ]
     app = Starlette(routes=routes, lifespan=lifespan)
     app.state.studio = studio

@@ -41,6 +41,7 @@ def serve(source, device=None, port: int | None = None, host: str = LOOPBACK, al
     require("starlette", "studio", "the studio")
     uvicorn = require("uvicorn", "studio", "the studio")
     require("watchfiles", "studio", "the studio")
+    require("tomlkit", "studio", "the studio")
     from shapedisplay.studio.app import build_app
     from shapedisplay.studio.session import Session
     from shapedisplay.studio.wasm import check_model

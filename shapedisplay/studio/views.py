@@ -27,12 +27,13 @@ def channel_range(table, channel: str) -> tuple[float, float]:
     return float(values.min()), float(values.max())
 
 
-def colour_map_png(table, channel: str) -> bytes:
-    """PNG (RGB) of ``channel`` over the canvas, viridis from its min to its max, y up."""
+def colour_map_png(table, channel: str, scale: tuple | None = None) -> bytes:
+    """PNG (RGB) of ``channel`` over the canvas, viridis from its min to its max (or ``scale`` = (lo, hi),
+    a locked colour scale: values beyond it take the end colours), y up."""
     from PIL import Image
     table.require(channel)
     values = table.dense(channel)
-    lo, hi = channel_range(table, channel)
+    lo, hi = channel_range(table, channel) if scale is None else (float(scale[0]), float(scale[1]))
     u = (values - lo) * (1.0 / (hi - lo)) if hi > lo else np.zeros_like(values)
     idx = np.clip(np.rint(u * 255.0), 0, 255).astype(np.uint8)[::-1]        # y up: last row on top
     img = np.ascontiguousarray(_LUT[idx])

@@ -6,6 +6,10 @@ the whole canvas (background included), sample by sample: for each channel
 the largest ``|b - a|``, where it is (row, col and x, y in mm), and the sum
 of both tables' quantization bounds (a difference within it may be coding
 alone). Metadata are compared key by key (nested keys joined with ``.``).
+Tables compiled from scenes are also compared widget by widget
+(:func:`widget_changes`): one line per widget that changed, in the
+designer's words ("reset: normal force 3 → 1.5 N, ramp 5 → 10 mm",
+"app-3: moved 4 mm right").
 """
 from __future__ import annotations
 
@@ -30,6 +34,89 @@ def _flatten(d, prefix="") -> dict:
 def _short(v, n=60) -> str:
     s = json.dumps(v, allow_nan=True, default=str)
     return s if len(s) <= n else s[:n - 3] + "..."
+
+
+#: Widget parameters (the compile report's, SI) that are lengths: printed in millimetres.
+LENGTH_PARAMS = ("ramp", "corner_radius", "width", "track_width", "track_depth", "track_ramp", "thumb_size",
+                 "detent_spacing", "detent_height", "detent_width", "knob_size")
+
+
+def _report_widgets(table) -> dict:
+    ws = ((table.meta.get("report") or {}).get("widgets") or []) if isinstance(table.meta, dict) else []
+    return {w["id"]: w for w in ws if isinstance(w, dict) and isinstance(w.get("id"), str)}
+
+
+def _n(v: float) -> str:
+    return f"{v:.4g}"
+
+
+def _moved(dx: float, dy: float) -> str:
+    parts = []
+    if abs(dx) > 1e-9:
+        parts.append(f"{_n(abs(dx))} mm {'right' if dx > 0 else 'left'}")
+    if abs(dy) > 1e-9:
+        parts.append(f"{_n(abs(dy))} mm {'up' if dy > 0 else 'down'}")
+    return "moved " + " and ".join(parts)
+
+
+def widget_changes(a, b) -> list[dict]:
+    """What changed per widget between two tables compiled from scenes (their compile reports).
+
+    Returns ``[{"id", "changes": [text, ...], "line": "ID: change, change"}]``
+    in B's widget order (removed widgets last): added or removed widgets, moves
+    and resizes of the box (mm; y up), the strength as the normal force it
+    gives (``mapping`` n_base + n_gain * height, N), lengths in mm and every
+    other parameter as written. Tables without a widget report give ``[]``.
+    """
+    wa, wb = _report_widgets(a), _report_widgets(b)
+    if not wa and not wb:
+        return []
+
+    def force(table, h):
+        m = table.meta.get("mapping") or {}
+        nb, ng = m.get("n_base"), m.get("n_gain")
+        return nb + ng * h if isinstance(nb, (int, float)) and isinstance(ng, (int, float)) else None
+
+    out = []
+    for wid in list(wb) + [w for w in wa if w not in wb]:
+        ch = []
+        if wid not in wa:
+            ch.append(f"added ({wb[wid].get('type')})")
+        elif wid not in wb:
+            ch.append("removed")
+        else:
+            x, y = wa[wid], wb[wid]
+            if x.get("type") != y.get("type"):
+                ch.append(f"type {x.get('type')} → {y.get('type')}")
+            pa, pb = x.get("params") or {}, y.get("params") or {}
+            for k in list(pb) + [k for k in pa if k not in pb]:
+                va, vb = pa.get(k), pb.get(k)
+                if va == vb or isinstance(va, (list, dict)) or isinstance(vb, (list, dict)):
+                    continue
+                if isinstance(va, (int, float)) and isinstance(vb, (int, float)) and not isinstance(va, bool):
+                    if abs(va - vb) <= 1e-9 * max(abs(va), abs(vb), 1e-12):
+                        continue
+                    if k == "height" and force(a, va) is not None and force(b, vb) is not None:
+                        ch.append(f"normal force {_n(force(a, va))} → {_n(force(b, vb))} N "
+                                  f"(height {_n(va * 1e3)} → {_n(vb * 1e3)} mm)")
+                    elif k in LENGTH_PARAMS:
+                        ch.append(f"{k} {_n(va * 1e3)} → {_n(vb * 1e3)} mm")
+                    else:
+                        ch.append(f"{k} {_n(va)} → {_n(vb)}")
+                else:
+                    ch.append(f"{k} {'(none)' if va is None else va} → {'(none)' if vb is None else vb}")
+            ba, bb = x.get("bbox_mm"), y.get("bbox_mm")
+            if isinstance(ba, list) and isinstance(bb, list) and len(ba) == len(bb) == 4:
+                sa, sb = (ba[2] - ba[0], ba[3] - ba[1]), (bb[2] - bb[0], bb[3] - bb[1])
+                if max(abs(sa[0] - sb[0]), abs(sa[1] - sb[1])) > 1e-6:
+                    ch.append(f"size {_n(sa[0])}x{_n(sa[1])} → {_n(sb[0])}x{_n(sb[1])} mm")
+                    if max(abs(ba[0] - bb[0]), abs(ba[1] - bb[1])) > 1e-6:
+                        ch.append(_moved(bb[0] - ba[0], bb[1] - ba[1]).replace("moved", "corner moved"))
+                elif max(abs(ba[0] - bb[0]), abs(ba[1] - bb[1])) > 1e-6:
+                    ch.append(_moved(bb[0] - ba[0], bb[1] - ba[1]))
+        if ch:
+            out.append({"id": wid, "changes": ch, "line": f"{wid}: {', '.join(ch)}"})
+    return out
 
 
 def diff_tables(a, b) -> dict:
@@ -70,6 +157,7 @@ def diff_tables(a, b) -> dict:
             continue
         if fa.get(k, "<absent>") != fb.get(k, "<absent>"):
             out["meta"].append({"key": k, "a": fa.get(k, "<absent>"), "b": fb.get(k, "<absent>")})
+    out["widgets"] = widget_changes(a, b)
     out["identical"] = (out["checksums"][0] == out["checksums"][1]) or (
         same_grid and not out["meta"] and all(v.get("max_abs_diff") == 0.0 for v in out["channels"].values()))
     return out
@@ -80,6 +168,9 @@ def format_diff(d: dict, name_a: str = "A", name_b: str = "B") -> str:
     if d["identical"]:
         return f"{name_a} and {name_b} are identical (checksum {d['checksums'][0]})"
     lines = [f"{name_a}: checksum {d['checksums'][0]}", f"{name_b}: checksum {d['checksums'][1]}"]
+    if d.get("widgets"):
+        lines.append("widgets:")
+        lines += [f"  {w['line']}" for w in d["widgets"]]
     g = d["grid"]
     if g["same"]:
         lines.append(f"grid: same ({g['a']['cols']} x {g['a']['rows']} samples)")

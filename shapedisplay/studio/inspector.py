@@ -1,0 +1,96 @@
+"""What the studio's inspector shows: every key of each widget type, its unit and choices, and the values.
+
+:func:`schema` lists per widget type the keys the scene loader accepts
+(``WidgetType.keys`` and the legibility keys), each with the unit the page
+writes after a bare number, the choices of a choice key and whether it is one
+of the type's strength keys (height / force / force_step / level; depth for
+sunk types: writing one removes the others). :func:`widget_values` gives each
+widget's keys as the file writes them and what it inherits from ``[defaults]``.
+"""
+from __future__ import annotations
+
+#: Unit the page appends to a bare number, by key kind (widgets.WidgetType.keys).
+UNITS = {"len": "mm", "force": "N", "point": "mm", "size": "mm", "lenrange": "mm", "forcerange": "N"}
+#: Choices of the choice keys, by (type, key), then by key.
+CHOICES = {
+    ("slider", "edge"): ("linear", "cosine"), ("toggle", "edge"): ("linear", "cosine"),
+    "track": ("groove", "ridge"), "orientation": ("auto", "horizontal", "vertical"), "state": ("off", "on"),
+    "profile": ("cosine", "linear"), "scaling": ("perceptual", "linear"),
+}
+#: Hints shown beside a key (its meaning or its form).
+HINTS = {
+    "level": "of [defaults] levels", "value": "0..1", "detents": "count, spacing or off",
+    "position": "x,y of the lower-left corner", "center": "x,y", "size": "width x height",
+    "from": "x,y", "to": "x,y", "contrast": "e.g. 3 jnd", "distinct_from": "widget ids",
+    "overlap": "max | min | add | over",
+}
+
+
+def _choices(wtype: str, key: str):
+    from shapedisplay.author.scene.fields import OVERLAP_RULES
+    from shapedisplay.author.scene.widgets import EDGES
+    if key == "overlap":
+        return tuple(OVERLAP_RULES)
+    if (wtype, key) in CHOICES:
+        return CHOICES[(wtype, key)]
+    if key == "edge":
+        return tuple(EDGES)
+    if key == "channel":
+        if wtype == "data":
+            from shapedisplay.author.scene.widgets import DATA_CHANNELS
+            return tuple(DATA_CHANNELS)
+        return None                                      # an image's channel: free text (imageio.CHANNELS)
+    return CHOICES.get(key)
+
+
+def schema() -> dict:
+    """``{type: {"keys": [{key, kind, unit, choices, strength, hint}], "strength": [...], "boxed": bool}}``."""
+    from shapedisplay.author.scene.spec import PERCEPTION_KEYS
+    from shapedisplay.author.scene.widgets import WIDGET_TYPES
+    out = {}
+    for name, wt in WIDGET_TYPES.items():
+        keys = []
+        for key, kind in wt.keys.items():
+            if key in ("type",):
+                continue
+            keys.append({"key": key, "kind": kind, "unit": UNITS.get(kind, ""), "choices": _choices(name, key),
+                         "strength": key in wt.strength_keys, "hint": HINTS.get(key, "")})
+        for key in PERCEPTION_KEYS:
+            keys.append({"key": key, "kind": "str", "unit": "", "choices": None, "strength": False,
+                         "hint": HINTS.get(key, "")})
+        out[name] = {"keys": keys, "strength": list(wt.strength_keys), "boxed": wt.boxed}
+    return out
+
+
+def _plain(v):
+    """A TOML value as JSON (dates and times as text)."""
+    if isinstance(v, dict):
+        return {str(k): _plain(x) for k, x in v.items()}
+    if isinstance(v, list):
+        return [_plain(x) for x in v]
+    if isinstance(v, (str, int, float, bool)) or v is None:
+        return v
+    return str(v)
+
+
+def widget_values(text: str) -> list:
+    """Per widget of the scene text: ``{id, type, values, inherited}`` (as written; inherited from [defaults])."""
+    from shapedisplay.studio.edits import _toml, widget_ids
+    try:
+        data = _toml().loads(text)
+    except Exception:
+        return []
+    raw = data.get("widget", [])
+    raw = [raw] if isinstance(raw, dict) else raw if isinstance(raw, list) else []
+    defaults = data.get("defaults") if isinstance(data.get("defaults"), dict) else {}
+    out = []
+    for wid, w in zip(widget_ids(data), raw):
+        if not isinstance(w, dict):
+            continue
+        t = w.get("type")
+        inherited = {k: v for k, v in defaults.items() if not isinstance(v, dict)}
+        if isinstance(t, str) and isinstance(defaults.get(t), dict):
+            inherited.update(defaults[t])
+        out.append({"id": wid, "type": t if isinstance(t, str) else None, "values": _plain(w),
+                    "inherited": _plain({k: v for k, v in inherited.items() if k not in w})})
+    return out
