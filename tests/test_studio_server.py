@@ -159,7 +159,10 @@ def test_editing_recompiles_and_an_error_keeps_the_last_table(studio):
 def test_save_from_page_writes_the_scene_and_exports_go_to_the_output_folder(studio):
     scene = studio.folder / "phone.toml"
     text = scene.read_text()
-    status, _ = studio.get("/api/scene", method="PUT", data=text.encode())
+    from shapedisplay.studio.edits import version_of
+    assert studio.get("/api/scene", method="PUT", data=text.encode())[0] == 400     # no version: refused
+    status, _ = studio.get("/api/scene", method="PUT", data=text.encode(),
+                           headers={"X-Scene-Base": version_of(text.encode())})
     assert status == 200 and scene.read_text() == text
     out = studio.folder / "studio-out"
     status, body = studio.get("/api/export/c")

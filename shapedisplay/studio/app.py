@@ -302,7 +302,12 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
 
     async def scene_get(request):
         try:
-            return PlainTextResponse(session.source_text())
+            data = session.source.read_bytes() if session.kind == "scene" else None
+            if data is None:
+                session.source_text()                       # raises: not a scene
+            from shapedisplay.studio.edits import version_of
+            return PlainTextResponse(data.decode("utf-8"), headers={"X-Scene-Version": version_of(data),
+                                                                     "Cache-Control": "no-store"})
         except ShapeDisplayError as exc:
             return error_response(exc)
 

@@ -175,9 +175,13 @@ EXCLUSIVE = (("position", "center"),)
 
 def set_key(text: str, wid: str, key, value) -> str:
     """Set (or with ``value`` None remove) ``key`` of widget ``wid``; only that value's text changes."""
-    from shapedisplay.author.scene.spec import PERCEPTION_KEYS
     data = _toml().loads(text)
-    i = _index(data, wid)
+    return _set_at(text, data, _index(data, wid), wid, key, value)
+
+
+def _set_at(text: str, data: dict, i: int, wid: str, key, value) -> str:
+    """:func:`set_key` on the ``i``-th [[widget]] entry (``wid`` names it in messages)."""
+    from shapedisplay.author.scene.spec import PERCEPTION_KEYS
     wt = _type_of(data, i)
     valid = (list(wt.keys) if wt else []) + list(PERCEPTION_KEYS)
     if not isinstance(key, str) or key not in valid:
@@ -420,17 +424,13 @@ def duplicate_widget(text: str, wid: str, path: Path, device=None) -> tuple[str,
         body[-1] += "\n"
     new_id = _free_id(wid, widget_ids(data))
     out = _insert_block(text, data, i, "".join(body))
-    out = set_key(out, _ids_after(out)[i + 1], "id", new_id)
+    out = _set_at(out, _toml().loads(out), i + 1, new_id, "id", new_id)      # the copy, not the original
     scene, w = _placed(out, new_id, path, device)
     x0, y0, x1, y1 = w.bbox
     off = DUPLICATE_OFFSET_MM
     dx = off if x1 + off * 1e-3 <= scene.canvas.width + 1e-12 else -off
     dy = 0.0 if scene.canvas.is_1d else (-off if y0 - off * 1e-3 >= -1e-12 else off)
     return move_box(out, new_id, [dx, dy, dx, dy], path, device), new_id
-
-
-def _ids_after(text: str) -> list:
-    return widget_ids(_toml().loads(text))
 
 
 # --------------------------------------------------------------- merging two versions

@@ -3,6 +3,7 @@
 // table with the C runtime in an AudioWorklet, edits the scene, charts and records strokes.
 // No renderer is written here.
 import {SdRuntime} from "/static/sd_wasm.js?token={{TOKEN}}";
+import {initDesign} from "/static/design.js?token={{TOKEN}}";
 
 const token = document.body.dataset.token;
 const withToken = (p) => p + (p.includes("?") ? "&" : "?") + "token=" + encodeURIComponent(token);
@@ -18,6 +19,10 @@ const studio = window.studio = {
   errorLine: null, readoutValues: {}, hoverPos: null,
   playingModel: null,          // the pad model the worklet plays (null: no audio yet, or it refused the model)
   shownGeneration: null,       // the table generation of the last state shown whole (view, editor text, error)
+  version: null,               // the version of the scene file this page knows (edits name it: design.js)
+  textBase: null,              // {version, text}: what the editor's text was loaded from
+  playing: null,               // what the worklet plays: {checksum, generation, which: "A" | "B"}
+  lockedRange: {},             // channel -> [lo, hi] of a locked colour scale
 };
 
 // ------------------------------------------------------------------ server
@@ -36,8 +41,8 @@ async function loadModule() {
   return studio.module;
 }
 
-async function fetchRuntime() {
-  const buf = await (await fetchOk("/api/runtime")).arrayBuffer();
+async function fetchRuntime(which) {
+  const buf = await (await fetchOk("/api/runtime" + (which ? `?table=${which}` : ""))).arrayBuffer();
   const n = new DataView(buf).getUint32(0, true);
   const layout = JSON.parse(new TextDecoder().decode(new Uint8Array(buf, 4, n)));
   for (const m of Object.values(layout.models)) if (m.pad) m.pad = padBlock(m.pad);
@@ -106,6 +111,7 @@ function drawOverlay() {
   cv.width = w; cv.height = h;
   const c = cv.getContext("2d");
   c.clearRect(0, 0, w, h);
+  if (studio.design) studio.design.drawGrid(c, w, h);
   c.font = "11px system-ui";
   for (const wd of (studio.state.widgets || [])) {
     const [x0, y0, x1, y1] = wd.bbox_m;
@@ -128,23 +134,37 @@ function drawOverlay() {
     }
     c.stroke();
   }
+  if (studio.design) studio.design.draw();
 }
 
 // ------------------------------------------------------------------ state + table swap
-async function showState(st) {
+// `force`: load the scene text into the editor even if it holds unsaved typing (a resolved conflict).
+async function showState(st, force) {
+  if (studio.state && st.generation < studio.state.generation) return;       // an older message, late
   studio.state = st;
   $("report").textContent = st.report || "";
   showError(st.error);
   if (st.table_generation !== null && st.table_generation !== studio.tableGeneration) {
     await swapTable(st);
   }
-  if (!studio.dirty && st.kind === "scene") {
-    const text = await (await fetchOk("/api/scene")).text();
-    if (!studio.dirty && text !== $("text").value) { $("text").value = text; gutter(); }
+  if ((force || !studio.dirty) && st.kind === "scene") {
+    const r = await fetchOk("/api/scene");
+    const text = await r.text();
+    if (force || !studio.dirty) {
+      studio.dirty = false;
+      studio.textBase = {version: r.headers.get("X-Scene-Version"), text};
+      if (text !== $("text").value) { $("text").value = text; gutter(); }
+    }
   }
   markErrorLine();
+  if (st.error) {
+    $("status").textContent = (st.error.line ? `error at line ${st.error.line}` : "error") +
+      (studio.tableGeneration !== null ? `: table ${studio.tableGeneration} (the last good one) keeps playing` : "");
+  }
+  if (studio.design) studio.design.onState(st);
   studio.shownGeneration = studio.tableGeneration;
 }
+studio.applyState = (st, force) => (studio.pending = (studio.pending || Promise.resolve()).then(() => showState(st, force)));
 
 async function swapTable(st) {
   const t0 = now();
@@ -160,11 +180,12 @@ async function swapTable(st) {
   studio.layout = layout; studio.payload = payload;
   bindHover(layout, payload);
   fillModels(layout);
-  const playing = studio.node ? postTable(studio.node, layout, payload) : Promise.resolve(null);
+  const abA = studio.design && studio.design.abPlaying === "A";       // A/B: A keeps playing until switched
+  const playing = studio.node && !abA ? postTable(studio.node, layout, payload) : Promise.resolve(null);
   if (first) fillChannels(st);
   await Promise.all([(viewed || showMap(st)).then(() => { swap.t_view = now(); drawOverlay(); rehover(); }),
                      playing.then(() => { swap.t_playing = studio.node ? now() : null; })]);
-  $("status").textContent = `table ${gen} · compiled in ${(st.compile_seconds * 1e3).toFixed(0)} ms`;
+  if (!st.error) $("status").textContent = `table ${gen} · compiled in ${(st.compile_seconds * 1e3).toFixed(0)} ms`;
 }
 
 // The model selector: the models the layout offers (one a device cannot play is shown disabled, with
@@ -222,14 +243,17 @@ function showMap(st) {
   const [w, h] = mapSize(st.grid);
   const img = $("map");
   img.style.width = w + "px"; img.style.height = h + "px";
-  const [lo, hi] = st.ranges[ch];
+  const locked = $("lock-scale").checked;
+  if (locked && !studio.lockedRange[ch]) studio.lockedRange[ch] = st.ranges[ch];
+  const [lo, hi] = locked ? studio.lockedRange[ch] : st.ranges[ch];
   const unit = UNITS[ch] || "";
   $("scale-lo").textContent = `${lo.toPrecision(3)} ${unit}`;
   $("scale-hi").textContent = `${hi.toPrecision(3)} ${unit}`;
   return new Promise((resolve) => {
     img.onload = () => resolve();
     img.onerror = () => resolve();
-    img.src = withToken(`/api/map.png?channel=${encodeURIComponent(ch)}&g=${studio.tableGeneration}`);
+    img.src = withToken(`/api/map.png?channel=${encodeURIComponent(ch)}&g=${studio.tableGeneration}` +
+                        (locked ? `&range=${lo}:${hi}` : ""));
   });
 }
 
@@ -263,10 +287,25 @@ function markErrorLine() {
   }
   $("gutter").scrollTop = $("text").scrollTop;
 }
+// Save the editor's text over the version it was loaded from: a file changed on disk meanwhile is a
+// conflict (nothing written); text that is not TOML is refused at its line (the file stays as it was).
 async function save() {
-  const r = await fetch(withToken("/api/scene"), {method: "PUT", body: $("text").value});
-  if (r.ok) { studio.dirty = false; $("status").textContent = "saved; compiling…"; }
-  else $("status").textContent = "save failed: " + (await r.text());
+  const text = $("text").value;
+  const base = studio.textBase ? studio.textBase.version : studio.version;
+  const r = await fetch(withToken("/api/scene"), {method: "PUT", body: text, headers: {"X-Scene-Base": base || ""}});
+  let data = {};
+  try { data = await r.json(); } catch (err) { data = {error: String(r.status)}; }
+  if (r.status === 200) {
+    studio.dirty = false;
+    studio.textBase = {version: data.version, text};
+    $("status").textContent = data.changed ? "saved; compiling…" : "saved (no change)";
+    if (data.state) await studio.applyState(data.state);
+  } else if (r.status === 409) {
+    studio.design.showConflict(data, {text});
+  } else {
+    $("status").textContent = "not saved: " + (data.error || r.status);
+    if (data.line) { studio.errorLine = data.line; markErrorLine(); }
+  }
 }
 
 // ------------------------------------------------------------------ audio (the C runtime in a worklet)
@@ -286,7 +325,9 @@ function postAndWait(node, msg, isReply) {
 async function postTable(node, layout, payload) {
   const r = await postAndWait(node, {type: "table", layout, payload: payload.slice(0), model: $("model").value},
                               (d) => d.type === "table-ready" && d.generation === layout.generation);
+  studio.playing = {checksum: r.checksum, generation: r.generation, which: layout.which || "B"};
   showPlaying(r);
+  if (studio.design) studio.design.showAB();
   return r;
 }
 
@@ -306,6 +347,15 @@ async function makeNode(ctx, extra) {
   return node;
 }
 
+// Feel on / off: the first press starts the audio output, later ones suspend and resume it.
+async function toggleFeel() {
+  if (!studio.ctx) return startFeel();
+  if (studio.ctx.state === "running") await studio.ctx.suspend(); else await studio.ctx.resume();
+  const on = studio.ctx.state === "running";
+  $("feel").textContent = on ? "Feel on" : "Feel off";
+  $("feel").setAttribute("aria-pressed", on ? "true" : "false");
+}
+
 async function startFeel() {
   if (studio.ctx) { await studio.ctx.resume(); return; }
   await loadModule();
@@ -316,7 +366,7 @@ async function startFeel() {
   studio.node.port.postMessage({type: "mode", mode: $("mode").value});
   await studio.ctx.resume();
   $("feel").textContent = "Feel on";
-  $("feel").disabled = true;
+  $("feel").setAttribute("aria-pressed", "true");
   studio.latency = {base: studio.ctx.baseLatency, output: studio.ctx.outputLatency || 0};
   $("status").textContent = `audio ${rate} Hz · output latency ${(1e3 * (studio.latency.base + studio.latency.output)).toFixed(1)} ms`;
 }
@@ -373,7 +423,14 @@ function rehover() { if (studio.hoverPos) showReadout(...studio.hoverPos); }
 function showReadout(x, y) {
   const vals = studio.readout(x, y);
   studio.readoutValues = vals; studio.hoverPos = [x, y];
-  $("hover-pos").textContent = `x ${(x * 1e3).toFixed(2)} mm, y ${(y * 1e3).toFixed(2)} mm`;
+  const over = (studio.state.widgets || []).filter((w) => x >= w.bbox_m[0] && x <= w.bbox_m[2] &&
+                                                         y >= w.bbox_m[1] && y <= w.bbox_m[3]).pop();
+  const m = studio.state.mapping || {};
+  const height = m.n_gain > 0 && vals.normal_force !== undefined ? (vals.normal_force - m.n_base) / m.n_gain : null;
+  $("hover-pos").textContent = `x ${(x * 1e3).toFixed(2)} mm, y ${(y * 1e3).toFixed(2)} mm` +
+    (over ? ` · ${over.id} (${over.type})` : " · flat ground") +
+    (height !== null ? ` · height ${(height * 1e3).toFixed(2)} mm` : "");
+  $("hover-pos").dataset.widget = over ? over.id : "";
   $("hover-pos").dataset.x = x; $("hover-pos").dataset.y = y;
   for (const td of $("readout").querySelectorAll("td.v")) {
     const c = td.dataset.channel, v = vals[c];
@@ -569,9 +626,10 @@ function init() {
   });
   wrap.addEventListener("pointerup", (e) => pointer("up", e));
   $("channel").addEventListener("change", () => showMap().then(drawOverlay));
+  $("lock-scale").addEventListener("change", () => { studio.lockedRange = {}; if (studio.layout) showMap().then(drawOverlay); });
   $("model").addEventListener("change", chooseModel);
   $("mode").addEventListener("change", () => studio.node && studio.node.port.postMessage({type: "mode", mode: $("mode").value}));
-  $("feel").addEventListener("click", startFeel);
+  $("feel").addEventListener("click", toggleFeel);
   $("save").addEventListener("click", save);
   $("text").addEventListener("input", () => { studio.dirty = true; gutter(); });
   $("text").addEventListener("scroll", () => { $("gutter").scrollTop = $("text").scrollTop; });
@@ -590,5 +648,8 @@ function init() {
     if (st.kind !== "scene") $("text").disabled = true;
   });
   connect();
+  initDesign({fetchOk, withToken, toPicture, applyState: studio.applyState, startFeel, toggleFeel, postTable,
+              fetchRuntime, drawOverlay,
+              refresh: async () => studio.applyState(await (await fetchOk("/api/state")).json())});
 }
 init();

@@ -91,6 +91,8 @@ class StudioRenderer extends AudioWorkletProcessor {
 
   // Load a table image (shapedisplay.studio.wasm.table_payload) and (re)start the renderer on it.
   bind(layout, payload) {
+    // a stroke under way goes on over the new table (an edit or an A/B switch while stroking)
+    const was = this.touching && this.w ? {tau: this.tStart + this.k / this.tickRate, x: this.cx, y: this.cy} : null;
     this.layout = layout;
     try {
       this.rt.loadTable(new Uint8Array(payload));
@@ -122,8 +124,9 @@ class StudioRenderer extends AudioWorkletProcessor {
       };
     }
     this.generation = layout.generation;
+    if (was && this.ready) this.startStroke(was.tau, was.x, was.y);
     this.port.postMessage({type: "table-ready", generation: layout.generation, rc: rc, error: this.error,
-                           model: this.playing});
+                           model: this.playing, checksum: layout.checksum, which: layout.which || "B"});
   }
 
   startStroke(tInput, x, y) {

@@ -1,0 +1,391 @@
+"""The studio as a design tool, in a real headless Chromium: the scene file on disk is the result.
+
+One studio and one page serve the module; every test starts from the bundled
+phone scene (its bytes written back and seen by the page) and checks the
+file: a drag moves ``position`` by the dragged millimetres on the grid and
+changes nothing else; a handle changes ``size``; the inspector writes one key;
+the palette adds, duplicates and deletes; undo restores the exact bytes; a text
+edit followed by undo never leaves invalid TOML; an external write during an
+unsaved edit is a conflict and stays on disk until the designer chooses; the
+A/B switch alternates the table the worklet plays.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("starlette")
+pytest.importorskip("tomlkit")
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+try:
+    from playwright.sync_api import sync_playwright
+except ImportError:                                       # pragma: no cover
+    sync_playwright = None
+if sync_playwright is None or not Path(CHROMIUM).is_file():
+    if os.environ.get("CI"):
+        pytest.fail("CI needs chromium (scripts/install-system-deps.sh --with-studio) and playwright (pip)",
+                    pytrace=False)
+    pytest.skip("needs Debian's chromium and the playwright package", allow_module_level=True)
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:                                                     # pragma: no cover
+    import tomli as tomllib
+
+from shapedisplay.studio.edits import version_of  # noqa: E402
+
+from studio_helpers import PHONE, StudioProcess  # noqa: E402
+
+ORIGINAL = PHONE.read_bytes()
+#: Where the docs' screenshot goes when this variable names a folder (scripts/docs_images.py).
+SCREENSHOT_DIR = os.environ.get("SHAPEDISPLAY_SCREENSHOT_DIR")
+
+
+@pytest.fixture(scope="module")
+def page(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("design")
+    shutil.copy(PHONE, folder / "phone.toml")
+    studio = StudioProcess(folder / "phone.toml")
+    studio.folder = folder
+    studio.scene = folder / "phone.toml"
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=["--autoplay-policy=no-user-gesture-required"])
+        pg = browser.new_page(viewport={"width": 1500, "height": 1000}, bypass_csp=True)
+        errors = []
+        pg.on("pageerror", lambda e: errors.append(str(e)))
+        pg.goto(studio.url)
+        pg.wait_for_function("window.studio && studio.shownGeneration !== null && studio.design && "
+                             "studio.design.schema", timeout=30000)
+        pg.studio, pg.js_errors, pg.browser = studio, errors, browser
+        yield pg
+        browser.close()
+    studio.stop()
+
+
+@pytest.fixture
+def fresh(page):
+    """The page on the bundled phone scene: its bytes on disk, seen by the page, nothing selected."""
+    scene = page.studio.scene
+    page.evaluate("studio.dirty = false; document.getElementById('conflict').hidden = true")
+    if scene.read_bytes() != ORIGINAL:
+        scene.write_bytes(ORIGINAL)
+    v = version_of(ORIGINAL)
+    page.wait_for_function(f"studio.version === '{v}' && studio.textBase && studio.textBase.version === '{v}' "
+                           f"&& studio.state.scene_version === '{v}'", timeout=20000)
+    page.keyboard.press("Escape")
+    page.evaluate("document.activeElement && document.activeElement.blur()")
+    yield page
+    assert not page.js_errors
+
+
+def wait_version_change(page, before: str) -> str:
+    page.wait_for_function(f"studio.version !== '{before}' && studio.state.scene_version === studio.version",
+                           timeout=20000)
+    return page.evaluate("studio.version")
+
+
+def changed_lines(a: bytes, b: bytes) -> list:
+    la, lb = a.decode().splitlines(), b.decode().splitlines()
+    assert len(la) == len(lb), "lines were added or removed"
+    return [(i + 1, x, y) for i, (x, y) in enumerate(zip(la, lb)) if x != y]
+
+
+def widget(data: dict, wid: str) -> dict:
+    return next(w for w in data["widget"] if w["id"] == wid)
+
+
+def undo_to(page, expected: bytes):
+    v = page.evaluate("studio.version")
+    page.click("#undo")
+    wait_version_change(page, v)
+    assert page.studio.scene.read_bytes() == expected
+
+
+def px_per_mm(page) -> float:
+    return page.evaluate("document.getElementById('map').clientWidth / "
+                         "(studio.state.grid.cols * studio.state.grid.dx)") / 1e3
+
+
+# ------------------------------------------------------------------ canvas
+def test_widget_elements_cover_their_boxes_and_a_drag_moves_position_only(fresh):
+    page = fresh
+    before = page.studio.scene.read_bytes()
+    for w in page.evaluate("studio.state.widgets"):
+        box = page.locator(f'[data-widget="{w["id"]}"]').bounding_box()
+        x0, y0, x1, y1 = w["bbox_m"]
+        (ax, ay), (bx, by) = page.evaluate(f"[studio.screenOf({x0}, {y1}), studio.screenOf({x1}, {y0})]")
+        assert box["x"] == pytest.approx(ax, abs=0.6) and box["y"] == pytest.approx(ay, abs=0.6), w["id"]
+        assert box["width"] == pytest.approx(bx - ax, abs=0.6) and box["height"] == pytest.approx(by - ay, abs=0.6)
+    box = page.locator('[data-widget="app-1"]').bounding_box()
+    cx, cy = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+    dx, dy = 37, 23                                       # pixels: right and down the screen
+    page.mouse.move(cx, cy)
+    page.mouse.down()
+    page.mouse.move(cx + dx, cy + dy, steps=6)
+    page.mouse.up()
+    v = wait_version_change(page, version_of(before))
+    after = page.studio.scene.read_bytes()
+    s = px_per_mm(page)
+    res = 0.5
+    ex = 5 + round(dx / s / res) * res
+    ey = 118 - round(dy / s / res) * res
+    a, b = tomllib.loads(before.decode()), tomllib.loads(after.decode())
+    assert widget(b, "app-1")["position"] == f"{ex:g},{ey:g} mm"
+    widget(b, "app-1")["position"] = widget(a, "app-1")["position"]
+    assert a == b                                         # nothing else changed ...
+    assert [ln for ln, _, _ in changed_lines(before, after)] == [52]     # ... byte for byte
+    assert page.evaluate("studio.design.selected") == "app-1"
+    assert page.locator('[data-widget="app-1"] [data-handle]').count() == 8
+    assert page.input_value("#inspector input[name=position]") == f"{ex:g},{ey:g} mm"
+    assert v == page.evaluate("studio.state.scene_version")
+    undo_to(page, before)
+
+
+def test_a_drag_near_another_widget_snaps_to_its_edge_with_a_guide(fresh):
+    page = fresh
+    before = page.studio.scene.read_bytes()
+    s = px_per_mm(page)
+    box = page.locator('[data-widget="app-4"]').bounding_box()
+    cx, cy = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+    page.mouse.move(cx, cy)
+    page.mouse.down()
+    page.mouse.move(cx + 25.6 * s, cy, steps=5)          # left edge 5 -> 30.6 mm: app-5's left edge is at 30
+    assert page.locator("#widgets .guide").count() >= 1
+    page.mouse.up()
+    wait_version_change(page, version_of(before))
+    assert widget(tomllib.loads(page.studio.scene.read_text()), "app-4")["position"] == "30,90 mm"
+    undo_to(page, before)
+
+
+def test_a_handle_resizes_and_arrow_keys_nudge(fresh):
+    page = fresh
+    before = page.studio.scene.read_bytes()
+    page.locator('[data-widget="call"]').click()
+    handle = page.locator('[data-widget="call"] [data-handle="e"]')
+    hb = handle.bounding_box()
+    hx, hy = hb["x"] + hb["width"] / 2, hb["y"] + hb["height"] / 2
+    page.keyboard.down("Alt")                             # the grid only: no snapping to other widgets
+    page.mouse.move(hx, hy)
+    page.mouse.down()
+    page.mouse.move(hx + 40, hy + 30, steps=5)            # an e handle moves the right edge only
+    page.mouse.up()
+    page.keyboard.up("Alt")
+    wait_version_change(page, version_of(before))
+    after = page.studio.scene.read_bytes()
+    w = round(40 / px_per_mm(page) / 0.5) * 0.5
+    assert widget(tomllib.loads(after.decode()), "call")["size"] == f"{36 + w:g}x16 mm"
+    assert [t for _, t, _ in changed_lines(before, after)] == ['size = "36x16 mm"']
+    # arrow keys: one grid step, Shift: ten
+    v = page.evaluate("studio.version")
+    page.keyboard.press("ArrowUp")
+    v = wait_version_change(page, v)
+    page.keyboard.press("Shift+ArrowLeft")
+    wait_version_change(page, v)
+    assert widget(tomllib.loads(page.studio.scene.read_text()), "call")["position"] == "0,28.5 mm"
+    v = page.evaluate("studio.version")
+    page.keyboard.press("Control+z")
+    v = wait_version_change(page, v)
+    page.keyboard.press("Control+z")
+    v = wait_version_change(page, v)
+    assert page.studio.scene.read_bytes() == after
+    undo_to(page, before)
+
+
+# ------------------------------------------------------------------ inspector and palette
+def test_inspector_writes_one_key_validates_live_and_the_new_table_plays(fresh):
+    page = fresh
+    before = page.studio.scene.read_bytes()
+    if page.evaluate("studio.node === null"):
+        page.click("#feel")
+        page.wait_for_function("studio.node !== null && studio.ctx.state === 'running'", timeout=20000)
+    page.locator('[data-widget="call"]').click()
+    field = page.locator("#inspector input[name=ramp]")
+    assert field.input_value() == "5 mm"
+    field.fill("-1")                                       # live check: the loader's message, nothing written
+    page.wait_for_function("document.querySelector('#inspector input[name=ramp]').classList.contains('invalid')",
+                           timeout=10000)
+    msg = page.locator("#inspector input[name=ramp] ~ .msg").inner_text()
+    assert "`widget[9].ramp` must be a length > 0 (got '-1 mm')" in msg
+    assert page.studio.scene.read_bytes() == before
+    field.fill("8")
+    field.press("Enter")
+    wait_version_change(page, version_of(before))
+    after = page.studio.scene.read_bytes()
+    assert changed_lines(before, after) == [(119, 'ramp = "5 mm"', 'ramp = "8 mm"')]
+    gen = page.evaluate("studio.state.table_generation")
+    page.wait_for_function(f"studio.playing && studio.playing.generation === {gen}", timeout=20000)
+    assert page.evaluate("studio.playing.checksum") == page.evaluate("studio.state.checksum")
+    # a strength key replaces the others: force -> height
+    page.locator("#inspector input[name=height]").fill("1.5")
+    page.locator("#inspector input[name=height]").press("Enter")
+    wait_version_change(page, version_of(after))
+    call = widget(tomllib.loads(page.studio.scene.read_text()), "call")
+    assert call["height"] == "1.5 mm" and "force" not in call
+    undo_to(page, after)
+    undo_to(page, before)
+
+
+def test_palette_adds_duplicates_and_deletes_and_undo_restores_each(fresh):
+    page = fresh
+    original = page.studio.scene.read_bytes()
+    page.click('#palette [data-add="button"]')
+    wait_version_change(page, version_of(original))
+    data = tomllib.loads(page.studio.scene.read_text())
+    assert data["widget"][-1] == {"id": "button-1", "type": "button", "position": "30,70 mm", "size": "20x20 mm"}
+    assert page.studio.scene.read_bytes().startswith(original.rstrip(b"\n"))
+    assert page.evaluate("studio.design.selected") == "button-1"
+    page.wait_for_selector('[data-widget="button-1"]')
+    undo_to(page, original)
+    page.locator('[data-widget="app-3"]').click()
+    page.click("#duplicate")
+    wait_version_change(page, version_of(original))
+    ids = [w["id"] for w in tomllib.loads(page.studio.scene.read_text())["widget"]]
+    assert ids[:4] == ["frame", "app-1", "app-2", "app-3"] and ids[4] == "app-7" and len(ids) == 12
+    assert page.evaluate("studio.design.selected") == "app-7"
+    undo_to(page, original)
+    page.locator('[data-widget="home"]').click()
+    page.click("#delete")
+    wait_version_change(page, version_of(original))
+    text = page.studio.scene.read_text()
+    assert 'id = "home"' not in text and "# ---- home" not in text
+    assert page.locator('[data-widget="home"]').count() == 0
+    undo_to(page, original)
+    # redo, then undo once more: the same bytes each way
+    v = page.evaluate("studio.version")
+    page.click("#redo")
+    wait_version_change(page, v)
+    assert 'id = "home"' not in page.studio.scene.read_text()
+    undo_to(page, original)
+
+
+# ------------------------------------------------------------------ text, undo, history
+def test_a_text_edit_followed_by_undo_never_leaves_invalid_toml(fresh):
+    page = fresh
+    scene = page.studio.scene
+    before = scene.read_bytes()
+    text = before.decode()
+    # unparsable text is not saved: the file stays, the line is marked
+    page.fill("#text", text.replace('track = "groove"', 'trak = '))
+    page.keyboard.press("Control+s")
+    page.wait_for_function("document.getElementById('status').textContent.startsWith('not saved')", timeout=10000)
+    assert scene.read_bytes() == before
+    # a saved text edit (valid TOML, an unknown key: the compile shows the error) ...
+    page.fill("#text", text.replace('track = "groove"', 'trak = "groove"'))
+    page.keyboard.press("Control+s")
+    wait_version_change(page, version_of(before))
+    assert b'trak = "groove"' in scene.read_bytes()
+    page.wait_for_selector("#error:not([hidden])", timeout=20000)
+    assert "error at line" in page.inner_text("#status")
+    # ... and undo from the editor (Ctrl+Z with nothing unsaved): the exact bytes before, valid TOML
+    page.focus("#text")
+    v = page.evaluate("studio.version")
+    page.keyboard.press("Control+z")
+    wait_version_change(page, v)
+    assert scene.read_bytes() == before
+    tomllib.loads(scene.read_text())
+    page.wait_for_selector("#error", state="hidden", timeout=20000)
+    assert page.input_value("#text") == text
+
+
+def test_history_is_listed_and_survives_a_reload(fresh):
+    page = fresh
+    before = page.studio.scene.read_bytes()
+    page.locator('[data-widget="volume"]').click()
+    page.locator("#inspector input[name=value]").fill("0.7")
+    page.locator("#inspector input[name=value]").press("Enter")
+    wait_version_change(page, version_of(before))
+    assert page.locator("#history li.current").text_content() == "volume.value = 0.7"
+    page.reload()
+    page.wait_for_function("window.studio && studio.shownGeneration !== null && studio.design && "
+                           "studio.design.schema && studio.state.history", timeout=30000)
+    assert page.locator("#history li.current").text_content() == "volume.value = 0.7"
+    assert page.is_enabled("#undo")
+    undo_to(page, before)
+    assert page.locator("#history li.current").text_content() == "the file as the history began" or \
+        page.locator("#history li.undone").count() >= 1
+
+
+# ------------------------------------------------------------------ conflicts
+def test_an_external_write_during_an_unsaved_edit_is_a_conflict_until_the_designer_chooses(fresh):
+    page = fresh
+    scene = page.studio.scene
+    text = scene.read_text()
+    page.fill("#text", text.replace("value = 0.4 ", "value = 0.6 "))           # unsaved in the page
+    external = text.replace('force = "3.5 N"', 'force = "3 N"')
+    scene.write_text(external)                                                  # another editor saves
+    page.wait_for_function(f"studio.state.scene_version === '{version_of(external.encode())}'", timeout=20000)
+    assert page.evaluate("studio.dirty")
+    page.keyboard.press("Control+s")
+    page.wait_for_selector("#conflict:not([hidden])", timeout=10000)
+    assert scene.read_text() == external                                        # nothing overwritten
+    assert "value = 0.6" in page.inner_text("#conflict-mine") and 'force = "3 N"' in page.inner_text("#conflict-disk")
+    page.wait_for_timeout(300)
+    assert scene.read_text() == external                                        # ... until the designer chooses
+    v = page.evaluate("studio.version")
+    page.click("#merge")
+    page.wait_for_selector("#conflict", state="hidden", timeout=10000)
+    wait_version_change(page, v)
+    merged = scene.read_text()
+    assert merged == external.replace("value = 0.4 ", "value = 0.6 ")
+    assert page.input_value("#text") == merged
+    # a canvas edit made on a stale version (a second page) is a conflict too
+    other = page.browser.new_page(viewport={"width": 1500, "height": 1000}, bypass_csp=True)
+    try:
+        other.goto(page.studio.url)
+        other.wait_for_function("window.studio && studio.shownGeneration !== null && studio.design && "
+                                "studio.design.schema", timeout=30000)
+        stale = page.evaluate("studio.version")
+        other.evaluate(f"studio.version = '{version_of(text.encode())}'")           # as if it had missed the news
+        other.evaluate("studio.design.edit([{op: 'box', widget: 'home', d: [1, 0, 1, 0]}], 'move home')")
+        other.wait_for_selector("#conflict:not([hidden])", timeout=10000)
+        assert scene.read_text() == merged
+        other.click("#take-disk")
+        other.wait_for_selector("#conflict", state="hidden", timeout=10000)
+        assert scene.read_text() == merged and page.evaluate("studio.version") == stale
+    finally:
+        other.close()
+
+
+# ------------------------------------------------------------------ A/B and feel
+def test_ab_switch_alternates_the_table_the_worklet_plays(fresh):
+    page = fresh
+    before = page.studio.scene.read_bytes()
+    if page.evaluate("studio.node === null"):
+        page.click("#feel")
+        page.wait_for_function("studio.node !== null && studio.ctx.state === 'running'", timeout=20000)
+    page.click("#pin")                                         # A = the phone scene as it is
+    page.wait_for_function("studio.state.ab.a_checksum === studio.state.checksum", timeout=10000)
+    a = page.evaluate("studio.state.checksum")
+    page.locator('[data-widget="call"]').click()
+    page.locator("#inspector input[name=force]").fill("1.5")
+    page.locator("#inspector input[name=force]").press("Enter")
+    wait_version_change(page, version_of(before))
+    page.wait_for_function("studio.state.checksum !== studio.state.ab.a_checksum && studio.playing && "
+                           "studio.playing.checksum === studio.state.checksum", timeout=20000)
+    b = page.evaluate("studio.state.checksum")
+    assert "call: normal force 3.5 → 1.5 N" in page.text_content("#ab-diff")
+    seen = []
+    for _ in range(4):
+        page.click("#ab")
+        page.wait_for_function(f"studio.playing.which === '{'A' if len(seen) % 2 == 0 else 'B'}'", timeout=10000)
+        seen.append(page.evaluate("studio.playing.checksum"))
+    assert seen == [a, b, a, b]
+    page.keyboard.press("a")                                   # one key, also while stroking
+    page.wait_for_function("studio.playing.which === 'A'", timeout=10000)
+    page.keyboard.press("a")
+    page.wait_for_function("studio.playing.which === 'B'", timeout=10000)
+    # feel toggles off and on
+    page.click("#feel")
+    page.wait_for_function("studio.ctx.state === 'suspended'", timeout=10000)
+    assert page.get_attribute("#feel", "aria-pressed") == "false"
+    page.click("#feel")
+    page.wait_for_function("studio.ctx.state === 'running'", timeout=10000)
+    if SCREENSHOT_DIR:
+        page.locator('[data-widget="call"]').click()
+        page.mouse.move(*page.evaluate("studio.screenOf(0.040, 0.128)"))
+        page.screenshot(path=str(Path(SCREENSHOT_DIR) / "studio-design.png"))
+    undo_to(page, before)
