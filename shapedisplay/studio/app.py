@@ -104,20 +104,28 @@ class Studio:
             self.scenefile = SceneFile(session.source, session.out_dir,
                                        device=session._device if session.device else None)
         self.compiled_version: str | None = None   # the scene bytes the current compile read
+        self.last_state: dict | None = None     # the state last broadcast
+        self.pushed_generation = None           # the table whose runtime image was last sent to the pages
         self.pinned: dict | None = None         # table A: {"table", "layout", "image", "label"}
 
     # -------------------------------------------------------------- compile + broadcast
-    def compile_and_prepare(self) -> bool:
-        """Compile (in a worker thread) and prepare everything the page will fetch for a new table."""
+    def compile_and_prepare(self, edited: bool = False) -> bool:
+        """Compile (in a worker thread) and prepare everything the page will fetch for a new table.
+
+        ``edited``: the studio has just written the scene after validating it; that scene is compiled
+        without reading the file again."""
         from shapedisplay.studio.views import channel_range, colour_map_png
         from shapedisplay.studio.wasm import table_payload
+        scene = None
         if self.scenefile is not None:
-            from shapedisplay.studio.edits import version_of
+            from shapedisplay.studio.edits import validated, version_of
             try:
-                self.compiled_version = version_of(self.session.source.read_bytes())
+                data = self.session.source.read_bytes()
+                self.compiled_version = version_of(data)
+                scene = validated(data) if edited else None    # the scene the edit has just validated
             except OSError:
                 self.compiled_version = None
-        if not self.session.compile():
+        if not self.session.compile(scene):
             return False
         cur = self.session.current
         lay, image = table_payload(cur.table, self.model)
@@ -127,21 +135,32 @@ class Studio:
             self.pinned = {"table": cur.table, "layout": dict(lay, which="A"), "image": image,
                            "label": "as opened", "generation": cur.generation}
         first = "normal_force" if "normal_force" in cur.table.channels else cur.table.channels[0]
-        self.prepared = {"generation": cur.generation, "layout": lay, "image": image,
+        self.prepared = {"generation": cur.generation, "layout": lay, "image": image, "table": cur.table,
                          "ranges": {c: channel_range(cur.table, c) for c in cur.table.channels},
-                         "maps": {first: colour_map_png(cur.table, first)}}
+                         "maps": {} if edited else {first: colour_map_png(cur.table, first)}}
         return True
 
-    async def recompile(self, reason: str) -> None:
+    async def recompile(self, reason: str, edited: bool = False) -> None:
         t0 = time.perf_counter()
-        await asyncio.get_running_loop().run_in_executor(None, self.compile_and_prepare)
+        await asyncio.get_running_loop().run_in_executor(None, self.compile_and_prepare, edited)
         self.last_change = {"reason": reason, "compile_ms": (time.perf_counter() - t0) * 1e3}
         await self.broadcast()
 
     async def broadcast(self) -> None:
-        msg = json.dumps({"type": "state", "state": self.state()})
+        """Send every page the state; a new table's runtime image goes first (a binary message, as
+        ``GET /api/runtime`` answers), so that the page swaps it in without asking for it."""
+        self.last_state = self.state()
+        msg = json.dumps({"type": "state", "state": self.last_state})
+        prep = self.prepared
+        frame = None
+        if prep is not None and prep["generation"] != self.pushed_generation:
+            head = json.dumps(prep["layout"]).encode()
+            frame = struct.pack("<I", len(head)) + head + prep["image"]
+            self.pushed_generation = prep["generation"]
         for ws in list(self.clients):
             try:
+                if frame is not None:
+                    await ws.send_bytes(frame)
                 await ws.send_text(msg)
             except Exception:                      # a closed page: forget it
                 self.clients.discard(ws)
@@ -191,7 +210,7 @@ class Studio:
         from shapedisplay.studio.views import colour_map_png
         prep = self.prepared
         if channel not in prep["maps"]:
-            prep["maps"][channel] = colour_map_png(self.session.current.table, channel)
+            prep["maps"][channel] = colour_map_png(prep["table"], channel)
         return prep["maps"][channel]
 
     async def watch(self, stop: asyncio.Event) -> None:
@@ -210,6 +229,8 @@ class Studio:
                     except OSError:
                         pass
                 self.scenefile.sync()
+                from shapedisplay.studio.edits import forget_validated
+                forget_validated()                  # a file the scene names may have changed
             await self.recompile("changed: " + ", ".join(names))
 
 
@@ -258,7 +279,8 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
             cur = need_table()
         except ShapeDisplayError as exc:
             return error_response(exc, 409)
-        return Response(cur.npz, media_type="application/octet-stream",
+        data = await asyncio.get_running_loop().run_in_executor(None, cur.data)
+        return Response(data, media_type="application/octet-stream",
                         headers={"Content-Disposition": f'attachment; filename="{session.source.stem}.npz"'})
 
     async def runtime_wasm(request):
@@ -295,7 +317,7 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
                 png = await asyncio.get_running_loop().run_in_executor(
                     None, colour_map_png, session.current.table, channel, (lo, hi))
             else:
-                png = studio.colour_map(channel)
+                png = await asyncio.get_running_loop().run_in_executor(None, studio.colour_map, channel)
         except ShapeDisplayError as exc:
             return error_response(exc, 400)
         return Response(png, media_type="image/png", headers={"Cache-Control": "no-store"})
@@ -345,8 +367,11 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
                 pass
             return JSONResponse({"error": msg, "line": line}, status_code=400)
         if out.get("changed"):
-            await studio.recompile(reason + (f": {out['label']}" if out.get("label") else ""))
-        out["state"] = studio.state()
+            await studio.recompile(reason + (f": {out['label']}" if out.get("label") else ""), edited=True)
+            out["state"] = studio.last_state             # what the broadcast has just sent
+            loop.run_in_executor(None, studio.scenefile.flush)     # to disk, now that the table is on its way
+        else:
+            out["state"] = studio.state()
         return JSONResponse(out)
 
     async def design_json(request) -> dict:

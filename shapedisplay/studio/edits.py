@@ -71,11 +71,41 @@ def widget_ids(data: dict) -> list:
             for i, w in enumerate(raw)]
 
 
+#: The scenes :func:`validate` read last: (version of the text, path, device) -> Scene. An edit validates
+#: its result once; the compile that follows and the next edit's placing read it from here.
+_VALIDATED: dict = {}
+_VALIDATED_KEEP = 4
+
+
+def forget_validated() -> None:
+    """Forget the scenes :func:`validate` kept (a file a scene names may have changed)."""
+    _VALIDATED.clear()
+
+
+def validated(data: bytes):
+    """The scene :func:`validate` made of exactly these bytes (any path or device), or None."""
+    v = version_of(data)
+    return next((sc for (ver, _p, _d), sc in reversed(list(_VALIDATED.items())) if ver == v), None)
+
+
 def validate(text: str, path: Path, device=None):
     """The scene of ``text`` as ``shapedisplay check`` reads it (files confined to the scene's folder).
 
-    Raises the loader's error (its message names the widget and the key).
+    Raises the loader's error (its message names the widget and the key). A text validated
+    a moment ago is not read again (only while the files it names are unchanged is that safe,
+    so the cache holds the last few texts only and the studio recompiles when a file changes).
     """
+    key = (version_of(text.encode("utf-8")), str(path), id(device) if device is not None else None)
+    if key in _VALIDATED:
+        return _VALIDATED[key]
+    scene = _validate(text, path, device)
+    _VALIDATED[key] = scene
+    while len(_VALIDATED) > _VALIDATED_KEEP:
+        _VALIDATED.pop(next(iter(_VALIDATED)))
+    return scene
+
+
+def _validate(text: str, path: Path, device=None):
     from shapedisplay.author.scene.spec import check_toml_nesting, parse_scene
     from shapedisplay.errors import FileFormatError
     tomllib = _toml()
@@ -192,6 +222,9 @@ def _set_at(text: str, data: dict, i: int, wid: str, key, value) -> str:
         raise InputError("a widget's type is changed in the text (its keys differ)")
     if value is not None and not isinstance(value, (str, int, float, bool, list)):
         raise InputError(f"`{key}` must be a string, a number or a list (got {type(value).__name__})")
+    quick = _set_line(text, data, i, key, value)
+    if quick is not None:
+        return quick
     doc = _document(text)
     tbl = doc["widget"][i]
     drop = []
@@ -212,6 +245,54 @@ def _set_at(text: str, data: dict, i: int, wid: str, key, value) -> str:
         tbl[key] = value
     import tomlkit
     return tomlkit.dumps(doc)
+
+
+_VALUE = re.compile(r'''("(?:[^"\\\n]|\\.)*"|'[^'\n]*'|[-+0-9.a-zA-Z_:]+)''')
+
+
+def _set_line(text: str, data: dict, i: int, key: str, value):
+    """``text`` with the value of an existing one-line ``key = value`` of widget ``i`` replaced in place,
+    or None where that is not certain (a new key, a removal, a key that replaces others, a value over
+    several lines): then tomlkit does it. The result is checked to parse to ``data`` with that one value
+    changed."""
+    from shapedisplay.author.scene.widgets import WIDGET_TYPES
+    wt = WIDGET_TYPES.get(data["widget"][i].get("type"))
+    if value is None or isinstance(value, (list, bool)) or key not in data["widget"][i] or key == "contrast":
+        return None
+    if wt is not None and (key in wt.strength_keys or any(key in g for g in EXCLUSIVE)):
+        others = [k for k in (*wt.strength_keys, "contrast", *(k for g in EXCLUSIVE if key in g for k in g))
+                  if k != key]
+        if any(k in data["widget"][i] for k in others):
+            return None
+    try:
+        lines, blocks = _blocks(text, data)
+    except InputError:
+        return None
+    _start, h, end = blocks[i]
+    pat = re.compile(rf"^(\s*{re.escape(key)}\s*=\s*)")
+    hits = [k for k in range(h + 1, end) if pat.match(lines[k])]
+    if len(hits) != 1:
+        return None
+    line = lines[hits[0]]
+    head = pat.match(line).group(1)
+    m = _VALUE.match(line, len(head))
+    rest = line[m.end():] if m else ""
+    if m is None or rest.strip() and not rest.strip().startswith("#"):
+        return None
+    if isinstance(value, str):
+        import json
+        literal = json.dumps(value, ensure_ascii=False)
+    else:
+        literal = repr(value) if isinstance(value, float) else str(value)
+    out = "".join(lines[:hits[0]]) + head + literal + rest + "".join(lines[hits[0] + 1:])
+    expect = _toml().loads(text)
+    expect["widget"][i][key] = value
+    try:
+        if _toml().loads(out) != expect:
+            return None
+    except Exception:
+        return None
+    return out
 
 
 def _same(item, value) -> bool:

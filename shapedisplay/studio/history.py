@@ -16,6 +16,7 @@ oldest steps go first.
 from __future__ import annotations
 
 import json
+import os
 import threading
 import time
 from pathlib import Path
@@ -27,6 +28,14 @@ from shapedisplay.studio.edits import version_of
 MAX_STEPS = 200
 #: Most bytes of stored versions kept (the oldest steps are dropped until the rest fit).
 MAX_BYTES = 64 << 20
+
+
+def _write(path: Path, data: bytes) -> None:
+    """Replace ``path`` by ``data`` in one rename (not flushed to disk: the scene file itself is; a
+    history lost to a power cut costs the steps, never the file)."""
+    tmp = path.with_name(f".{path.name}.part")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)
 
 
 class History:
@@ -41,6 +50,7 @@ class History:
         self.position = 0                  # steps[:position] are applied
         self.head: str | None = None       # the version the history last saw on disk
         self.opened: str | None = None     # the version when this studio started (revert to it)
+        self.sizes: dict = {}              # version -> bytes of its stored copy
         index = self.folder / "index.json"
         try:
             d = json.loads(index.read_text(encoding="utf-8"))
@@ -54,12 +64,11 @@ class History:
 
     # -------------------------------------------------------------- storage
     def _store(self, data: bytes) -> str:
-        from shapedisplay.atomic import write_bytes
         v = version_of(data)
         p = self.blobs / f"{v}.toml"
         if not p.is_file():
             self.blobs.mkdir(parents=True, exist_ok=True)
-            write_bytes(p, data)
+            _write(p, data)
         return v
 
     def blob(self, version: str | None) -> bytes | None:
@@ -72,30 +81,36 @@ class History:
             return None
 
     def _save(self) -> None:
-        from shapedisplay.atomic import write_text
         self._prune()
         self.folder.mkdir(parents=True, exist_ok=True)
-        write_text(self.folder / "index.json", json.dumps(
-            {"head": self.head, "position": self.position, "steps": self.steps}, indent=1))
+        _write(self.folder / "index.json", json.dumps(
+            {"head": self.head, "position": self.position, "steps": self.steps}, indent=1).encode())
+
+    def _size(self, v: str) -> int:
+        if v not in self.sizes:
+            try:
+                self.sizes[v] = (self.blobs / f"{v}.toml").stat().st_size
+            except OSError:
+                self.sizes[v] = 0
+        return self.sizes[v]
 
     def _prune(self) -> None:
-        def size(v):
-            try:
-                return (self.blobs / f"{v}.toml").stat().st_size
-            except OSError:
-                return 0
+        """Drop the oldest steps beyond the bounds, and the stored versions no step needs any more."""
+        dropped = False
         while len(self.steps) > self.max_steps or (
-                self.steps and sum(size(v) for v in self._live()) > self.max_bytes and len(self.steps) > 1):
+                len(self.steps) > 1 and sum(self._size(v) for v in self._live()) > self.max_bytes):
             self.steps.pop(0)
             self.position = max(self.position - 1, 0)
-        live = self._live()
-        if self.blobs.is_dir():
+            dropped = True
+        if dropped and self.blobs.is_dir():
+            live = self._live()
             for p in self.blobs.glob("*.toml"):
                 if p.stem not in live:
                     try:
                         p.unlink()
                     except OSError:
                         pass
+                    self.sizes.pop(p.stem, None)
 
     def _live(self) -> set:
         live = {s[k] for s in self.steps for k in ("before", "after")}

@@ -86,13 +86,46 @@ class SceneFile:
         return data
 
     def _write(self, before: bytes, text: str, label: str) -> str:
-        from shapedisplay.atomic import write_text
         data = text.encode("utf-8")
         if len(data) > MAX_SCENE_BYTES:
             raise InputError(f"scene text must be at most {MAX_SCENE_BYTES} bytes (got {len(data)})")
-        write_text(self.path, text)
+        self._replace(data)
         self.history.record(before, data, label)
         return version_of(data)
+
+    def _replace(self, data: bytes) -> None:
+        """Replace the file by ``data`` in one rename (never a partial file); :meth:`flush` puts it on
+        disk once the new table is on its way, so that the disk's latency is not the designer's."""
+        import os
+        tmp = self.path.with_name(f".{self.path.name}.studio.part")
+        with open(tmp, "wb") as f:
+            f.write(data)
+        try:
+            os.chmod(tmp, self.path.stat().st_mode & 0o777)
+        except OSError:
+            pass
+        os.replace(tmp, self.path)
+        self.unflushed = True
+
+    def flush(self) -> None:
+        """Flush the last write to disk (the file and its folder's entry)."""
+        import os
+        if not getattr(self, "unflushed", False):
+            return
+        self.unflushed = False
+        try:
+            fd = os.open(self.path, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+            fd = os.open(self.path.parent, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+        except OSError:
+            pass
 
     # -------------------------------------------------------------- changes
     def edit(self, base, ops: list, label: str) -> dict:
@@ -122,7 +155,6 @@ class SceneFile:
             return {"version": self._write(data, text, "text edit"), "changed": True}
 
     def _move(self, base, step) -> dict:
-        from shapedisplay.atomic import write_bytes
         with self.lock:
             self._current(base, "undo" if step == "undo" else "redo")
             move = self.history.undo if step == "undo" else self.history.redo
@@ -134,7 +166,7 @@ class SceneFile:
                     break
                 if not (self.history.listing()["can_undo" if step == "undo" else "can_redo"]):
                     raise InputError(f"nothing to {step}: the only versions left do not parse as TOML")
-            write_bytes(self.path, data)
+            self._replace(data)
             return {"version": version_of(data), "label": labels[0], "changed": True}
 
     def undo(self, base) -> dict:

@@ -39,14 +39,21 @@ def inside(path: Path, root: Path) -> bool:
 
 @dataclass
 class Compiled:
-    """One good compile: the table, its report, the ``.npz`` bytes and a generation number."""
+    """One good compile: the table, its report, the ``.npz`` bytes (made when first asked for) and a
+    generation number."""
 
     table: object
     report: dict
     report_text: str
-    npz: bytes
+    npz: bytes | None
     generation: int
     seconds: float               # wall time of the compile
+
+    def data(self) -> bytes:
+        """The table as ``.npz`` bytes."""
+        if self.npz is None:
+            self.npz = self.table.to_bytes()
+        return self.npz
 
 
 @dataclass
@@ -121,8 +128,9 @@ class Session:
         write_text(self.source, text)
 
     # -------------------------------------------------------------- compiling
-    def compile(self) -> bool:
-        """Compile the source again. True if a new table replaced the current one.
+    def compile(self, scene=None) -> bool:
+        """Compile the source again (``scene``: the scene as already read and validated from the file's
+        current text, not read again). True if a new table replaced the current one.
 
         On an error the current table stays; :attr:`error` holds the message and line.
         """
@@ -132,7 +140,7 @@ class Session:
             t0 = time.perf_counter()
             text = None
             try:
-                table, report, report_text = self._compile_source()
+                table, report, report_text = self._compile_source(scene)
             except ShapeDisplayError as exc:
                 message = str(exc)
                 line = None
@@ -145,11 +153,11 @@ class Session:
                         pass
                 self.error = SourceError(message, line, gen)
                 return False
-            self.current = Compiled(table, report, report_text, table.to_bytes(), gen, time.perf_counter() - t0)
+            self.current = Compiled(table, report, report_text, None, gen, time.perf_counter() - t0)
             self.error = None
             return True
 
-    def _compile_source(self):
+    def _compile_source(self, scene=None):
         from shapedisplay.author.compile import format_report
         if self.kind == "table":
             from shapedisplay.table.model import FrictionTable
@@ -157,8 +165,8 @@ class Session:
             report = table.meta.get("report") or {}
             return table, report, (format_report(report) if report.get("grid") else "")
         from shapedisplay.author.policy import compile_file
-        result = compile_file(self.source, device=self._device() if self.device else None, confine=True,
-                              **self.options)
+        result = compile_file(scene if scene is not None else self.source,
+                              device=self._device() if self.device else None, confine=True, **self.options)
         report_text = format_report(result.report)
         if self.kind in ("scene", "svg"):
             from shapedisplay.author.scene import format_widget_report

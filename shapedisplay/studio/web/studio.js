@@ -42,7 +42,12 @@ async function loadModule() {
 }
 
 async function fetchRuntime(which) {
-  const buf = await (await fetchOk("/api/runtime" + (which ? `?table=${which}` : ""))).arrayBuffer();
+  return parseRuntime(await (await fetchOk("/api/runtime" + (which ? `?table=${which}` : ""))).arrayBuffer());
+}
+
+// A runtime message (GET /api/runtime, or pushed over the WebSocket before a new table's state):
+// u32 length, the layout as JSON, the table image.
+function parseRuntime(buf) {
   const n = new DataView(buf).getUint32(0, true);
   const layout = JSON.parse(new TextDecoder().decode(new Uint8Array(buf, 4, n)));
   for (const m of Object.values(layout.models)) if (m.pad) m.pad = padBlock(m.pad);
@@ -176,15 +181,17 @@ async function swapTable(st) {
   if (!first) fillChannels(st);
   const viewed = first ? null : showMap(st);             // the picture loads while the table is fetched
   await loadModule();
-  const {layout, payload} = await fetchRuntime();
+  const pushed = studio.pushedRuntime;         // sent over the WebSocket just before this state
+  const {layout, payload} = pushed && pushed.layout.generation === gen ? pushed : await fetchRuntime();
   studio.layout = layout; studio.payload = payload;
   bindHover(layout, payload);
   fillModels(layout);
   const abA = studio.design && studio.design.abPlaying === "A";       // A/B: A keeps playing until switched
-  const playing = studio.node && !abA ? postTable(studio.node, layout, payload) : Promise.resolve(null);
+  const early = pushed && pushed.layout.generation === gen && pushed.posted;      // posted when it came
+  const playing = studio.node && !abA ? (early || postTable(studio.node, layout, payload)) : Promise.resolve(null);
   if (first) fillChannels(st);
   await Promise.all([(viewed || showMap(st)).then(() => { swap.t_view = now(); drawOverlay(); rehover(); }),
-                     playing.then(() => { swap.t_playing = studio.node ? now() : null; })]);
+                     playing.then(() => { swap.t_playing = studio.node ? (early && pushed.t_playing) || now() : null; })]);
   if (!st.error) $("status").textContent = `table ${gen} · compiled in ${(st.compile_seconds * 1e3).toFixed(0)} ms`;
 }
 
@@ -430,7 +437,7 @@ function showReadout(x, y) {
   $("hover-pos").textContent = `x ${(x * 1e3).toFixed(2)} mm, y ${(y * 1e3).toFixed(2)} mm` +
     (over ? ` · ${over.id} (${over.type})` : " · flat ground") +
     (height !== null ? ` · height ${(height * 1e3).toFixed(2)} mm` : "");
-  $("hover-pos").dataset.widget = over ? over.id : "";
+  $("hover-pos").dataset.over = over ? over.id : "";          // (data-widget is the top view's boxes only)
   $("hover-pos").dataset.x = x; $("hover-pos").dataset.y = y;
   for (const td of $("readout").querySelectorAll("td.v")) {
     const c = td.dataset.channel, v = vals[c];
@@ -608,7 +615,15 @@ async function snapshot() {
 function connect() {
   const proto = location.protocol === "https:" ? "wss:" : "ws:";
   const ws = new WebSocket(withToken(`${proto}//${location.host}/ws`));
+  ws.binaryType = "arraybuffer";
   ws.onmessage = (e) => {
+    if (e.data instanceof ArrayBuffer) {        // a new table's runtime, just before its state: play it now
+      const rt = studio.pushedRuntime = parseRuntime(e.data);
+      if (studio.node && !(studio.design && studio.design.abPlaying === "A")) {
+        rt.posted = postTable(studio.node, rt.layout, rt.payload).then(() => { rt.t_playing = now(); });
+      }
+      return;
+    }
     const m = JSON.parse(e.data);
     if (m.type === "state") studio.pending = (studio.pending || Promise.resolve()).then(() => showState(m.state));
   };
