@@ -386,6 +386,8 @@ def test_ab_switch_alternates_the_table_the_worklet_plays(fresh):
     page.wait_for_function("studio.ctx.state === 'running'", timeout=10000)
     if SCREENSHOT_DIR:
         page.locator('[data-widget="call"]').click()
+        page.evaluate("for (const id of ['history-box', 'ab-box']) document.getElementById(id).open = true;"
+                      "document.querySelector('#side details:not(#design):not(#history-box):not(#ab-box)').open = false")
         page.mouse.move(*page.evaluate("studio.screenOf(0.040, 0.128)"))
         page.screenshot(path=str(Path(SCREENSHOT_DIR) / "studio-design.png"))
     undo_to(page, before)

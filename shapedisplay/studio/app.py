@@ -429,7 +429,7 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
             return error_response(exc, 409)
         lay, image = studio.layout()
         studio.pinned = {"table": cur.table, "layout": dict(lay, which="A"), "image": image,
-                         "label": f"pinned table {cur.generation}", "generation": cur.generation}
+                         "label": "pinned", "generation": cur.generation}
         return JSONResponse({"pinned": cur.table.checksum, "state": studio.state()})
 
     async def export(request):
