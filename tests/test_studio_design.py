@@ -279,7 +279,8 @@ def test_a_text_edit_followed_by_undo_never_leaves_invalid_toml(fresh):
     wait_version_change(page, version_of(before))
     assert b'trak = "groove"' in scene.read_bytes()
     page.wait_for_selector("#error:not([hidden])", timeout=20000)
-    assert "error at line" in page.inner_text("#status")
+    page.wait_for_function("document.getElementById('status').textContent.startsWith('error at line')",
+                           timeout=10000)
     # ... and undo from the editor (Ctrl+Z with nothing unsaved): the exact bytes before, valid TOML
     page.focus("#text")
     v = page.evaluate("studio.version")
@@ -391,3 +392,36 @@ def test_ab_switch_alternates_the_table_the_worklet_plays(fresh):
         page.mouse.move(*page.evaluate("studio.screenOf(0.040, 0.128)"))
         page.screenshot(path=str(Path(SCREENSHOT_DIR) / "studio-design.png"))
     undo_to(page, before)
+
+
+# ------------------------------------------------------------------ exports
+def test_exports_take_their_options_and_say_which_table_they_hold(fresh):
+    page = fresh
+    page.locator("#exports").locator("xpath=..").locator("summary").click()        # open the Export panel
+    sel = page.locator('#exports select[name="friction-png-quantity"]')
+    sel.select_option("normal_force")
+    href = page.get_attribute('#exports a[data-format="friction-png"]', "href")
+    assert "quantity=normal_force" in href and "bits=16" in href
+    r = page.evaluate(f"fetch('{href}').then(async r => [r.status, r.headers.get('X-Export-Table'), "
+                      "(await r.arrayBuffer()).byteLength])")
+    assert r[0] == 200 and r[1] == f"table {page.evaluate('studio.tableGeneration')}" and r[2] > 100
+    assert (page.studio.folder / "studio-out" / "phone.png").is_file()
+    # the AHAP of a stroke the page played (rendered offline through the same worklet)
+    doc = page.evaluate("""(async () => { const s = await studio.renderOffline(
+        Array.from({length: 6000}, (_, i) => 0.062), Array.from({length: 6000}, (_, i) => 0.01 + i * 2e-5));
+        const r = await fetch(`/api/export-ahap?token=${document.body.dataset.token}`, {method: 'POST',
+          body: JSON.stringify({event_time: Array.from(s.event_time), event_amplitude: Array.from(s.event_amplitude),
+                                audio: Array.from(s.audio), t0: s.t[0]})});
+        return [r.status, await r.json()]; })()""")
+    assert doc[0] == 200 and doc[1]["Version"] == 1.0 and len(doc[1]["Pattern"]) > 3
+    assert (page.studio.folder / "studio-out" / "phone-stroke.ahap").is_file()
+    # while the scene has an error, an export says it holds the last good table
+    gen = page.evaluate("studio.tableGeneration")
+    page.studio.scene.write_text(ORIGINAL.decode().replace('size = "36x16 mm"', 'size = "36x16 furlong"'))
+    page.wait_for_selector("#error:not([hidden])", timeout=20000)
+    assert page.text_content("#export-note") == f"exports table {gen} — the last good one: the scene has an error, see above"
+    note = page.evaluate("fetch(document.querySelector('#exports a[data-format=\"json\"]').href)"
+                         ".then(r => r.headers.get('X-Export-Table'))")
+    assert note == f"table {gen} (the last good one: the scene has an error)"
+    page.wait_for_function("document.getElementById('status').textContent.startsWith('error at line')",
+                           timeout=10000)

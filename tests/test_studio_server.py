@@ -46,9 +46,18 @@ def test_prints_url_serves_page_and_table_only_with_token(studio):
 
 def test_wrong_token_and_every_route_refused_without_it(studio):
     for path in ("/static/studio.js", "/static/worklet.js", "/api/state", "/api/runtime.wasm", "/api/runtime",
-                 "/api/map.png", "/api/scene", "/api/export/json"):
+                 "/api/map.png", "/api/scene", "/api/export/json", "/static/design.js", "/api/schema"):
         assert studio.get(path, token=False)[0] == 403, path
         assert studio.get(path + "?token=" + "x" * len(studio.token), token=False)[0] == 403, path
+    scene = studio.folder / "phone.toml"
+    before = scene.read_bytes()
+    for path in ("/api/edit", "/api/check", "/api/undo", "/api/redo", "/api/revert", "/api/resolve", "/api/pin",
+                 "/api/export-ahap"):
+        body = b'{"base": "x", "ops": [{"op": "delete", "widget": "home"}], "choice": "mine", "mine": ""}'
+        assert studio.get(path, token=False, method="POST", data=body)[0] == 403, path
+        assert studio.get(path, method="POST", data=body, headers={"Origin": "http://attacker.example"})[0] == 403
+        assert studio.get(path, method="POST", data=body, headers={"Host": "rebind.example:80"})[0] == 403
+    assert scene.read_bytes() == before
 
 
 def test_foreign_host_or_origin_refused(studio):

@@ -18,7 +18,8 @@ the page shows (JSON); ``GET /api/table`` the current table (.npz bytes);
 its wrapper); ``GET /api/runtime``
 the current table's binary image for it (with a JSON head); ``GET /api/map.png?channel=NAME`` the top
 view; ``GET/PUT /api/scene`` the scene text; ``GET /api/export/FORMAT``;
-``POST /api/snapshot`` the 3D preview; ``WS /ws`` a message per compile.
+``POST /api/snapshot`` the 3D preview; ``POST /api/export-ahap`` the AHAP of the page's last stroke;
+``WS /ws`` a message per compile (a new table's runtime image first, as a binary message).
 Design (scenes; each change names the version of the file it was made on, a
 stale one is answered 409 with the disk's text, see :mod:`~shapedisplay.studio.scenefile`):
 ``POST /api/edit`` canvas, inspector and palette operations; ``POST /api/check`` the same, validated
@@ -166,12 +167,13 @@ class Studio:
                 self.clients.discard(ws)
 
     def state(self) -> dict:
-        from shapedisplay.studio.exports import formats
+        from shapedisplay.studio.exports import OPTIONS as export_options_, formats
         d = self.session.state()
         prep = self.prepared
         if prep is not None:
             lay = prep["layout"]
             d["ranges"] = prep["ranges"]
+            d["export_options"] = {f: {k: list(v) for k, v in o.items()} for f, o in export_options_.items()}
             d["runtime"] = {"tick_rate": lay["tick_rate"], "audio_rate": lay["audio_rate"], "model": self.model,
                             "models": list(lay["models"]), "cursor_gain": lay["cursor_gain"]}
         d["last_change"] = self.last_change
@@ -435,14 +437,33 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
     async def export(request):
         from shapedisplay.studio.exports import export_bytes
         fmt = request.path_params["fmt"]
+        options = {k: v for k, v in request.query_params.items() if k != "token"}
         try:
             cur = need_table()
             name, data = await asyncio.get_running_loop().run_in_executor(
-                None, export_bytes, cur.table, fmt, session.out_dir, session.source.stem)
+                None, export_bytes, cur.table, fmt, session.out_dir, session.source.stem, options)
         except ShapeDisplayError as exc:
             return error_response(exc)
-        return Response(data, media_type="application/octet-stream",
-                        headers={"Content-Disposition": f'attachment; filename="{name}"'})
+        return Response(data, media_type="application/octet-stream", headers=export_headers(name, cur))
+
+    def export_headers(name: str, cur) -> dict:
+        """Which table an export holds: the current one, or the last good one while the scene has an error."""
+        note = f"table {cur.generation}"
+        if session.error is not None:
+            note += " (the last good one: the scene has an error)"
+        return {"Content-Disposition": f'attachment; filename="{name}"', "X-Export-Table": note}
+
+    async def export_ahap(request):
+        from shapedisplay.studio.exports import stroke_ahap
+        try:
+            body = await _body(request)
+            cur = need_table()
+            stroke = _json_object(body or b"{}", "AHAP stroke")
+            name, data = await asyncio.get_running_loop().run_in_executor(
+                None, stroke_ahap, cur.table, stroke, session.out_dir, session.source.stem)
+        except ShapeDisplayError as exc:
+            return JSONResponse({"error": str(exc).splitlines()[0]}, status_code=400)
+        return Response(data, media_type="application/json", headers=export_headers(name, cur))
 
     async def snapshot(request):
         from shapedisplay.studio.views import snapshot_png
@@ -493,6 +514,7 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
         Route("/", page), Route("/static/{name}", static), Route("/api/state", state), Route("/api/table", table),
         Route("/api/runtime.wasm", runtime_wasm), Route("/api/runtime", runtime),
         Route("/api/map.png", colour_map), Route("/api/scene", scene_get, methods=["GET"]),
+        Route("/api/export-ahap", export_ahap, methods=["POST"]),
         Route("/api/scene", scene_put, methods=["PUT"]), Route("/api/export/{fmt}", export),
         Route("/api/snapshot", snapshot, methods=["POST"]), WebSocketRoute("/ws", ws),
         Route("/api/edit", edit, methods=["POST"]), Route("/api/check", check, methods=["POST"]),

@@ -162,6 +162,7 @@ async function showState(st, force) {
     }
   }
   markErrorLine();
+  exportNote(st.error);
   if (st.error) {
     $("status").textContent = (st.error.line ? `error at line ${st.error.line}` : "error") +
       (studio.tableGeneration !== null ? `: table ${studio.tableGeneration} (the last good one) keeps playing` : "");
@@ -264,6 +265,12 @@ function showMap(st) {
   });
 }
 
+// Which table the export links give: the current one, or the last good one while the scene has an error.
+function exportNote(err) {
+  $("export-note").textContent = studio.tableGeneration === null ? "" : `exports table ${studio.tableGeneration}` +
+    (err ? " — the last good one: the scene has an error, see above" : "");
+}
+
 function showError(err) {
   const box = $("error");
   studio.errorLine = err ? err.line : null;
@@ -305,8 +312,8 @@ async function save() {
   if (r.status === 200) {
     studio.dirty = false;
     studio.textBase = {version: data.version, text};
-    $("status").textContent = data.changed ? "saved; compiling…" : "saved (no change)";
-    if (data.state) await studio.applyState(data.state);
+    if (!(data.state && data.state.error)) $("status").textContent = data.changed ? "saved" : "saved (no change)";
+    if (data.state) await studio.applyState(data.state);          // (an error in it: the status says so)
   } else if (r.status === 409) {
     studio.design.showConflict(data, {text});
   } else {
@@ -451,7 +458,7 @@ function showStroke(s) {
   studio.lastStroke = s;
   drawChart(s);
   drawOverlay();
-  $("dl-csv").disabled = false; $("dl-wav").disabled = false;
+  $("dl-csv").disabled = false; $("dl-wav").disabled = false; $("dl-ahap").disabled = false;
   const dur = s.ticks / s.tickRate;
   $("stroke-info").textContent = `${s.model}: ${s.ticks} ticks (${dur.toFixed(3)} s) at ${s.tickRate} Hz, ` +
     `${s.event_time.length} stick-slip events, ${s.audio.length} audio samples` +
@@ -595,6 +602,18 @@ studio.pointerTicks = function () {
   return {x: Array.from(xs), y: Array.from(ys)};
 };
 
+// The last stroke as AHAP: its events and drive, made by the exporter `shapedisplay play --ahap` uses.
+async function downloadAhap() {
+  const s = studio.lastStroke;
+  if (!s) return;
+  const body = {event_time: Array.from(s.event_time), event_amplitude: Array.from(s.event_amplitude),
+                audio: Array.from(s.audio), t0: s.ticks ? s.t[0] : 0};
+  const r = await fetch(withToken("/api/export-ahap"), {method: "POST", body: JSON.stringify(body)});
+  if (!r.ok) { $("status").textContent = "AHAP export failed: " + (await r.text()); return; }
+  download("stroke.ahap", await r.arrayBuffer(), "application/json");
+  $("status").textContent = `AHAP of the last stroke (${r.headers.get("X-Export-Table")})`;
+}
+
 async function snapshot() {
   const s = studio.lastStroke;
   const body = {channel: $("channel").value};
@@ -653,12 +672,27 @@ function init() {
   $("dl-wav").addEventListener("click", () => download("stroke.wav", studio.wav(), "audio/wav"));
   $("snapshot").addEventListener("click", snapshot);
   window.addEventListener("resize", () => studio.layout && showMap().then(drawOverlay));
+  $("dl-ahap").addEventListener("click", downloadAhap);
   fetchOk("/api/state").then((r) => r.json()).then((st) => {
     const ex = $("exports");
     for (const f of st.export_formats || []) {
       const a = document.createElement("a");
       a.href = withToken(`/api/export/${f}`); a.textContent = f; a.className = "export";
+      a.dataset.format = f;
       ex.appendChild(a);
+      const opts = (st.export_options || {})[f];
+      if (!opts) continue;
+      const sels = [];
+      for (const [k, choices] of Object.entries(opts)) {           // friction-png: quantity, bits
+        const sel = document.createElement("select");
+        sel.name = `${f}-${k}`; sel.title = `${f} ${k}`; sel.dataset.option = k;
+        for (const c of choices) { const o = document.createElement("option"); o.value = c; o.textContent = c; sel.appendChild(o); }
+        sels.push(sel);
+        ex.appendChild(sel);
+      }
+      const link = () => { a.href = withToken(`/api/export/${f}?` + sels.map((s) => `${s.dataset.option}=${s.value}`).join("&")); };
+      for (const s of sels) s.addEventListener("change", link);
+      link();
     }
     if (st.kind !== "scene") $("text").disabled = true;
   });
