@@ -62,6 +62,22 @@ def test_add_duplicate_delete_are_whole_entries(scene):
     assert out == text.split("# ---- home")[0]
 
 
+def test_entries_are_found_past_values_over_several_lines(tmp_path):
+    import shutil
+    import tomllib
+    for f in (ROOT / "assets" / "scenes").iterdir():
+        if f.is_file():
+            shutil.copy(f, tmp_path / f.name)
+    scene = tmp_path / "map.toml"                 # the rainfall layer's `values` spans three lines
+    text = scene.read_text()
+    before = tomllib.loads(text)["widget"]
+    out, _ = apply_ops(text, [{"op": "delete", "widget": "rainfall"}], scene)
+    assert tomllib.loads(out)["widget"] == [w for w in before if w["id"] != "rainfall"]
+    out, sel = apply_ops(text, [{"op": "duplicate", "widget": "rainfall"}], scene)
+    after = tomllib.loads(out)["widget"]
+    assert sel == "rainfall-1" and after[-1]["values"] == before[-1]["values"] and len(after) == len(before) + 1
+
+
 def test_a_change_that_breaks_a_rule_is_refused_with_the_loaders_message(scene):
     with pytest.raises(InputError, match=r"`widget\[9\]\.ramp` must be a length > 0"):
         apply_ops(scene.read_text(), [{"op": "set", "widget": "call", "key": "ramp", "value": "-1 mm"}], scene)

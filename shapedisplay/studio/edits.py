@@ -401,11 +401,44 @@ def _line_keys(raw: dict, w, old: tuple, new: tuple, scene, path) -> dict:
 
 
 # --------------------------------------------------------------- whole widgets
+_TOKENS = re.compile(r'''"{3}(?:[^\\]|\\.)*?"{3,5}|'{3}.*?'{3,5}|"(?:[^"\\\n]|\\.)*"|'[^'\n]*'|\#[^\n]*|[\[\]{}]''', re.S)
+
+
+def _outside_values(text: str, lines: list) -> list:
+    """Per line: True if it starts outside any value (not within an array, an inline table or a
+    multi-line string), where a table header can stand."""
+    import bisect
+    starts, pos = [], 0
+    for ln in lines:
+        starts.append(pos)
+        pos += len(ln)
+    depth_at, in_string = [0] * len(lines), set()
+    depth, li = 0, 0
+    for m in _TOKENS.finditer(text):
+        while li < len(lines) and starts[li] <= m.start():
+            depth_at[li] = depth
+            li += 1
+        tok = m.group()
+        if tok in ("[", "{"):
+            depth += 1
+        elif tok in ("]", "}"):
+            depth -= 1
+        elif tok.startswith(('"""', "'''")):
+            first = bisect.bisect_right(starts, m.start()) - 1
+            last = bisect.bisect_right(starts, m.end() - 1) - 1
+            in_string.update(range(first + 1, last + 1))
+    while li < len(lines):
+        depth_at[li] = depth
+        li += 1
+    return [depth_at[j] == 0 and j not in in_string for j in range(len(lines))]
+
+
 def _blocks(text: str, data: dict) -> tuple[list, list]:
     """(lines, [(start, header, end)] per [[widget]]): a block runs from the comment lines just above its
     header to the line before the next block or table (trailing blank lines included)."""
     lines = text.splitlines(keepends=True)
-    heads = [k for k, ln in enumerate(lines) if _WIDGET_HEADER.match(ln)]
+    free = _outside_values(text, lines)
+    heads = [k for k, ln in enumerate(lines) if free[k] and _WIDGET_HEADER.match(ln)]
     if len(heads) != len(widget_ids(data)):
         raise InputError("the scene's [[widget]] headers cannot be told apart in the text; edit it in the text")
 
@@ -418,7 +451,7 @@ def _blocks(text: str, data: dict) -> tuple[list, list]:
     out = []
     for n, h in enumerate(heads):
         start = lead(h)
-        nxt = next((k for k in range(h + 1, len(lines)) if _ANY_HEADER.match(lines[k])), len(lines))
+        nxt = next((k for k in range(h + 1, len(lines)) if free[k] and _ANY_HEADER.match(lines[k])), len(lines))
         end = lead(nxt) if nxt < len(lines) else len(lines)
         out.append((start, h, max(end, h + 1)))
     return lines, out

@@ -165,7 +165,7 @@ const EDGES = {n: [0, 0, 0, 1], s: [0, 1, 0, 0], e: [0, 0, 1, 0], w: [1, 0, 0, 0
                ne: [0, 0, 1, 1], nw: [1, 0, 0, 1], se: [0, 1, 1, 0], sw: [1, 1, 0, 0]};
 
 function startDrag(e, id, handle) {
-  if (!editing() || e.button !== 0) return;
+  if (!editing() || e.button !== 0 || studio.state.kind !== "scene") return;     // an SVG or image: feel only
   e.stopPropagation();
   e.preventDefault();
   if (design.selected !== id) design.select(id);
