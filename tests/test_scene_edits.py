@@ -142,3 +142,40 @@ def test_diff_prints_per_widget_lines(tmp_path):
     widgets = lines[lines.index("widgets:") + 1:lines.index("widgets:") + 3]
     assert widgets == ["  app-3: moved 4 mm right",
                        "  call: normal force 3.5 → 1.5 N (height 2.5 → 0.5 mm), ramp 5 → 7 mm"]
+
+
+def _top_left_phone() -> str:
+    """The phone scene written with y down from the top edge: the same table."""
+    import re
+    import tomllib
+    text = PHONE.read_text().replace('[canvas]\n', '[canvas]\norigin = "top-left"\n', 1)
+    for w in tomllib.loads(PHONE.read_text())["widget"]:
+        if "position" in w:
+            x, y = (float(v) for v in w["position"].split(" ")[0].split(","))
+            h = float(w["size"].split(" ")[0].split("x")[1])
+            text = text.replace(f'position = "{w["position"]}"', f'position = "{x:g},{160 - y - h:g} mm"')
+        for k in ("from", "to"):
+            if k in w:
+                x, y = (float(v) for v in w[k].split(" ")[0].split(","))
+                text = re.sub(rf'^{k} = "{re.escape(w[k])}"', f'{k} = "{x:g},{160 - y:g} mm"', text, flags=re.M)
+    return text
+
+
+def test_canvas_origin_top_left_reads_y_down_and_the_studio_writes_it_so(tmp_path):
+    import numpy as np
+
+    from shapedisplay.author.scene import compile_scene
+    scene = tmp_path / "phone.toml"
+    scene.write_text(_top_left_phone())
+    a, b = compile_scene(PHONE).table, compile_scene(scene).table
+    assert np.array_equal(a.dense("normal_force"), b.dense("normal_force"))
+    text = scene.read_text()
+    assert 'position = "5,22 mm"' in text                        # app-1: its top-left corner, 22 mm from the top
+    out, _ = apply_ops(text, [{"op": "box", "widget": "app-1", "d": [1, 2, 1, 2]}], scene)   # right 1, up 2
+    assert diff_lines(text, out) == ['-position = "5,22 mm"', '+position = "6,20 mm"']
+    out, _ = apply_ops(text, [{"op": "box", "widget": "app-1", "d": [0, -3, 0, 0]}], scene)  # bottom edge down 3
+    assert diff_lines(text, out) == ['-size = "20x20 mm"', '+size = "20x23 mm"']
+    out, _ = apply_ops(text, [{"op": "box", "widget": "frame", "d": [0, 1, 0, 1]}], scene)   # the ridge up 1
+    assert diff_lines(text, out) == ['-from = "4,8 mm"', '-to = "76,8 mm"', '+from = "4,7 mm"', '+to = "76,7 mm"']
+    with pytest.raises(InputError, match="canvas.origin"):
+        apply_ops(text.replace('"top-left"', '"top-right"'), [{"op": "delete", "widget": "home"}], scene)

@@ -185,7 +185,7 @@ class Studio:
     def _design_state(self, d: dict) -> None:
         """The design tool's part of the state: the file's version, history, values, A/B."""
         from shapedisplay.studio.edits import version_of
-        from shapedisplay.studio.inspector import widget_values
+        from shapedisplay.studio.inspector import canvas_origin, widget_values
         try:
             data = self.session.source.read_bytes()
         except OSError:
@@ -193,6 +193,7 @@ class Studio:
         d["scene_version"] = version_of(data)
         d["history"] = self.scenefile.history.listing()
         d["values"] = widget_values(data.decode("utf-8", "replace"))
+        d["origin"] = canvas_origin(data.decode("utf-8", "replace"))
         cur = self.session.current
         if cur is not None:
             m = cur.table.meta.get("mapping") or {}

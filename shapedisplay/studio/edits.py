@@ -335,10 +335,11 @@ def move_box(text: str, wid: str, d_mm: list, path: Path, device=None) -> str:
     else:
         W, H = nx1 - nx0, ny1 - ny0
         if "center" in raw:
-            cx, cy = (nx0 + nx1) / 2, (ny0 + ny1) / 2
+            cx, cy = (nx0 + nx1) / 2, _file_y(scene, (ny0 + ny1) / 2)
             sets["center"] = f"{mm(cx)} mm" if one_d else f"{mm(cx)},{mm(cy)} mm"
         else:
-            sets["position"] = f"{mm(nx0)} mm" if one_d else f"{mm(nx0)},{mm(ny0)} mm"
+            corner = ny1 if scene.canvas.origin == "top-left" else ny0     # the corner `position` names
+            sets["position"] = f"{mm(nx0)} mm" if one_d else f"{mm(nx0)},{mm(_file_y(scene, corner))} mm"
         oW, oH = w.size
         if abs(W - oW) > 1e-9 or abs(H - oH) > 1e-9:
             sets["size"] = f"{mm(W)} mm" if one_d else f"{mm(W)}x{mm(H)} mm"
@@ -347,6 +348,11 @@ def move_box(text: str, wid: str, d_mm: list, path: Path, device=None) -> str:
             continue
         text = set_key(text, wid, k, v)
     return text
+
+
+def _file_y(scene, y: float) -> float:
+    """A y of the table (up from the bottom edge) as the file writes it (``[canvas] origin``), and back."""
+    return scene.canvas.height - y if scene.canvas.origin == "top-left" else y
 
 
 def _same_length_text(old, new: str, key: str, scene, path) -> bool:
@@ -378,7 +384,8 @@ def _line_keys(raw: dict, w, old: tuple, new: tuple, scene, path) -> dict:
         if abs(nw - (old[2] - old[0])) > 1e-9:
             out["width"] = f"{mm(nw)} mm"
         return out
-    ends = [pair(raw["from"], ",", "from", ctx), pair(raw["to"], ",", "to", ctx)]
+    ends = [pair(raw[k], ",", k, ctx) for k in ("from", "to")]
+    ends = [(x, _file_y(scene, y)) for x, y in ends]              # in the table's frame (y up)
     new_wd = wd
     mapped = [[0.0, 0.0], [0.0, 0.0]]
     for axis in (0, 1):
@@ -393,8 +400,8 @@ def _line_keys(raw: dict, w, old: tuple, new: tuple, scene, path) -> dict:
                 mapped[k][axis] = e[axis] + ((n0 + n1) - (o0 + o1)) / 2
             if abs((n1 - n0) - (o1 - o0)) > 1e-9:
                 new_wd = max(n1 - n0, w.spacing)
-    out["from"] = f"{mm(mapped[0][0])},{mm(mapped[0][1])} mm"
-    out["to"] = f"{mm(mapped[1][0])},{mm(mapped[1][1])} mm"
+    out["from"] = f"{mm(mapped[0][0])},{mm(_file_y(scene, mapped[0][1]))} mm"
+    out["to"] = f"{mm(mapped[1][0])},{mm(_file_y(scene, mapped[1][1]))} mm"
     if abs(new_wd - wd) > 1e-9:
         out["width"] = f"{mm(new_wd)} mm"
     return out
@@ -506,14 +513,16 @@ def add_widget(text: str, wtype, path: Path, device=None) -> tuple[str, str]:
         if c.is_1d:
             keys.append(("at", f"{mm(cx)} mm"))
         else:
-            keys += [("from", f"{mm(_snap(cx - half, s))},{mm(cy)} mm"), ("to", f"{mm(_snap(cx + half, s))},{mm(cy)} mm")]
+            fy = mm(_file_y(scene, cy))
+            keys += [("from", f"{mm(_snap(cx - half, s))},{fy} mm"), ("to", f"{mm(_snap(cx + half, s))},{fy} mm")]
     else:
         W = min(spec["size"][0] * 1e-3, c.width * 0.8)
         H = min(spec["size"][1] * 1e-3, c.height * 0.8)
         x0, y0 = _snap(cx - W / 2, s), _snap(cy - H / 2, s)
         W, H = max(_snap(W, s), s), max(_snap(H, s), s)
         keys += ([("position", f"{mm(x0)} mm"), ("size", f"{mm(W)} mm")] if c.is_1d else
-                 [("position", f"{mm(x0)},{mm(y0)} mm"), ("size", f"{mm(W)}x{mm(H)} mm")])
+                 [("position", f"{mm(x0)},{mm(_file_y(scene, y0 + H if c.origin == 'top-left' else y0))} mm"),
+                  ("size", f"{mm(W)}x{mm(H)} mm")])
     keys += list(spec.get("extra", {}).items())
     import tomlkit
     body = "[[widget]]\n" + "".join(f"{k} = {tomlkit.item(v).as_string()}\n" for k, v in keys)

@@ -73,6 +73,16 @@ def _plain(v):
     return str(v)
 
 
+def canvas_origin(text: str) -> str:
+    """The scene text's ``[canvas] origin`` (``bottom-left`` when absent or unreadable)."""
+    from shapedisplay.studio.edits import _toml
+    try:
+        v = _toml().loads(text).get("canvas", {}).get("origin", "bottom-left")
+    except Exception:
+        return "bottom-left"
+    return v if v in ("bottom-left", "top-left") else "bottom-left"
+
+
 def widget_values(text: str) -> list:
     """Per widget of the scene text: ``{id, type, values, inherited}`` (as written; inherited from [defaults])."""
     from shapedisplay.studio.edits import _toml, widget_ids

@@ -35,13 +35,18 @@ class Canvas:
     """The scene's sample grid.
 
     ``width``/``height`` in metres (``height`` 0 for a 1-D strip); samples at
-    ``(c * spacing, r * spacing)`` for ``c < cols``, ``r < rows``.
+    ``(c * spacing, r * spacing)`` for ``c < cols``, ``r < rows``. ``origin``
+    says how the file's coordinates read: ``"bottom-left"`` (y up, a
+    ``position`` is the lower-left corner) or ``"top-left"`` (y down from the
+    top edge, as in most mock-ups; a ``position`` is the top-left corner); the
+    table itself is the same either way.
     """
 
     width: float
     height: float
     spacing: float
     dpi: float | None = None
+    origin: str = "bottom-left"
 
     @property
     def is_1d(self) -> bool:

@@ -31,7 +31,9 @@ A scene is a TOML file::
 Every length, force and stiffness carries its unit; lengths may also be given
 in ``px`` when the canvas states a ``dpi``. Coordinates are in the canvas
 frame: x along columns, y along rows (row index grows with y), origin at the
-canvas corner, samples at ``(c * resolution, r * resolution)``.
+canvas corner, samples at ``(c * resolution, r * resolution)``. With
+``[canvas] origin = "top-left"`` the file's y runs down from the top edge
+instead (a ``position`` is then the top-left corner); the table is the same.
 
 Placement rules (documented in the README):
 
@@ -59,7 +61,9 @@ from shapedisplay.author.scene.fields import Canvas, Ctx, SceneError, Widget, ch
 from shapedisplay.author.scene.widgets import WIDGET_TYPES, place_widget
 
 SECTIONS = ("scene", "canvas", "device", "mapping", "defaults", "widget")
-CANVAS_KEYS = ("size", "pixels", "dpi", "resolution")
+CANVAS_KEYS = ("size", "pixels", "dpi", "resolution", "origin")
+#: [canvas] origin: where y = 0 is and which way y runs in the file (the table is the same either way).
+ORIGINS = ("bottom-left", "top-left")
 SCENE_KEYS = ("name", "description")
 DEVICE_KEYS = ("profile",)
 #: [mapping] key -> (unit or kind, meaning). The values become a forces.MappingOptions.
@@ -540,7 +544,8 @@ def _parse_canvas(raw, ctx: Ctx) -> Canvas:
     else:
         raise ctx.error("", "canvas.size", "is required (e.g. size = \"100x180 mm\"; a single length makes a 1-D strip)")
     spacing = length(raw.get("resolution", "0.5 mm"), "canvas.resolution", ctx, positive=True)
-    canvas = Canvas(width, height, spacing, dpi)
+    origin = choice(raw.get("origin", "bottom-left"), ORIGINS, "canvas.origin", ctx)
+    canvas = Canvas(width, height, spacing, dpi, origin)
     if width < spacing or (not canvas.is_1d and height < spacing):
         raise ctx.error("", "canvas.resolution",
                         f"must be finer than the canvas ({spacing * 1e3:g} mm for a "

@@ -162,6 +162,8 @@ class WidgetType:
             raise w.error("center", "cannot be given together with `position`; keep one")
         if "position" in raw:
             x, y = self._point(raw["position"], "position", w)
+            if w.canvas.origin == "top-left":       # the top-left corner: the box lies below it
+                y -= sh
         elif "center" in raw:
             cx, cy = self._point(raw["center"], "center", w)
             x, y = cx - sw / 2, cy - sh / 2
@@ -185,7 +187,10 @@ class WidgetType:
             if isinstance(value, list) or (isinstance(value, str) and "," in value):
                 raise w.error(key, f"must be a single x on a 1-D canvas (got {value!r})")
             return length(value, w.fp + key, w.ctx, w.where), 0.0
-        return pair(value, ",", w.fp + key, w.ctx, w.where)
+        x, y = pair(value, ",", w.fp + key, w.ctx, w.where)
+        if w.canvas.origin == "top-left":           # [canvas] origin: y measured down from the top edge
+            y = w.canvas.height - y
+        return x, y
 
     # ---- parameters and geometry
     def finish(self, raw: dict, W: float, H: float, w: PlaceCtx) -> dict:

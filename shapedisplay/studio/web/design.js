@@ -336,7 +336,8 @@ function inspect() {
     const unit = document.createElement("span");
     unit.className = "unit";
     unit.textContent = k.unit;
-    if (k.hint) row.title = k.hint;
+    const hint = k.key === "position" && topLeft() ? "x,y of the top-left corner (y down)" : k.hint;
+    if (hint) row.title = hint;
     row.appendChild(unit);
     const msg = document.createElement("small");
     msg.className = "msg";
@@ -578,15 +579,24 @@ design.rulers = function () {
     cx.beginPath(); cx.moveTo(px, 18); cx.lineTo(px, big ? 6 : 13); cx.stroke();
     if (big) cx.fillText(String(mmv), px + 2, 9);
   }
+  const down = topLeft();                 // [canvas] origin = "top-left": the file's y runs down from the top
   if (g.rows > 1) {
     for (let mmv = Math.ceil(g.y0 * 1e3 / minor) * minor; mmv <= y1 * 1e3 + 1e-9; mmv += minor) {
-      const [, v] = api.toPicture(g.x0, mmv / 1e3);
+      const [, v] = api.toPicture(g.x0, (down ? y1 * 1e3 - mmv : mmv) / 1e3);
       const py = 1 + v * H, big = mmv % major === 0;
       cy.beginPath(); cy.moveTo(30, py); cy.lineTo(big ? 18 : 25, py); cy.stroke();
-      if (big) cy.fillText(String(mmv), 1, py - 2);
+      if (big) cy.fillText(String(mmv), 1, down ? py + 10 : py - 2);
     }
   }
-  cy.fillText("y↑", 1, 10);
+  cy.fillText(down ? "y↓" : "y↑", 1, down ? ry.height - 3 : 10);
+  $("ruler-y").title = down ? "y in the scene's frame: down from the top edge ([canvas] origin = \"top-left\")"
+                            : "y in the scene's frame: up from the bottom edge";
+};
+
+function topLeft() { return !!(studio.state && studio.state.origin === "top-left"); }
+design.fileY = (y) => {                  // a table y (m, up) as the scene file writes it
+  const g = grid();
+  return topLeft() && g ? g.y0 + (g.rows - 1) * g.dy - y : y;
 };
 
 // The mm grid drawn on the overlay (called by the page's overlay drawing).

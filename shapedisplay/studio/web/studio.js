@@ -441,9 +441,10 @@ function showReadout(x, y) {
                                                          y >= w.bbox_m[1] && y <= w.bbox_m[3]).pop();
   const m = studio.state.mapping || {};
   const height = m.n_gain > 0 && vals.normal_force !== undefined ? (vals.normal_force - m.n_base) / m.n_gain : null;
-  $("hover-pos").textContent = `x ${(x * 1e3).toFixed(2)} mm, y ${(y * 1e3).toFixed(2)} mm` +
+  const yFile = studio.design ? studio.design.fileY(y) : y;         // in the scene's frame ([canvas] origin)
+  $("hover-pos").textContent = `x ${(x * 1e3).toFixed(2)} mm, y ${(yFile * 1e3).toFixed(2)} mm` +
     (over ? ` · ${over.id} (${over.type})` : " · flat ground") +
-    (height !== null ? ` · height ${(height * 1e3).toFixed(2)} mm` : "");
+    (height !== null ? ` · height ${(Math.abs(height) < 5e-6 ? 0 : height * 1e3).toFixed(2)} mm` : "");
   $("hover-pos").dataset.over = over ? over.id : "";          // (data-widget is the top view's boxes only)
   $("hover-pos").dataset.x = x; $("hover-pos").dataset.y = y;
   for (const td of $("readout").querySelectorAll("td.v")) {
