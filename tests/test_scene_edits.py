@@ -95,6 +95,7 @@ def test_undo_redo_restore_exact_bytes_and_the_history_outlives_the_object(scene
     v2 = sf.save_text(v1, scene.read_text().replace("level = 3 ", "level = 4 "))["version"]
     with pytest.raises(ShapeDisplayError, match="invalid TOML"):
         sf.save_text(v2, "[canvas\n")
+    sf.flush()                                        # (the studio flushes after each change)
     sf2 = SceneFile(scene, out)                       # a restart: the history is read back
     assert [s["label"] for s in sf2.history.listing()["steps"]] == ["move", "text edit"]
     v = sf2.undo(v2)["version"]

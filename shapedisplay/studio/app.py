@@ -131,10 +131,10 @@ class Studio:
         cur = self.session.current
         lay, image = table_payload(cur.table, self.model)
         lay["generation"] = cur.generation
-        lay["checksum"] = cur.table.checksum
+        lay["checksum"] = cur.checksum
         if self.pinned is None:                  # A is the table as the studio opened the source, until pinned
             self.pinned = {"table": cur.table, "layout": dict(lay, which="A"), "image": image,
-                           "label": "as opened", "generation": cur.generation}
+                           "label": "as opened", "generation": cur.generation, "checksum": cur.checksum}
         first = "normal_force" if "normal_force" in cur.table.channels else cur.table.channels[0]
         self.prepared = {"generation": cur.generation, "layout": lay, "image": image, "table": cur.table,
                          "ranges": {c: channel_range(cur.table, c) for c in cur.table.channels},
@@ -192,8 +192,8 @@ class Studio:
             return
         d["scene_version"] = version_of(data)
         d["history"] = self.scenefile.history.listing()
-        d["values"] = widget_values(data.decode("utf-8", "replace"))
-        d["origin"] = canvas_origin(data.decode("utf-8", "replace"))
+        text = data.decode("utf-8", "replace")
+        d["values"], d["origin"] = widget_values(text), canvas_origin(text)
         cur = self.session.current
         if cur is not None:
             m = cur.table.meta.get("mapping") or {}
@@ -202,8 +202,8 @@ class Studio:
                                   if isinstance(w, dict) and "id" in w}
         if self.pinned is not None and cur is not None:
             from shapedisplay.table.diff import widget_changes
-            d["ab"] = {"a_checksum": self.pinned["table"].checksum, "a_label": self.pinned["label"],
-                       "a_generation": self.pinned["generation"], "b_checksum": cur.table.checksum,
+            d["ab"] = {"a_checksum": self.pinned["checksum"], "a_label": self.pinned["label"],
+                       "a_generation": self.pinned["generation"], "b_checksum": cur.checksum,
                        "changes": widget_changes(self.pinned["table"], cur.table)}
 
     def layout(self) -> tuple:
@@ -359,6 +359,7 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
         try:
             out = await loop.run_in_executor(None, fn, *args)
         except Conflict as exc:
+            loop.run_in_executor(None, studio.scenefile.flush)          # a change from outside: a step
             return JSONResponse(exc.payload(), status_code=409)
         except ShapeDisplayError as exc:
             from shapedisplay.studio.lines import error_line
@@ -372,9 +373,9 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
         if out.get("changed"):
             await studio.recompile(reason + (f": {out['label']}" if out.get("label") else ""), edited=True)
             out["state"] = studio.last_state             # what the broadcast has just sent
-            loop.run_in_executor(None, studio.scenefile.flush)     # to disk, now that the table is on its way
         else:
             out["state"] = studio.state()
+        loop.run_in_executor(None, studio.scenefile.flush)         # to disk, now that the table is on its way
         return JSONResponse(out)
 
     async def design_json(request) -> dict:
@@ -432,8 +433,8 @@ def build_app(session, token: str, hosts: set, origins: set, model: str = "exact
             return error_response(exc, 409)
         lay, image = studio.layout()
         studio.pinned = {"table": cur.table, "layout": dict(lay, which="A"), "image": image,
-                         "label": "pinned", "generation": cur.generation}
-        return JSONResponse({"pinned": cur.table.checksum, "state": studio.state()})
+                         "label": "pinned", "generation": cur.generation, "checksum": cur.checksum}
+        return JSONResponse({"pinned": cur.checksum, "state": studio.state()})
 
     async def export(request):
         from shapedisplay.studio.exports import export_bytes

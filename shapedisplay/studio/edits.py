@@ -285,7 +285,8 @@ def _set_line(text: str, data: dict, i: int, key: str, value):
     else:
         literal = repr(value) if isinstance(value, float) else str(value)
     out = "".join(lines[:hits[0]]) + head + literal + rest + "".join(lines[hits[0] + 1:])
-    expect = _toml().loads(text)
+    import copy
+    expect = copy.deepcopy(data)
     expect["widget"][i][key] = value
     try:
         if _toml().loads(out) != expect:

@@ -81,10 +81,20 @@ class History:
             return None
 
     def _save(self) -> None:
+        """Note that the index changed; :meth:`flush` writes it (the studio calls it once the new table
+        is on its way, so that writing the index is not in the designer's wait)."""
         self._prune()
-        self.folder.mkdir(parents=True, exist_ok=True)
-        _write(self.folder / "index.json", json.dumps(
-            {"head": self.head, "position": self.position, "steps": self.steps}, indent=1).encode())
+        self.dirty = True
+
+    def flush(self) -> None:
+        """Write the index if it changed."""
+        with self.lock:
+            if not getattr(self, "dirty", False):
+                return
+            self.folder.mkdir(parents=True, exist_ok=True)
+            _write(self.folder / "index.json", json.dumps(
+                {"head": self.head, "position": self.position, "steps": self.steps}, indent=1).encode())
+            self.dirty = False
 
     def _size(self, v: str) -> int:
         if v not in self.sizes:

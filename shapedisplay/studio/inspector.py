@@ -73,22 +73,33 @@ def _plain(v):
     return str(v)
 
 
+_PARSED: list = [None, None]            # the last text read here and its data (the state reads it twice)
+
+
+def _parsed(text: str):
+    from shapedisplay.studio.edits import _toml
+    if _PARSED[0] != text:
+        try:
+            data = _toml().loads(text)
+        except Exception:
+            data = None
+        _PARSED[:] = [text, data]
+    return _PARSED[1]
+
+
 def canvas_origin(text: str) -> str:
     """The scene text's ``[canvas] origin`` (``bottom-left`` when absent or unreadable)."""
-    from shapedisplay.studio.edits import _toml
-    try:
-        v = _toml().loads(text).get("canvas", {}).get("origin", "bottom-left")
-    except Exception:
-        return "bottom-left"
+    data = _parsed(text)
+    canvas = data.get("canvas") if isinstance(data, dict) else None
+    v = canvas.get("origin", "bottom-left") if isinstance(canvas, dict) else "bottom-left"
     return v if v in ("bottom-left", "top-left") else "bottom-left"
 
 
 def widget_values(text: str) -> list:
     """Per widget of the scene text: ``{id, type, values, inherited}`` (as written; inherited from [defaults])."""
-    from shapedisplay.studio.edits import _toml, widget_ids
-    try:
-        data = _toml().loads(text)
-    except Exception:
+    from shapedisplay.studio.edits import widget_ids
+    data = _parsed(text)
+    if not isinstance(data, dict):
         return []
     raw = data.get("widget", [])
     raw = [raw] if isinstance(raw, dict) else raw if isinstance(raw, list) else []

@@ -69,6 +69,8 @@ class SceneFile:
             return self.history.sync(self.read())
         except OSError:
             return False
+        finally:
+            self.history.flush()
 
     def _device(self):
         return self.device() if callable(self.device) else self.device
@@ -108,8 +110,10 @@ class SceneFile:
         self.unflushed = True
 
     def flush(self) -> None:
-        """Flush the last write to disk (the file and its folder's entry)."""
+        """Write the history's index and flush the last write of the file to disk (the file and its
+        folder's entry)."""
         import os
+        self.history.flush()
         if not getattr(self, "unflushed", False):
             return
         self.unflushed = False

@@ -49,6 +49,13 @@ class Compiled:
     generation: int
     seconds: float               # wall time of the compile
 
+    @property
+    def checksum(self) -> str:
+        """The table's checksum (computed once)."""
+        if getattr(self, "_checksum", None) is None:
+            self._checksum = self.table.checksum
+        return self._checksum
+
     def data(self) -> bytes:
         """The table as ``.npz`` bytes."""
         if self.npz is None:
@@ -203,7 +210,7 @@ class Session:
                 "widgets": (t.meta.get("scene") or {}).get("widgets", []),
                 "report": cur.report_text,
                 "compile_seconds": cur.seconds,
-                "checksum": t.checksum,
+                "checksum": cur.checksum,
             })
         return d
 
