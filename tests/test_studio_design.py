@@ -305,6 +305,14 @@ def test_history_is_listed_and_survives_a_reload(fresh):
                            "studio.design.schema && studio.state.history", timeout=30000)
     assert page.locator("#history li.current").text_content() == "volume.value = 0.7"
     assert page.is_enabled("#undo")
+    edited = page.studio.scene.read_bytes()
+    page.evaluate("document.getElementById('history-box').open = true")
+    v = page.evaluate("studio.version")
+    page.click("#revert")                                   # the file as the studio opened it: a step of its own
+    wait_version_change(page, v)
+    assert page.studio.scene.read_bytes() == ORIGINAL
+    assert page.locator("#history li.current").text_content() == "revert to the file as opened"
+    undo_to(page, edited)
     undo_to(page, before)
     assert page.locator("#history li.current").text_content() == "the file as the history began" or \
         page.locator("#history li.undone").count() >= 1
@@ -375,8 +383,20 @@ def test_ab_switch_alternates_the_table_the_worklet_plays(fresh):
         page.wait_for_function(f"studio.playing.which === '{'A' if len(seen) % 2 == 0 else 'B'}'", timeout=10000)
         seen.append(page.evaluate("studio.playing.checksum"))
     assert seen == [a, b, a, b]
-    page.keyboard.press("a")                                   # one key, also while stroking
+    # one key, also while stroking: the stroke goes on over the other table
+    page.evaluate("studio.lastStroke = null")
+    sx, sy = page.evaluate("studio.screenOf(0.062, 0.010)")
+    page.mouse.move(sx, sy)
+    page.mouse.down()
+    for k in range(1, 16):
+        page.mouse.move(sx, sy - 8 * k)
+        page.wait_for_timeout(15)
+        if k == 8:
+            page.keyboard.press("a")
     page.wait_for_function("studio.playing.which === 'A'", timeout=10000)
+    page.mouse.up()
+    page.wait_for_function("studio.lastStroke !== null && studio.lastStroke.reason === 'up' && "
+                           "studio.lastStroke.ticks > 0", timeout=20000)        # played on to the release
     page.keyboard.press("a")
     page.wait_for_function("studio.playing.which === 'B'", timeout=10000)
     # feel toggles off and on
