@@ -51,6 +51,7 @@ class History:
         self.head: str | None = None       # the version the history last saw on disk
         self.opened: str | None = None     # the version when this studio started (revert to it)
         self.sizes: dict = {}              # version -> bytes of its stored copy
+        self.seen: dict = {}               # versions seen but not yet stored (no step needs them yet)
         index = self.folder / "index.json"
         try:
             d = json.loads(index.read_text(encoding="utf-8"))
@@ -75,6 +76,8 @@ class History:
         """The stored bytes of ``version`` (None if it was never seen or has been dropped)."""
         if not isinstance(version, str) or not version.isalnum():
             return None
+        if version in self.seen:
+            return self.seen[version]
         try:
             return (self.blobs / f"{version}.toml").read_bytes()
         except OSError:
@@ -132,10 +135,9 @@ class History:
         with self.lock:
             v = version_of(data)
             if self.head is None or self.blob(self.head) is None:
-                self._store(data)
+                self.seen = {v: data}          # kept in memory: nothing is written before the first change
                 self.head = v
                 self.opened = self.opened or v
-                self._save()
                 return False
             if v == self.head:
                 self.opened = self.opened or v
@@ -154,6 +156,9 @@ class History:
                 self._save()
 
     def _push(self, before: str, after: str, label: str) -> None:
+        for v in (before, self.opened):             # versions seen so far become stored ones
+            if v in self.seen:
+                self._store(self.seen[v])
         del self.steps[self.position:]              # a new change forgets what was undone
         self.steps.append({"label": str(label)[:120], "before": before, "after": after, "time": time.time()})
         self.position = len(self.steps)
