@@ -445,3 +445,25 @@ def test_exports_take_their_options_and_say_which_table_they_hold(fresh):
     assert note == f"table {gen} (the last good one: the scene has an error)"
     page.wait_for_function("document.getElementById('status').textContent.startsWith('error at line')",
                            timeout=10000)
+
+
+def test_a_locked_colour_scale_keeps_its_range_across_edits(fresh):
+    page = fresh
+    s = page.studio
+    st, auto = s.get("/api/map.png?channel=normal_force")
+    st2, locked = s.get("/api/map.png?channel=normal_force&range=0:10")
+    assert st == st2 == 200 and auto != locked and locked.startswith(b"\x89PNG")
+    assert s.get("/api/map.png?channel=normal_force&range=zero:ten")[0] == 400
+    before = s.scene.read_bytes()
+    hi = page.text_content("#scale-hi")
+    page.check("#lock-scale")
+    page.locator('[data-widget="call"]').click()
+    page.locator("#inspector input[name=force]").fill("5.5")
+    page.locator("#inspector input[name=force]").press("Enter")
+    wait_version_change(page, version_of(before))
+    page.wait_for_function("studio.state.ranges.normal_force[1] > 5", timeout=20000)
+    assert page.text_content("#scale-hi") == hi                       # 3.50 N: the scale did not move
+    assert "range=" in page.get_attribute("#map", "src")
+    page.uncheck("#lock-scale")
+    page.wait_for_function("document.getElementById('scale-hi').textContent.startsWith('5.5')", timeout=10000)
+    undo_to(page, before)
