@@ -78,6 +78,7 @@ function boxOf(id) {
 function rectOf(b) {
   const img = $("map"), W = img.clientWidth, H = img.clientHeight;      // the picture inside its 1 px border
   const [ua, va] = api.toPicture(b[0], b[3]), [ub, vb] = api.toPicture(b[2], b[1]);
+  if (grid().rows === 1) return {left: ua * W, top: 0, width: Math.max((ub - ua) * W, 1), height: H};   // a strip
   return {left: ua * W, top: va * H, width: Math.max((ub - ua) * W, 1), height: Math.max((vb - va) * H, 1)};
 }
 
