@@ -20,9 +20,7 @@ from shapedisplay.errors import InputError
 from shapedisplay.studio import edits
 from shapedisplay.studio.edits import version_of
 from shapedisplay.studio.history import History
-
-#: Largest scene text the page may save, bytes.
-MAX_SCENE_BYTES = 1 << 20
+from shapedisplay.studio.session import MAX_SCENE_BYTES
 
 
 class Conflict(InputError):

@@ -11,8 +11,9 @@ files, the device profile, from a widget or from ``[defaults]``) must
 resolve there, symlinks followed, or the compile is refused with one line
 naming the key and the path (``compile_scene(..., confine=True)``); a
 ``--device`` given as a path must lie there too, and a device given by name
-is only ever a bundled profile. It writes only the scene text the page saves
-and files under the output folder.
+is only ever a bundled profile. The studio writes only the scene the page
+edits (through :mod:`~shapedisplay.studio.scenefile`) and files under the
+output folder.
 """
 from __future__ import annotations
 
@@ -24,7 +25,7 @@ from pathlib import Path
 from shapedisplay.errors import FileFormatError, InputError, ShapeDisplayError, unknown_key
 from shapedisplay.author.sources import source_kind
 
-#: Largest scene text the page may save, bytes.
+#: Largest scene text the page may save, bytes (the page saves through scenefile.SceneFile).
 MAX_SCENE_BYTES = 1 << 20
 
 
@@ -123,16 +124,6 @@ class Session:
         if self.kind != "scene":
             raise InputError(f"studio source '{self.source.name}' is a {self.kind}, not a scene: no text to edit")
         return self.source.read_text(encoding="utf-8")
-
-    def save_source_text(self, text: str) -> None:
-        """Replace the scene text atomically (the page's editor); the file watcher recompiles."""
-        from shapedisplay.atomic import write_text
-        if self.kind != "scene":
-            raise InputError(f"studio source '{self.source.name}' is a {self.kind}, not a scene: cannot save text")
-        data = text.encode("utf-8")
-        if len(data) > MAX_SCENE_BYTES:
-            raise InputError(f"scene text must be at most {MAX_SCENE_BYTES} bytes (got {len(data)})")
-        write_text(self.source, text)
 
     # -------------------------------------------------------------- compiling
     def compile(self, scene=None) -> bool:
