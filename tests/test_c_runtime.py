@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parent.parent
 CDIR = ROOT / "shapedisplay" / "engine"
 CFLAGS = ["-std=c99", "-O2", "-Wall", "-Wextra", "-pedantic", "-Werror", "-ffp-contract=off"]
 LIB = ("sd_pad.c", "sd_exact.c", "sd_render.c", "sd_image.c", "sd_stribeck.c", "sd_karnopp.c",
-       "sd_baselines.c")      # the runtime library (no host tool)
+       "sd_baselines.c", "sd_react.c")      # the runtime library (no host tool)
 
 
 def _cc():

@@ -139,3 +139,5 @@ def test_javascript_wrapper_numbers_models_policies_and_outputs_as_c():
     assert const("MODELS") == {m: MODEL_IDS[m] for m in C_MODELS}
     assert const("POLICIES") == BURST_POLICIES
     assert tuple(const("OUT_NAMES")) == layouts.OUTPUTS.names
+    assert tuple(const("EVENT_KINDS")) == layouts.EVENT_KINDS
+    assert tuple(const("REACT_STATE_FIELDS")) == layouts.REACT_STATE.names

@@ -70,7 +70,9 @@ def test_export_bin_cli_and_refusals(tmp_path):
         I.read_image(data[:-8])
     with pytest.raises(TableError, match="not a shapedisplay table image"):
         I.read_image(b"PK\x03\x04" + data[4:])
-    with pytest.raises(TableError, match="version must be 1"):
+    with pytest.raises(TableError, match="version must be one of 1, 2"):
+        I.read_image(_reseal(bytearray(data[:4] + b"\x03\x00" + data[6:])))
+    with pytest.raises(TableError, match="576-byte header"):    # a version 2 image has the longer header
         I.read_image(_reseal(bytearray(data[:4] + b"\x02\x00" + data[6:])))
 
 

@@ -83,10 +83,127 @@ static int host_little_endian(void)
     return b == 1;
 }
 
-/* [off, off + len) inside the body (before the CRC) and past the header. */
-static int in_body(uint64_t off, uint64_t len, uint64_t body)
+/* [off, off + len) inside the body (before the CRC) and past the header (of either version). */
+static int in_body(uint64_t off, uint64_t len, uint64_t body, uint32_t header)
 {
-    return off >= SD_IMAGE_HEADER_SIZE && off <= body && len <= body - off;
+    return off >= header && off <= body && len <= body - off;
+}
+
+static int64_t i64le(const uint8_t *p)
+{
+    uint64_t u = (uint64_t)u32le(p) | (uint64_t)u32le(p + 4) << 32;
+    return u <= 0x7FFFFFFFFFFFFFFFull ? (int64_t)u : -(int64_t)(~u) - 1;
+}
+
+/* A real of a reaction record: finite, within float range in the single build, and within +-lim. */
+static int real_in(double v, double lim) { return real_ok(v) && fabs(v) <= lim; }
+
+/* The reaction section (version 2, docs/table-image.md): n REACT_DEF records then n_keys REACT_KEY records,
+ * little-endian, converted field by field into img->react (the first SD_MAX_REACTIVE) and img->react_keys.
+ * Every value is checked so that a tick never meets a record it cannot play: counts and offsets against the
+ * blocks and codes, reals finite and bounded. */
+static int load_reactions(sd_image_t *img, const uint8_t *p, uint64_t body, uint32_t header, int64_t n_blocks,
+                          int64_t n_values, const int32_t (*blocks)[5])
+{
+    uint64_t off = u32le(p + 560), n = u32le(p + 564), n_keys = u32le(p + 568), rec = 0, krec = 0;
+    uint64_t i;
+    const double lim = SD_POSITION_LIMIT_M;
+#define SD_COUNT(kind, name) +8
+    rec = 0 SD_FIELDS_REACT_DEF(SD_COUNT);
+    krec = 0 SD_FIELDS_REACT_KEY(SD_COUNT);
+#undef SD_COUNT
+    if (u32le(p + 572) != 0) return SD_ERR_IMAGE_LAYOUT;
+    if (n == 0 && n_keys == 0) return SD_OK;
+    if (n > 65536u || n_keys > 65536u || (off & 7u) || !in_body(off, n * rec + n_keys * krec, body, header))
+        return SD_ERR_IMAGE_LAYOUT;
+    if (n_keys > SD_MAX_KEYS) return SD_ERR_IMAGE_LAYOUT;     /* the build holds SD_MAX_KEYS keyframes */
+    for (i = 0; i < n_keys; i++) {
+        const uint8_t *q = p + off + n * rec + i * krec;
+        sd_react_key_t *k = &img->react_keys[i];
+        double t = f64le(q), dx = f64le(q + 8), dy = f64le(q + 16);
+        if (!(real_in(t, 1e9) && t >= 0.0 && real_in(dx, lim) && real_in(dy, lim))) return SD_ERR_IMAGE_VALUE;
+        k->t = (sd_real)t;
+        k->dx = (sd_real)dx;
+        k->dy = (sd_real)dy;
+    }
+    for (i = 0; i < n; i++) {
+        const uint8_t *q = p + off + i * rec;
+        sd_react_def_t d;
+        int64_t kind, r0, c0, nr, nc, po;
+        double x0, y0, x1, y1, pn, rn;
+        int k = 0;
+        /* every field, in record order: integers as int64, reals as float64 */
+#define SD_RD_I64(name) d.name = i64le(q + 8 * k++);
+#define SD_RD_F64(name) if (!real_in(f64le(q + 8 * k), 1e9)) return SD_ERR_IMAGE_VALUE; \
+        d.name = (sd_real)f64le(q + 8 * k++);
+#define SD_RD(kind, name) SD_RD_##kind(name)
+        SD_FIELDS_REACT_DEF(SD_RD)
+#undef SD_RD
+#undef SD_RD_F64
+#undef SD_RD_I64
+        kind = d.kind;
+        x0 = f64le(q + 8 * 16);
+        y0 = f64le(q + 8 * 17);
+        x1 = f64le(q + 8 * 18);
+        y1 = f64le(q + 8 * 19);
+        pn = (double)d.press_n;
+        rn = (double)d.release_n;
+        if (kind < SD_REACT_NONE || kind > SD_REACT_SURFACE || d.widget < 0 || d.widget > 1000000) return SD_ERR_IMAGE_LAYOUT;
+        if (!(fabs(x0) <= lim && fabs(y0) <= lim && fabs(x1) <= lim && fabs(y1) <= lim && x0 <= x1 && y0 <= y1))
+            return SD_ERR_IMAGE_VALUE;
+        if (!(pn >= 0.0 && pn <= 1e3 && rn >= 0.0 && (pn == 0.0 || rn < pn))) return SD_ERR_IMAGE_VALUE;
+        if (!(d.click_gain >= SD_R(0.0) && d.click_gain <= SD_R(1.0) && d.click_hz > SD_R(0.0) && d.click_hz <= SD_R(1e5)
+              && d.click_s >= SD_R(0.0) && d.click_s <= SD_R(10.0) && d.drop >= SD_R(0.0) && d.drop <= SD_R(1.0)
+              && d.drop_s >= SD_R(0.0) && d.drop_s <= SD_R(10.0)))
+            return SD_ERR_IMAGE_VALUE;
+        if (kind == SD_REACT_TOGGLE) {
+            int64_t b = d.block, rows, cols;
+            if (b < 0 || b >= n_blocks || (d.state0 != 0 && d.state0 != 1)) return SD_ERR_IMAGE_LAYOUT;
+            rows = blocks[b][2];
+            cols = blocks[b][3];
+            if (d.offset_a < 0 || d.offset_b < 0 || d.offset_a + rows * cols > n_values || d.offset_b + rows * cols > n_values)
+                return SD_ERR_IMAGE_LAYOUT;
+        }
+        r0 = d.part_row0;
+        c0 = d.part_col0;
+        nr = d.part_rows;
+        nc = d.part_cols;
+        po = d.part_offset;
+        if (nr != 0) {
+            if (nr < 1 || nc < 1 || nr > 16384 || nc > 16384 || po < 0 || po + nr * nc > n_values
+                || r0 < -16384 || r0 > 32768 || c0 < -16384 || c0 > 32768)
+                return SD_ERR_IMAGE_LAYOUT;
+            if (d.wrap != 0 && d.wrap != 1) return SD_ERR_IMAGE_LAYOUT;
+            if (d.wrap && !(x1 > x0 && y1 >= y0)) return SD_ERR_IMAGE_VALUE;
+        } else if (d.wrap != 0 || kind == SD_REACT_OBJECT || kind == SD_REACT_SLIDER) {
+            return SD_ERR_IMAGE_LAYOUT;           /* these move a part */
+        }
+        if (!(fabs((double)d.vx) <= 1e3 && fabs((double)d.vy) <= 1e3 && d.loop_s >= SD_R(0.0))) return SD_ERR_IMAGE_VALUE;
+        if (d.n_keys < 0 || d.key0 < 0 || d.key0 > (int64_t)n_keys || d.n_keys > (int64_t)n_keys - d.key0
+            || (d.n_keys > 0 && (nr == 0 || d.wrap)))
+            return SD_ERR_IMAGE_LAYOUT;
+        if (d.n_keys > 0) {
+            int64_t j;
+            for (j = d.key0 + 1; j < d.key0 + d.n_keys; j++)
+                if (img->react_keys[j].t < img->react_keys[j - 1].t) return SD_ERR_IMAGE_VALUE;
+            if (d.loop_s > SD_R(0.0) && d.loop_s < img->react_keys[d.key0 + d.n_keys - 1].t) return SD_ERR_IMAGE_VALUE;
+        }
+        if (kind == SD_REACT_SLIDER) {
+            if ((d.axis != 0 && d.axis != 1) || !(d.track_len > SD_R(0.0)) || !(d.thumb_r >= SD_R(0.0))
+                || d.n_detents < 0 || d.n_detents > 1000 || (d.n_detents > 0 && !(d.detent_step > SD_R(0.0)))
+                || !(d.value_step > SD_R(0.0) && d.value_step <= SD_R(1.0)) || !(fabs((double)d.track0) <= lim)
+                || !(d.track_len <= SD_R(2.0) * (sd_real)lim) || !(fabs((double)d.thumb_c) <= lim)
+                || !(fabs((double)d.cross_c) <= lim) || !(fabs((double)d.detent0) <= lim))
+                return SD_ERR_IMAGE_VALUE;
+        }
+        if (i < SD_MAX_REACTIVE) img->react[i] = d;
+    }
+    img->react_total = (int32_t)n;
+    img->table.n_react = (int32_t)(n < SD_MAX_REACTIVE ? n : SD_MAX_REACTIVE);
+    img->table.react = img->react;
+    img->table.n_react_keys = (int32_t)n_keys;
+    img->table.react_keys = img->react_keys;
+    return SD_OK;
 }
 
 int sd_image_load(sd_image_t *img, const void *data, size_t size)
@@ -98,13 +215,17 @@ int sd_image_load(sd_image_t *img, const void *data, size_t size)
     const int32_t(*blocks)[5];
     const uint32_t *start, *list;
     int64_t b, longest = 0;
+    uint32_t version, header;
     int s;
     if (!img || !data) return SD_ERR_ARG;
     memset(img, 0, sizeof *img);
     if (size < SD_IMAGE_HEADER_SIZE + 4 || size > (size_t)1 << 30) return SD_ERR_IMAGE_SIZE;
     if (memcmp(p, "SDTI", 4) != 0) return SD_ERR_IMAGE_MAGIC;
-    if ((uint32_t)p[4] + 256u * p[5] != SD_IMAGE_VERSION) return SD_ERR_IMAGE_VERSION;
-    if ((uint32_t)p[6] + 256u * p[7] != SD_IMAGE_HEADER_SIZE || u32le(p + 8) != size) return SD_ERR_IMAGE_SIZE;
+    version = (uint32_t)p[4] + 256u * p[5];
+    if (version != 1 && version != SD_IMAGE_VERSION) return SD_ERR_IMAGE_VERSION;
+    header = version == 1 ? SD_IMAGE_HEADER_SIZE : SD_IMAGE_HEADER_SIZE_V2;
+    if (size < header + 4u) return SD_ERR_IMAGE_SIZE;
+    if ((uint32_t)p[6] + 256u * p[7] != header || u32le(p + 8) != size) return SD_ERR_IMAGE_SIZE;
     if ((size & 3u) != 0) return SD_ERR_IMAGE_SIZE;
     body = size - 4;
     if (sd_crc32(p, (size_t)body) != u32le(p + body)) return SD_ERR_IMAGE_CRC;
@@ -129,10 +250,10 @@ int sd_image_load(sd_image_t *img, const void *data, size_t size)
     list_off = u32le(p + 552);
     meta_off = u32le(p + 556);
     img->meta_len = u32le(p + 60);
-    if (!in_body(blocks_off, (uint64_t)n_blocks * 20u, body) || (blocks_off & 3u)
-        || !in_body(start_off, (n_tiles + 1u) * 4u, body) || (start_off & 3u)
-        || !in_body(list_off, n_entries * 4u, body) || (list_off & 3u)
-        || !in_body(meta_off, img->meta_len, body))
+    if (!in_body(blocks_off, (uint64_t)n_blocks * 20u, body, header) || (blocks_off & 3u)
+        || !in_body(start_off, (n_tiles + 1u) * 4u, body, header) || (start_off & 3u)
+        || !in_body(list_off, n_entries * 4u, body, header) || (list_off & 3u)
+        || !in_body(meta_off, img->meta_len, body, header))
         return SD_ERR_IMAGE_LAYOUT;
     blocks = (const int32_t(*)[5])(const void *)(p + blocks_off);
     start = (const uint32_t *)(const void *)(p + start_off);
@@ -177,7 +298,7 @@ int sd_image_load(sd_image_t *img, const void *data, size_t size)
         img->table.slot[s] = NULL;
         if (dtype == ABSENT) continue;
         if (dtype > SD_F64 || (off % width[dtype]) != 0
-            || !in_body(off, (uint64_t)n_values * width[dtype], body))
+            || !in_body(off, (uint64_t)n_values * width[dtype], body, header))
             return SD_ERR_IMAGE_LAYOUT;
         ch->codes = p + off;
         ch->dtype = (int)dtype;
@@ -207,6 +328,13 @@ int sd_image_load(sd_image_t *img, const void *data, size_t size)
     img->max_tile_blocks = (int32_t)longest;
     img->image_size = (uint32_t)size;
     img->meta = (const char *)(p + meta_off);
+    if (version >= 2) {
+        int rc = load_reactions(img, p, body, header, n_blocks, n_values, blocks);
+        if (rc != SD_OK) {
+            img->table.n_react = 0;
+            return rc;
+        }
+    }
     return SD_OK;
 }
 

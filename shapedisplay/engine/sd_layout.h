@@ -49,6 +49,10 @@ enum {
     SD_NSLOT = 10
 };
 
+/* reactive widget kinds and reaction events (docs/reactive.md) */
+enum { SD_REACT_NONE = 0, SD_REACT_BUTTON = 1, SD_REACT_TOGGLE = 2, SD_REACT_SLIDER = 3, SD_REACT_OBJECT = 4, SD_REACT_SURFACE = 5 };
+enum { SD_EV_NONE = 0, SD_EV_PRESS = 1, SD_EV_RELEASE = 2, SD_EV_CLICK = 3, SD_EV_TOGGLE = 4, SD_EV_VALUE = 5, SD_EV_GRAB = 6, SD_EV_DROP = 7, SD_NEV = 8 };
+
 /* PAD_STATE */
 typedef struct {
     sd_real phase;                  /* 0 stick, 1 slip */
@@ -232,10 +236,12 @@ typedef struct {
     sd_real events;                 /* stick-to-slip events in the tick */
     sd_real drive;                  /* burst drive at the tick time, in [-1, 1] */
     sd_real audio_samples;          /* audio samples written for the tick */
-    sd_real pad_speed;              /* surface speed along the pad axis, m/s */
+    sd_real pad_speed;              /* speed of the surface under the finger relative to it, along the pad axis, m/s */
     sd_real mu_s;                   /* static friction coefficient of the tick (device, table scale and slope term) */
     sd_real mu_k;                   /* kinetic friction coefficient of the tick */
     sd_real burst_gain;             /* burst-gain multiplier of the tick (table channel, 1 if absent) */
+    sd_real press;                  /* press force of the tick, N (along z; 0 = not pressing) */
+    sd_real reactions;              /* reaction events queued in the tick (press, release, click, ...) */
 } sd_outputs_t;
 #define SD_FIELDS_OUTPUTS(X) \
     X(F64, t) \
@@ -255,7 +261,9 @@ typedef struct {
     X(F64, pad_speed) \
     X(F64, mu_s) \
     X(F64, mu_k) \
-    X(F64, burst_gain)
+    X(F64, burst_gain) \
+    X(F64, press) \
+    X(F64, reactions)
 
 /* BURST_STATE */
 typedef struct {
@@ -295,5 +303,139 @@ typedef struct {
     X(I64, cj) \
     X(F64, rc) \
     X(F64, rs)
+
+/* REACT_DEF */
+typedef struct {
+    int64_t kind;                   /* SD_REACT_* (what a press does; 0 = nothing) */
+    int64_t widget;                 /* index of the widget in the table's scene widgets (an event's widget) */
+    int64_t block;                  /* toggle: the block whose patch its state selects (-1 = none) */
+    int64_t offset_a;               /* toggle: code offset of the patch of state 0 */
+    int64_t offset_b;               /* toggle: code offset of the patch of state 1 */
+    int64_t state0;                 /* toggle: state at reset (0 or 1) */
+    int64_t part_row0;              /* moving part: canvas row of its patch at rest */
+    int64_t part_col0;              /* moving part: canvas column of its patch at rest */
+    int64_t part_rows;              /* moving part: rows of its patch (0 = the widget has no moving part) */
+    int64_t part_cols;              /* moving part: columns of its patch */
+    int64_t part_offset;            /* moving part: code offset of its patch */
+    int64_t axis;                   /* slider: 0 the thumb runs along x, 1 along y */
+    int64_t n_detents;              /* slider: detents on the track (0 = none) */
+    int64_t key0;                   /* moving part: first keyframe */
+    int64_t n_keys;                 /* moving part: keyframes (0 = none) */
+    int64_t wrap;                   /* moving part: 1 = its content scrolls through its box at (vx, vy), wrapping */
+    sd_real x0;                     /* box: left (m); a press inside the box (moved with the part) is the widget's */
+    sd_real y0;                     /* box: bottom (m) */
+    sd_real x1;                     /* box: right (m) */
+    sd_real y1;                     /* box: top (m) */
+    sd_real press_n;                /* press threshold, N (0 = the widget does not react to presses) */
+    sd_real release_n;              /* release level, N (below press_n: the hysteresis) */
+    sd_real click_gain;             /* click drive amplitude, full scale (0 = no click drive) */
+    sd_real click_hz;               /* click drive frequency, Hz */
+    sd_real click_s;                /* click drive duration, s */
+    sd_real drop;                   /* click friction transient: fraction of N dropped at the click (0 = none) */
+    sd_real drop_s;                 /* click friction transient: recovery time, s */
+    sd_real track0;                 /* slider: lowest thumb centre along the axis, m */
+    sd_real track_len;              /* slider: thumb travel, m (value = (centre - track0) / track_len) */
+    sd_real thumb_c;                /* slider: thumb centre along the axis at reset, m */
+    sd_real thumb_r;                /* slider: thumb radius, m (a press within it grabs the thumb) */
+    sd_real cross_c;                /* slider: thumb centre across the axis, m */
+    sd_real detent0;                /* slider: thumb centre at the first detent, m */
+    sd_real detent_step;            /* slider: thumb travel between detents, m */
+    sd_real value_step;             /* slider: change of value that makes a `value` event while dragging */
+    sd_real vx;                     /* moving part: content velocity x, m/s (wrap) */
+    sd_real vy;                     /* moving part: content velocity y, m/s (wrap) */
+    sd_real loop_s;                 /* moving part: keyframe loop period, s (0 = hold the last keyframe) */
+} sd_react_def_t;
+#define SD_FIELDS_REACT_DEF(X) \
+    X(I64, kind) \
+    X(I64, widget) \
+    X(I64, block) \
+    X(I64, offset_a) \
+    X(I64, offset_b) \
+    X(I64, state0) \
+    X(I64, part_row0) \
+    X(I64, part_col0) \
+    X(I64, part_rows) \
+    X(I64, part_cols) \
+    X(I64, part_offset) \
+    X(I64, axis) \
+    X(I64, n_detents) \
+    X(I64, key0) \
+    X(I64, n_keys) \
+    X(I64, wrap) \
+    X(F64, x0) \
+    X(F64, y0) \
+    X(F64, x1) \
+    X(F64, y1) \
+    X(F64, press_n) \
+    X(F64, release_n) \
+    X(F64, click_gain) \
+    X(F64, click_hz) \
+    X(F64, click_s) \
+    X(F64, drop) \
+    X(F64, drop_s) \
+    X(F64, track0) \
+    X(F64, track_len) \
+    X(F64, thumb_c) \
+    X(F64, thumb_r) \
+    X(F64, cross_c) \
+    X(F64, detent0) \
+    X(F64, detent_step) \
+    X(F64, value_step) \
+    X(F64, vx) \
+    X(F64, vy) \
+    X(F64, loop_s)
+
+/* REACT_KEY */
+typedef struct {
+    sd_real t;                      /* time from reset (within the loop), s; non-decreasing */
+    sd_real dx;                     /* displacement of the part from rest, x, m */
+    sd_real dy;                     /* displacement of the part from rest, y, m */
+} sd_react_key_t;
+#define SD_FIELDS_REACT_KEY(X) \
+    X(F64, t) \
+    X(F64, dx) \
+    X(F64, dy)
+
+/* REACT_STATE */
+typedef struct {
+    sd_real pressed;                /* 1 from a press on the widget until its release */
+    sd_real state;                  /* toggle: the state whose patch plays (0 or 1) */
+    sd_real grabbed;                /* 1 while the finger holds the widget (slider thumb, object) */
+    sd_real dx;                     /* moving part: displacement from rest, x, m (wrap: content offset) */
+    sd_real dy;                     /* moving part: displacement from rest, y, m */
+    sd_real grab_x;                 /* cursor minus the part's displacement at the grab, x, m (slider: along the axis) */
+    sd_real grab_y;                 /* cursor minus the part's displacement at the grab, y, m */
+    sd_real thumb;                  /* slider: thumb centre along the axis, m */
+    sd_real value;                  /* slider: (thumb - track0) / track_len, 0 .. 1 */
+    sd_real reported;               /* slider: value of the last `value` event */
+    sd_real region;                 /* slider: detents at or below the thumb centre */
+    sd_real clock;                  /* moving part: time along its keyframes, s */
+} sd_react_state_t;
+#define SD_FIELDS_REACT_STATE(X) \
+    X(F64, pressed) \
+    X(F64, state) \
+    X(F64, grabbed) \
+    X(F64, dx) \
+    X(F64, dy) \
+    X(F64, grab_x) \
+    X(F64, grab_y) \
+    X(F64, thumb) \
+    X(F64, value) \
+    X(F64, reported) \
+    X(F64, region) \
+    X(F64, clock)
+
+/* REACT_EVENT */
+typedef struct {
+    int64_t kind;                   /* SD_EV_* (press, release, click, toggle, value, grab, drop) */
+    int64_t widget;                 /* widget index in the table's scene widgets */
+    int64_t tick;                   /* tick number (time t0 + tick / tick_rate) */
+    sd_real value;                  /* toggle: the new state; value: the slider's value; click: detent number (0 = a press click) */
+} sd_react_event_t;
+#define SD_FIELDS_REACT_EVENT(X) \
+    X(I64, kind) \
+    X(I64, widget) \
+    X(I64, tick) \
+    X(F64, value)
 
 #endif

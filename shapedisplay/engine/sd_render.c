@@ -57,7 +57,16 @@ sd_real sd_channel_value(const sd_channel_t *ch, long idx)
 /* Index of canvas sample (r, c) in the code arrays, or -1 outside every block. With a tile index
  * the work is at most max_tile_blocks block tests (the image header states it); without one, a
  * scan of all blocks. */
-long sd_cell_index(const sd_table_t *T, long r, long c)
+/* The code offset of block b: its own, or the one an override gives it (a toggle in its other state). */
+static long block_offset(const sd_table_t *T, long b, const int32_t *ov_block, const int32_t *ov_off, int n_ov)
+{
+    int i;
+    for (i = 0; i < n_ov; i++)
+        if (ov_block[i] == b) return ov_off[i];
+    return T->blocks[b][4];
+}
+
+static long cell_index(const sd_table_t *T, long r, long c, const int32_t *ov_block, const int32_t *ov_off, int n_ov)
 {
     int32_t b;
     if (T->tile_start) {
@@ -66,17 +75,21 @@ long sd_cell_index(const sd_table_t *T, long r, long c)
         for (e = T->tile_start[tile]; e < e1; e++) {
             const int32_t *k = T->blocks[T->tile_list[e]];
             long r0 = k[0], c0 = k[1], nr = k[2], nc = k[3];
-            if (r0 <= r && r < r0 + nr && c0 <= c && c < c0 + nc) return (long)k[4] + (r - r0) * nc + (c - c0);
+            if (r0 <= r && r < r0 + nr && c0 <= c && c < c0 + nc)
+                return (n_ov ? block_offset(T, (long)T->tile_list[e], ov_block, ov_off, n_ov) : (long)k[4])
+                       + (r - r0) * nc + (c - c0);
         }
         return -1;
     }
     for (b = 0; b < T->n_blocks; b++) {
         long r0 = T->blocks[b][0], c0 = T->blocks[b][1], nr = T->blocks[b][2], nc = T->blocks[b][3];
         if (r0 <= r && r < r0 + nr && c0 <= c && c < c0 + nc)
-            return (long)T->blocks[b][4] + (r - r0) * nc + (c - c0);
+            return (n_ov ? block_offset(T, b, ov_block, ov_off, n_ov) : (long)T->blocks[b][4]) + (r - r0) * nc + (c - c0);
     }
     return -1;
 }
+
+long sd_cell_index(const sd_table_t *T, long r, long c) { return cell_index(T, r, c, NULL, NULL, 0); }
 
 /* Cell of a position along one axis: the two sample indices around it and the weight of
  * the second, with the edge value held outside. */
@@ -94,12 +107,18 @@ static void axis_cell(sd_real pos, sd_real origin, sd_real step, long n, long *i
 /* Bilinear value of every slot at (x, y) metres into out[SD_NSLOT] (0 for absent slots). */
 void sd_sample_slots(const sd_table_t *T, sd_real x, sd_real y, sd_real *out)
 {
+    sd_sample_slots_ov(T, x, y, out, NULL, NULL, 0);
+}
+
+void sd_sample_slots_ov(const sd_table_t *T, sd_real x, sd_real y, sd_real *out, const int32_t *ovb,
+                        const int32_t *ovo, int n_ov)
+{
     long rows = T->grid.rows, cols = T->grid.cols, c0, c1, r0, r1;
     sd_real tx, ty;
     int s;
     axis_cell(x, T->grid.x0, T->grid.dx, cols, &c0, &c1, &tx);
     if (rows == 1) {
-        long i0 = sd_cell_index(T, 0, c0), i1 = sd_cell_index(T, 0, c1);
+        long i0 = cell_index(T, 0, c0, ovb, ovo, n_ov), i1 = cell_index(T, 0, c1, ovb, ovo, n_ov);
         for (s = 0; s < SD_NSLOT; s++) {
             const sd_channel_t *ch = T->slot[s];
             out[s] = ch ? sd_channel_value(ch, i0) * (1 - tx) + sd_channel_value(ch, i1) * tx : SD_R(0.0);
@@ -108,8 +127,8 @@ void sd_sample_slots(const sd_table_t *T, sd_real x, sd_real y, sd_real *out)
     }
     axis_cell(y, T->grid.y0, T->grid.dy, rows, &r0, &r1, &ty);
     {
-        long i00 = sd_cell_index(T, r0, c0), i01 = sd_cell_index(T, r0, c1);
-        long i10 = sd_cell_index(T, r1, c0), i11 = sd_cell_index(T, r1, c1);
+        long i00 = cell_index(T, r0, c0, ovb, ovo, n_ov), i01 = cell_index(T, r0, c1, ovb, ovo, n_ov);
+        long i10 = cell_index(T, r1, c0, ovb, ovo, n_ov), i11 = cell_index(T, r1, c1, ovb, ovo, n_ov);
         for (s = 0; s < SD_NSLOT; s++) {
             const sd_channel_t *ch = T->slot[s];
             sd_real top, bot;
@@ -301,7 +320,7 @@ static void carrier_at(uint64_t ph, sd_real *c, sd_real *s)
  * phase of sample j every SD_CARRIER_BLOCK samples and wherever a call does not continue the last
  * one, so the rotation's rounding never accumulates over more than SD_CARRIER_BLOCK samples. */
 static long synth(sd_burst_state_t *B, const sd_clock_t *K, const sd_real *ev_t, const sd_real *ev_a, long n_ev,
-                  int64_t j0, int64_t j1, sd_real rise, sd_real decay, int policy, sd_real *out)
+                  int64_t j0, int64_t j1, sd_real rise, sd_real decay, int policy, const sd_react_t *ck, sd_real *out)
 {
     sd_real cd = B->rc, sd = B->rs, cr = B->cc, sr = B->cs;
     long clipped = 0;
@@ -316,7 +335,8 @@ static long synth(sd_burst_state_t *B, const sd_clock_t *K, const sd_real *ev_t,
             sr = sn;
         }
         t = (sd_real)(int32_t)(j - K->epoch_sample) * K->inv_audio;
-        out[j - j0] = clip_unit(envelope_at(B, ev_t, ev_a, n_ev, t, rise, decay, policy) * sr, &clipped);
+        out[j - j0] = clip_unit(envelope_at(B, ev_t, ev_a, n_ev, t, rise, decay, policy) * sr
+                                + (ck ? sd_react_click(ck, t) : SD_R(0.0)), &clipped);
     }
     keep_carrier(B, cr, sr, j0, j1);
     return clipped;
@@ -328,7 +348,7 @@ static long synth(sd_burst_state_t *B, const sd_clock_t *K, const sd_real *ev_t,
  * it is cut into calls). */
 static long synth(sd_burst_state_t *B, const sd_real *ev_t, const sd_real *ev_a, long n_ev, sd_real t_origin,
                   sd_real rate, int64_t j0, int64_t j1, sd_real carrier, sd_real rise, sd_real decay, int policy,
-                  sd_real *out)
+                  const sd_react_t *ck, sd_real *out)
 {
     sd_real w = SD_R(2.0) * SD_PI * carrier, cd = B->rc, sd = B->rs, cr = B->cc, sr = B->cs;
     long clipped = 0;
@@ -356,7 +376,8 @@ static long synth(sd_burst_state_t *B, const sd_real *ev_t, const sd_real *ev_a,
             sr = sn;
         }
         t = t_origin + (sd_real)j / rate;
-        out[j - j0] = clip_unit(envelope_at(B, ev_t, ev_a, n_ev, t, rise, decay, policy) * sr, &clipped);
+        out[j - j0] = clip_unit(envelope_at(B, ev_t, ev_a, n_ev, t, rise, decay, policy) * sr
+                                + (ck ? sd_react_click(ck, t) : SD_R(0.0)), &clipped);
     }
     keep_carrier(B, cr, sr, j0, j1);
     return clipped;
@@ -376,7 +397,7 @@ long sd_render_events(const sd_real *ev_t, const sd_real *ev_a, long n_ev, sd_re
     B.cj = -1;
     B.rc = SD_COS(SD_R(2.0) * SD_PI * carrier / rate);     /* as sd_renderer_init: w / rate */
     B.rs = SD_SIN(SD_R(2.0) * SD_PI * carrier / rate);
-    if (!envelope_only) return synth(&B, ev_t, ev_a, n_ev, t_start, rate, 0, n, carrier, rise, decay, policy, out);
+    if (!envelope_only) return synth(&B, ev_t, ev_a, n_ev, t_start, rate, 0, n, carrier, rise, decay, policy, NULL, out);
     for (j = 0; j < n; j++) out[j] = envelope_at(&B, ev_t, ev_a, n_ev, t_start + (sd_real)j / rate, rise, decay, policy);
     return 0;
 }
@@ -588,6 +609,7 @@ void sd_renderer_reset(sd_renderer_t *R, sd_real t0)
 #ifdef SD_SINGLE
     clock_seek(&R->clock, 0);
 #endif
+    sd_react_reset(R);
 }
 
 void sd_renderer_seek(sd_renderer_t *R, int64_t tick, sd_real x, sd_real y)
@@ -623,6 +645,7 @@ static void rebase(sd_renderer_t *R)
     for (i = 0; i < n; i++) R->ev_t[i] -= d;
     R->bursts.te -= d;
     R->bursts.tref -= d;
+    R->react.click_t -= d;          /* the click in progress, on the same time base */
     K->epoch += K->epoch_ticks;
     K->epoch_sample += K->epoch_samples;
 }
@@ -654,7 +677,13 @@ double sd_event_time(const sd_renderer_t *R, long i)
 
 sd_real sd_renderer_step(sd_renderer_t *R, sd_real x, sd_real y)
 {
-    sd_real vals[SD_NSLOT];
+    return sd_renderer_step_press(R, x, y, SD_R(0.0));
+}
+
+sd_real sd_renderer_step_press(sd_renderer_t *R, sd_real x, sd_real y, sd_real press)
+{
+    sd_real vals[SD_NSLOT], svx = SD_R(0.0), svy = SD_R(0.0);
+    const int react = R->react.n > 0;
 #ifdef SD_SINGLE
     /* times from the epoch (sd_clock_t); the tick count in an integer */
     sd_clock_t *K = &R->clock;
@@ -673,6 +702,8 @@ sd_real sd_renderer_step(sd_renderer_t *R, sd_real x, sd_real y)
     if (kk - K->epoch > K->epoch_ticks) rebase(R);
     t = (sd_real)(int32_t)(kk - K->epoch) * K->h;
 #endif
+    if (!(press >= SD_R(0.0))) press = SD_R(0.0);      /* NaN, negative: not pressing */
+    else if (press > SD_R(1e6)) press = SD_R(1e6);
     /* a non-finite or absurd position is a fault: hold the last valid one */
     if (!(SD_FABS(x) <= SD_R(SD_POSITION_LIMIT_M)) || !(SD_FABS(y) <= SD_R(SD_POSITION_LIMIT_M))) {
         R->position_faults += 1;
@@ -702,9 +733,21 @@ sd_real sd_renderer_step(sd_renderer_t *R, sd_real x, sd_real y)
         xm = SD_R(0.5) * (x + R->run.xp);
         ym = SD_R(0.5) * (y + R->run.yp);
     }
+    if (react) {
+        /* toggles, moving parts and the part the finger holds; the pad is driven by the finger's velocity
+         * relative to the surface under it (docs/reactive.md) */
+        sd_react_lookup(R, xm, ym, h, vals, &svx, &svy);
+        vx -= svx;
+        vy -= svy;
+    } else {
+        sd_sample_slots(R->table, xm, ym, vals);
+    }
     axis_speed(vx, vy, &R->run.ax, &R->run.ay, &V);
-    sd_sample_slots(R->table, xm, ym, vals);
     sd_derive(R->table, &R->cfg, vals, vx, vy, SD_FABS(V), &N, &mus, &muk, &gain);
+    if (react && R->react.click_on) {       /* the click's friction transient: N drops, then recovers */
+        sd_real tau = t - R->react.click_t;
+        if (tau > SD_R(0.0) && tau < R->react.drop_s) N *= SD_R(1.0) - R->react.drop * (SD_R(1.0) - tau / R->react.drop_s);
+    }
     /* Table values are finite (sd_image_load), but their products may not be (a normal force of 1e300
      * times a slope of 1e10): such a tick is a value fault, played without contact (N = 0). */
     if (!(isfinite(mus * N) && isfinite(muk * N) && isfinite(mus) && isfinite(gain))) {
@@ -748,6 +791,15 @@ sd_real sd_renderer_step(sd_renderer_t *R, sd_real x, sd_real y)
     }
     R->run.n_recent = nrec;
     R->run.events_total += nev;
+    if (react) {
+#ifdef SD_SINGLE
+        sd_react_update(R, x, y, press, t, h, kk);
+#else
+        sd_react_update(R, x, y, press, t, h, (int64_t)k);
+#endif
+    } else {
+        R->react.press = press;
+    }
     /* audio samples with times in (t - h, t] */
     R->n_audio = 0;
     if (R->audio_cap > 0) {
@@ -757,13 +809,14 @@ sd_real sd_renderer_step(sd_renderer_t *R, sd_real x, sd_real y)
         if (j1 - j0 > R->audio_cap) j0 = j1 - R->audio_cap;
         if (j1 > j0)
             R->run.clipped += synth(&R->bursts, K, R->ev_t, R->ev_a, nrec, j0, j1, R->cfg.rise_s, R->cfg.decay_s,
-                                    R->cfg.policy, R->audio);
+                                    R->cfg.policy, R->react.click_on ? &R->react : NULL, R->audio);
 #else
         j1 = sample_end(t - R->run.t0, R->cfg.audio_rate);
         if (j1 - j0 > R->audio_cap) j0 = j1 - R->audio_cap;
         if (j1 > j0)
             R->run.clipped += synth(&R->bursts, R->ev_t, R->ev_a, nrec, R->run.t0, R->cfg.audio_rate, j0, j1,
-                                    R->cfg.carrier_hz, R->cfg.rise_s, R->cfg.decay_s, R->cfg.policy, R->audio);
+                                    R->cfg.carrier_hz, R->cfg.rise_s, R->cfg.decay_s, R->cfg.policy,
+                                    R->react.click_on ? &R->react : NULL, R->audio);
 #endif
         R->run.next_sample = j1;
         R->n_audio = j1 - j0 > 0 ? j1 - j0 : 0;
@@ -774,6 +827,7 @@ sd_real sd_renderer_step(sd_renderer_t *R, sd_real x, sd_real y)
 #else
             * sin(2.0 * SD_PI * R->cfg.carrier_hz * (t - R->run.t0));
 #endif
+    if (R->react.click_on) drive += sd_react_click(&R->react, t);
     if (drive > SD_R(1.0)) drive = SD_R(1.0);          /* as min(max(drive, -1), 1) for numbers */
     else if (drive < -SD_R(1.0)) drive = -SD_R(1.0);
     else if (drive != drive) {                          /* NaN (an inf amplitude times a carrier zero): never into the drive */
@@ -808,6 +862,8 @@ sd_real sd_renderer_step(sd_renderer_t *R, sd_real x, sd_real y)
     R->out.events = (sd_real)nev;
     R->out.drive = drive;
     R->out.audio_samples = (sd_real)R->n_audio;
+    R->out.press = R->react.press;
+    R->out.reactions = (sd_real)R->react.tick_events;
     R->run.xp = x;
     R->run.yp = y;
 #ifdef SD_SINGLE

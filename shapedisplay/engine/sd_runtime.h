@@ -120,11 +120,21 @@ typedef struct {
      * tile_list[tile_start[i*tiles_x + j] .. tile_start[i*tiles_x + j + 1] - 1]. */
     int32_t tile_rows, tile_cols, tiles_y, tiles_x;
     const uint32_t *tile_start, *tile_list;
+    /* Optional reactive widgets (docs/reactive.md): n_react definitions and the keyframes of their moving
+     * parts; a table image's reaction section (sd_image_load) or a header's NAME_react arrays. None:
+     * n_react 0 (a table that plays as before, whatever the press). */
+    int32_t n_react, n_react_keys;
+    const sd_react_def_t *react;
+    const sd_react_key_t *react_keys;
 } sd_table_t;
 
 sd_real sd_channel_value(const sd_channel_t *ch, long idx);
 long sd_cell_index(const sd_table_t *T, long r, long c);
 void sd_sample_slots(const sd_table_t *T, sd_real x, sd_real y, sd_real *out);
+/* As sd_sample_slots, with n_ov blocks read at other code offsets: block ov_block[i] at ov_off[i] (a toggle in
+ * its other state). */
+void sd_sample_slots_ov(const sd_table_t *T, sd_real x, sd_real y, sd_real *out, const int32_t *ov_block,
+                        const int32_t *ov_off, int n_ov);
 sd_real sd_envelope(sd_real tau, sd_real rise, sd_real decay);
 /* A tick's model inputs from the slot values sampled at the cursor (vals[SD_NSLOT]; a slot the table does
  * not store is read from the settings): normal force N >= 0, static and kinetic coefficients (table scale
@@ -147,6 +157,17 @@ long sd_render_events(const sd_real *ev_t, const sd_real *ev_a, long n_ev, sd_re
 #ifndef SD_AUDIO_BLOCK_MAX
 #define SD_AUDIO_BLOCK_MAX 4096 /* audio samples per tick, >= ceil(audio_rate / tick_rate) + 2 */
 #endif
+#ifndef SD_MAX_REACTIVE
+#define SD_MAX_REACTIVE 32      /* reactive widgets played; a table's further ones are counted, not played */
+#endif
+#ifndef SD_MAX_KEYS
+#define SD_MAX_KEYS 64          /* keyframes a table image may hold (all moving parts together) */
+#endif
+#ifndef SD_REACT_QUEUE
+#define SD_REACT_QUEUE 64       /* reaction events held until the host takes them (oldest dropped beyond) */
+#endif
+/* Detent ticks one tick may fire (a thumb dragged across more detents in one tick fires this many). */
+#define SD_DETENTS_PER_TICK 4
 
 enum { SD_OK = 0, SD_ERR_ARG = -1, SD_ERR_TABLE = -2, SD_ERR_PARAM = -3 };
 
@@ -188,6 +209,29 @@ typedef struct {
 } sd_clock_t;
 #endif
 
+/* The reactions of a renderer (docs/reactive.md): the widgets' states (REACT_STATE, sd_layout.h), the
+ * event queue, the press and the click in progress. Part of sd_renderer_t, so owned by the caller; sized
+ * at compile time (SD_MAX_REACTIVE, SD_REACT_QUEUE), nothing allocated. */
+typedef struct {
+    int32_t n;                              /* reactive widgets played: min(table n_react, SD_MAX_REACTIVE) */
+    int32_t skipped;                        /* the table's reactive widgets beyond SD_MAX_REACTIVE (not played) */
+    int32_t n_parts, n_ov;                  /* widgets with a moving part; toggles in their other state */
+    int32_t part[SD_MAX_REACTIVE];          /* their indices */
+    int32_t ov_block[SD_MAX_REACTIVE], ov_off[SD_MAX_REACTIVE];   /* block -> code offset of the state playing */
+    int32_t held;                           /* the widget the finger holds (slider thumb, object), -1 none */
+    int32_t on_part;                        /* the moving part under the finger in the last tick, -1 none */
+    sd_react_state_t state[SD_MAX_REACTIVE];
+    sd_real press;                          /* press force of the last tick, N */
+    /* the click in progress (the last one started): drive a sin(w tau) (1 - tau / T) for 0 <= tau < T, and
+     * N times 1 - d (1 - tau / T_d) for 0 < tau < T_d, tau = t - click_t (the time base of the event ring) */
+    int32_t click_on;
+    sd_real click_t, click_a, click_w, click_s, drop, drop_s;
+    /* the event queue: a ring of SD_REACT_QUEUE events, `count` from `head` (sd_react_pop) */
+    sd_react_event_t queue[SD_REACT_QUEUE];
+    int64_t head, count, total, dropped;    /* dropped: the oldest events overwritten while the queue was full */
+    int64_t tick_events;                    /* events queued in the last tick */
+} sd_react_t;
+
 typedef struct {
     const sd_table_t *table;
     sd_config_t cfg;
@@ -205,6 +249,7 @@ typedef struct {
 #ifdef SD_SINGLE
     sd_clock_t clock;                   /* integer tick and sample counts, epoch of the real times */
 #endif
+    sd_react_t react;                   /* reactive widgets: states, event queue, press, click */
 } sd_renderer_t;
 
 /* The carrier is re-anchored with sin/cos every this many audio samples (bursts.CARRIER_BLOCK). */
@@ -223,8 +268,26 @@ void sd_renderer_seek(sd_renderer_t *R, int64_t tick, sd_real x, sd_real y);
  * the reference build and times from the epoch in the single-precision build. For hosts and tests:
  * it computes in double, outside the tick path. */
 double sd_event_time(const sd_renderer_t *R, long i);
-/* One tick with the cursor at (x, y) metres; returns the burst drive in [-1, 1]. */
+/* One tick with the cursor at (x, y) metres; returns the burst drive in [-1, 1]. Not pressing: as
+ * sd_renderer_step_press(R, x, y, 0). */
 sd_real sd_renderer_step(sd_renderer_t *R, sd_real x, sd_real y);
+/* One tick with the cursor at (x, y) metres pressing with force `press` (N, along z; not finite or < 0:
+ * 0). The table's reactive widgets react (docs/reactive.md): events go to the queue (sd_react_pop), a
+ * state change (toggle flipped, thumb or object moved) plays from the next tick, moving parts move. */
+sd_real sd_renderer_step_press(sd_renderer_t *R, sd_real x, sd_real y, sd_real press);
+
+/* ------------------------------------------------------------------ reactions (sd_react.c) */
+/* Take the oldest queued reaction event into *ev: 1, or 0 when the queue is empty. */
+int sd_react_pop(sd_renderer_t *R, sd_react_event_t *ev);
+/* Time (s) of an event's tick: t0 + tick / tick_rate, in double (for hosts; outside the tick path). */
+double sd_react_event_time(const sd_renderer_t *R, const sd_react_event_t *ev);
+/* Private to the renderer (sd_render.c calls them): bind and reset the states; the slot values at (xm, ym)
+ * with toggles, moving parts and the held part, and the velocity of the surface under the finger (a tick of
+ * length h); the press handling at the end of a tick at time t; the click drive at time t. */
+void sd_react_reset(sd_renderer_t *R);
+void sd_react_lookup(sd_renderer_t *R, sd_real xm, sd_real ym, sd_real h, sd_real *vals, sd_real *svx, sd_real *svy);
+void sd_react_update(sd_renderer_t *R, sd_real x, sd_real y, sd_real press, sd_real t, sd_real h, int64_t tick);
+sd_real sd_react_click(const sd_react_t *K, sd_real t);
 
 /* ------------------------------------------------------------------ table image */
 /* The flat binary table image (`shapedisplay export TABLE --format bin`, docs/table-image.md):
@@ -232,8 +295,9 @@ sd_real sd_renderer_step(sd_renderer_t *R, sd_real x, sd_real y);
  * offset is bounded before use) and binds an sd_table_t whose arrays point into the image:
  * nothing is copied or allocated. The image must stay in place while the table is used and
  * start at an 8-byte aligned address. */
-#define SD_IMAGE_VERSION 1
-#define SD_IMAGE_HEADER_SIZE 560
+#define SD_IMAGE_VERSION 2            /* the version written with reactions; version 1 images load too */
+#define SD_IMAGE_HEADER_SIZE 560       /* version 1 header */
+#define SD_IMAGE_HEADER_SIZE_V2 576    /* version 2: the version 1 header, then the reaction section's place */
 #define SD_IMAGE_NPARAM 16
 /* Renderer settings stored in the image (runtime/image.py PARAMS). */
 enum {
@@ -262,6 +326,11 @@ typedef struct {
     uint32_t image_size;
     const char *meta;                 /* the table file's JSON header (not NUL-terminated) */
     uint32_t meta_len;
+    /* the reaction section, converted to sd_real (table.react points here): the first SD_MAX_REACTIVE
+     * widgets; react_total counts them all */
+    int32_t react_total;
+    sd_react_def_t react[SD_MAX_REACTIVE];
+    sd_react_key_t react_keys[SD_MAX_KEYS];
 } sd_image_t;
 
 /* CRC-32 (IEEE 802.3, as zlib) of n bytes; bitwise, no table (8 shifts per byte). */

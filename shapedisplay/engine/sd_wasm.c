@@ -34,6 +34,11 @@
  *   sd_wasm_event_times(), sd_wasm_event_amplitudes()   where their times (s) and amplitudes start
  *   sd_wasm_sample(x, y)         bilinear value of every slot (SD_NSLOT doubles) at (x, y) m: a read-out
  *                                with the renderer's own lookup
+ *   sd_wasm_step_press(x, y, p)  one tick at cursor (x, y) m pressing with p N (docs/reactive.md)
+ *   sd_wasm_react_count()        reaction events waiting in the queue
+ *   sd_wasm_react_pop()          the oldest as 4 doubles {kind (SD_EV_*), widget, t (s), value}, 0 if none
+ *   sd_wasm_react_n(), sd_wasm_react_states()   reactive widgets played, and their states: n records of
+ *                                SD_NREACT_STATE doubles (REACT_STATE fields in order)
  *
  * Real-time rule: after load/configure nothing allocates or grows memory; a step is bounded work.
  */
@@ -285,6 +290,42 @@ EXPORT(sd_wasm_event_amplitudes) uint32_t sd_wasm_event_amplitudes(void)
     return (uint32_t)(uintptr_t)(R.ev_a + (R.run.n_recent - sd_wasm_tick_events()));
 }
 #endif
+
+EXPORT(sd_wasm_step_press) double sd_wasm_step_press(double x, double y, double press)
+{
+    return ready ? (double)sd_renderer_step_press(&R, (sd_real)x, (sd_real)y, (sd_real)press) : 0.0;
+}
+
+#define SD_NREACT_STATE (0 SD_FIELDS_REACT_STATE(SD_COUNT_FIELD))
+static double react_ev[4], react_st[SD_MAX_REACTIVE * SD_NREACT_STATE];
+
+EXPORT(sd_wasm_react_count) int32_t sd_wasm_react_count(void) { return ready ? (int32_t)R.react.count : 0; }
+
+EXPORT(sd_wasm_react_pop) uint32_t sd_wasm_react_pop(void)
+{
+    sd_react_event_t e;
+    if (!ready || !sd_react_pop(&R, &e)) return 0;
+    react_ev[0] = (double)e.kind;
+    react_ev[1] = (double)e.widget;
+    react_ev[2] = sd_react_event_time(&R, &e);
+    react_ev[3] = (double)e.value;
+    return (uint32_t)(uintptr_t)react_ev;
+}
+
+EXPORT(sd_wasm_react_n) int32_t sd_wasm_react_n(void) { return ready ? R.react.n : 0; }
+EXPORT(sd_wasm_react_state_size) int32_t sd_wasm_react_state_size(void) { return SD_NREACT_STATE; }
+
+EXPORT(sd_wasm_react_states) uint32_t sd_wasm_react_states(void)
+{
+    int i, k = 0;
+    for (i = 0; ready && i < R.react.n; i++) {
+        const sd_react_state_t *st = &R.react.state[i];
+#define SD_WIDEN_STATE(kind, name) react_st[k++] = (double)st->name;
+        SD_FIELDS_REACT_STATE(SD_WIDEN_STATE)
+#undef SD_WIDEN_STATE
+    }
+    return (uint32_t)(uintptr_t)react_st;
+}
 
 EXPORT(sd_wasm_sample) uint32_t sd_wasm_sample(double x, double y)
 {

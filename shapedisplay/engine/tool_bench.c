@@ -73,6 +73,7 @@ int main(int argc, char **argv)
     sd_pad_t P;
     int s, n_ev = 0;
     memset(&C, 0, sizeof C);
+    memset(&T, 0, sizeof T);          /* members not set below (no reactions) are zero */
     for (i = 0; i < COLS; i++) {
         double x = (double)i * 0.25e-3, v;
         if (x < 0.015 || x > 0.045) v = lo;

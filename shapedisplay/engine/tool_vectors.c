@@ -6,6 +6,9 @@
  *   sd_vectors image  IN OUT   the same from a binary table image (sd_image_load), settings overridden
  *   sd_vectors seek   IN OUT   as image, the renderer first moved on by i64 ticks (sd_renderer_seek) with
  *                              the cursor at rest at f64 x, y (read after the rates)
+ *   sd_vectors react  IN OUT   as image, with f64 press[n] after the stroke (sd_renderer_step_press); the
+ *                              output ends with i64 the reaction events and their REACT_EVENT records
+ *                              (i64 kind, widget, tick, f64 value)
  *
  * File layouts (little-endian on every host, read and written byte by byte; f64 = IEEE double,
  * i64 = int64) are documented next to the writers in tests/test_c_runtime.py. Built with
@@ -156,6 +159,7 @@ static int run_pad(void)
 static int play(const sd_table_t *T, const sd_config_t *C);
 static int64_t seek_tick = -1;
 static sd_real seek_xy[2];
+static int with_press;          /* react mode: a press force per tick follows the stroke */
 
 static int run_render(void)
 {
@@ -219,16 +223,22 @@ static int run_render(void)
 static int play(const sd_table_t *T, const sd_config_t *C)
 {
     static sd_renderer_t R;          /* large (event ring): not on the stack */
-    int64_t n, i, n_audio_total = 0, n_ev = 0;
-    sd_real *x, *y, *audio;
+    int64_t n, i, n_audio_total = 0, n_ev = 0, n_rev = 0;
+    sd_real *x, *y, *audio, *press = NULL;
     double *ev_t, *ev_a;
     sd_outputs_t *outs;
+    sd_react_event_t *rev = NULL;
     size_t audio_cap;
     int rc;
     n = rd_i64();
     if (n < 1 || n > 100000000) die("bad step count");
     x = rd_reals(n);
     y = rd_reals(n);
+    if (with_press) {
+        press = rd_reals(n);
+        rev = (sd_react_event_t *)malloc((size_t)n * 4 * sizeof *rev + sizeof *rev);
+        if (!rev) die("out of memory");
+    }
     rc = sd_renderer_init(&R, T, C);
     if (rc != SD_OK) {
         fprintf(stderr, "sd_vectors: sd_renderer_init failed (%d)\n", rc);
@@ -243,7 +253,12 @@ static int play(const sd_table_t *T, const sd_config_t *C)
     if (!outs || !audio || !ev_t || !ev_a) die("out of memory");
     for (i = 0; i < n; i++) {
         long e, nrec, nev;
-        sd_renderer_step(&R, x[i], y[i]);
+        if (with_press) {
+            sd_renderer_step_press(&R, x[i], y[i], press[i]);
+            while (n_rev < 4 * n && sd_react_pop(&R, &rev[n_rev])) n_rev++;
+        } else {
+            sd_renderer_step(&R, x[i], y[i]);
+        }
         outs[i] = R.out;
         memcpy(audio + n_audio_total, R.audio, (size_t)R.n_audio * sizeof(sd_real));
         n_audio_total += R.n_audio;
@@ -264,6 +279,15 @@ static int play(const sd_table_t *T, const sd_config_t *C)
     wr_i64(n_ev);
     for (i = 0; i < n_ev; i++) wr_f64(ev_t[i]);
     for (i = 0; i < n_ev; i++) wr_f64(ev_a[i]);
+    if (with_press) {
+        wr_i64(n_rev);
+        for (i = 0; i < n_rev; i++) {
+            wr_i64(rev[i].kind);
+            wr_i64(rev[i].widget);
+            wr_i64(rev[i].tick);
+            wr_f64((double)rev[i].value);
+        }
+    }
     return 0;
 }
 
@@ -308,7 +332,7 @@ static int run_image(int seek)
 int main(int argc, char **argv)
 {
     int rc = 2;   /* die() exits; the value only keeps clang's flow analysis satisfied */
-    if (argc != 4) die("usage: sd_vectors pad|render|image|seek IN OUT");
+    if (argc != 4) die("usage: sd_vectors pad|render|image|seek|react IN OUT");
     in_f = fopen(argv[2], "rb");
     if (!in_f) die("cannot open input");
     out_f = fopen(argv[3], "wb");
@@ -317,7 +341,10 @@ int main(int argc, char **argv)
     else if (strcmp(argv[1], "render") == 0) rc = run_render();
     else if (strcmp(argv[1], "image") == 0) rc = run_image(0);
     else if (strcmp(argv[1], "seek") == 0) rc = run_image(1);
-    else die("mode must be pad, render, image or seek");
+    else if (strcmp(argv[1], "react") == 0) {
+        with_press = 1;
+        rc = run_image(0);
+    } else die("mode must be pad, render, image, seek or react");
     fclose(in_f);
     if (fclose(out_f) != 0) die("cannot write output");
     return rc;

@@ -291,7 +291,35 @@ def _firmware_sections(table: FrictionTable, P: str, p: str) -> tuple[list[str],
         f"{_c_array(entries.astype(np.uint32)) if len(entries) else '{0}'};",
     ]
     objects += [f"{p}_tile_start", f"{p}_tile_list"]
+    # reactive widgets (docs/reactive.md): the records the engine plays, indices to read their states by
+    from shapedisplay.render.layouts import EVENT_KINDS, REACT_DEF, REACT_KEY, REACT_KINDS
+    from shapedisplay.render.reactions import reaction_records, reactions_meta
+    rdefs, rkeys = reaction_records(table)
+    rids = [str(e.get("id")) for e in reactions_meta(table)]
+    lines += [
+        "",
+        "/* ---- reactive widgets (docs/reactive.md): the engine presses, clicks, flips toggles, moves slider thumbs,",
+        " * objects and surfaces itself. With sd_runtime.h: the state of reactive widget i is R.react.state[i]",
+        f" * (sd_react_state_t: pressed, state, grabbed, dx, dy, thumb, value, ...; i = {P}_REACT_<ID>); events",
+        " * (sd_react_event_t: kind SD_EV_PRESS .. SD_EV_DROP, widget = NAME_WIDGET_<ID>, tick, value) wait in",
+        " * R.react.queue until taken with sd_react_pop(&R, &ev); play a tick with sd_renderer_step_press(). */",
+        f"#define {P}_N_REACT {len(rdefs)}",
+        f"#define {P}_N_REACT_KEYS {len(rkeys)}",
+        *(f"#define {P}_REACT_{_c_ident(wid)} {i}  /* '{wid}': {REACT_KINDS[int(d['kind'])]} */"
+          for i, (wid, d) in enumerate(zip(rids, rdefs))),
+        "/* event kinds, numbered as SD_EV_*: " + ", ".join(f"{i + 1} {k}" for i, k in enumerate(EVENT_KINDS)) + " */",
+    ]
+
+    def rec(r, dt):
+        return "{" + ", ".join((f"(int64_t){int(r[f])}" if dt[f].kind == "i" else _c_real(float(r[f])))
+                               for f in dt.names) + "}"
     lines += ["#ifdef SD_RUNTIME_H"]
+    if len(rdefs):
+        lines += [f"static const sd_react_def_t {p}_react[{P}_N_REACT] = {{",
+                  *(f"    {rec(r, REACT_DEF)}," for r in rdefs), "};"]
+    if len(rkeys):
+        lines += [f"static const sd_react_key_t {p}_react_keys[{P}_N_REACT_KEYS] = {{",
+                  *(f"    {rec(r, REACT_KEY)}," for r in rkeys), "};"]
     for name in table.channels:
         lines.append(f"static const sd_channel_t {p}_channel_{name} = {{{p}_{name}_codes, {P}_{name.upper()}_DTYPE, (sd_real)"
                      f"{p}_{name}_scale, (sd_real){p}_{name}_offset, (sd_real){p}_{name}_background}};")
@@ -327,6 +355,12 @@ def _firmware_sections(table: FrictionTable, P: str, p: str) -> tuple[list[str],
     for name in table.channels:
         if name in _C_SLOTS:
             lines.append(f"    T->slot[SD_SLOT_{name.upper()}] = &{p}_channel_{name};")
+    lines += [
+        f"    T->n_react = {P}_N_REACT;   /* reactive widgets: the engine plays them */",
+        f"    T->react = {p + '_react' if len(rdefs) else '0'};",
+        f"    T->n_react_keys = {P}_N_REACT_KEYS;",
+        f"    T->react_keys = {p + '_react_keys' if len(rkeys) else '0'};",
+    ]
     lines += [
         f"    C->pad.mass = (sd_real){p}_pad_mass_kg;",
         f"    C->pad.stiffness = (sd_real){p}_pad_stiffness_n_per_m;",

@@ -11,9 +11,12 @@ The image carries everything the renderer needs: the grid, the blocks that
 place stored patches on the canvas, a coarse tile index of the blocks (O(1)
 lookup), every stored renderer channel's codes with scale/offset/background,
 the renderer settings resolved from the table's device profile and mapping
-(pad, friction, burst, tick and audio rates) and the table file's own JSON
+(pad, friction, burst, tick and audio rates), the reactive widgets of a
+scene table (version 2: :mod:`.reactions`) and the table file's own JSON
 header, so :func:`read_image` gives back the same
-:class:`~shapedisplay.table.model.FrictionTable` (same checksum).
+:class:`~shapedisplay.table.model.FrictionTable` (same checksum). A table
+without reactive widgets is written as version 1, byte for byte as before;
+both versions are read.
 """
 from __future__ import annotations
 
@@ -34,7 +37,10 @@ from shapedisplay.table.model import HEADER_MAX_BYTES, FrictionTable, array_caps
 from shapedisplay.render.layouts import SLOTS
 
 MAGIC = b"SDTI"
-VERSION = 1
+#: The version written for a table with reactive widgets (its header ends in the reaction section's place);
+#: a table without them is written as version 1. Both are read.
+VERSION = 2
+VERSIONS = (1, 2)
 #: Largest image the runtime accepts (bytes); sizes are 32-bit fields.
 MAX_IMAGE_BYTES = 1 << 30
 #: Tiles of the block index: at most this many, and at most 4 per block (plus one).
@@ -64,7 +70,12 @@ HEADER = (
     ("blocks_off", "I"), ("tile_start_off", "I"), ("tile_list_off", "I"), ("meta_off", "I"),
 )
 _FMT = "<" + "".join(f for _, f in HEADER)
-HEADER_SIZE = struct.calcsize(_FMT)          # 560
+HEADER_SIZE = struct.calcsize(_FMT)          # 560: version 1
+#: Version 2 appends the reaction section's place: its offset, the REACT_DEF records and REACT_KEY keyframes
+#: it holds (records back to back, then the keyframes), and 4 reserved bytes (0).
+HEADER_V2 = (("react_off", "I"), ("n_react", "I"), ("n_react_keys", "I"), ("reserved", "I"))
+_FMT_V2 = "<" + "".join(f for _, f in HEADER_V2)
+HEADER_SIZE_V2 = HEADER_SIZE + struct.calcsize(_FMT_V2)   # 576
 
 
 def _align(n: int, a: int = 8) -> int:
@@ -122,8 +133,11 @@ def to_image(table: FrictionTable, device=None) -> bytes:
     header_json = table.header()
     header_json["checksum"] = table.checksum
     meta = json.dumps(header_json, sort_keys=True, allow_nan=False).encode("utf-8")
+    from shapedisplay.render.reactions import reaction_records
+    react, keys = reaction_records(table)
+    version, head_size = (VERSION, HEADER_SIZE_V2) if react.size or keys.size else (1, HEADER_SIZE)
 
-    pos = HEADER_SIZE
+    pos = head_size
     blocks_off, pos = pos, _align(pos + blocks.nbytes)
     tile_start_off, pos = pos, _align(pos + start.nbytes)
     tile_list_off, pos = pos, _align(pos + entries.nbytes)
@@ -139,17 +153,22 @@ def to_image(table: FrictionTable, device=None) -> bytes:
         chan_words += [_DTYPE_CODES[q.dtype], pos, float(q.scale), float(q.offset), float(table.background[name])]
         chan_data.append((pos, le))
         pos = _align(pos + len(le))
+    react_bytes = react.astype(react.dtype.newbyteorder("<")).tobytes() + keys.astype(keys.dtype.newbyteorder("<")).tobytes()
+    react_off, pos = pos, _align(pos + len(react_bytes))
     meta_off, pos = pos, _align(pos + len(meta), 4)
     size = pos + 4
     if size > MAX_IMAGE_BYTES:
         raise TableError(f"table image would be {size} bytes; the format holds at most {MAX_IMAGE_BYTES}")
-    head = struct.pack(_FMT, MAGIC, VERSION, HEADER_SIZE, size, 0, g.rows, g.cols, len(blocks), n_values, mask,
+    head = struct.pack(_FMT, MAGIC, version, head_size, size, 0, g.rows, g.cols, len(blocks), n_values, mask,
                        tr, tc, ty, tx, int(np.diff(start).max()) if start.size > 1 else 0, int(entries.size),
                        len(meta), g.dx, g.dy, g.x0, g.y0,
                        *[prm[n] for n in PARAMS], *[0.0] * (N_PARAMS - len(PARAMS)),
                        *chan_words, blocks_off, tile_start_off, tile_list_off, meta_off)
     buf = bytearray(size)
     buf[:HEADER_SIZE] = head
+    if version == 2:
+        buf[HEADER_SIZE:HEADER_SIZE_V2] = struct.pack(_FMT_V2, react_off, react.size, keys.size, 0)
+        buf[react_off:react_off + len(react_bytes)] = react_bytes
     buf[blocks_off:blocks_off + blocks.nbytes] = blocks.tobytes()
     buf[tile_start_off:tile_start_off + start.nbytes] = start.tobytes()
     buf[tile_list_off:tile_list_off + entries.nbytes] = entries.tobytes()
@@ -176,11 +195,16 @@ def parse_header(data: bytes, where: str = "table image") -> dict:
     if data[:4] != MAGIC:
         raise TableError(f"{where}: not a shapedisplay table image (starts with {data[:4]!r}, expected {MAGIC!r})")
     h = dict(zip((name for name, _ in HEADER), struct.unpack_from(_FMT, data)))
-    if h["version"] != VERSION:
-        raise TableError(f"{where}: image version must be {VERSION} (got {h['version']})")
-    if h["header_size"] != HEADER_SIZE or h["image_size"] != len(data):
+    if h["version"] not in VERSIONS:
+        raise TableError(f"{where}: image version must be one of {', '.join(map(str, VERSIONS))} (got {h['version']})")
+    want = HEADER_SIZE if h["version"] == 1 else HEADER_SIZE_V2
+    if h["header_size"] != want or h["image_size"] != len(data) or len(data) < want + 4:
         raise TableError(f"{where}: image_size field says {h['image_size']} bytes, header {h['header_size']}; "
-                         f"got {len(data)} bytes with a {HEADER_SIZE}-byte header (truncated or padded)")
+                         f"got {len(data)} bytes with a {want}-byte header (truncated or padded)")
+    if h["version"] >= 2:
+        h.update(zip((name for name, _ in HEADER_V2), struct.unpack_from(_FMT_V2, data, HEADER_SIZE)))
+    else:
+        h.update(react_off=0, n_react=0, n_react_keys=0, reserved=0)
     (crc,) = struct.unpack_from("<I", data, len(data) - 4)
     actual = zlib.crc32(data[:-4]) & 0xFFFFFFFF
     if crc != actual:
@@ -193,7 +217,7 @@ def read_image(data: bytes, where: str = "table image") -> FrictionTable:
     h = parse_header(data, where)
     data = bytes(data)
     mo, ml = h["meta_off"], h["meta_len"]
-    if not (HEADER_SIZE <= mo and mo + ml <= len(data) - 4):
+    if not (h["header_size"] <= mo and mo + ml <= len(data) - 4):
         raise TableError(f"{where}: meta section {mo}+{ml} lies outside the {len(data)}-byte image")
     if ml > HEADER_MAX_BYTES:
         raise TableError(f"{where}: meta section of {ml} bytes exceeds the limit of {HEADER_MAX_BYTES}")
@@ -223,7 +247,23 @@ def read_image(data: bytes, where: str = "table image") -> FrictionTable:
         if not (HEADER_SIZE <= at and end <= len(data) - 4):
             raise TableError(f"{where}: channel {name!r} data {at}..{end} lies outside the image")
         arrays[name] = np.frombuffer(data, dt, n_values, at).astype(dt.newbyteorder("="))
-    return FrictionTable.from_header(header, arrays, where)
+    table = FrictionTable.from_header(header, arrays, where)
+    _check_reactions_match(h, data, table, where)
+    return table
+
+
+def _check_reactions_match(h: dict, data: bytes, table: FrictionTable, where: str) -> None:
+    """The reaction section the engine reads must be the records the table's meta gives."""
+    from shapedisplay.render.reactions import reaction_records
+    react, keys = reaction_records(table)
+    if (h["n_react"], h["n_react_keys"]) != (react.size, keys.size):
+        raise TableError(f"{where}: the reaction section holds {h['n_react']} widgets and {h['n_react_keys']} keyframes; "
+                         f"the table's meta lists {react.size} and {keys.size}")
+    if react.size or keys.size:
+        want = react.astype(react.dtype.newbyteorder("<")).tobytes() + keys.astype(keys.dtype.newbyteorder("<")).tobytes()
+        at = h["react_off"]
+        if not (h["header_size"] <= at and at + len(want) <= len(data) - 4) or data[at:at + len(want)] != want:
+            raise TableError(f"{where}: the reaction section differs from the reactions of the table's meta")
 
 
 def _check_binary_matches_header(h: dict, header: dict, where: str) -> None:

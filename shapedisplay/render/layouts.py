@@ -22,12 +22,19 @@ dtype               C struct              what it holds
 ``RUN_STATE``       ``sd_run_state_t``    online renderer registers and counters
 ``OUTPUTS``         ``sd_outputs_t``      per-tick outputs of the online renderer
 ``BURST_STATE``     ``sd_burst_state_t``  burst envelope and carrier kept between ticks
+``REACT_DEF``       ``sd_react_def_t``    one reactive widget of a table (press, click, toggle, slider,
+                                          moving part); the record of a table image's reaction section
+``REACT_KEY``       ``sd_react_key_t``    one keyframe of a moving part
+``REACT_STATE``     ``sd_react_state_t``  a reactive widget's state kept between ticks (caller-owned)
+``REACT_EVENT``     ``sd_react_event_t``  one event of the reaction queue (press, release, click, ...)
 ==================  ====================  =======================================================
 
 Numberings shared with C (enums in ``sd_layout.h``): :class:`Slot` (table
 channels the renderer reads, :data:`SLOTS` order), :class:`Policy` (burst
-overlap policies) and the model ids (position in
-:data:`shapedisplay.render.models.MODELS`).
+overlap policies), the model ids (position in
+:data:`shapedisplay.render.models.MODELS`), the reactive widget kinds
+(:data:`REACT_KINDS`, ``SD_REACT_*``) and the reaction events
+(:data:`EVENT_KINDS`, ``SD_EV_*``, numbered from 1).
 """
 from __future__ import annotations
 
@@ -171,10 +178,12 @@ OUTPUTS = _layout("OUTPUTS", [
     ("events", f8, "stick-to-slip events in the tick"),
     ("drive", f8, "burst drive at the tick time, in [-1, 1]"),
     ("audio_samples", f8, "audio samples written for the tick"),
-    ("pad_speed", f8, "surface speed along the pad axis, m/s"),
+    ("pad_speed", f8, "speed of the surface under the finger relative to it, along the pad axis, m/s"),
     ("mu_s", f8, "static friction coefficient of the tick (device, table scale and slope term)"),
     ("mu_k", f8, "kinetic friction coefficient of the tick"),
     ("burst_gain", f8, "burst-gain multiplier of the tick (table channel, 1 if absent)"),
+    ("press", f8, "press force of the tick, N (along z; 0 = not pressing)"),
+    ("reactions", f8, "reaction events queued in the tick (press, release, click, ...)"),
 ])
 
 BURST_STATE = _layout("BURST_STATE", [
@@ -195,6 +204,81 @@ BURST_STATE = _layout("BURST_STATE", [
     ("cj", i8, "index + 1 of the last sample written (-1 before the first)"),
     ("rc", f8, "rotation per sample: cos(2 pi carrier / audio rate)"),
     ("rs", f8, "rotation per sample: sin(2 pi carrier / audio rate)"),
+])
+
+# ---------------------------------------------------------------- reactions (docs/reactive.md)
+#: Reactive widget kinds by number (C: ``SD_REACT_*``): what a press on the widget does.
+REACT_KINDS = ("none", "button", "toggle", "slider", "object", "surface")
+#: Reaction events, numbered from 1 in this order (C: ``SD_EV_*``; 0 = no event).
+EVENT_KINDS = ("press", "release", "click", "toggle", "value", "grab", "drop")
+
+REACT_DEF = _layout("REACT_DEF", [
+    ("kind", i8, "SD_REACT_* (what a press does; 0 = nothing)"),
+    ("widget", i8, "index of the widget in the table's scene widgets (an event's widget)"),
+    ("block", i8, "toggle: the block whose patch its state selects (-1 = none)"),
+    ("offset_a", i8, "toggle: code offset of the patch of state 0"),
+    ("offset_b", i8, "toggle: code offset of the patch of state 1"),
+    ("state0", i8, "toggle: state at reset (0 or 1)"),
+    ("part_row0", i8, "moving part: canvas row of its patch at rest"),
+    ("part_col0", i8, "moving part: canvas column of its patch at rest"),
+    ("part_rows", i8, "moving part: rows of its patch (0 = the widget has no moving part)"),
+    ("part_cols", i8, "moving part: columns of its patch"),
+    ("part_offset", i8, "moving part: code offset of its patch"),
+    ("axis", i8, "slider: 0 the thumb runs along x, 1 along y"),
+    ("n_detents", i8, "slider: detents on the track (0 = none)"),
+    ("key0", i8, "moving part: first keyframe"),
+    ("n_keys", i8, "moving part: keyframes (0 = none)"),
+    ("wrap", i8, "moving part: 1 = its content scrolls through its box at (vx, vy), wrapping"),
+    ("x0", f8, "box: left (m); a press inside the box (moved with the part) is the widget's"),
+    ("y0", f8, "box: bottom (m)"),
+    ("x1", f8, "box: right (m)"),
+    ("y1", f8, "box: top (m)"),
+    ("press_n", f8, "press threshold, N (0 = the widget does not react to presses)"),
+    ("release_n", f8, "release level, N (below press_n: the hysteresis)"),
+    ("click_gain", f8, "click drive amplitude, full scale (0 = no click drive)"),
+    ("click_hz", f8, "click drive frequency, Hz"),
+    ("click_s", f8, "click drive duration, s"),
+    ("drop", f8, "click friction transient: fraction of N dropped at the click (0 = none)"),
+    ("drop_s", f8, "click friction transient: recovery time, s"),
+    ("track0", f8, "slider: lowest thumb centre along the axis, m"),
+    ("track_len", f8, "slider: thumb travel, m (value = (centre - track0) / track_len)"),
+    ("thumb_c", f8, "slider: thumb centre along the axis at reset, m"),
+    ("thumb_r", f8, "slider: thumb radius, m (a press within it grabs the thumb)"),
+    ("cross_c", f8, "slider: thumb centre across the axis, m"),
+    ("detent0", f8, "slider: thumb centre at the first detent, m"),
+    ("detent_step", f8, "slider: thumb travel between detents, m"),
+    ("value_step", f8, "slider: change of value that makes a `value` event while dragging"),
+    ("vx", f8, "moving part: content velocity x, m/s (wrap)"),
+    ("vy", f8, "moving part: content velocity y, m/s (wrap)"),
+    ("loop_s", f8, "moving part: keyframe loop period, s (0 = hold the last keyframe)"),
+])
+
+REACT_KEY = _layout("REACT_KEY", [
+    ("t", f8, "time from reset (within the loop), s; non-decreasing"),
+    ("dx", f8, "displacement of the part from rest, x, m"),
+    ("dy", f8, "displacement of the part from rest, y, m"),
+])
+
+REACT_STATE = _layout("REACT_STATE", [
+    ("pressed", f8, "1 from a press on the widget until its release"),
+    ("state", f8, "toggle: the state whose patch plays (0 or 1)"),
+    ("grabbed", f8, "1 while the finger holds the widget (slider thumb, object)"),
+    ("dx", f8, "moving part: displacement from rest, x, m (wrap: content offset)"),
+    ("dy", f8, "moving part: displacement from rest, y, m"),
+    ("grab_x", f8, "cursor minus the part's displacement at the grab, x, m (slider: along the axis)"),
+    ("grab_y", f8, "cursor minus the part's displacement at the grab, y, m"),
+    ("thumb", f8, "slider: thumb centre along the axis, m"),
+    ("value", f8, "slider: (thumb - track0) / track_len, 0 .. 1"),
+    ("reported", f8, "slider: value of the last `value` event"),
+    ("region", f8, "slider: detents at or below the thumb centre"),
+    ("clock", f8, "moving part: time along its keyframes, s"),
+])
+
+REACT_EVENT = _layout("REACT_EVENT", [
+    ("kind", i8, "SD_EV_* (press, release, click, toggle, value, grab, drop)"),
+    ("widget", i8, "widget index in the table's scene widgets"),
+    ("tick", i8, "tick number (time t0 + tick / tick_rate)"),
+    ("value", f8, "toggle: the new state; value: the slider's value; click: detent number (0 = a press click)"),
 ])
 
 #: Everything the online renderer keeps between ticks, in one record (Python only: the C
@@ -220,6 +304,10 @@ LAYOUTS = {
     "RUN_STATE": (RUN_STATE, "sd_run_state_t"),
     "OUTPUTS": (OUTPUTS, "sd_outputs_t"),
     "BURST_STATE": (BURST_STATE, "sd_burst_state_t"),
+    "REACT_DEF": (REACT_DEF, "sd_react_def_t"),
+    "REACT_KEY": (REACT_KEY, "sd_react_key_t"),
+    "REACT_STATE": (REACT_STATE, "sd_react_state_t"),
+    "REACT_EVENT": (REACT_EVENT, "sd_react_event_t"),
 }
 
 
@@ -287,6 +375,11 @@ def c_header(model_names) -> str:
     out.append("enum {")
     out += [f"    SD_SLOT_{n.upper()} = {i}," for i, n in enumerate(SLOTS)]
     out += [f"    SD_NSLOT = {NSLOT}", "};", ""]
+    out.append("/* reactive widget kinds and reaction events (docs/reactive.md) */")
+    out.append("enum { " + ", ".join(f"SD_REACT_{n.upper()} = {i}" for i, n in enumerate(REACT_KINDS)) + " };")
+    out.append("enum { SD_EV_NONE = 0, " + ", ".join(f"SD_EV_{n.upper()} = {i + 1}" for i, n in enumerate(EVENT_KINDS))
+               + f", SD_NEV = {len(EVENT_KINDS) + 1} }};")
+    out.append("")
     for name, (dt, cname) in LAYOUTS.items():
         out.append(f"/* {name} */")
         out.append("typedef struct {")

@@ -23,7 +23,8 @@ from shapedisplay.errors import InputError
 #: The C runtime sources, shipped inside the package (``runtime-c/`` in a checkout links here).
 RUNTIME_C = Path(__file__).resolve().parent.parent / "engine"
 #: The runtime's model-independent sources (``setup.py`` builds every ``engine/sd_*.c`` but ``sd_wasm.c``).
-SOURCES = ("sd_pad.c", "sd_exact.c", "sd_render.c", "sd_image.c", "sd_stribeck.c", "sd_karnopp.c", "sd_baselines.c")
+SOURCES = ("sd_pad.c", "sd_exact.c", "sd_render.c", "sd_image.c", "sd_stribeck.c", "sd_karnopp.c", "sd_baselines.c",
+           "sd_react.c")
 #: The offline loop over a path (uses only ``sd_runtime.h``), built into the same library.
 PLAY_SOURCE = Path(__file__).resolve().parent / "sd_play_path.c"
 #: The models a table is played with (the C ticks of ``sd_model_tick``; every model of
@@ -32,6 +33,8 @@ PLAY_SOURCE = Path(__file__).resolve().parent / "sd_play_path.c"
 C_MODELS = ("exact", "jump", "karnopp", "stribeck")
 #: ``sd_play_path`` status codes: more events than the buffer given (the binding grows it and plays again).
 PLAY_EVENTS_FULL = -31
+#: ``sd_play_path``: more reaction events than the buffer given (grown likewise).
+PLAY_REACT_FULL = -32
 #: ``sd_pad_run``: no tick for this model id.
 RUN_UNKNOWN_MODEL = -34
 
@@ -70,7 +73,11 @@ def library() -> ctypes.CDLL:
     lib.sd_renderer_reset.argtypes = [vp, ctypes.c_double]
     lib.sd_renderer_step.argtypes = [vp, ctypes.c_double, ctypes.c_double]
     lib.sd_renderer_step.restype = ctypes.c_double
-    lib.sd_play_path.argtypes = [vp, vp, vp, c_int64, vp, vp, c_int64, vp, vp, c_int64, vp]
+    lib.sd_renderer_step_press.argtypes = [vp, ctypes.c_double, ctypes.c_double, ctypes.c_double]
+    lib.sd_renderer_step_press.restype = ctypes.c_double
+    lib.sd_react_pop.argtypes = [vp, vp]
+    lib.sd_react_pop.restype = ctypes.c_int
+    lib.sd_play_path.argtypes = [vp, vp, vp, vp, c_int64, vp, vp, c_int64, vp, vp, c_int64, vp, c_int64, vp]
     lib.sd_play_path.restype = ctypes.c_int
     c_int, c_double = ctypes.c_int, ctypes.c_double
     lib.sd_pad_run.argtypes = [c_int, vp, vp, vp, c_int64, vp, vp, vp, vp, vp, c_int, c_int, c_int, vp, vp, vp, vp,
@@ -88,9 +95,11 @@ def library() -> ctypes.CDLL:
 
 
 #: Names of :func:`renderer_layout`'s entries (``sd_renderer_layout``): byte offsets of the parts of an
-#: ``sd_renderer_t`` the binding reads, then the event ring's and the audio block's sizes.
+#: ``sd_renderer_t`` the binding reads, the event ring's and the audio block's sizes, and the reactions'
+#: parts (widget states, counts, the build's ``SD_MAX_REACTIVE``).
 LAYOUT_NAMES = ("out", "run", "pad", "audio", "ev_t", "ev_a", "position_faults", "event_ring", "audio_block_max",
-                "n_audio")
+                "n_audio", "react_state", "react_n", "max_reactive", "react_total", "react_dropped", "react_skipped",
+                "react_held")
 
 
 @functools.cache

@@ -74,9 +74,11 @@ from shapedisplay.table.model import FrictionTable
 from shapedisplay.table.widgets import widget_boxes
 from shapedisplay.render.cursor import CursorPath
 from shapedisplay.render.image import to_image
-from shapedisplay.render.layouts import NSLOT, OUTPUTS, PAD_STATE, RUN_STATE, SLOTS
+from shapedisplay.render.layouts import EVENT_KINDS, NSLOT, OUTPUTS, PAD_STATE, REACT_EVENT, REACT_STATE, RUN_STATE, SLOTS
 from shapedisplay.render.models import PadModel, divergence_message
-from shapedisplay.render.native import PLAY_EVENTS_FULL, address, aligned_buffer, library, renderer_layout
+from shapedisplay.render.native import (PLAY_EVENTS_FULL, PLAY_REACT_FULL, address, aligned_buffer, library,
+                                        renderer_layout)
+from shapedisplay.render.reactions import ReactionEvent, events_of, widget_ids
 from shapedisplay.render.result import RenderResult
 from shapedisplay.render.settings import audio_length, derive_config, render_settings
 
@@ -124,6 +126,10 @@ class _State:
         self.ev_t = _view(self.buf, L["ev_t"], np.float64, L["event_ring"])
         self.ev_a = _view(self.buf, L["ev_a"], np.float64, L["event_ring"])
         self.position_faults = _view(self.buf, L["position_faults"], np.int64)
+        self.react_state = _view(self.buf, L["react_state"], REACT_STATE, L["max_reactive"])
+        self.react_n = _view(self.buf, L["react_n"], np.int32)
+        self.react_total = _view(self.buf, L["react_total"], np.int64, 2)     # total, dropped
+        self.react_held = _view(self.buf, L["react_held"], np.int32)
 
     def init(self) -> None:
         """Bind the state to its table and settings afresh (``sd_renderer_init``: no allocation)."""
@@ -235,6 +241,10 @@ class Renderer:
         self.last = self._online.out
         #: The table's scene widgets, ``(id, (x0, y0, x1, y1))`` in m: what each event's ``widget`` names.
         self.widgets = widget_boxes(table)
+        self._widget_ids = widget_ids(table)
+        self._t0 = 0.0
+        self._event = np.zeros(1, REACT_EVENT)
+        self._step_press = self._lib.sd_renderer_step_press
         self.reset()
 
     # ------------------------------------------------------------------ offline
@@ -249,15 +259,18 @@ class Renderer:
         return cp
 
     def _play(self, cp: CursorPath):
-        """Every tick of ``cp`` through the engine from a fresh state: ``(outputs, audio, events, counts)``."""
+        """Every tick of ``cp`` through the engine from a fresh state: ``(outputs, audio, events, counts,
+        reaction events)`` (REACT_EVENT records)."""
         n = cp.t.size
         n_audio = audio_length(cp.duration, self.audio_rate)      # refuse an impossible stream before the work
         x = np.ascontiguousarray(cp.x, dtype=np.float64)
         y = np.ascontiguousarray(cp.y, dtype=np.float64)
+        press = None if cp.press is None else np.ascontiguousarray(cp.press, dtype=np.float64)
         out = np.empty(n, OUTPUTS)
         audio = np.empty(n_audio)
-        counts = np.zeros(5, np.int64)
+        counts = np.zeros(6, np.int64)
         ev_cap = n // 8 + 1024
+        rev_cap = 256
         if self._offline is None:            # the offline runs' own state, kept from render to render
             self._offline = _State(self._lib, self._image, self._config)
         st = self._offline
@@ -265,16 +278,21 @@ class Renderer:
             st.init()
             st.reset(cp.t[0] if n else 0.0)
             ev = np.empty((2, ev_cap))
-            rc = self._lib.sd_play_path(st.address, address(x), address(y), n, address(out), address(audio),
-                                        n_audio, address(ev), address(ev) + 8 * ev_cap, ev_cap, address(counts))
-            if rc != PLAY_EVENTS_FULL:
+            rev = np.empty(rev_cap, REACT_EVENT)
+            rc = self._lib.sd_play_path(st.address, address(x), address(y), None if press is None else address(press),
+                                        n, address(out), address(audio), n_audio, address(ev),
+                                        address(ev) + 8 * ev_cap, ev_cap, address(rev), rev_cap, address(counts))
+            if rc == PLAY_EVENTS_FULL:
+                ev_cap *= 4
+            elif rc == PLAY_REACT_FULL:
+                rev_cap = max(4 * rev_cap, n // 4)
+            else:
                 break
-            ev_cap *= 4
         if rc != 0 or counts[0] != n_audio:
             raise ModelError(f"the C engine stopped playing the path (code {rc}, {int(counts[0])} of {n_audio} "
                              "audio samples)")
         st.check_pad(self.model, self.tick_rate)
-        return out, audio, ev[:, :int(counts[1])], counts
+        return out, audio, ev[:, :int(counts[1])], counts, rev[:int(counts[5])]
 
     def model_inputs(self, cursor: CursorPath):
         """The per-tick inputs the engine gives the pad model for ``cursor`` (after the table lookup).
@@ -297,34 +315,46 @@ class Renderer:
         :data:`~shapedisplay.render.settings.MAX_AUDIO_SAMPLES`.
         """
         cp = self._on_grid(cursor)
-        out, audio, ev, counts = self._play(cp)
+        out, audio, ev, counts, rev = self._play(cp)
         # per-tick rows as views of the engine's output records (strided, not copied)
         col = {k: out[k] for k in ("vx", "vy", "normal_force", "friction_force", "lateral_x", "lateral_y",
-                                   "skin_stretch", "mu_s")}
+                                   "skin_stretch", "mu_s", "press")}
         t, x, y = (np.array(a, dtype=np.float64) for a in (cp.t, cp.x, cp.y))
+        kinds = rev["kind"]
         return RenderResult(t, x, y, col["vx"], col["vy"], col["normal_force"], col["friction_force"],
                             out["state"].astype(np.int8), col["lateral_x"], col["lateral_y"], col["skin_stretch"],
                             ev[0].copy(), ev[1].copy(), audio, self.audio_rate, int(counts[2]), self.model.name,
-                            self.tick_rate, self.burst_policy, col["mu_s"], int(counts[3]), self.widgets)
+                            self.tick_rate, self.burst_policy, col["mu_s"], int(counts[3]), self.widgets,
+                            event_kind=np.array([EVENT_KINDS[k - 1] for k in kinds], dtype=str).astype("U7"),
+                            event_widget=np.array([self._widget_ids[w] if 0 <= w < len(self._widget_ids) else str(w)
+                                                   for w in rev["widget"]], dtype=str),
+                            event_t=(t[0] if t.size else 0.0) + rev["tick"] / self.tick_rate,
+                            event_value=rev["value"].astype(np.float64), press=col["press"])
 
     # ------------------------------------------------------------------ online
     def reset(self, t0: float = 0.0) -> None:
-        """Start a new online run at cursor time ``t0`` (s): state stuck and relaxed, no bursts."""
+        """Start a new online run at cursor time ``t0`` (s): state stuck and relaxed, no bursts, every
+        reactive widget back in its initial state."""
+        self._t0 = float(t0)
         self._online.reset(t0)
 
-    def step(self, x: float, y: float) -> float:
+    def step(self, x: float, y: float, press: float | None = None) -> float:
         """Advance one tick with the cursor at (x, y) metres; return the burst drive in [-1, 1].
 
-        Outputs of the tick are in :attr:`last` (fields named in ``OUT_NAMES``;
-        also :meth:`outputs`) and the tick's audio samples in
-        ``audio_block[:audio_samples]``. See the real-time rules in the module
-        docstring.
+        ``press`` is the press force of the tick (N along z; None or 0: not
+        pressing): the table's reactive widgets react to it
+        (docs/reactive.md), their events wait in the engine's queue for
+        :meth:`reactions`. Outputs of the tick are in :attr:`last` (fields
+        named in ``OUT_NAMES``; also :meth:`outputs`) and the tick's audio
+        samples in ``audio_block[:audio_samples]``. See the real-time rules in
+        the module docstring.
 
         A position that is not finite or lies beyond 1 km is not played: the
         last valid position is held and :attr:`held_positions` counts it (a
         stream from a device host cannot be refused sample by sample).
         """
-        drive = self._step(self._online.address, x, y)
+        drive = (self._step(self._online.address, x, y) if press is None else
+                 self._step_press(self._online.address, x, y, press))
         if self._online.pad["diverged"] != 0:
             raise ModelError(divergence_message(self.model, self.tick_rate, float(self._online.pad["diverged_at"])))
         return drive
@@ -365,6 +395,31 @@ class Renderer:
         reals played without contact, a pad restarted at rest); 0 for any table the reader accepts played
         with finite cursors."""
         return int(self._online.run["value_faults"])
+
+    def reactions(self) -> list:
+        """The reaction events queued since the last call, oldest first, as
+        :class:`~shapedisplay.render.reactions.ReactionEvent` (kind, widget id, t, value); empties the queue.
+        The engine's queue holds 64 events: call it at least every few ticks (allocates: not per tick in a
+        hard real-time loop)."""
+        recs = []
+        addr = self._event.ctypes.data
+        while self._lib.sd_react_pop(self._online.address, addr):
+            recs.append(self._event[0].copy())
+        return events_of(recs, self._widget_ids, self._t0, self.tick_rate)
+
+    @property
+    def reactions_dropped(self) -> int:
+        """Reaction events lost since :meth:`reset` because the queue was full (64 waiting)."""
+        return int(self._online.react_total[1])
+
+    def widget_states(self) -> dict:
+        """Each reactive widget's state: ``{id: {"pressed", "state", "grabbed", "dx", "dy", "thumb", "value",
+        ...}}`` (REACT_STATE fields; SI), copies."""
+        from shapedisplay.render.reactions import reactions_meta
+        ids = [str(e.get("id")) for e in reactions_meta(self.table)]
+        n = int(self._online.react_n[0])
+        return {wid: {k: float(self._online.react_state[i][k]) for k in REACT_STATE.names}
+                for i, wid in enumerate(ids[:n])}
 
     def recent_events(self):
         """(times, amplitudes) of the bursts still sounding (copies)."""

@@ -43,6 +43,11 @@ class RenderResult:
         missing from ``audio`` (``event_time`` keeps them); 0 unless thousands of bursts sound at once
     widgets : the table's widgets as ``(id, (x0, y0, x1, y1))`` boxes in m (a scene table; else empty)
     events : (see :attr:`events`) the stick-slip events as :class:`Event` records
+    event_kind, event_widget, event_t, event_value : (n_reactions,), the reaction events of reactive widgets
+        (docs/reactive.md) in order: kind (str: press, release, click, toggle, value, grab, drop), widget id
+        (str), time of the tick (s) and value (toggle: the new state's index; value, grab, drop: the slider's
+        value; click: the detent number, 0 for a press click)
+    press : (n,), N, the press force of each tick (0 where not pressing)
 
     ``t``, ``x`` and ``y`` are those of the path played: resampled onto the tick grid
     ``t[0] + k / tick_rate`` if the path was not on it.
@@ -70,6 +75,18 @@ class RenderResult:
     mu_s: np.ndarray = field(default=None, repr=False)
     events_dropped: int = 0
     widgets: tuple = ()
+    event_kind: np.ndarray = field(default_factory=lambda: np.zeros(0, "U7"))
+    event_widget: np.ndarray = field(default_factory=lambda: np.zeros(0, "U1"))
+    event_t: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    event_value: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    press: np.ndarray = field(default=None, repr=False)
+
+    @property
+    def reactions(self) -> tuple:
+        """The reaction events as :class:`~shapedisplay.render.reactions.ReactionEvent` records, in time order."""
+        from shapedisplay.render.reactions import ReactionEvent
+        return tuple(ReactionEvent(str(k), str(w), float(t), float(v)) for k, w, t, v in
+                     zip(self.event_kind, self.event_widget, self.event_t, self.event_value))
 
     @property
     def events(self) -> tuple:
@@ -107,5 +124,6 @@ class RenderResult:
             "clipped": int(self.clipped),
             "events_dropped": int(self.events_dropped),
             "peak": float(np.max(np.abs(self.audio), initial=0.0)),
+            "reactions": int(np.size(self.event_kind)),
         }
 

@@ -11,21 +11,29 @@
 enum {
     SD_PLAY_AUDIO_FULL = -30,   /* more audio samples than audio_cap */
     SD_PLAY_EVENTS_FULL = -31,  /* more events than ev_cap */
+    SD_PLAY_REACT_FULL = -32,   /* more reaction events than rev_cap */
     SD_RUN_MODEL = -34          /* no tick for this model id */
 };
 
-/* Play n cursor samples (x[i], y[i]) m from the renderer's current state. Writes out[0..n-1],
- * audio[0..counts[0]-1] and the events ev_t/ev_a[0..counts[1]-1]; counts[2] is the number of
- * audio samples limited to full scale, counts[3] the events the ring could not hold while they
- * sounded (the audio of the add and max policies then misses them; the event list keeps them),
- * counts[4] the cursor samples held (not finite or beyond SD_POSITION_LIMIT_M). Returns SD_OK or an
- * SD_PLAY_* code (outputs then partial). */
-int sd_play_path(sd_renderer_t *R, const double *x, const double *y, int64_t n, sd_outputs_t *out,
-                 double *audio, int64_t audio_cap, double *ev_t, double *ev_a, int64_t ev_cap, int64_t *counts)
+/* Play n cursor samples (x[i], y[i]) m, pressing with press[i] N (press NULL: not pressing), from the
+ * renderer's current state. Writes out[0..n-1], audio[0..counts[0]-1], the stick-to-slip events
+ * ev_t/ev_a[0..counts[1]-1] and the reaction events rev[0..counts[5]-1] (every one: the queue is emptied
+ * each tick); counts[2] is the number of audio samples limited to full scale, counts[3] the events the ring
+ * could not hold while they sounded (the audio of the add and max policies then misses them; the event
+ * list keeps them), counts[4] the cursor samples held (not finite or beyond SD_POSITION_LIMIT_M).
+ * Returns SD_OK or an SD_PLAY_* code (outputs then partial). */
+int sd_play_path(sd_renderer_t *R, const double *x, const double *y, const double *press, int64_t n,
+                 sd_outputs_t *out, double *audio, int64_t audio_cap, double *ev_t, double *ev_a, int64_t ev_cap,
+                 sd_react_event_t *rev, int64_t rev_cap, int64_t *counts)
 {
-    int64_t i, k, na = 0, ne = 0, nev, nrec;
+    int64_t i, k, na = 0, ne = 0, nr = 0, nev, nrec;
+    sd_react_event_t e;
     for (i = 0; i < n; i++) {
-        sd_renderer_step(R, x[i], y[i]);
+        sd_renderer_step_press(R, x[i], y[i], press ? press[i] : 0.0);
+        while (sd_react_pop(R, &e)) {
+            if (nr >= rev_cap) return SD_PLAY_REACT_FULL;
+            rev[nr++] = e;
+        }
         out[i] = R->out;
         if (na + (int64_t)R->n_audio > audio_cap) return SD_PLAY_AUDIO_FULL;
         for (k = 0; k < (int64_t)R->n_audio; k++) audio[na + k] = (double)R->audio[k];
@@ -45,6 +53,7 @@ int sd_play_path(sd_renderer_t *R, const double *x, const double *y, int64_t n, 
     counts[2] = (int64_t)R->run.clipped;
     counts[3] = (int64_t)R->run.events_dropped;
     counts[4] = (int64_t)R->position_faults;
+    counts[5] = nr;
     return SD_OK;
 }
 
@@ -102,7 +111,9 @@ void sd_friction_limits(const sd_config_t *C, const int32_t *present, const doub
 }
 
 /* Byte offsets of the parts of a renderer the binding reads (out, run, pad, audio, ev_t, ev_a,
- * position_faults) and the sizes of the event ring and the audio block. */
+ * position_faults), the sizes of the event ring and the audio block, n_audio; then the reactions: the
+ * widget states, the count of widgets played, SD_MAX_REACTIVE, the queue's counters (head, count, total,
+ * dropped) and the widgets held back (skipped). */
 void sd_renderer_layout(int64_t *offsets)
 {
     static sd_renderer_t R;
@@ -117,4 +128,11 @@ void sd_renderer_layout(int64_t *offsets)
     offsets[7] = SD_EVENT_RING;
     offsets[8] = SD_AUDIO_BLOCK_MAX;
     offsets[9] = (const char *)&R.n_audio - base;
+    offsets[10] = (const char *)R.react.state - base;
+    offsets[11] = (const char *)&R.react.n - base;
+    offsets[12] = SD_MAX_REACTIVE;
+    offsets[13] = (const char *)&R.react.total - base;
+    offsets[14] = (const char *)&R.react.dropped - base;
+    offsets[15] = (const char *)&R.react.skipped - base;
+    offsets[16] = (const char *)&R.react.held - base;
 }

@@ -4,7 +4,9 @@
  *
  * Input: a 16-byte control block, the image, the cursor samples.
  *   [0]     flags: bit 0 keep the image's size field and CRC as given (else they are made right, so
- *           that mutations reach the checks behind the CRC); bit 1 no audio
+ *           that mutations reach the checks behind the CRC); bit 1 no audio; bit 2 press: the press
+ *           force of each tick is read from the input too (a byte, 0 .. 5.1 N), so the reactive
+ *           widgets of an image (version 2) are pressed, released, dragged
  *   [1]     pad model (SD_MODEL_*, modulo SD_NMODEL). The Stribeck model is left out: its documented
  *           worst case per tick (up to 10^5 stick steps, 2 x 10^4 slip steps) runs for seconds under
  *           the sanitizers when the cursor jumps, which libFuzzer reports as a timeout, not a fault
@@ -18,7 +20,9 @@
  *
  * What it checks beyond the sanitizers: sd_image_load returns SD_OK or an SD_ERR_IMAGE_* code; a
  * loaded image decodes finite values everywhere (offset + scale x code, background); every output
- * of every tick is finite for any cursor input, the drive and audio samples within [-1, 1].
+ * of every tick is finite for any cursor input, the drive and audio samples within [-1, 1]; every
+ * reaction event names a kind SD_EV_PRESS .. SD_EV_DROP, the tick played and a finite value, and
+ * every reactive widget's state stays finite.
  */
 #include <math.h>
 #include <stddef.h>
@@ -159,11 +163,24 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     }
     p = data + 16 + n_img;
     for (k = 0; k < n_ticks; k++) {
-        sd_real d;
+        sd_real d, press = SD_R(0.0);
         const sd_outputs_t *o = &R.out;
+        sd_react_event_t ev;
+        int w;
         x = sample(&p, end, mode, x, cx, sx);
         y = sample(&p, end, mode, y, cy, sy);
-        d = sd_renderer_step(&R, x, y);
+        if ((flags & 4) && p < end) press = (sd_real)(*p++) * SD_R(0.02);
+        d = (flags & 4) ? sd_renderer_step_press(&R, x, y, press) : sd_renderer_step(&R, x, y);
+        while (sd_react_pop(&R, &ev)) {
+            check(ev.kind >= SD_EV_PRESS && ev.kind <= SD_EV_DROP && ev.widget >= 0 && ev.tick == (int64_t)k);
+            check(finite_r(ev.value));
+        }
+        for (w = 0; w < R.react.n; w++) {
+            const sd_react_state_t *st = &R.react.state[w];
+            check(finite_r(st->dx) && finite_r(st->dy) && finite_r(st->thumb) && finite_r(st->value)
+                  && finite_r(st->clock));
+        }
+        check(finite_r(o->press) && finite_r(o->reactions));
         check(d >= -SD_R(1.0) && d <= SD_R(1.0));
         check(finite_r(o->t) && finite_r(o->x) && finite_r(o->y) && finite_r(o->vx) && finite_r(o->vy));
         check(finite_r(o->normal_force) && finite_r(o->friction_force) && finite_r(o->lateral_x)

@@ -18,9 +18,10 @@ from pathlib import Path
 TICKS = 200
 
 
-def stroke(mode: int) -> bytes:
+def stroke(mode: int, press: bool = False) -> bytes:
     """TICKS (x, y) int16 pairs: a diagonal sweep with a circle on it (mode 0, in table units:
-    +-32767 spans the table and half its size around it) or jumps of up to 1 km (mode 1)."""
+    +-32767 spans the table and half its size around it) or jumps of up to 1 km (mode 1); with ``press``
+    each pair is followed by a press byte (0.02 N per unit): pressed firmly every other 40 ticks."""
     out = bytearray()
     for k in range(TICKS):
         if mode == 0:
@@ -29,11 +30,14 @@ def stroke(mode: int) -> bytes:
         else:
             x, y = math.sin(1.7 * k) ** 3, math.cos(2.3 * k) ** 5
         out += struct.pack("<hh", int(32767 * max(-1.0, min(1.0, x))), int(32767 * max(-1.0, min(1.0, y))))
+        if press:
+            out.append(150 if (k // 40) % 2 else 0)
     return bytes(out)
 
 
 def without_meta(data: bytes) -> bytes:
-    """The image with an empty meta section (the last before the CRC), size field and CRC made right."""
+    """The image with an empty meta section (the last before the CRC; a version 2 image's reaction section
+    comes before it and stays), size field and CRC made right."""
     (meta_off,) = struct.unpack_from("<I", data, 556)
     body = bytearray(data[:meta_off + (-meta_off) % 4])
     struct.pack_into("<I", body, 60, 0)
@@ -44,12 +48,14 @@ def without_meta(data: bytes) -> bytes:
 def main(out_dir: str, images: list[str]) -> None:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    runs = [(0, 0, 0, 0), (0, 1, 1, 0), (0, 2, 2, 0), (2, 0, 0, 1)]   # (flags, model, policy, cursor mode)
+    # (flags, model, policy, cursor mode); flags 4: a press per tick (reactive widgets)
+    runs = [(0, 0, 0, 0), (0, 1, 1, 0), (0, 2, 2, 0), (2, 0, 0, 1), (4, 1, 0, 0)]
     for image in images:
         data = without_meta(Path(image).read_bytes())
         for flags, model, policy, mode in runs:
             head = struct.pack("<BBBBHHII", flags, model, policy, mode, TICKS, 0, len(data), 0)
-            (out / f"{Path(image).stem}-m{model}-p{policy}-c{mode}").write_bytes(head + data + stroke(mode))
+            (out / f"{Path(image).stem}-m{model}-p{policy}-c{mode}-f{flags}").write_bytes(
+                head + data + stroke(mode, press=bool(flags & 4)))
 
 
 if __name__ == "__main__":

@@ -7,6 +7,9 @@
  *   bench   IN OUT   the same input; OUT = u32 SysTick counts of every sd_renderer_step call,
  *                    then u32 the count of an empty measurement (the overhead to subtract).
  *                    With `-icount shift=S`, counts / (2^S * 0.025) = instructions.
+ *   react, react-bench   as vectors and bench with f64 press[n] after the stroke
+ *                    (sd_renderer_step_press); react's output ends with i64 the reaction events and
+ *                    their records (i64 kind, widget, tick, f64 value), as `sd_vectors react`
  * All memory is static; the runtime allocates nothing.
  */
 #include <stdint.h>
@@ -22,6 +25,8 @@ static sd_image_t img;
 static sd_renderer_t R;
 static double audio[1u << 16];
 static sd_real xs[TICKS_MAX], ys[TICKS_MAX];
+#define REACT_MAX (1u << 10)
+static sd_react_event_t rev_log[REACT_MAX];
 #define EVENTS_MAX (1u << 14)
 static double ev_log[2][EVENTS_MAX];     /* the stick-to-slip events: absolute time (s), amplitude */
 
@@ -65,11 +70,11 @@ int main(void)
 {
     static char cmd[512];
     char *argv[4] = {0};
-    int argc = 0, bench;
+    int argc = 0, bench, press;
     char *p;
     int32_t fd, got;
-    int64_t size, n, i, n_audio = 0, n_ev = 0;
-    const double *x, *y;
+    int64_t size, n, i, n_audio = 0, n_ev = 0, n_rev = 0;
+    const double *x, *y, *f = 0;
     sd_config_t C;
     int rc;
     if (m4_cmdline(cmd, sizeof cmd) != 0) return 2;
@@ -79,7 +84,8 @@ int main(void)
         while (*p && *p != ' ') p++;
     }
     if (argc != 4) return 2;
-    bench = strcmp(argv[1], "bench") == 0;
+    bench = strcmp(argv[1], "bench") == 0 || strcmp(argv[1], "react-bench") == 0;
+    press = strncmp(argv[1], "react", 5) == 0;
     fd = m4_open(argv[2], 0);
     if (fd < 0) return 2;
     got = m4_read(fd, in_buf, sizeof in_buf);
@@ -98,6 +104,7 @@ int main(void)
     if (n < 1 || n > TICKS_MAX) return 2;
     x = (const double *)take((uint32_t)(8 * n));
     y = (const double *)take((uint32_t)(8 * n));
+    if (press) f = (const double *)take((uint32_t)(8 * n));
     for (i = 0; i < n; i++) {        /* the cursor in the runtime's real type, converted outside the count */
         xs[i] = (sd_real)x[i];
         ys[i] = (sd_real)y[i];
@@ -106,13 +113,22 @@ int main(void)
     fd = m4_open(argv[3], 1);
     if (fd < 0) return 2;
     for (i = 0; i < n; i++) {
+        sd_real pi = press ? (sd_real)f[i] : (sd_real)0;   /* converted outside the count */
         if (bench) {
+            sd_react_event_t e;
             m4_count_start();
-            sd_renderer_step(&R, xs[i], ys[i]);
+            if (press) sd_renderer_step_press(&R, xs[i], ys[i], pi);
+            else sd_renderer_step(&R, xs[i], ys[i]);
             counts[i] = m4_count_read();
+            while (sd_react_pop(&R, &e)) {}      /* the host takes the events, outside the count */
         } else {
             long a;
-            sd_renderer_step(&R, xs[i], ys[i]);
+            if (press) {
+                sd_renderer_step_press(&R, xs[i], ys[i], pi);
+                while (n_rev < (int64_t)REACT_MAX && sd_react_pop(&R, &rev_log[n_rev])) n_rev++;
+            } else {
+                sd_renderer_step(&R, xs[i], ys[i]);
+            }
             write_outputs(fd, &R.out);
             if (n_audio + R.n_audio > (int64_t)(sizeof audio / sizeof audio[0])) return 2;
             for (a = 0; a < R.n_audio; a++) audio[n_audio + a] = (double)R.audio[a];
@@ -144,6 +160,18 @@ int main(void)
         m4_write(fd, &n_ev, 8);
         m4_write(fd, ev_log[0], (uint32_t)(8 * n_ev));
         m4_write(fd, ev_log[1], (uint32_t)(8 * n_ev));
+        if (press) {
+            m4_write(fd, &n_rev, 8);
+            for (i = 0; i < n_rev; i++) {
+                int64_t rec[3];
+                double v = (double)rev_log[i].value;
+                rec[0] = rev_log[i].kind;
+                rec[1] = rev_log[i].widget;
+                rec[2] = rev_log[i].tick;
+                m4_write(fd, rec, sizeof rec);
+                m4_write(fd, &v, 8);
+            }
+        }
     }
     m4_close(fd);
     return 0;

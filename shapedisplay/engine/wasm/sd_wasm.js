@@ -9,6 +9,9 @@
 //                                      // carries only mass, stiffness, damping, burst gain and stick limit;
 //                                      // karnopp and stribeck need a block: shapedisplay.studio.wasm.table_payload)
 //   const drive = rt.step(x, y);       // one tick, cursor in metres
+//   rt.step(x, y, press);              // ... pressing with `press` N (docs/reactive.md: buttons, toggles, ...)
+//   rt.reactions();                    // [{kind: "toggle", widget: 1, t, value}, ...]: events since the last call
+//   rt.widgetStates();                 // [{pressed, state, grabbed, dx, dy, thumb, value, ...}, ...] per widget
 //   rt.audio();                        // Float64Array view: the last tick's audio samples
 //   rt.outputs();                      // {t, x, y, vx, vy, normal_force, ...} of the last tick
 //   rt.tickEvents();                   // {t, a}: the last tick's stick-to-slip events (Float64Array views)
@@ -24,7 +27,11 @@ export const MODELS = {exact: 0, jump: 1, karnopp: 2, stribeck: 3};
 export const POLICIES = {retrigger: 0, add: 1, max: 2};
 export const OUT_NAMES = ["t", "x", "y", "vx", "vy", "normal_force", "friction_force", "state", "lateral_x",
                           "lateral_y", "skin_stretch", "events", "drive", "audio_samples", "pad_speed", "mu_s",
-                          "mu_k", "burst_gain"];
+                          "mu_k", "burst_gain", "press", "reactions"];
+// reaction events (SD_EV_*, numbered from 1) and the fields of a reactive widget's state (REACT_STATE)
+export const EVENT_KINDS = ["press", "release", "click", "toggle", "value", "grab", "drop"];
+export const REACT_STATE_FIELDS = ["pressed", "state", "grabbed", "dx", "dy", "grab_x", "grab_y", "thumb", "value",
+                                   "reported", "region", "clock"];
 // table channels in the runtime's slot order (SD_SLOT_*)
 export const SLOTS = ["normal_force", "friction_scale", "burst_gain", "grad_x", "grad_y", "lateral_x", "lateral_y",
                       "skin_stretch", "breakaway_force", "kinetic_force"];
@@ -125,7 +132,30 @@ export class SdRuntime {
 
   reset(t0 = 0) { this.x.sd_wasm_reset(t0); }
 
-  step(x, y) { return this.x.sd_wasm_step(x, y); }
+  step(x, y, press) { return press ? this.x.sd_wasm_step_press(x, y, press) : this.x.sd_wasm_step(x, y); }
+
+  // reaction events since the last call, oldest first: {kind, widget (index in the table's widgets), t, value}
+  reactions() {
+    const out = [];
+    for (let p = this.x.sd_wasm_react_pop(); p; p = this.x.sd_wasm_react_pop()) {
+      const v = this._f64(p, 4);
+      out.push({kind: EVENT_KINDS[v[0] - 1], widget: v[1], t: v[2], value: v[3]});
+    }
+    return out;
+  }
+
+  // every reactive widget's state (REACT_STATE_FIELDS), in the table's reaction order
+  widgetStates() {
+    const n = this.x.sd_wasm_react_n(), k = this.x.sd_wasm_react_state_size();
+    const v = this._f64(this.x.sd_wasm_react_states(), n * k);
+    const out = [];
+    for (let i = 0; i < n; i++) {
+      const o = {};
+      REACT_STATE_FIELDS.forEach((f, j) => { o[f] = v[i * k + j]; });
+      out.push(o);
+    }
+    return out;
+  }
 
   audio() { return this._f64(this.x.sd_wasm_audio(), this.x.sd_wasm_audio_count()); }
 
