@@ -34,7 +34,10 @@ demo: $(STAMP)
 	$(SD) play $(OUT)/keycap.npz --stroke "0,9 -> 18,9 @ 20mm/s" -o $(OUT)/keycap.wav
 	# 4. a 3D preview of the scene with the played stroke (off-screen)
 	$(SD) preview $(OUT)/phone.npz --trace $(OUT)/phone-trace.npz --color N -o $(OUT)/phone-preview.png
-	@echo "demo outputs in $(OUT)/: tent.npz phone.npz phone.wav phone-trace.npz phone-trace.png phone-preview.png keycap.npz keycap.wav"
+	# 5. widgets that react (docs/reactive.md): press the button, flip the toggle, drag the slider's thumb across its detents
+	$(SD) compile assets/scenes/reactive.toml -o $(OUT)/reactive.npz
+	$(SD) play $(OUT)/reactive.npz --stroke "20,15 -> 20,20 @ 20mm/s; press 3N 150ms; -> 60,20 @ 20mm/s; press 3N 150ms; -> 15,45 @ 30mm/s; press 3N 50ms; -> 55,45 @ 20mm/s press 3N; press 0N 10ms" --model jump -o $(OUT)/reactive.wav --trace-out $(OUT)/reactive-trace.npz --plot $(OUT)/reactive-trace.png
+	@echo "demo outputs in $(OUT)/: tent.npz phone.npz phone.wav phone-trace.npz phone-trace.png phone-preview.png keycap.npz keycap.wav reactive.npz reactive.wav reactive-trace.npz reactive-trace.png"
 
 bench: $(STAMP)
 	for b in benchmarks/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done

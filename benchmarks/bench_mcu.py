@@ -9,6 +9,11 @@ measurement's own cost subtracted). One line per configuration:
 
     instructions per tick: mean M max X (model, policy, tick rate, audio rate)
 
+and one with reactions active (the bundled reactive scene played with a press per tick:
+runtime_vectors.REACT_BENCH):
+
+    reactions active: instructions per tick mean M median D max X (...)
+
 karnopp and stribeck take pad parameters the binary table image does not carry, so they are played
 the way firmware binds a table: the table exported as a C header (`export_c(table, "sd_table.h",
 name="sd_table")`), `sd_table_bind()` then `sd_table_use_model()` (the parameters the package derives
@@ -40,8 +45,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_c_runtime import CDIR, library_sources  # noqa: E402
-from runtime_vectors import (ICOUNT_SHIFT, QEMU_M4, build_m4, case_setup, image_payload,  # noqa: E402
-                             m4_instructions, run_m4)
+from runtime_vectors import (ICOUNT_SHIFT, QEMU_M4, REACT_BENCH, build_m4, case_setup, image_payload,  # noqa: E402
+                             m4_instructions, react_payload, react_setup, run_m4)
 from shapedisplay.exchange.export import export_c  # noqa: E402
 
 # (model, policy, tick rate, audio rate, stroke seconds: shorter where a tick costs millions)
@@ -167,7 +172,7 @@ def main() -> int:
     if missing:
         print(f"bench_mcu: needs {missing} (scripts/install-system-deps.sh --with-toolchains)")
         return 2
-    small = ("-DSD_EVENT_RING=128", "-DSD_AUDIO_BLOCK_MAX=16")
+    small = ("-DSD_EVENT_RING=128", "-DSD_AUDIO_BLOCK_MAX=16", "-DSD_MAX_REACTIVE=8", "-DSD_REACT_QUEUE=16")
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         precisions = ("single",) if quick else ("single", "double")
@@ -188,6 +193,14 @@ def main() -> int:
                   f"({model}, {policy}, {tick / 1000:g} kHz tick, {audio / 1000:g} kHz audio)"
                   f"  median {np.median(ins):.0f}, {ins.size} ticks, mean = {ins.mean() / BUDGET:.2f} x the 16.8k "
                   f"budget, single precision")
+        # reactions active (docs/reactive.md): the bundled reactive scene with a press per tick -- a button pressed,
+        # a toggle flipped, a slider's thumb dragged across its detents, an object dragged, a list scrolling
+        table, r, x, y, press, img = react_setup("bench", REACT_BENCH, "jump", 10_000.0, 48_000.0)
+        ins = m4_instructions(run_m4(builds["single"], "react-bench", react_payload(img, r, x, y, press), tmp_run,
+                                     icount=True))
+        print(f"reactions active: instructions per tick mean {ins.mean():.0f} median {np.median(ins):.0f} "
+              f"max {ins.max():.0f} (jump, retrigger, 10 kHz tick, 48 kHz audio, assets/scenes/reactive.toml)  "
+              f"{ins.size} ticks, mean = {ins.mean() / BUDGET:.2f} x the 16.8k budget, single precision")
         # karnopp and stribeck (and jump, to compare the routes) bound from the C header export
         for model, policy, tick, audio, seconds in HEADER_CONFIGS:
             table, r, x, y, img = case_setup("uint16", "diagonal", policy, tick, audio, model, seconds=seconds)

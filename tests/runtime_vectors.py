@@ -9,6 +9,7 @@ audio rate, i64 n, f64 x[n], f64 y[n]. Output: sd_outputs_t out[n]
 (layouts.OUTPUTS records), i64 n_audio, f64 audio[n_audio], i64 clipped, events,
 events dropped, cursor samples held as faults.
 """
+import functools
 import struct
 
 import numpy as np
@@ -169,7 +170,8 @@ def derived_bounds(r, outs, unit_roundoff: float, libm_ulps: float = 1.0):
     ev = outs["events"] > 0
     k = r.device.pad.stiffness
     x_max = F.max() / k                           # largest spring stretch seen, m
-    v_min = V[ev].min() if ev.any() else 1.0      # slowest surface speed at an event, m/s
+    moving = ev & (V > 0)                         # (a breakaway under a falling N -- a click's friction drop --
+    v_min = V[moving].min() if moving.any() else 1.0   # fires with the surface still, at the tick's start)
     K = 16.0 * max(libm_ulps, 1.0)                # <= 8 libm results of 2u each along a re-stick
     dt = K * u * x_max / v_min                    # a re-stick stretch error, turned into time by V
     h = 1.0 / r.tick_rate
@@ -203,7 +205,8 @@ def float_bounds(r, table, x, y, po, pt):
     V = np.abs(po["pad_speed"])
     ev = po["events"] > 0
     x_max = F.max() / k                            # largest spring stretch
-    v_min = V[ev].min() if ev.any() else 1.0       # slowest surface speed at an event
+    moving = ev & (V > 0)                          # slowest surface speed at an event (one fired by a falling
+    v_min = V[moving].min() if moving.any() else 1.0   # N -- a click's friction drop -- has the surface still)
     P = max(np.abs(x).max(), np.abs(y).max())      # largest coordinate: inputs rounded by u P
     d = np.stack([np.diff(x), np.diff(y)], 1)
     d = d[np.hypot(d[:, 0], d[:, 1]) > 0]
@@ -233,7 +236,11 @@ def float_bounds(r, table, x, y, po, pt):
     # envelope slope x time error + carrier (anchor 2 ulp + angle rounding pi u + 64 rotations of 4 roundings)
     # + amplitude and envelope rounding (K u per live burst)
     d_drive = (w + 1.0 / b.rise_s) * dt + (2 * FLOAT_LIBM_ULPS * 2 + np.pi + 4.0 * 64) * u + K * u * amp
-    d_force = K * u * F.max() + k * (V * dt + 2.0 * u * P)   # per tick: the stretch moved at this tick's V
+    # per tick: the stretch moved at this tick's V -- on a tick where the finger rests, at the V it last moved
+    # with (the stretch error it left stays until the next slip)
+    last = np.maximum.accumulate(np.where(V > 0, np.arange(V.size), 0))
+    V_carry = np.maximum(V, V[last])
+    d_force = K * u * F.max() + k * (V_carry * dt + 2.0 * u * P)
     return dt, d_drive, d_force
 
 
@@ -361,3 +368,125 @@ def tick_path_functions(elf) -> dict:
             seen[f] = calls.get(f, set())
             todo += sorted(seen[f])
     return seen
+
+
+# ------------------------------------------------------------------ reactions (docs/reactive.md)
+#: (name, stroke over assets/scenes/reactive.toml, model, tick rate, audio rate): every target plays these with
+#: the press force of each tick; the reaction events must be the same everywhere (kind, widget, tick).
+REACT_CASES = [
+    ("widgets", "20,20 -> 20,20.5 @ 50mm/s; press 3N 20ms; -> 60,20 @ 300mm/s; press 3N 20ms; "
+                "-> 14,45 @ 300mm/s; press 3N 10ms; -> 40,45 @ 170mm/s press 3N; press 0N 10ms", "jump", 4_000.0,
+     48_000.0),
+    ("widgets-exact", "20,20 -> 20,20.5 @ 50mm/s; press 3N 20ms; -> 60,20 @ 300mm/s; press 3N 20ms; "
+                      "-> 14,45 @ 300mm/s; press 3N 10ms; -> 40,45 @ 170mm/s press 3N; press 0N 10ms", "exact",
+     4_000.0, 48_000.0),
+    ("moving", "86,62 -> 86,62.5 @ 50mm/s; press 3N 10ms; -> 100,70 @ 200mm/s press 3N; press 0N 10ms; "
+               "-> 100,30 @ 300mm/s; -> 100,22 @ 40mm/s", "jump", 4_000.0, 48_000.0),
+]
+
+
+#: The stroke of the M4F benchmark with reactions (10 kHz ticks): every kind of reactive widget pressed, dragged
+#: or stroked in about a second.
+REACT_BENCH = ("20,20 -> 20,20.5 @ 50mm/s; press 3N 30ms; -> 60,20 @ 200mm/s; press 3N 30ms; -> 14,45 @ 200mm/s; "
+               "press 3N 20ms; -> 50,45 @ 150mm/s press 3N; press 0N 10ms; -> 86,62 @ 200mm/s; press 3N 20ms; "
+               "-> 100,70 @ 100mm/s press 3N; press 0N 10ms; -> 100,30 @ 200mm/s; -> 100,20 @ 40mm/s")
+
+
+@functools.cache
+def reactive_table():
+    """The bundled reactive scene, compiled (once per process)."""
+    from pathlib import Path
+    from shapedisplay.author.scene.compiler import compile_scene
+    return compile_scene(Path(__file__).resolve().parent.parent / "assets" / "scenes" / "reactive.toml").table
+
+
+def react_setup(name, stroke, model, tick, audio):
+    """Table, renderer, cursor (x, y, press) and image of one reaction case."""
+    from shapedisplay.render import Renderer
+    from shapedisplay.render.cursor import parse_stroke
+    table = reactive_table()
+    r = Renderer(table, model=model, tick_rate=tick, audio_rate=audio)
+    cp = parse_stroke(stroke, tick)
+    return table, r, cp.x, cp.y, cp.press, to_image(table)
+
+
+def react_payload(image: bytes, r, x, y, press) -> bytes:
+    """Input of `sd_vectors react` and the M4 harness's react modes: the image payload, then f64 press[n]."""
+    return image_payload(image, r, x, y) + np.asarray(press, "<f8").tobytes()
+
+
+def parse_reactions(raw: bytes, n: int) -> np.ndarray:
+    """The reaction events after the stick-slip event log: REACT_EVENT records."""
+    from shapedisplay.render.layouts import REACT_EVENT
+    pos = OUTPUTS.itemsize * n
+    (na,) = struct.unpack_from("<q", raw, pos)
+    pos += 8 + 8 * na + 32
+    (ne,) = struct.unpack_from("<q", raw, pos)
+    pos += 8 + 16 * ne
+    (nr,) = struct.unpack_from("<q", raw, pos)
+    return np.frombuffer(raw, REACT_EVENT.newbyteorder("<"), nr, pos + 8)
+
+
+def py_render_reactions(r, x, y, press):
+    """The package renderer tick by tick with the press: outputs, audio, event times and amplitudes, and the
+    reaction events (REACT_EVENT records, ticks from 0)."""
+    from shapedisplay.render.layouts import OUTPUTS as _O, REACT_EVENT
+    r.reset()
+    outs, audio, et, ea, rev = [], [], [], [], []
+    for xi, yi, pi in zip(x, y, press):
+        r.step(float(xi), float(yi), float(pi))
+        o = r.last.copy()
+        outs.append(o)
+        audio.append(r.audio_block[:int(o["audio_samples"])].copy())
+        k = int(o["events"])
+        if k:
+            t, a = r.recent_events()
+            et.append(t[-k:])
+            ea.append(a[-k:])
+        for e in r.reactions():
+            rev.append(e)
+    cat = (lambda v: np.concatenate(v) if v else np.zeros(0))
+    from shapedisplay.render.layouts import EVENT_KINDS
+    ids = r._widget_ids
+    recs = np.zeros(len(rev), REACT_EVENT)
+    for i, e in enumerate(rev):
+        recs[i] = (EVENT_KINDS.index(e.kind) + 1, ids.index(e.widget), int(round(e.t * r.tick_rate)), e.value)
+    return np.array(outs, dtype=_O), np.concatenate(audio), cat(et), cat(ea), recs
+
+
+def assert_same_reactions(got, want, value_tol=0.0):
+    """The same reaction events: kinds, widgets and ticks equal, values within ``value_tol``."""
+    assert got.size == want.size, (got, want)
+    for f in ("kind", "widget", "tick"):
+        np.testing.assert_array_equal(got[f], want[f], err_msg=f)
+    np.testing.assert_allclose(got["value"], want["value"], rtol=0, atol=value_tol)
+
+
+def wasm_play_reactions(runner, image: bytes, r, x, y, press):
+    """Tick by tick through the exports with the press (sd_wasm_step_press), popping the reaction events after
+    every tick: outputs, audio, counters, stick-slip events and reaction events as REACT_EVENT records."""
+    from shapedisplay.render.layouts import REACT_EVENT
+    assert runner.load(image) == 0
+    assert runner.call("sd_wasm_configure", int(r.config["model"]), int(r.config["policy"]), r.tick_rate,
+                       r.audio_rate) == 0
+    nout = runner.call("sd_wasm_n_outputs")
+    outs, audio, et, ea, rev = [], [], [], [], []
+    for xi, yi, pi in zip(x, y, press):
+        runner.call("sd_wasm_step_press", float(xi), float(yi), float(pi))
+        outs.append(runner.read(runner.call("sd_wasm_outputs"), 8 * nout))
+        na = runner.call("sd_wasm_audio_count")
+        audio.append(np.frombuffer(runner.read(runner.call("sd_wasm_audio"), 8 * na), "<f8"))
+        ne = runner.call("sd_wasm_tick_events")
+        if ne:
+            et.append(np.frombuffer(runner.read(runner.call("sd_wasm_event_times"), 8 * ne), "<f8"))
+            ea.append(np.frombuffer(runner.read(runner.call("sd_wasm_event_amplitudes"), 8 * ne), "<f8"))
+        while True:
+            p = runner.call("sd_wasm_react_pop")
+            if not p:
+                break
+            k, w, t, v = np.frombuffer(runner.read(p, 32), "<f8")
+            rev.append((int(k), int(w), int(round(t * r.tick_rate)), v))
+    cat = (lambda v: np.concatenate(v) if v else np.zeros(0))
+    counters = tuple(int(runner.call("sd_wasm_counter", i)) for i in range(4))
+    return (np.frombuffer(b"".join(outs), OUTPUTS), cat(audio), counters, cat(et), cat(ea),
+            np.array(rev, REACT_EVENT) if rev else np.zeros(0, REACT_EVENT))

@@ -153,3 +153,76 @@ def test_widget_map_matches_the_scene_and_json_carries_it(phone, tmp_path):
     rows, cols = on.patch_shapes[p]
     got = np.array(tj["states"][1]["channels"]["normal_force"])
     np.testing.assert_array_equal(got, on.dense("normal_force")[r0:r0 + rows, c0:c0 + cols])
+
+
+REACT_PLAYER_C = r"""
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "sd_runtime.h"
+#include "react.h"
+static sd_renderer_t R;
+static int32_t blocks[SD_TABLE_N_BLOCKS][5];
+int main(int argc, char **argv)
+{
+    sd_table_t T;
+    sd_config_t C;
+    sd_react_event_t e;
+    FILE *in = fopen(argv[1], "rb"), *out = fopen(argv[2], "wb");
+    long long n, i;
+    double xyp[3];
+    (void)argc;
+    sd_table_bind(&T, &C, blocks);
+    C.audio_rate = 48000.0;
+    if (sd_renderer_init(&R, &T, &C) != SD_OK || !in || !out || fread(&n, 8, 1, in) != 1) return 2;
+    for (i = 0; i < n; i++) {
+        double d;
+        if (fread(xyp, 8, 3, in) != 3) return 2;
+        d = sd_renderer_step_press(&R, xyp[0], xyp[1], xyp[2]);
+        fwrite(&d, 8, 1, out);
+        while (sd_react_pop(&R, &e)) fprintf(stderr, "%lld %lld %lld %.17g\n", (long long)e.kind, (long long)e.widget,
+                                             (long long)e.tick, (double)e.value);
+    }
+    /* the states the header names */
+    fprintf(stderr, "toggle %g thumb %.17g\n", (double)R.react.state[SD_TABLE_REACT_TOGGLE].state,
+            (double)R.react.state[SD_TABLE_REACT_SLIDER].thumb);
+    return fclose(out) == 0 ? 0 : 2;
+}
+"""
+
+
+def test_reactive_header_plays_reactions_as_the_package(tmp_path):
+    """The bundled reactive scene's header: the engine bound from it alone (sd_table_bind: the reactive widgets'
+    records, NAME_REACT_<ID> to read their states by) presses, flips, drags as ``Renderer`` does: the same
+    events, drive bit for bit, the toggle's and thumb's final states."""
+    from shapedisplay.render.cursor import parse_stroke
+    from shapedisplay.render.layouts import EVENT_KINDS
+    table = compile_scene(ROOT / "assets" / "scenes" / "reactive.toml").table
+    export_c(table, tmp_path / "react.h", name="sd_table")
+    (tmp_path / "play.c").write_text(REACT_PLAYER_C)
+    exe = tmp_path / "play"
+    cmd = [_cc(), *STRICT, "-I", str(CDIR), "-I", str(tmp_path), str(tmp_path / "play.c"),
+           *(str(p) for p in sorted(CDIR.glob("sd_*.c")) if p.name != "sd_wasm.c"), "-lm", "-o", str(exe)]
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=180)
+    assert res.returncode == 0, res.stderr
+    r = Renderer(table, model="jump", tick_rate=table.meta.get("tick_rate_hz", 10_000.0), audio_rate=48_000.0)
+    cp = parse_stroke("20,20 -> 20,20.5 @ 50mm/s; press 3N 20ms; -> 60,20 @ 300mm/s; press 3N 20ms; "
+                      "-> 14,45 @ 300mm/s; press 3N 10ms; -> 40,45 @ 170mm/s press 3N; press 0N 10ms", r.tick_rate)
+    data = struct.pack("<q", cp.t.size) + np.stack([cp.x, cp.y, cp.press], 1).astype("<f8").tobytes()
+    (tmp_path / "in").write_bytes(data)
+    res = subprocess.run([str(exe), str(tmp_path / "in"), str(tmp_path / "out")], capture_output=True, text=True,
+                         timeout=120)
+    assert res.returncode == 0, res.stderr
+    lines = res.stderr.strip().splitlines()
+    r.reset()
+    drive = np.array([r.step(x, y, p) for x, y, p in zip(cp.x, cp.y, cp.press)])
+    np.testing.assert_array_equal(np.frombuffer((tmp_path / "out").read_bytes(), "<f8"), drive)
+    want = r.render(cp)
+    ids = [w["id"] for w in table.meta["scene"]["widgets"]]
+    got = [ln.split() for ln in lines[:-1]]
+    assert [EVENT_KINDS[int(g[0]) - 1] for g in got] == list(want.event_kind)
+    assert [ids[int(g[1])] for g in got] == list(want.event_widget)
+    np.testing.assert_array_equal([int(g[2]) / r.tick_rate for g in got], want.event_t)
+    states = r.widget_states()
+    assert lines[-1] == f"toggle {states['toggle']['state']:g} thumb {states['slider']['thumb']:.17g}"
+    assert states["toggle"]["state"] == 1.0

@@ -43,7 +43,9 @@ def fuzz_dir(tmp_path_factory):
     seeds = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(seeds)
     images = []
-    for i, table in enumerate((widget_table("uint16"), widget_table("uint8"), widget_table("float32", sparse=False))):
+    from runtime_vectors import reactive_table      # a version 2 image: reactive widgets and moving parts
+    for i, table in enumerate((widget_table("uint16"), widget_table("uint8"), widget_table("float32", sparse=False),
+                               reactive_table())):
         path = tmp / f"widgets{i}.sdt"
         path.write_bytes(I.to_image(table))
         images.append(str(path))

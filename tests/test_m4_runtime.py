@@ -11,9 +11,10 @@ import shutil
 import numpy as np
 import pytest
 
-from runtime_vectors import (CASES, assert_within_derived_bounds, assert_within_float_bounds, build_m4, case_setup,
-                             image_payload, m4_instructions, parse_events, parse_outputs, py_render_events, run_m4,
-                             tick_path_functions)
+from runtime_vectors import (CASES, REACT_CASES, assert_same_reactions, assert_within_derived_bounds,
+                             assert_within_float_bounds, build_m4, case_setup, image_payload, m4_instructions,
+                             parse_events, parse_outputs, parse_reactions, py_render_events, py_render_reactions,
+                             react_payload, react_setup, run_m4, tick_path_functions)
 from test_c_runtime import py_render
 
 _MISSING = [t for t in ("arm-none-eabi-gcc", "qemu-system-arm", "make") if shutil.which(t) is None]
@@ -89,3 +90,30 @@ def test_m4_instruction_counts_are_measured(m4, tmp_path):
     ev = po["events"] > 0
     assert a.size == len(x) and (a > 50).all()
     assert np.median(a[ev]) > np.median(a[~ev])
+
+
+@pytest.mark.parametrize("name, stroke, model, tick, audio", REACT_CASES)
+def test_m4_single_precision_plays_the_reaction_vectors(m4, tmp_path, name, stroke, model, tick, audio):
+    """The reactive scene with a press per tick on the M4F: the same reaction events (kind, widget, tick; values
+    within float rounding), outputs within the derived bounds of the single-precision build."""
+    elf, _ = m4
+    table, r, x, y, press, img = react_setup(name, stroke, model, tick, audio)
+    po, pa, pt, pA, prev = py_render_reactions(r, x, y, press)
+    raw = run_m4(elf, "react", react_payload(img, r, x, y, press), tmp_path)
+    co, ca, (cclip, cev, cdrop, cfault) = parse_outputs(raw, len(x))
+    ct, cA = parse_events(raw, len(x))
+    assert cev == len(pt) and cdrop == 0 and ca.size == pa.size
+    assert_same_reactions(parse_reactions(raw, len(x)), prev, value_tol=1e-5)
+    assert_within_float_bounds(r, table, x, y, po, pa, pt, pA, co, ca, ct, cA)
+
+
+def test_m4_tick_with_reactions_within_budget(m4, tmp_path):
+    """Instructions per tick on the M4F with reactions active (the reactive scene: a button pressed, a toggle
+    flipped, a thumb dragged, an object dragged, a list scrolling under the finger), jump model, 10 kHz ticks,
+    48 kHz audio: the mean stays within 8,400 (half the 16.8k cycles of a 168 MHz core, instructions being at
+    most cycles)."""
+    from runtime_vectors import REACT_BENCH
+    elf, _ = m4
+    table, r, x, y, press, img = react_setup("bench", REACT_BENCH, "jump", 10_000.0, 48_000.0)
+    ins = m4_instructions(run_m4(elf, "react-bench", react_payload(img, r, x, y, press), tmp_path, icount=True))
+    assert ins.size == len(x) and ins.mean() <= 8_400, (ins.mean(), ins.max())

@@ -14,8 +14,9 @@ from shapedisplay.render import Renderer, wasm
 from shapedisplay.render.layouts import OUTPUTS
 from shapedisplay.render.models import MODEL_IDS
 
-from runtime_vectors import (CASES, WasmRunner, assert_within_derived_bounds, assert_within_float_bounds, case_setup,
-                             derived_bounds, py_render_events, wasm_play_events)
+from runtime_vectors import (CASES, REACT_CASES, WasmRunner, assert_same_reactions, assert_within_derived_bounds,
+                             assert_within_float_bounds, case_setup, derived_bounds, py_render_events,
+                             py_render_reactions, react_setup, wasm_play_events, wasm_play_reactions)
 from test_c_runtime import CDIR, py_render
 
 pytest.importorskip("wasmtime", reason="wasmtime (pip install 'shapedisplay[test]') runs the WebAssembly tests")
@@ -176,4 +177,28 @@ def test_wasm_single_precision_within_derived_bounds(single_module, dtype, kind,
     po, pa, pt, pA = py_render_events(r, x, y)
     co, ca, (cclip, cev, cdrop, cfault), ct, cA = wasm_play_events(WasmRunner(single_module), img, r, x, y)
     assert len(pt) > 10 and cev == len(pt) and cdrop == 0 and ca.size == pa.size
+    assert_within_float_bounds(r, table, x, y, po, pa, pt, pA, co, ca, ct, cA)
+
+
+@pytest.mark.parametrize("name, stroke, model, tick, audio", REACT_CASES)
+def test_wasm_plays_the_reaction_vectors(name, stroke, model, tick, audio):
+    """The shipped module with a press per tick (sd_wasm_step_press): the same reaction events as the host
+    engine (kind, widget, tick, value), outputs within the derived bounds of another libm."""
+    table, r, x, y, press, img = react_setup(name, stroke, model, tick, audio)
+    po, pa, pt, pA, prev = py_render_reactions(r, x, y, press)
+    co, ca, (cclip, cev, cdrop, cfault), ct, cA, crev = wasm_play_reactions(WasmRunner(wasm.MODULE), img, r, x, y,
+                                                                          press)
+    assert cev == len(pt) and cdrop == 0 and ca.size == pa.size
+    assert_same_reactions(crev, prev)
+    assert_within_derived_bounds(r, po, pa, co, ca)
+
+
+@pytest.mark.parametrize("name, stroke, model, tick, audio", REACT_CASES)
+def test_wasm_single_precision_plays_the_reaction_vectors(single_module, name, stroke, model, tick, audio):
+    table, r, x, y, press, img = react_setup(name, stroke, model, tick, audio)
+    po, pa, pt, pA, prev = py_render_reactions(r, x, y, press)
+    co, ca, (cclip, cev, cdrop, cfault), ct, cA, crev = wasm_play_reactions(WasmRunner(single_module), img, r, x, y,
+                                                                          press)
+    assert cev == len(pt) and cdrop == 0 and ca.size == pa.size
+    assert_same_reactions(crev, prev, value_tol=1e-5)
     assert_within_float_bounds(r, table, x, y, po, pa, pt, pA, co, ca, ct, cA)

@@ -265,6 +265,8 @@ def composite(scene: Scene, region, states: dict | None = None, members=None):
     idx = range(len(scene.widgets)) if members is None else sorted(members)
     for i in idx:
         w = scene.widgets[i]
+        if w.params.get("part") and states.get(w.id) not in ("part", "rest"):
+            continue                        # a moving part (reactions.py): a patch of its own, not the blocks'
         loc = _widget_local(w, r0, c0, r1, c1, is_1d)
         if loc is None:
             continue
@@ -296,7 +298,8 @@ def scene_heightfield(scene, states: dict | None = None) -> HeightField:
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
     c = scene.canvas
-    h, _ = composite(scene, (0, 0, c.rows - 1, c.cols - 1), states)
+    rest = {w.id: "rest" for w in scene.widgets if w.params.get("part") or w.params.get("thumb_part")}
+    h, _ = composite(scene, (0, 0, c.rows - 1, c.cols - 1), {**rest, **(states or {})})
     lo, hi = height_limits(scene)
     np.clip(h, lo, hi, out=h)
     return HeightField(h, c.spacing, c.spacing, 0.0, 0.0, f"scene {scene.name}",
@@ -477,13 +480,14 @@ def _merge_clamp(acc: dict, notes: dict, samples: int) -> None:
         a["raw_min"], a["raw_max"] = min(a["raw_min"], c["raw_min"]), max(a["raw_max"], c["raw_max"])
 
 
-def _group_channels(scene, rect, reach, states, device, mapping, options, kept, lims, clamped=None):
-    """Channels of one block: dict name -> (rows, cols) float64; plus wall and clamp notes."""
+def _group_channels(scene, rect, reach, states, device, mapping, options, kept, lims, clamped=None, members=None):
+    """Channels of one block (of ``members`` alone when given): dict name -> (rows, cols) float64; plus wall and
+    clamp notes."""
     from shapedisplay.author.gradients import detect_walls, gradient, limit_walls
     from shapedisplay.author.forces import force_channels
     c = scene.canvas
     calc = _grow(rect, reach, c.rows, c.cols)
-    h, data = composite(scene, calc, states)
+    h, data = composite(scene, calc, states, members)
     np.clip(h, lims[0], lims[1], out=h)
     s = c.spacing
     hf_calc = HeightField(h, s, s, calc[1] * s, calc[0] * s, f"scene {scene.name}")
@@ -636,12 +640,23 @@ def compile_scene(path, device=None, options=None, confine: bool = False):
         wall_blocks += bool(wc)
         blocks.append({"group": g, "main": main, "toggle": toggle, "variants": variants})
 
+    # -- moving parts (docs/reactive.md): each compiled alone, stored as a patch the engine adds where it moved
+    from shapedisplay.author.scene.reactions import part_rect, reaction_entries
+    moving = {}
+    for k, w in enumerate(scene.widgets):
+        if w.params.get("part") or w.params.get("thumb_part"):
+            rect = part_rect(w, reach, canvas.rows, canvas.cols)
+            moving[w.id] = (rect, _group_channels(scene, rect, reach, {w.id: "thumb" if w.params.get("thumb_part")
+                                                                       else "part"}, dev, mapping, options, kept,
+                                                  lims, None, [k])[0])
+
     # -- quantization over every stored value and the background
     background = _background(scene, dev, mapping, kept)
     quant, qinfo = {}, {}
     for name in kept:
         parts = [b["main"][name].ravel() for b in blocks]
         parts += [v[name].ravel() for b in blocks for v in b["variants"].values()]
+        parts += [ch[name].ravel() for _, ch in moving.values()]
         parts.append(np.array([background[name]]))
         values = np.concatenate(parts)
         n_min = None
@@ -667,6 +682,8 @@ def compile_scene(path, device=None, options=None, confine: bool = False):
         for st, chans in b["variants"].items():
             st_patch[st] = table.blocks[bi][2] if st == t.params["state"] else _append_patch(table, chans)
         toggles[t.id] = {"block": bi, "states": st_patch, "state": t.params["state"]}
+    part_patches = {wid: (rect[0], rect[1], _append_patch(table, ch)) for wid, (rect, ch) in moving.items()}
+    reactions = reaction_entries(scene, table, part_patches)
 
     # -- report
     bps = sum(np.dtype(quant[n].dtype).itemsize for n in kept)
@@ -762,6 +779,8 @@ def compile_scene(path, device=None, options=None, confine: bool = False):
         "widgets": [{"id": w.id, "type": w.type, "bbox_m": list(w.bbox), "label": w.label} for w in scene.widgets],
         "toggles": toggles,
     }
+    if reactions:                           # reactive widgets the engine plays (render/reactions.py)
+        meta["scene"]["reactions"] = reactions
     table.meta = meta
     return CompileResult(table, report)
 

@@ -59,6 +59,7 @@ from shapedisplay.errors import FileFormatError, InputError, did_you_mean
 from shapedisplay.author.forces import DEFAULT_SLOPE_FRICTION_GAIN, MappingOptions
 from shapedisplay.author.scene.fields import Canvas, Ctx, SceneError, Widget, check_keys, choice, length, number, pair, quantity
 from shapedisplay.author.scene.widgets import WIDGET_TYPES, place_widget
+from shapedisplay.author.scene.reactions import REACTION_KEYS, finish_reactions, reaction_keys
 
 SECTIONS = ("scene", "canvas", "device", "mapping", "defaults", "widget")
 CANVAS_KEYS = ("size", "pixels", "dpi", "resolution", "origin")
@@ -111,6 +112,9 @@ class Scene:
     #: What the legibility check reads (docs/perception.md): ``{"contrast": {id: what was asked and the
     #: force chosen}, "distinct_from": {id: [ids]}}``.
     perception: dict = field(default_factory=dict)
+    #: Reactive widgets (docs/reactive.md, author/scene/reactions.py): ``{id: {"kind", "press_n", "release_n",
+    #: "click", "motion"}}``.
+    reactions: dict = field(default_factory=dict)
 
     def widget(self, wid: str) -> Widget:
         for w in self.widgets:
@@ -372,6 +376,7 @@ def parse_scene(data: dict, path: str = "<scene>", base_dir: Path | None = None,
                          f"(types: {', '.join(sorted(WIDGET_TYPES))})")
     widgets, seen, perception = [], {}, {"contrast": {}, "distinct_from": {}}
     deferred = []                           # widgets whose `contrast` is against another widget
+    reactive: dict = {}                     # reaction keys per widget id (reactions.py)
     for i, raw in enumerate(raw_widgets):
         if not isinstance(raw, dict):
             raise ctx.error(f"widget[{i}]", f"widget[{i}]", f"must be a table [[widget]] (got {raw!r})")
@@ -388,8 +393,11 @@ def parse_scene(data: dict, path: str = "<scene>", base_dir: Path | None = None,
             raise ctx.error(where, f"widget[{i}].type",
                             f"names an unknown widget type {wtype!r}{hint}; valid: {', '.join(sorted(WIDGET_TYPES))}")
         wt = WIDGET_TYPES[wtype]
-        check_keys(raw, list(wt.keys) + list(PERCEPTION_KEYS), ctx, where, f"widget[{i}].")
+        check_keys(raw, list(wt.keys) + list(PERCEPTION_KEYS) + list(REACTION_KEYS), ctx, where, f"widget[{i}].")
         raw, asked = _perception_keys(raw, wt, i, where, ctx, perception)
+        raw, react = reaction_keys(raw, wt, i, where, ctx, canvas.is_1d)
+        if react is not None:
+            reactive[wid] = react
         merged = {k: v for k, v in common_defaults.items() if k in wt.keys}
         merged.update(type_defaults.get(wtype, {}))
         # strength keys from defaults must not fight the widget's own choice
@@ -436,8 +444,9 @@ def parse_scene(data: dict, path: str = "<scene>", base_dir: Path | None = None,
                 raise ctx.error(f"widget[{i}] '{wid}'", f"widget[{i}].distinct_from",
                                 ("must name other widgets, not the widget itself" if other == wid else
                                  f"names no widget '{other}'{did_you_mean(other, list(seen))}") + f" (got {other!r})")
+    reactions = finish_reactions(widgets, reactive, ctx, dev)
     return Scene(path, name, description, canvas, dev, dev_src, mapping, tuple(widgets),
-                 tuple(ctx.warnings), levels, direction=direction, perception=perception)
+                 tuple(ctx.warnings), levels, direction=direction, perception=perception, reactions=reactions)
 
 
 # --------------------------------------------------------------- legibility keys

@@ -368,9 +368,17 @@ class Slider(WidgetType):
             band = inside_distance(u, v - (H - tw) / 2, W, tw, tw / 2, False)
             vc = H / 2
         mask = np.where(band > 0, edge_profile(band / p["track_ramp"], p["edge"]), 0.0)
-        h = sign * p["track_depth"] * mask
         r = np.abs(u - self.thumb_center(p, L)) if is_1d else np.hypot(u - self.thumb_center(p, L), v - vc)
-        h = h + p["height"] * raised_cosine(r, p["thumb_size"] / 2)
+        thumb = p["height"] * raised_cosine(r, p["thumb_size"] / 2)
+        if p.get("thumb_part"):
+            # a thumb that follows the finger (docs/reactive.md) is a part of its own: the table's block holds
+            # the track ("rest" draws both, for previews), the part the thumb alone ("thumb")
+            if state == "thumb":
+                return thumb + 0.0 * (u + v)
+            if state != "rest":
+                thumb = 0.0 * thumb
+        h = sign * p["track_depth"] * mask
+        h = h + thumb
         if p["detents"]:
             det = np.zeros(np.broadcast(u, v).shape)
             for k in range(1, p["detents"] + 1):
