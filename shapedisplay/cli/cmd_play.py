@@ -6,6 +6,10 @@ STROKE_HELP = ('cursor stroke in mm on the table grid: "0,10 -> 60,10 -> 60,30 @
                '"62,30 -> 62,60 @ 30mm/s; press 2N 150ms; -> 90,60 @ 20mm/s press 1N"')
 
 
+#: Reaction events printed at most (the trace and --json hold them all).
+REACTIONS_SHOWN = 40
+
+
 def register(sub) -> None:
     p = sub.add_parser("play", help="play a table with the stick-slip renderer (WAV, trace, plot)",
                        description="Render a cursor stroke over a compiled table with a stick-slip model and "
@@ -93,12 +97,14 @@ def run(args) -> int:
                         table_checksum=table.checksum, ahap=args.ahap, drive_csv=args.drive_csv,
                         ahap_envelope=args.ahap_envelope == "on", description=f"{args.table}: {source}")
     s = res.summary()
+    reactions = [{"t_s": float(t), "kind": str(k), "widget": str(w), "value": float(v)}
+                 for k, w, t, v in zip(res.event_kind, res.event_widget, res.event_t, res.event_value)]
     if s["events_dropped"]:
         print(f"shapedisplay play: warning: {s['events_dropped']} bursts sounded while more than half of the "
               "engine's event ring was still sounding; their audio is missing (the trace keeps the events)",
               file=sys.stderr)
     if args.json:
-        print(json.dumps(s, indent=2))
+        print(json.dumps({**s, "reaction_events": reactions}, indent=2))
     else:
         print(f"{s['model']} at {s['tick_rate_hz']:g} Hz: {s['ticks']} ticks over {s['duration_s']:.4g} s, "
               f"{s['events']} stick-slip events, max friction {s['max_friction_n']:.4g} N, "
@@ -106,6 +112,15 @@ def run(args) -> int:
         print(f"audio: {s['audio_samples']} samples at {s['audio_rate_hz']:g} Hz ({args.sample_format}) -> {args.output}; "
               f"peak {s['peak']:.3g}, clipped {s['clipped']} samples"
               + (" (lower the burst gain)" if s["clipped"] else ""))
+        if reactions:
+            print(f"reactions: {len(reactions)} events (docs/reactive.md)")
+            for e in reactions[:REACTIONS_SHOWN]:
+                value = {"toggle": f" -> state {e['value']:g}", "value": f" = {e['value']:.3f}",
+                         "drop": f" at {e['value']:.3f}" if e["value"] else "",
+                         "click": f" (detent {e['value']:g})" if e["value"] else ""}.get(e["kind"], "")
+                print(f"  {e['t_s']:9.4f} s  {e['kind']:<7} {e['widget']}{value}")
+            if len(reactions) > REACTIONS_SHOWN:
+                print(f"  ... and {len(reactions) - REACTIONS_SHOWN} more" + (" (all in the trace)" if args.trace_out else ""))
         if args.trace_out:
             print(f"trace -> {args.trace_out}")
         if args.plot:

@@ -9,9 +9,13 @@ written atomically (:func:`shapedisplay.atomic.atomic_path`).
   as a plain ``.npz`` (readable with ``numpy.load``): ``t`` (s), ``x``,
   ``y`` (m), ``vx``, ``vy`` (m/s), ``normal_force``, ``friction_force`` (N),
   ``state`` (0 stick, 1 slip, at tick end), ``lateral_x``, ``lateral_y`` (N),
-  ``skin_stretch`` (m), ``event_time`` (s), ``event_amplitude``, plus
-  ``table_checksum``, ``model``, ``tick_rate``, ``audio_rate``, ``clipped``
-  and ``burst_policy``.
+  ``skin_stretch`` (m), ``event_time`` (s), ``event_amplitude`` (the
+  stick-slip events and their bursts), ``press`` (N, the press force of
+  each tick), the reaction events of reactive widgets (docs/reactive.md)
+  ``event_kind`` (str: press, release, click, toggle, value, grab, drop),
+  ``event_widget`` (str, the widget's id), ``event_t`` (s) and
+  ``event_value``, plus ``table_checksum``, ``model``, ``tick_rate``,
+  ``audio_rate``, ``clipped`` and ``burst_policy``.
 * :func:`plot_trace` — N(x), friction, slip fraction and event rate over
   stated windows, and bursts along the stroke, with the widgets crossed
   shaded (needs matplotlib: the ``plot`` extra).
@@ -30,6 +34,9 @@ from shapedisplay.errors import FileFormatError, InputError, unknown_key
 SAMPLE_FORMATS = ("float32", "int16")
 TRACE_ARRAYS = ("t", "x", "y", "vx", "vy", "normal_force", "friction_force", "state", "lateral_x", "lateral_y",
                 "skin_stretch", "event_time", "event_amplitude")
+#: The reaction events of a trace (docs/reactive.md): kind and widget id (strings), time (s) and value, one per
+#: event, beside the stick-slip ``event_time`` (whose meaning they leave alone); and the press of each tick.
+REACTION_ARRAYS = ("event_kind", "event_widget", "event_t", "event_value")
 TRACE_FORMAT = "shapedisplay-trace-1"
 #: File suffixes :func:`plot_trace` writes (matplotlib back ends without extra packages).
 PLOT_FORMATS = ("png", "pdf", "svg", "eps", "ps")
@@ -120,6 +127,13 @@ def write_trace(path, result, table_checksum: str = "") -> Path:
     for name in TRACE_ARRAYS:
         a = np.asarray(getattr(result, name))
         arrays[name] = a.astype(np.int8) if name == "state" else a.astype(np.float64)
+    press = getattr(result, "press", None)
+    arrays["press"] = (np.zeros(arrays["t"].size) if press is None else np.asarray(press, dtype=np.float64))
+    for name in REACTION_ARRAYS:
+        a = np.asarray(getattr(result, name, ()))
+        arrays[name] = a.astype(str) if name in ("event_kind", "event_widget") else a.astype(np.float64)
+    if arrays["event_widget"].size and arrays["event_widget"].dtype.itemsize // 4 > 256:
+        raise InputError("trace: a widget id longer than 256 characters cannot be written")
     arrays["table_checksum"] = np.array([str(table_checksum)])
     arrays["model"] = np.array([str(result.model)])
     arrays["burst_policy"] = np.array([str(getattr(result, "burst_policy", ""))])
@@ -142,6 +156,7 @@ MAX_TRACE_BYTES = 1 << 30
 _TRACE_STRINGS = ("table_checksum", "model", "burst_policy", "format")
 _TRACE_SCALARS = {"tick_rate": ("f8",), "audio_rate": ("f8",), "clipped": ("i8", "i4")}
 _EVENT_ARRAYS = ("event_time", "event_amplitude")
+_TEXT = tuple(f"U{k}" for k in range(1, 257))
 
 
 def read_trace(path, required=TRACE_ARRAYS) -> dict:
@@ -162,7 +177,7 @@ def read_trace(path, required=TRACE_ARRAYS) -> dict:
     label = f"trace '{p}'"
     if p.is_dir() or not p.is_file():
         raise FileFormatError(f"{label}: no such file" if not p.exists() else f"{label}: is a directory")
-    names = (*TRACE_ARRAYS, *_TRACE_STRINGS, *_TRACE_SCALARS)
+    names = (*TRACE_ARRAYS, "press", *REACTION_ARRAYS, *_TRACE_STRINGS, *_TRACE_SCALARS)
     out: dict = {}
     with NpzReader(p, label, None, max_entries=len(names) + 1, error=FileFormatError) as z:
         missing = [n for n in required if n not in z]
@@ -180,6 +195,15 @@ def read_trace(path, required=TRACE_ARRAYS) -> dict:
             out[n] = z.read_array(n, ("i1", "u1", "i4", "i8", "f8") if n == "state" else ("f8", "f4"), cap,
                                   ndim=1)
             spent += out[n].nbytes
+        if "press" in z:
+            out["press"] = z.read_array("press", ("f8", "f4"), min(MAX_TRACE_TICKS, max(0, MAX_TRACE_BYTES - spent) // 8),
+                                        ndim=1)
+            spent += out["press"].nbytes
+        for n in REACTION_ARRAYS:           # reaction events (a trace written before them has none)
+            if n in z:
+                cap = min(MAX_TRACE_TICKS, max(0, MAX_TRACE_BYTES - spent) // 1024)
+                out[n] = z.read_array(n, _TEXT if n in ("event_kind", "event_widget") else ("f8", "f4"), cap, ndim=1)
+                spent += out[n].nbytes
         for n in _TRACE_STRINGS:
             if n in z:
                 a = z.read_array(n, tuple(f"U{k}" for k in range(1, 257)), 1)
@@ -214,6 +238,21 @@ def check_trace_arrays(d: dict, label: str, error=FileFormatError) -> None:
                                   f"'{'event_time' if name in _EVENT_ARRAYS else 't'}' has {want}")
         if a.dtype.kind == "f" and not np.isfinite(a).all():
             raise error(f"{label}: array '{name}' holds NaN or infinite values")
+    if "press" in d:
+        if d["press"].size != n or not np.isfinite(d["press"]).all() or (d["press"] < 0).any():
+            raise error(f"{label}: array 'press' must hold one finite force >= 0 per tick ({n})")
+    got = [k for k in REACTION_ARRAYS if k in d]
+    if got:
+        sizes = {d[k].size for k in got}
+        if len(got) != len(REACTION_ARRAYS) or len(sizes) != 1:
+            raise error(f"{label}: the reaction arrays {', '.join(REACTION_ARRAYS)} must all be present, of one length")
+        for k in ("event_t", "event_value"):
+            if not np.isfinite(d[k]).all():
+                raise error(f"{label}: array '{k}' holds NaN or infinite values")
+        from shapedisplay.render.layouts import EVENT_KINDS
+        bad = sorted(set(map(str, d["event_kind"])) - set(EVENT_KINDS))
+        if bad:
+            raise error(f"{label}: 'event_kind' holds {bad[0]!r}; kinds are {', '.join(EVENT_KINDS)}")
     if "state" in d and not np.all((d["state"] == 0) | (d["state"] == 1)):
         raise error(f"{label}: 'state' must be 0 (stick) or 1 (slip)")
     if np.any(np.diff(d["t"]) < 0):
@@ -293,6 +332,22 @@ def plot_trace(path, result, title: str | None = None, widgets=None) -> Path:
     ax[4].set_xlabel("distance along the stroke (mm)")
     for a in ax:
         a.margins(x=0.01)
+    kinds = np.asarray(result.get("event_kind", ()) if isinstance(result, dict) else getattr(result, "event_kind", ()))
+    if kinds.size:                            # reaction events (docs/reactive.md): a line each, labelled on top
+        rt = np.asarray(get("event_t"), dtype=np.float64)
+        rw = np.asarray(get("event_widget"))
+        rs = np.interp(rt, t, s)
+        colours = {"press": "tab:green", "release": "tab:olive", "click": "tab:red", "toggle": "tab:purple",
+                   "value": "tab:gray", "grab": "tab:blue", "drop": "tab:cyan"}
+        top = blended_transform_factory(ax[4].transData, ax[4].transAxes)
+        labelled = 0
+        for k, w, sk in zip(kinds, rw, rs):
+            for a in ax:
+                a.axvline(sk, color=colours.get(str(k), "k"), lw=0.7, ls=":", zorder=1)
+            if str(k) != "value" and labelled < 40:
+                ax[4].text(sk, 0.98, f"{k} {w}", transform=top, rotation=90, ha="right", va="top", fontsize=6,
+                           color=colours.get(str(k), "k"))
+                labelled += 1
     if spans:
         shades = ("#d9e6f2", "#f2e6d9")
         label_at = blended_transform_factory(ax[0].transData, ax[0].transAxes)
@@ -308,6 +363,8 @@ def plot_trace(path, result, title: str | None = None, widgets=None) -> Path:
                      f"slip {slip_pct:.1f} % of ticks")
     if spans:
         head += "\nshaded: widgets crossed (ids above)"
+    if kinds.size:
+        head += f"; dotted: {kinds.size} reaction events (press, click, toggle, ...)"
     fig.suptitle(head, fontsize=11)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=100, format=fmt, metadata=_PLOT_METADATA.get(fmt))
