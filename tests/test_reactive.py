@@ -320,3 +320,22 @@ motion = ["0 s: 0,0 mm", "0.1 s: 30,0 mm", "1 s: 30,0 mm"]
     away = r.render(still(0.050, 0.020, np.zeros(1500))).normal_force
     assert away[100] < at_home - 0.5 and away[-1] == pytest.approx(at_home, abs=1e-9)
 
+
+
+def test_a_new_run_can_keep_the_widgets_where_they_are(tmp_path):
+    """reset(keep_widgets=True) (sd_react_restart: what the studio does between strokes) keeps a flipped toggle
+    flipped; reset() puts it back."""
+    table = compile_text(tmp_path, TOGGLE)
+    r = Renderer(table, model="jump", tick_rate=RATE)
+    r.reset()
+    for p in [0.0] * 5 + [3.0] * 5 + [0.0] * 5:
+        r.step(0.050, 0.020, p)
+    n_on = r.last["normal_force"]
+    assert r.widget_states()["t"]["state"] == 1.0
+    r.reset(keep_widgets=True)
+    r.step(0.050, 0.020)
+    r.step(0.050, 0.020)
+    assert r.widget_states()["t"]["state"] == 1.0 and r.last["normal_force"] == n_on
+    assert r.widget_states()["t"]["pressed"] == 0.0
+    r.reset()
+    assert r.widget_states()["t"]["state"] == 0.0

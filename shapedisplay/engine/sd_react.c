@@ -158,6 +158,20 @@ void sd_react_reset(sd_renderer_t *R)
     rebuild_overrides(T, K);
 }
 
+void sd_react_restart(sd_renderer_t *R, sd_real t0)
+{
+    sd_react_state_t keep[SD_MAX_REACTIVE];
+    int i, n = R->react.n;
+    memcpy(keep, R->react.state, (size_t)n * sizeof keep[0]);
+    sd_renderer_reset(R, t0);
+    for (i = 0; i < n && i < R->react.n; i++) {
+        R->react.state[i] = keep[i];
+        R->react.state[i].pressed = SD_R(0.0);      /* a new run starts with the finger lifted */
+        R->react.state[i].grabbed = SD_R(0.0);
+    }
+    rebuild_overrides(R->table, &R->react);
+}
+
 /* ------------------------------------------------------------------ looking up */
 /* Add moving part d at canvas position (u, v) to vals: its patch read bilinearly (the background outside
  * it), minus the background -- what the part adds to the surface beneath. */

@@ -281,6 +281,10 @@ sd_real sd_renderer_step_press(sd_renderer_t *R, sd_real x, sd_real y, sd_real p
 int sd_react_pop(sd_renderer_t *R, sd_react_event_t *ev);
 /* Time (s) of an event's tick: t0 + tick / tick_rate, in double (for hosts; outside the tick path). */
 double sd_react_event_time(const sd_renderer_t *R, const sd_react_event_t *ev);
+/* Start a new run at t0 (as sd_renderer_reset) that keeps every reactive widget where it is: a toggle's state,
+ * a thumb or object where it was dropped, a moving part's position; nothing pressed or held (a host that
+ * starts a run per stroke, as the studio does). */
+void sd_react_restart(sd_renderer_t *R, sd_real t0);
 /* Private to the renderer (sd_render.c calls them): bind and reset the states; the slot values at (xm, ym)
  * with toggles, moving parts and the held part, and the velocity of the surface under the finger (a tick of
  * length h); the press handling at the end of a tick at time t; the click drive at time t. */

@@ -35,6 +35,7 @@
  *   sd_wasm_sample(x, y)         bilinear value of every slot (SD_NSLOT doubles) at (x, y) m: a read-out
  *                                with the renderer's own lookup
  *   sd_wasm_step_press(x, y, p)  one tick at cursor (x, y) m pressing with p N (docs/reactive.md)
+ *   sd_wasm_restart(t0)          a new run keeping the reactive widgets' states (a flipped toggle stays flipped)
  *   sd_wasm_react_count()        reaction events waiting in the queue
  *   sd_wasm_react_pop()          the oldest as 4 doubles {kind (SD_EV_*), widget, t (s), value}, 0 if none
  *   sd_wasm_react_n(), sd_wasm_react_states()   reactive widgets played, and their states: n records of
@@ -190,6 +191,12 @@ EXPORT(sd_wasm_set) int sd_wasm_set(int index, double value)
 EXPORT(sd_wasm_reset) void sd_wasm_reset(double t0)
 {
     if (ready) sd_renderer_reset(&R, (sd_real)t0);
+}
+
+/* A new run that keeps the reactive widgets' states (sd_react_restart). */
+EXPORT(sd_wasm_restart) void sd_wasm_restart(double t0)
+{
+    if (ready) sd_react_restart(&R, (sd_real)t0);
 }
 
 EXPORT(sd_wasm_step) double sd_wasm_step(double x, double y)

@@ -77,6 +77,8 @@ def library() -> ctypes.CDLL:
     lib.sd_renderer_step_press.restype = ctypes.c_double
     lib.sd_react_pop.argtypes = [vp, vp]
     lib.sd_react_pop.restype = ctypes.c_int
+    lib.sd_react_restart.argtypes = [vp, ctypes.c_double]
+    lib.sd_react_restart.restype = None
     lib.sd_play_path.argtypes = [vp, vp, vp, vp, c_int64, vp, vp, c_int64, vp, vp, c_int64, vp, c_int64, vp]
     lib.sd_play_path.restype = ctypes.c_int
     c_int, c_double = ctypes.c_int, ctypes.c_double

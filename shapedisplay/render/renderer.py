@@ -332,11 +332,15 @@ class Renderer:
                             event_value=rev["value"].astype(np.float64), press=col["press"])
 
     # ------------------------------------------------------------------ online
-    def reset(self, t0: float = 0.0) -> None:
+    def reset(self, t0: float = 0.0, keep_widgets: bool = False) -> None:
         """Start a new online run at cursor time ``t0`` (s): state stuck and relaxed, no bursts, every
-        reactive widget back in its initial state."""
+        reactive widget back in its initial state -- or, with ``keep_widgets``, where it is (a flipped toggle
+        stays flipped, a dropped thumb or object where it was; nothing pressed or held)."""
         self._t0 = float(t0)
-        self._online.reset(t0)
+        if keep_widgets:
+            self._lib.sd_react_restart(self._online.address, float(t0))
+        else:
+            self._online.reset(t0)
 
     def step(self, x: float, y: float, press: float | None = None) -> float:
         """Advance one tick with the cursor at (x, y) metres; return the burst drive in [-1, 1].

@@ -42,7 +42,7 @@ from shapedisplay.errors import InputError, ShapeDisplayError
 WEB = Path(__file__).resolve().parent / "web"
 #: Files served under /static/ (nothing else from disk is ever served).
 STATIC = {"studio.js": "text/javascript", "worklet.js": "text/javascript", "studio.css": "text/css",
-          "sd_wasm.js": "text/javascript", "design.js": "text/javascript"}
+          "sd_wasm.js": "text/javascript", "design.js": "text/javascript", "reactions.js": "text/javascript"}
 #: Largest request body accepted (scene text, a recorded stroke for the snapshot), bytes.
 MAX_BODY = 64 << 20
 

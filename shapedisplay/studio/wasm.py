@@ -60,7 +60,10 @@ def table_payload(table, model: str = "exact") -> tuple[dict, bytes]:
         float64, one per field in field order (integers as whole numbers;
         ``substep`` may be inf, which JSON cannot hold), or ``{"id": ...,
         "error": message}`` for a model that refuses the device;
-        ``pad_fields`` (the field names).
+        ``pad_fields`` (the field names); ``reactions``: the reactive widgets
+        (docs/reactive.md) in the engine's order, ``{"id", "kind", "widget"}``
+        and a slider's ``axis``, ``thumb_m``, ``cross_m``, ``thumb_r_m``;
+        ``widget_ids``: the scene's widget ids (an event's ``widget`` indexes it).
     image : bytes
         The flat binary table image (:func:`shapedisplay.render.image.to_image`).
     """
@@ -76,6 +79,12 @@ def table_payload(table, model: str = "exact") -> tuple[dict, bytes]:
               "tick_rate": py.tick_rate, "audio_rate": py.audio_rate, "policy": py.burst_policy,
               "model": model, "cursor_gain": float(py.device.cursor_gain),
               "bytes": len(image), "models": model_blocks(py.device), "pad_fields": list(PAD_PARAMS.names)}
+    from shapedisplay.render.reactions import reaction_records, reactions_meta, widget_ids
+    played = {int(d["widget"]) for d in reaction_records(table)[0]}
+    layout["widget_ids"] = widget_ids(table)
+    layout["reactions"] = [{"id": str(e["id"]), "kind": str(e["kind"]), "widget": int(e["widget"]),
+                            **{k: e["slider"][k] for k in ("axis", "thumb_m", "cross_m", "thumb_r_m") if "slider" in e}}
+                           for e in reactions_meta(table) if int(e["widget"]) in played]
     return layout, image
 
 

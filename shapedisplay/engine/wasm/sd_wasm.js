@@ -132,6 +132,9 @@ export class SdRuntime {
 
   reset(t0 = 0) { this.x.sd_wasm_reset(t0); }
 
+  // a new run that keeps the reactive widgets' states (a flipped toggle stays flipped, a dragged thumb stays)
+  restart(t0 = 0) { this.x.sd_wasm_restart(t0); }
+
   step(x, y, press) { return press ? this.x.sd_wasm_step_press(x, y, press) : this.x.sd_wasm_step(x, y); }
 
   // reaction events since the last call, oldest first: {kind, widget (index in the table's widgets), t, value}

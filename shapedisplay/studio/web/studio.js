@@ -4,6 +4,7 @@
 // No renderer is written here.
 import {SdRuntime} from "/static/sd_wasm.js?token={{TOKEN}}";
 import {initDesign} from "/static/design.js?token={{TOKEN}}";
+import {initReactions} from "/static/reactions.js?token={{TOKEN}}";
 
 const token = document.body.dataset.token;
 const withToken = (p) => p + (p.includes("?") ? "&" : "?") + "token=" + encodeURIComponent(token);
@@ -139,6 +140,7 @@ function drawOverlay() {
     }
     c.stroke();
   }
+  if (studio.drawReactions) studio.drawReactions(c, w, h, toPicture);    // reactions.js: thumbs, toggles
   if (studio.design) studio.design.draw();
 }
 
@@ -392,6 +394,7 @@ function onWorklet(e) {
     $("meter-n").textContent = m.touching ? m.n.toFixed(2) : "–";
     $("meter-f").textContent = m.touching ? m.f.toFixed(3) : "–";
     $("meter-ev").textContent = m.events;
+    if (studio.onReactionMeter) studio.onReactionMeter(m);       // reactions.js
   } else if (m.type === "stroke") {
     if (m.ticks > 0) showStroke(m);
   }
@@ -421,10 +424,12 @@ function pointer(kind, e) {
   if ($("mode").value === "stick") {
     if (kind === "down") down = {x, y};
     const fx = kind === "up" ? 0 : (x - down.x) * 1e3 * STICK_N_PER_MM, fy = kind === "up" ? 0 : (y - down.y) * 1e3 * STICK_N_PER_MM;
-    studio.node.port.postMessage({type: "cursor", kind, t, x: fx, y: fy, px: down.x, py: down.y, delay: inputDelay()});
+    studio.lastCursor = {type: "cursor", kind, t, x: fx, y: fy, px: down.x, py: down.y, delay: inputDelay(),
+                         press: studio.press || 0};
   } else {
-    studio.node.port.postMessage({type: "cursor", kind, t, x, y, delay: inputDelay()});
+    studio.lastCursor = {type: "cursor", kind, t, x, y, delay: inputDelay(), press: studio.press || 0};
   }
+  studio.node.port.postMessage(studio.lastCursor);
   if (kind === "up") down = null;
 }
 
@@ -650,8 +655,17 @@ function connect() {
   ws.onclose = () => { $("status").textContent = "disconnected from the studio server"; setTimeout(connect, 1000); };
 }
 
+// The press changed while the pointer rests (Space, reactions.js): the last cursor point again, pressing so.
+function resendPress() {
+  if (!pressed || !studio.node || !studio.lastCursor) return;
+  studio.lastCursor = {...studio.lastCursor, kind: "move", t: ctxTime(performance.now()), press: studio.press};
+  studio.node.port.postMessage(studio.lastCursor);
+}
+
 function init() {
   const wrap = $("map-wrap");
+  studio.redraw = drawOverlay;
+  initReactions(studio, $, resendPress);
   wrap.addEventListener("pointerdown", (e) => { wrap.setPointerCapture(e.pointerId); studio.lastPointer = []; pointer("down", e); });
   wrap.addEventListener("pointermove", (e) => {
     if (lastMove !== null && e.timeStamp > lastMove) gapMs += 0.1 * (Math.min(e.timeStamp - lastMove, 200) - gapMs);

@@ -14,6 +14,9 @@
 // a stroke runs from "down" to "up".
 // Scripted strokes ({type: "script", x: Float64Array, y: Float64Array}) give one position per
 // tick: the offline test and benchmark path (OfflineAudioContext).
+// A cursor point may carry `press` (N along z, docs/reactive.md): the table's reactive widgets react; their
+// events (ReactionEvent: [kind, widget, t, value]) and states go to the page with the meters. A stroke
+// starts a new run that keeps the widgets where they are (a flipped toggle stays flipped).
 // The pad model ({type: "model", model}, or `model` with a table) is one the layout offers:
 // layout.models[model].pad holds its parameters (decoded to a Float64Array by the page), handed
 // to the C runtime with the configuration; switching restarts the renderer on the same table.
@@ -42,6 +45,8 @@ class StudioRenderer extends AudioWorkletProcessor {
     this.lastMeter = 0;
     this.model = o.model || null;     // the pad model played (null: the layout's)
     this.layout = null;
+    this.reactions = [];               // reaction events not yet posted: [kind, widget, t, value]
+    this.press = 0;
     this.port.onmessage = (e) => this.onMessage(e.data);
     // Offline renders hand everything over at construction: nothing waits on a message.
     if (o.module) {
@@ -130,7 +135,8 @@ class StudioRenderer extends AudioWorkletProcessor {
   }
 
   startStroke(tInput, x, y) {
-    this.w.sd_wasm_reset(0.0);
+    this.w.sd_wasm_restart(0.0);     // the reactive widgets stay where the last stroke left them
+    this.press = 0;
     this.touching = true;
     this.k = 0;
     this.tStart = tInput;            // input time of tick 0
@@ -157,6 +163,7 @@ class StudioRenderer extends AudioWorkletProcessor {
     const p = this.points;
     while (p.length > 1 && p[1].t <= tau) p.shift();
     const a = p[0];
+    this.press = a.press || 0;       // the press holds from one point to the next
     if (p.length === 1 || tau <= a.t) return [a.x, a.y];
     const b = p[1];
     const u = (tau - a.t) / (b.t - a.t);
@@ -165,7 +172,11 @@ class StudioRenderer extends AudioWorkletProcessor {
 
   tick(x, y) {
     const w = this.w, r = this.rec, out = this.out, mem = this.mem;
-    w.sd_wasm_step(x, y);
+    w.sd_wasm_step_press(x, y, this.press);
+    for (let p = w.sd_wasm_react_pop(); p; p = w.sd_wasm_react_pop()) {
+      const q = p >> 3;
+      if (this.reactions.length < 256) this.reactions.push([mem[q], mem[q + 1], mem[q + 2], mem[q + 3]]);
+    }
     const na = out[this.iNaudio];
     for (let i = 0; i < na; i++) {
       const s = mem[this.audioAt + i];
@@ -255,10 +266,13 @@ class StudioRenderer extends AudioWorkletProcessor {
     if (this.ready && currentTime - this.lastMeter > 0.033) {
       this.lastMeter = currentTime;
       const out = this.out;
+      const w = this.w, nw = w.sd_wasm_react_n(), k = w.sd_wasm_react_state_size();
       this.port.postMessage({type: "meter", touching: this.touching, state: out[this.iState],
                              n: out[this.iN], f: out[this.iF], events: this.rec ? this.rec.events : 0,
                              x: this.rec && this.rec.ticks ? this.rec.x[this.rec.ticks - 1] : 0,
-                             y: this.rec && this.rec.ticks ? this.rec.y[this.rec.ticks - 1] : 0});
+                             y: this.rec && this.rec.ticks ? this.rec.y[this.rec.ticks - 1] : 0,
+                             press: this.press, reactions: this.reactions.splice(0),
+                             widgets: nw ? new Float64Array(w.memory.buffer, w.sd_wasm_react_states(), nw * k).slice() : null});
     }
     return true;
   }

@@ -1,0 +1,90 @@
+"""Reactive widgets in the studio, in a real headless Chromium (Playwright): a press on the bundled toggle
+flips it (the page shows the new state, the worklet's event list has `toggle`), a press-drag on the slider's
+thumb moves it (docs/reactive.md). The press is Space held while the pointer is down."""
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("starlette")
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+try:
+    from playwright.sync_api import sync_playwright
+except ImportError:                                       # pragma: no cover
+    sync_playwright = None
+if sync_playwright is None or not Path(CHROMIUM).is_file():
+    if os.environ.get("CI"):
+        pytest.fail("CI needs chromium (scripts/install-system-deps.sh --with-studio) and playwright (pip)",
+                    pytrace=False)
+    pytest.skip("needs Debian's chromium and the playwright package", allow_module_level=True)
+
+from studio_helpers import ROOT, StudioProcess  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def page(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("studio-reactive")
+    shutil.copy(ROOT / "assets" / "scenes" / "reactive.toml", folder / "reactive.toml")
+    studio = StudioProcess(folder / "reactive.toml")
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=["--autoplay-policy=no-user-gesture-required"])
+        pg = browser.new_page(viewport={"width": 1500, "height": 980}, bypass_csp=True)
+        errors = []
+        pg.on("pageerror", lambda e: errors.append(str(e)))
+        pg.goto(studio.url)
+        pg.wait_for_function("window.studio && studio.shownGeneration !== null && studio.layout !== null",
+                             timeout=60000)
+        pg.select_option("#tool", "feel")
+        pg.click("#feel")
+        pg.wait_for_function("studio.node !== null && studio.ctx.state === 'running'", timeout=20000)
+        pg.evaluate("document.activeElement && document.activeElement.blur()")
+        try:
+            yield pg
+        finally:
+            browser.close()
+            studio.stop()
+    assert not errors, errors
+
+
+def _press_at(page, x, y, to=None, hold_ms=300, steps=30):
+    """Pointer down at (x, y) m, Space held (the press), optionally dragged to ``to``, Space and pointer up."""
+    sx, sy = page.evaluate(f"studio.screenOf({x}, {y})")
+    page.mouse.move(sx, sy)
+    page.mouse.down()
+    page.wait_for_timeout(100)
+    page.keyboard.down("Space")
+    page.wait_for_timeout(hold_ms)
+    if to is not None:
+        bx, by = page.evaluate(f"studio.screenOf({to[0]}, {to[1]})")
+        for i in range(1, steps + 1):
+            page.mouse.move(sx + (bx - sx) * i / steps, sy + (by - sy) * i / steps)
+            page.wait_for_timeout(20)
+        page.wait_for_timeout(150)
+    page.keyboard.up("Space")
+    page.wait_for_timeout(150)
+    page.mouse.up()
+
+
+def test_press_flips_the_toggle_and_a_press_drag_moves_the_slider_thumb(page):
+    assert page.evaluate("studio.layout.reactions.map((r) => r.id)") == ["button", "toggle", "slider", "object", "list"]
+    assert page.evaluate("studio.widgetStates.toggle ? studio.widgetStates.toggle.state : 0") == 0
+    _press_at(page, 0.060, 0.020)
+    page.wait_for_function("studio.reactions.some((e) => e.kind === 'toggle' && e.widget === 'toggle')",
+                           timeout=10000)
+    page.wait_for_function("studio.widgetStates.toggle && studio.widgetStates.toggle.state === 1", timeout=10000)
+    assert "toggle on" in page.text_content("#reactions")
+    kinds = page.evaluate("studio.reactions.filter((e) => e.widget === 'toggle').map((e) => e.kind)")
+    assert kinds[:3] == ["press", "toggle", "click"]
+    # the slider's thumb rests at the track's start (x 13 mm, y 45 mm): grab it and drag it 25 mm
+    start = page.evaluate("studio.widgetStates.slider.thumb")
+    assert start == pytest.approx(0.013, abs=1e-6)
+    _press_at(page, 0.0135, 0.045, to=(0.0385, 0.045))
+    page.wait_for_function("studio.reactions.some((e) => e.kind === 'drop' && e.widget === 'slider')", timeout=10000)
+    st = page.evaluate("studio.widgetStates.slider")
+    assert st["thumb"] == pytest.approx(0.038, abs=1.5e-3) and st["value"] == pytest.approx(25 / 44, abs=0.05)
+    assert "slider 0.5" in page.text_content("#reactions")
+    # the toggle stayed flipped across strokes
+    assert page.evaluate("studio.widgetStates.toggle.state") == 1
