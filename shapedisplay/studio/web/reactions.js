@@ -79,6 +79,15 @@ export function initReactions(studio, $, resend) {
   studio.drawReactions = function (c, w, h, toPicture) {
     for (const [id, st] of Object.entries(studio.widgetStates)) {
       const r = st.reaction;
+      if (st.pressed) {                // pressed: the widget's box lit while the press holds
+        const wd = (studio.state.widgets || []).find((x) => x.id === id);
+        if (wd) {
+          const [x0, y0, x1, y1] = wd.bbox_m;
+          const [ua, va] = toPicture(x0, y1), [ub, vb] = toPicture(x1, y0);
+          c.fillStyle = "rgba(255, 209, 102, 0.25)";
+          c.fillRect(ua * w, va * h, (ub - ua) * w, (vb - va) * h);
+        }
+      }
       if (r.kind === "slider" && r.thumb_m !== undefined) {
         const along = r.thumb_m + (r.axis ? st.dy : st.dx);
         const [u, v] = r.axis ? toPicture(r.cross_m, along) : toPicture(along, r.cross_m);
