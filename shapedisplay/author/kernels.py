@@ -139,7 +139,7 @@ def clip_where(fx, fy, limit, mask):
 
 
 def clip_magnitude(fx, fy, limit, gain=None):
-    """Scale (fx, fy) in place so that |(fx, fy)| <= limit, keeping direction.
+    """Scale (fx, fy) in place so that ``|(fx, fy)| <= limit``, keeping direction.
 
     Samples within the limit are untouched; beyond it both components are
     multiplied by ``limit / sqrt(fx^2 + fy^2)``. With ``gain``, both are
