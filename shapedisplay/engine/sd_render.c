@@ -335,8 +335,9 @@ static long synth(sd_burst_state_t *B, const sd_clock_t *K, const sd_real *ev_t,
             sr = sn;
         }
         t = (sd_real)(int32_t)(j - K->epoch_sample) * K->inv_audio;
-        out[j - j0] = clip_unit(envelope_at(B, ev_t, ev_a, n_ev, t, rise, decay, policy) * sr
-                                + (ck ? sd_react_click(ck, t) : SD_R(0.0)), &clipped);
+        sd_real v = envelope_at(B, ev_t, ev_a, n_ev, t, rise, decay, policy) * sr;
+        if (ck) v += sd_react_click(ck, t);     /* (only then: adding 0.0 would turn a -0.0 sample into +0.0) */
+        out[j - j0] = clip_unit(v, &clipped);
     }
     keep_carrier(B, cr, sr, j0, j1);
     return clipped;
@@ -376,8 +377,9 @@ static long synth(sd_burst_state_t *B, const sd_real *ev_t, const sd_real *ev_a,
             sr = sn;
         }
         t = t_origin + (sd_real)j / rate;
-        out[j - j0] = clip_unit(envelope_at(B, ev_t, ev_a, n_ev, t, rise, decay, policy) * sr
-                                + (ck ? sd_react_click(ck, t) : SD_R(0.0)), &clipped);
+        sd_real v = envelope_at(B, ev_t, ev_a, n_ev, t, rise, decay, policy) * sr;
+        if (ck) v += sd_react_click(ck, t);     /* (only then: adding 0.0 would turn a -0.0 sample into +0.0) */
+        out[j - j0] = clip_unit(v, &clipped);
     }
     keep_carrier(B, cr, sr, j0, j1);
     return clipped;
