@@ -12,7 +12,7 @@ place stored patches on the canvas, a coarse tile index of the blocks (O(1)
 lookup), every stored renderer channel's codes with scale/offset/background,
 the renderer settings resolved from the table's device profile and mapping
 (pad, friction, burst, tick and audio rates), the reactive widgets of a
-scene table (version 2: :mod:`.reactions`) and the table file's own JSON
+scene table (version 2: :mod:`shapedisplay.render.reactions`) and the table file's own JSON
 header, so :func:`read_image` gives back the same
 :class:`~shapedisplay.table.model.FrictionTable` (same checksum). A table
 without reactive widgets is written as version 1, byte for byte as before;
