@@ -307,10 +307,8 @@ def test_npy_sources(tmp_path):
 
 
 @pytest.mark.parametrize("kind", ["8-bit", "16-bit", "16-bit big endian tiff", "interlaced", "grey+alpha"])
-def test_grey_pictures_decoded_into_the_array_equal_pillows_pixels(tmp_path, kind, monkeypatch):
-    """8- and 16-bit grey pictures are decoded straight into a numpy array (no copies through bytes): the
-    same pixels as numpy.asarray of the Pillow image, for every layout; other modes take the usual path."""
-    import shapedisplay.author.imageio as imageio
+def test_grey_pictures_read_as_pillow_decodes_them(tmp_path, kind):
+    """8- and 16-bit grey pictures in every layout: the pixels of numpy.asarray of the Pillow image."""
     g16 = (np.random.default_rng(2).integers(0, 65536, (37, 53))).astype(np.uint16)
     p = tmp_path / "m.png"
     if kind == "8-bit":
@@ -327,23 +325,13 @@ def test_grey_pictures_decoded_into_the_array_equal_pillows_pixels(tmp_path, kin
     with Image.open(p) as im:
         expected = np.asarray(im.convert("I;16") if im.mode == "I;16B" else im)
         expected = expected[..., 0] if expected.ndim == 3 else expected
-        direct = im.mode in imageio._DIRECT_MODES
-    monkeypatch.setattr(imageio, "_gray16_png_pixels", lambda p: None)   # 16-bit grey PNG: see the tests below
-    used = []
-    real = imageio._decode_target
-
-    def spy(im):
-        pixels, core = real(im)
-        used.append(pixels is not None)
-        return pixels, core
-    monkeypatch.setattr(imageio, "_decode_target", spy)
     pic = read_picture(p)
-    assert used == [direct] and pic.values.dtype == expected.dtype and np.array_equal(pic.values, expected)
-    monkeypatch.setattr(imageio, "_decode_target", lambda im: (None, None))     # the usual path: same values
-    assert np.array_equal(read_picture(p).values, pic.values)
+    assert pic.values.dtype == expected.dtype and np.array_equal(pic.values, expected)
+    if kind == "16-bit":
+        assert np.array_equal(pic.values, g16) and pic.full_scale == 65535.0
 
 
-def test_truncated_grey_png_decoded_into_the_array_is_refused(tmp_path):
+def test_truncated_grey_png_is_refused(tmp_path):
     write_png(tmp_path / "good.png", np.arange(64 * 80, dtype=np.uint16).reshape(64, 80) * 7)
     good = (tmp_path / "good.png").read_bytes()
     (tmp_path / "trunc.png").write_bytes(good[: len(good) // 2])
@@ -351,22 +339,7 @@ def test_truncated_grey_png_decoded_into_the_array_is_refused(tmp_path):
         read_picture(tmp_path / "trunc.png")
 
 
-# ----------------------------------------------------------------- 16-bit grey PNG without Pillow's decoder
-@pytest.fixture
-def small_pictures_too(monkeypatch):
-    """The path without Pillow for the small pictures of these tests (it otherwise starts at
-    gradients.KERNEL_MIN_SIZE pixels, below which Pillow reads them without building the C kernels)."""
-    monkeypatch.setattr("shapedisplay.author.gradients.KERNEL_MIN_SIZE", 1)
-
-
-def test_small_sixteen_bit_grey_png_is_read_by_pillow(tmp_path):
-    import shapedisplay.author.imageio as imageio
-    g = np.arange(20 * 30, dtype=np.uint16).reshape(20, 30) * 99
-    write_png(tmp_path / "s.png", g)
-    assert imageio._gray16_png_pixels(tmp_path / "s.png") is None
-    assert np.array_equal(read_picture(tmp_path / "s.png").values, g)
-
-
+# ----------------------------------------------------------------- 16-bit grey PNG, the usual height-map file
 def _paeth(a, b, c):
     p = a + b - c
     pa, pb, pc = np.abs(p - a), np.abs(p - b), np.abs(p - c)
@@ -397,48 +370,35 @@ def _gray16_png(g: np.ndarray, filters, pieces=1, seed=0) -> bytes:
     return b"\x89PNG\r\n\x1a\n" + _chunk(b"IHDR", ihdr) + idat + _chunk(b"IEND", b"")
 
 
-def _pillow_pixels(p):
-    with Image.open(p) as im:
-        return np.asarray(im)
-
-
-@pytest.mark.parametrize("shape", [(1, 1), (1, 7), (9, 1), (5, 3), (40, 33)])
+@pytest.mark.parametrize("shape", [(1, 1), (1, 7), (9, 1), (5, 3), (40, 33), (300, 260)])
 @pytest.mark.parametrize("kind", [0, 1, 2, 3, 4, "mixed"])
-def test_sixteen_bit_grey_png_is_unfiltered_as_pillow_does(small_pictures_too, tmp_path, shape, kind):
+def test_sixteen_bit_grey_png_reads_exactly_under_every_filter(tmp_path, shape, kind):
     """Every PNG filter, on pixels that carry and borrow in both bytes, in IDAT chunks cut anywhere: the
-    pixels Pillow decodes, without Pillow decoding them."""
-    import shapedisplay.author.imageio as imageio
-    from shapedisplay.author import kernels as _kernels
-    if _kernels.c_kernels() is None:
-        pytest.skip("needs a C compiler")
-    pytest.importorskip("deflate")
+    stored codes exactly, as uint16 on the 0..65535 scale."""
     rng = np.random.default_rng(shape[0] * 100 + shape[1])
     g = rng.integers(0, 65536, shape).astype(np.uint16)
     g[0, 0], g.flat[-1] = 65535, 0
     filters = rng.integers(0, 5, shape[0]) if kind == "mixed" else [kind] * shape[0]
     p = tmp_path / "g.png"
     p.write_bytes(_gray16_png(g, filters, pieces=1 + shape[0] % 4))
-    assert imageio._gray16_png_pixels(p) is not None               # the path under test takes this file
     pic = read_picture(p)
     assert pic.values.dtype == np.uint16 and np.array_equal(pic.values, g)
-    assert np.array_equal(_pillow_pixels(p), g) and pic.full_scale == 65535.0 and pic.description == "grey 16-bit"
+    assert pic.full_scale == 65535.0 and pic.description == "grey 16-bit" and pic.mask is None and not pic.notes
 
 
-def test_sixteen_bit_grey_png_written_by_pillow_reads_the_same_both_ways(small_pictures_too, tmp_path, monkeypatch):
+def test_sixteen_bit_grey_png_written_with_text_reads_exactly(tmp_path):
     """A file Pillow's encoder wrote (its own choice of filters, text chunks before the data)."""
-    import shapedisplay.author.imageio as imageio
     g = (np.random.default_rng(5).normal(30000, 9000, (64, 70)).clip(0, 65535)).astype(np.uint16)
     write_png(tmp_path / "w.png", g, text={"height_max_m": "0.002"})
-    fast = read_picture(tmp_path / "w.png")
-    monkeypatch.setattr(imageio, "_gray16_png_pixels", lambda p: None)
-    slow = read_picture(tmp_path / "w.png")
-    assert np.array_equal(fast.values, g) and np.array_equal(slow.values, g) and fast.description == slow.description
+    pic = read_picture(tmp_path / "w.png")
+    assert np.array_equal(pic.values, g) and pic.description == "grey 16-bit"
+    assert png_text(tmp_path / "w.png") == {"height_max_m": "0.002"}
 
 
-@pytest.mark.parametrize("damage", ["filter type 5", "truncated", "bad stream", "length past the end"])
-def test_corrupt_sixteen_bit_grey_png_is_left_to_pillow_which_refuses_it(small_pictures_too, tmp_path, damage):
-    """What the fast path does not take goes to Pillow, whose verdict stands (its errors, or its pixels)."""
-    import shapedisplay.author.imageio as imageio
+@pytest.mark.parametrize("damage", ["filter type 5", "truncated", "bad stream", "length past the end", "no data"])
+def test_corrupt_sixteen_bit_grey_png_is_refused_or_read_as_pillow_reads_it(tmp_path, damage):
+    """Damaged image data is refused with the reader's message (never pixels from memory nothing was decoded
+    into); a chunk length past the end of the file is read as Pillow reads it: the whole stream."""
     g = np.arange(12 * 10, dtype=np.uint16).reshape(12, 10) * 500
     data = bytearray(_gray16_png(g, [4] * 12))
     if damage == "filter type 5":
@@ -451,26 +411,17 @@ def test_corrupt_sixteen_bit_grey_png_is_left_to_pillow_which_refuses_it(small_p
         data = data[:60]
     elif damage == "bad stream":
         data[50] ^= 0xFF
-    else:
+    elif damage == "length past the end":
         data[33:37] = struct.pack(">I", 1 << 30)            # the IDAT length
+    else:
+        data = data[:33] + _chunk(b"IEND", b"")
     p = tmp_path / "c.png"
     p.write_bytes(bytes(data))
-    assert imageio._gray16_png_pixels(p) is None
-    if damage == "length past the end":        # Pillow reads what is there: the whole stream
+    if damage == "length past the end":
         assert np.array_equal(read_picture(p).values, g)
         return
-    with pytest.raises(FileFormatError, match="corrupt or truncated|not a picture Pillow can read"):
+    with pytest.raises(FileFormatError, match=r"corrupt or truncated pixel data \(|not a picture Pillow can read"):
         read_picture(p)
-
-
-def test_sixteen_bit_grey_png_without_libdeflate_is_decoded_by_pillow(small_pictures_too, tmp_path, monkeypatch):
-    import sys
-    import shapedisplay.author.imageio as imageio
-    g = np.arange(6 * 9, dtype=np.uint16).reshape(6, 9) * 1111
-    write_png(tmp_path / "g.png", g)
-    monkeypatch.setitem(sys.modules, "deflate", None)           # import deflate raises ImportError
-    assert imageio._gray16_png_pixels(tmp_path / "g.png") is None
-    assert np.array_equal(read_picture(tmp_path / "g.png").values, g)
 
 
 def _with_chunk_before_data(png: bytes, kind: bytes, body: bytes, crc_ok=True) -> bytes:
@@ -480,53 +431,56 @@ def _with_chunk_before_data(png: bytes, kind: bytes, body: bytes, crc_ok=True) -
     return png[:33] + chunk + png[33:]
 
 
-@pytest.mark.parametrize("case", ["transparency", "animation", "critical chunk", "bad text CRC", "large",
-                                  "interlaced", "no data", "text"])
-def test_other_sixteen_bit_grey_pngs_are_read_by_pillow(small_pictures_too, tmp_path, monkeypatch, case):
-    """Only plain files take the path without Pillow; every other one reads as Pillow reads it (or is
-    refused as Pillow refuses it). Ancillary chunks with valid CRCs (text) keep a file plain."""
-    import shapedisplay.author.imageio as imageio
+@pytest.mark.parametrize("case", ["transparency", "animation", "critical chunk", "bad text CRC", "interlaced", "text"])
+def test_other_sixteen_bit_grey_pngs(tmp_path, case):
+    """Chunks around the image data: a grey transparency colour and unknown chunks change nothing, an
+    animation reads its first frame (with a note), a chunk with a bad CRC before the data is refused."""
     g = (np.arange(9 * 11, dtype=np.uint16).reshape(9, 11) * 601)
     png = _gray16_png(g, [0, 1, 2, 3, 4, 4, 3, 2, 1])
+    notes = []
     if case == "transparency":
         png = _with_chunk_before_data(png, b"tRNS", struct.pack(">H", 601))
     elif case == "animation":
         png = _with_chunk_before_data(png, b"acTL", struct.pack(">II", 1, 0))
+        notes = ["first of 2 frames used"]
     elif case == "critical chunk":
         png = _with_chunk_before_data(png, b"ABCD", b"x")
     elif case == "bad text CRC":
         png = _with_chunk_before_data(png, b"tEXt", b"k\0v", crc_ok=False)
-    elif case == "large":
-        monkeypatch.setattr(imageio, "PILLOW_QUIET_PIXELS", 9 * 11 - 1)
     elif case == "interlaced":
-        png = _png_bytes(2, 1, 16, 0, b"\0\0\1\0\2" + b"\0\0\3", interlace=1)
-    elif case == "no data":
-        png = png[:33] + _chunk(b"IEND", b"")
+        # Adam7 passes 1 and 6 hold the two pixels: a filter byte and one big-endian sample each
+        png, g = _png_bytes(2, 1, 16, 0, b"\0\0\1" + b"\0\0\2", interlace=1), np.array([[1, 2]], np.uint16)
     else:
         png = _with_chunk_before_data(png, b"tEXt", b"height_max_m\x000.002")
     p = tmp_path / "o.png"
     p.write_bytes(png)
-    assert (imageio._gray16_png_pixels(p) is not None) == (case == "text")
-
-    def outcome():
-        try:
-            pic = read_picture(p)
-        except (FileFormatError, InputError) as exc:
-            return type(exc).__name__
-        return pic.values.dtype, pic.values.tobytes(), pic.full_scale, pic.description, pic.mask is None
-    fast = outcome()
-    monkeypatch.setattr(imageio, "_gray16_png_pixels", lambda p: None)
-    assert fast == outcome()
-    if case in ("text", "large"):
-        assert fast[1] == g.tobytes()
+    if case == "bad text CRC":
+        with pytest.raises(FileFormatError, match="not a picture Pillow can read"):
+            read_picture(p)
+        return
+    pic = read_picture(p)
+    assert pic.values.dtype == np.uint16 and np.array_equal(pic.values, g) and pic.full_scale == 65535.0
+    assert pic.mask is None and pic.description == "grey 16-bit" and pic.notes == notes
 
 
-def test_sixteen_bit_grey_png_over_the_sample_limit_is_refused_from_its_header(small_pictures_too, tmp_path, monkeypatch):
-    """The path without Pillow checks the size limit from the header too, before anything is decoded."""
-    import shapedisplay.author.imageio as imageio
-    monkeypatch.setattr("shapedisplay.author.kernels.png_gray16", lambda *a: pytest.fail("decoded"))
+def test_sixteen_bit_grey_png_over_the_sample_limit_is_refused_from_its_header(tmp_path, monkeypatch):
+    """The size limit is checked from the header, before anything is decoded: a file whose image data is
+    damaged is refused for its size, not for its data."""
+    data = bytearray(_gray16_png(np.zeros((30, 40), np.uint16), [0] * 30))
+    data[50] ^= 0xFF
     p = tmp_path / "big.png"
-    p.write_bytes(_gray16_png(np.zeros((30, 40), np.uint16), [0] * 30))
+    p.write_bytes(bytes(data))
+    with pytest.raises(FileFormatError, match="corrupt or truncated"):
+        read_picture(p)
     monkeypatch.setattr("shapedisplay.author.heightfield.MAX_SAMPLES", 1000)
     with pytest.raises(InputError, match=r"40 x 30 = 1200 samples .* exceeds the limit of 1000"):
-        imageio._gray16_png_pixels(p)
+        read_picture(p)
+
+
+def test_pictures_are_read_through_pillow_public_api_only():
+    """No private attribute of a Pillow image, and no second PNG decoder beside Pillow's."""
+    import inspect
+
+    import shapedisplay.author.imageio as imageio
+    source = inspect.getsource(imageio)
+    assert "im.im" not in source and "._im" not in source and "import deflate" not in source

@@ -393,13 +393,12 @@ def test_streamed_npz_matches_writestr_of_the_whole_npy():
             assert z[name].dtype == a.dtype and np.array_equal(z[name], a)
 
 
-def test_streamed_npz_without_isal_is_byte_for_byte_writestr(monkeypatch):
-    """Without the isal package the large entries are deflated by zlib level 1: the whole file is then
-    byte for byte what ZipFile.writestr of numpy.save's whole output gives."""
+def test_streamed_npz_is_byte_for_byte_writestr():
+    """Large entries are deflated by zlib level 1: the whole file is byte for byte what ZipFile.writestr of
+    numpy.save's whole output gives."""
     import io
 
     from shapedisplay.table import container
-    monkeypatch.setattr(container, "_isal_zlib", lambda: None)
     arrays = _streamed_arrays()
     got = io.BytesIO()
     container.write_npz(got, arrays)

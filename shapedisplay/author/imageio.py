@@ -13,9 +13,6 @@ palette with or without transparency, interlaced or not), JPEG, TIFF
 (8/16-bit, 32-bit integer, 32-bit float), BMP, GIF, WebP. ``.npy`` arrays of
 shape (rows, cols) or (cols,) are read with numpy.
 
-* **16-bit grey PNG**, the usual height-map file, is decoded by the
-  package itself where it can (libdeflate, C unfiltering; the same pixels,
-  about twice as fast); anything else in such a file is left to Pillow.
 * **Integer pictures** keep their codes: ``full_scale`` is 255 for 8-bit
   channels and 65535 for 16-bit ones (1/2/4-bit grey is widened to 8 bits by
   Pillow: 0 and 255 stay the ends).
@@ -192,9 +189,6 @@ def read_picture(path: str | os.PathLike, channel: str | None = None) -> Picture
     path = Path(path)
     if channel is not None and channel not in CHANNELS:
         raise unknown_key("image channel", channel, CHANNELS)
-    pixels = _gray16_png_pixels(path)
-    if pixels is not None:
-        return _channel(_Gray16, path, channel, 16, [], pixels)
     with _open(path) as im:
         cols, rows = im.size
         if cols == 0 or rows == 0:
@@ -205,7 +199,6 @@ def read_picture(path: str | os.PathLike, channel: str | None = None) -> Picture
         if getattr(im, "n_frames", 1) > 1:
             notes.append(f"first of {im.n_frames} frames used")
         from PIL import Image
-        pixels, target = _decode_target(im)
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", Image.DecompressionBombWarning)   # our limit was checked
@@ -213,132 +206,10 @@ def read_picture(path: str | os.PathLike, channel: str | None = None) -> Picture
         except Exception as exc:   # truncated data, bad CRC, decoder errors
             msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
             raise FileFormatError(f"image '{path}': corrupt or truncated pixel data ({msg})") from None
-        if pixels is not None and im.im is not target:    # Pillow decoded into memory of its own
-            pixels = None
-        return _channel(im, path, channel, depth, notes, pixels)
+        return _channel(im, path, channel, depth, notes)
 
 
-#: Modes Pillow can decode straight into a numpy array (grey 8 and 16 bits): numpy dtype of their pixels.
-_DIRECT_MODES = {"L": np.dtype(np.uint8), "I;16": np.dtype("<u2")}
-
-
-#: Pillow's default ``Image.MAX_IMAGE_PIXELS``: a 16-bit grey PNG larger than this is left to Pillow,
-#: whose header check warns above it and refuses above twice it (see :func:`_open`).
-PILLOW_QUIET_PIXELS = 89_478_485
-#: Chunks that change how a grey PNG's pixels read (transparency colour, animation): such files go to Pillow.
-_PIXEL_CHUNKS = (b"tRNS", b"acTL", b"fcTL", b"fdAT")
-
-
-def _gray16_png_pixels(path: Path):
-    """The pixels of a plain 16-bit grey PNG, read without Pillow, or None (Pillow then reads the file).
-
-    Height maps are mostly such files, and decoding them is most of reading
-    them: here the header and chunks are read directly (no Pillow import),
-    the image data is inflated by libdeflate (the ``deflate`` package;
-    about twice as fast as the zlib Pillow uses) and unfiltered by the
-    package's C kernels: a 4096x4096 noisy map in about 0.2 s instead of
-    0.35 s. Plain: non-interlaced, at least
-    :data:`shapedisplay.author.gradients.KERNEL_MIN_SIZE` pixels (a smaller picture
-    is read by Pillow, without building the C kernels for it), at most
-    :data:`PILLOW_QUIET_PIXELS` pixels, and
-    before the image data only ancillary chunks with valid CRCs, none of
-    :data:`_PIXEL_CHUNKS`. None for any other file, where ``deflate`` or the
-    C kernels are missing, or for data these do not take (truncated,
-    corrupt): Pillow then decodes the file as any other, and reports what is
-    wrong. Like Pillow, the image data chunks' CRCs are not checked; the zlib
-    stream's Adler-32 is. The size limit is checked from the header before
-    anything is decoded, as for any picture.
-    """
-    import struct
-    import zlib
-    try:
-        fh = open(path, "rb")
-    except OSError:
-        return None
-    with fh:
-        size = os.fstat(fh.fileno()).st_size
-        head = fh.read(33)
-        if len(head) < 33 or not head.startswith(PNG_SIGNATURE) or head[8:16] != b"\0\0\0\rIHDR" \
-                or zlib.crc32(head[12:29]) != int.from_bytes(head[29:33], "big"):
-            return None
-        cols, rows, depth, colour, compression, filtering, interlace = struct.unpack(">IIBBBBB", head[16:29])
-        if (depth, colour, compression, filtering, interlace) != (16, 0, 0, 0, 0) or not 0 < rows * cols \
-                <= PILLOW_QUIET_PIXELS:
-            return None
-        check_grid_size(rows, cols, f"image '{path}'", PICTURE_FIX)     # before any pixel is decoded
-        from shapedisplay.author.gradients import KERNEL_MIN_SIZE
-        if rows * cols < KERNEL_MIN_SIZE:
-            return None
-        parts, at = [], 33                                 # (file offset, length) of each IDAT chunk's data
-        while at + 12 <= size:
-            fh.seek(at)
-            head = fh.read(8)
-            length, kind = int.from_bytes(head[:4], "big"), head[4:]
-            if length + 12 > size - at:                    # a length past the end of the file: truncated
-                return None
-            if kind == b"IDAT":
-                parts.append((at + 8, length))
-            elif parts:                                    # the end of the image data
-                break
-            elif not 97 <= kind[0] <= 122 or kind in _PIXEL_CHUNKS or length > 1 << 20:
-                return None                                # critical, changes the pixels, or large: Pillow's
-            else:
-                body = fh.read(length + 4)
-                if zlib.crc32(kind + body[:length]) != int.from_bytes(body[length:], "big"):
-                    return None
-            at += 12 + length
-        if not parts:
-            return None
-        try:
-            import deflate
-        except ImportError:
-            return None
-        from shapedisplay.author import kernels as _kernels
-        if _kernels.c_kernels() is None:
-            return None
-        stream = bytearray(sum(n for _, n in parts))      # read once into one buffer: no joining copy
-        view, filled = memoryview(stream), 0
-        for offset, length in parts:
-            fh.seek(offset)
-            if fh.readinto(view[filled:filled + length]) != length:
-                return None
-            filled += length
-    try:
-        data = deflate.zlib_decompress(stream, rows * (2 * cols + 1))
-    except deflate.DeflateError:
-        return None
-    return _kernels.png_gray16(data, rows, cols)
-
-
-class _Gray16:
-    """What :func:`_channel` reads of a Pillow image, for a 16-bit grey PNG read without Pillow."""
-    mode = "I;16"
-
-
-def _decode_target(im):
-    """``(array, Pillow image core)``: a numpy array for Pillow to decode ``im`` into, or ``(None, None)``.
-
-    ``numpy.asarray`` of a Pillow image copies its pixels twice (``tobytes``
-    gathers encoded chunks, then joins them): for a 4096x4096 16-bit map
-    64 MiB of fresh memory and about 0.05 s. A grey picture is decoded
-    into an array mapped as the image's memory instead; the caller checks
-    that Pillow kept that memory (``im.im is core``) before using it.
-    """
-    dtype = _DIRECT_MODES.get(im.mode)
-    if dtype is None or getattr(im, "_im", True) is not None:
-        return None, None
-    from PIL import Image
-    cols, rows = im.size
-    pixels = np.empty((rows, cols), dtype=dtype)
-    try:
-        core = Image.frombuffer(im.mode, im.size, pixels, "raw", im.mode, 0, 1).im
-        im.im = core
-    except Exception:   # a Pillow without these hooks: decode the usual way
-        return None, None
-    return pixels, core
-
-
-def _channel(im, path: Path, channel: str | None, depth: int, notes: list, pixels=None) -> Picture:
+def _channel(im, path: Path, channel: str | None, depth: int, notes: list) -> Picture:
     mode = im.mode
     where = f"image '{path}'"
     if mode == "P":
@@ -365,7 +236,7 @@ def _channel(im, path: Path, channel: str | None, depth: int, notes: list, pixel
         warnings.warn(f"{where}: 16-bit-per-channel colour is read at 8 bits per channel (Pillow's limit); "
                       f"save the height map as 16-bit grey to keep its depth", PictureWarning, stacklevel=3)
         notes.append("16-bit colour read at 8 bits per channel")
-    arr = pixels if pixels is not None and mode == im.mode and im.mode in _DIRECT_MODES else np.asarray(im)
+    arr = np.asarray(im)
     if mode == "I":
         # 32-bit integer TIFF, or 16-bit data Pillow widened
         full = 65535.0 if depth <= 16 else float(2 ** 32 - 1)

@@ -1,9 +1,9 @@
 """Kernels for the compiler's large-array work, in C (compiled at install) or in numpy chunks.
 
 The slope kernels (:func:`wall_scan`, :func:`clip_where`,
-:func:`clip_magnitude`), :func:`encode`, :func:`png_gray16` and
-:func:`gray_to_heights` walk flat arrays once; :func:`zbuffer` rasterises a
-triangle mesh (:mod:`.raster`). They run in C: ``sd_kernels.c`` (beside this
+:func:`clip_magnitude`), :func:`encode` and :func:`gray_to_heights` walk
+flat arrays once; :func:`zbuffer` rasterises a triangle mesh
+(:mod:`.raster`). They run in C: ``sd_kernels.c`` (beside this
 module), compiled when the package is built or installed into the extension
 module ``shapedisplay._kernels_c`` (``setup.py``) and loaded with ctypes
 (:func:`c_kernels`, about a millisecond). The array kernels do the IEEE
@@ -54,7 +54,6 @@ def library():
                            ("sd_clip_magnitude", [vp, vp, i64, f64, vp, i64, f64]),
                            ("sd_central_band", [vp, i64, i64, i64, i64, f64, f64, vp, vp]),
                            ("sd_encode", [vp, i64, f64, f64, f64, f64, f64, vp, i64]),
-                           ("sd_png_gray16", [vp, i64, i64, vp, vp]),
                            ("sd_gray_to_heights", [vp, i64, i64, i64, i64, f64, f64, vp]),
                            ("sd_zbuffer", [vp, i64, vp, i64, vp, i64, i64, f64])):
             fn = getattr(lib, name)
@@ -201,21 +200,6 @@ def encode(values, offset, scale, top, out, gain=None, base=0.0):
         from shapedisplay.errors import InputError
         raise InputError("a value to code is NaN (it has no code)")
     _write_back(out, codes)
-
-
-def png_gray16(data: bytes, rows: int, cols: int):
-    """The pixels (uint16, rows x cols) of a non-interlaced 16-bit grey PNG from its inflated image data, or
-    None where the C kernels are switched off, the data is not ``rows * (2 * cols + 1)`` bytes or a row names
-    a filter PNG does not have (the caller decodes with Pillow then)."""
-    lib = c_kernels()
-    if lib is None or len(data) != rows * (2 * cols + 1):
-        return None
-    out = np.empty((rows, cols), dtype=np.uint16)
-    two_rows = np.empty(4 * cols, dtype=np.uint8)
-    if lib.sd_png_gray16(np.frombuffer(data, dtype=np.uint8).ctypes.data, rows, cols, two_rows.ctypes.data,
-                         out.ctypes.data) < 0:
-        return None
-    return out
 
 
 def gray_to_heights(gray, step, lo):

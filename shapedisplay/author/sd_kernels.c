@@ -19,10 +19,7 @@
  *
  * Codes (sd_encode): a division per sample is what bounds coding a channel (numpy's, on wider vectors
  * than a portable build gets, is as fast as a plain C loop); sd_encode multiplies by the reciprocal
- * instead and divides only where that could round to another code (see there).
- *
- * Pictures (sd_png_gray16): the pixels of a 16-bit grey PNG from its inflated data, for the picture
- * reader (shapedisplay.author.imageio), which checks them against Pillow's. */
+ * instead and divides only where that could round to another code (see there). */
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -420,76 +417,6 @@ int64_t sd_encode(const double *values, int64_t n, double gain, double base, dou
                 ((uint16_t *)out)[s + i] = (uint16_t)codes[i];
     }
     return n;
-}
-
-/* PNG's Paeth predictor of a byte from the bytes left (a), above (b) and above-left (c), without a branch
- * (a noisy picture would mispredict it about as often as not). */
-static inline int paeth(int a, int b, int c)
-{
-    int pa = abs(b - c), pb = abs(a - c), pc = abs(a + b - 2 * c);
-    int bc = pb <= pc ? b : c, take_a = -((pa <= pb) & (pa <= pc));
-    return (a & take_a) | (bc & ~take_a);
-}
-
-/* The pixels of a 16-bit grey PNG (non-interlaced) from its inflated image data: rows of a filter-type
- * byte and 2 * cols filtered bytes (big-endian samples). Each row is unfiltered (PNG's five filters on
- * bytes, two bytes per pixel: None, Sub, Up, Average, Paeth) against the row above (zeros above the first)
- * into a two-row byte buffer `rows2` (4 * cols bytes), then written to `out` as native uint16. Returns 0,
- * or -1 at a filter type other than 0..4 (the file is corrupt; nothing after that row is written). */
-int64_t sd_png_gray16(const uint8_t *data, int64_t rows, int64_t cols, uint8_t *rows2, uint16_t *out)
-{
-    int64_t w = 2 * cols;
-    uint8_t *prev = rows2, *cur = rows2 + w;
-    for (int64_t i = 0; i < w; i++)
-        prev[i] = 0;
-    for (int64_t r = 0; r < rows; r++) {
-        const uint8_t *src = data + r * (w + 1) + 1;
-        int kind = data[r * (w + 1)];
-        if (kind > 4)
-            return -1;
-        /* the first pixel has no left neighbours (0): Sub keeps it, Average adds half of the byte above,
-         * Paeth the byte above (a = c = 0 make b the predictor) */
-        for (int64_t i = 0; i < 2 && i < w; i++)
-            cur[i] = (uint8_t)(src[i] + (kind == 2 || kind == 4 ? prev[i] : kind == 3 ? prev[i] >> 1 : 0));
-        /* Sub, Average and Paeth chain each byte to the one two before it (the same byte of the pixel
-         * to the left): that byte is carried in a register (l0, l1), not reloaded from the row just
-         * written, which would add a store-to-load delay to every step of the chain. */
-        int l0 = cur[0], l1 = w > 1 ? cur[1] : 0;
-        switch (kind) {
-        case 0:
-            for (int64_t i = 2; i < w; i++)
-                cur[i] = src[i];
-            break;
-        case 1:
-            for (int64_t i = 2; i < w; i += 2) {
-                cur[i] = (uint8_t)(l0 = (uint8_t)(src[i] + l0));
-                cur[i + 1] = (uint8_t)(l1 = (uint8_t)(src[i + 1] + l1));
-            }
-            break;
-        case 2:
-            for (int64_t i = 2; i < w; i++)
-                cur[i] = (uint8_t)(src[i] + prev[i]);
-            break;
-        case 3:
-            for (int64_t i = 2; i < w; i += 2) {
-                cur[i] = (uint8_t)(l0 = (uint8_t)(src[i] + ((l0 + prev[i]) >> 1)));
-                cur[i + 1] = (uint8_t)(l1 = (uint8_t)(src[i + 1] + ((l1 + prev[i + 1]) >> 1)));
-            }
-            break;
-        default:
-            for (int64_t i = 2; i < w; i += 2) {
-                cur[i] = (uint8_t)(l0 = (uint8_t)(src[i] + paeth(l0, prev[i], prev[i - 2])));
-                cur[i + 1] = (uint8_t)(l1 = (uint8_t)(src[i + 1] + paeth(l1, prev[i + 1], prev[i - 1])));
-            }
-        }
-        uint16_t *o = out + r * cols;
-        for (int64_t j = 0; j < cols; j++)
-            o[j] = (uint16_t)(cur[2 * j] << 8 | cur[2 * j + 1]);
-        uint8_t *t = prev;
-        prev = cur;
-        cur = t;
-    }
-    return 0;
 }
 
 /* sources.gray_to_heights: out[r][c] = (double)codes[r * stride + c] * step + lo for rows x cols codes (uint8

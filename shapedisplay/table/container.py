@@ -59,57 +59,38 @@ _JSON_TOKENS = re.compile(r'"(?:[^"\\]|\\.)*"|[\[\]{}]')
 
 #: Entries up to this many bytes are deflated at zlib's default level, as ``numpy.savez_compressed`` does.
 SMALL_ENTRY = 1 << 20
-#: zlib level of a large deflated entry (what the zip records; see :func:`write_npz` for the deflater).
+#: zlib level of a large deflated entry: the fastest deflate, as the files are written while a user waits.
 LARGE_LEVEL = 1
-#: ISA-L level that deflates large entries when the ``isal`` package is there (0-3; 2 measured the
-#: fastest and smallest of them on a table's channels).
-ISAL_LEVEL = 2
-#: A large entry is stored uncompressed if deflate keeps more than this fraction of a sample of it.
+#: A large entry is stored uncompressed if deflate (level 1) keeps more than this fraction of a sample of it.
 STORE_ABOVE_RATIO = 0.7
 _SAMPLES = 8
 _SAMPLE_BYTES = 1 << 15
-
-
-def _isal_zlib():
-    """ISA-L's zlib-compatible module (the ``isal`` package), or None without it."""
-    try:
-        from isal import isal_zlib
-    except ImportError:
-        return None
-    return isal_zlib
-
-
-def _large_deflater():
-    """A raw-deflate compressor for a large entry: ISA-L's when ``isal`` is installed, else zlib's level 1."""
-    fast = _isal_zlib()
-    if fast is None:
-        return zlib.compressobj(LARGE_LEVEL, zlib.DEFLATED, -15)
-    return fast.compressobj(ISAL_LEVEL, fast.DEFLATED, -15)
 
 
 def entry_compression(data) -> tuple[int, int | None]:
     """How :func:`write_npz` stores one entry: ``(zipfile compress type, zlib level)``.
 
     Small entries (<= :data:`SMALL_ENTRY` bytes): deflate at zlib's default
-    level 6. Large ones: deflated fast (:data:`LARGE_LEVEL`, see
-    :func:`write_npz`), or stored when deflating :data:`_SAMPLES` evenly
-    spaced 32 KiB pieces keeps more than :data:`STORE_ABOVE_RATIO` of them:
-    codes of a noisy map hardly compress, and deflating them only to find
-    that out costs time. Both are plain zip methods that any zip or
-    ``numpy.load`` reads.
+    level 6. Large ones: deflate at level 1 (3-5x faster than level 6 on
+    smooth maps, about 1.5-2x the bytes), or stored when deflating
+    :data:`_SAMPLES` evenly spaced 32 KiB pieces keeps more than
+    :data:`STORE_ABOVE_RATIO` of them: codes of a noisy map hardly compress,
+    and deflating them only to find that out costs time. Both are plain zip
+    methods that any zip or ``numpy.load`` reads.
     """
     view = memoryview(data).cast("B")
     n = len(view)
     if n <= SMALL_ENTRY:
         return zipfile.ZIP_DEFLATED, 6
     step = (n - _SAMPLE_BYTES) // (_SAMPLES - 1)
-    packed = 0
-    for i in range(_SAMPLES):
-        deflater = _large_deflater()
-        packed += len(deflater.compress(view[i * step:i * step + _SAMPLE_BYTES])) + len(deflater.flush())
+    packed = sum(len(zlib.compress(view[i * step:i * step + _SAMPLE_BYTES], LARGE_LEVEL)) for i in range(_SAMPLES))
     if packed > STORE_ABOVE_RATIO * _SAMPLES * _SAMPLE_BYTES:
         return zipfile.ZIP_STORED, None
     return zipfile.ZIP_DEFLATED, LARGE_LEVEL
+
+
+#: Largest size zipfile writes without zip64 records (``zipfile.ZIP64_LIMIT``).
+_ZIP64_LIMIT = (1 << 31) - 1
 
 
 def write_npz(fh, arrays: dict) -> None:
@@ -117,20 +98,20 @@ def write_npz(fh, arrays: dict) -> None:
 
     Each entry ``NAME.npy`` holds the array in ``.npy`` format exactly as
     ``numpy.save`` writes it, compressed as :func:`entry_compression`
-    chooses. Entry times are fixed (1980-01-01), so equal arrays give equal
-    bytes. :class:`NpzReader` and ``numpy.load`` read the result.
+    chooses, by the standard library's ``zipfile`` and ``zlib``. Entry times
+    are fixed (1980-01-01), so equal arrays give equal bytes.
+    :class:`NpzReader` and ``numpy.load`` read the result.
 
     The array bytes stream from the array into the zip entry a chunk at a
-    time (no ``.npy`` copy of the array in memory). Small and stored entries
-    are byte for byte those of ``ZipFile.writestr`` on the whole
-    ``numpy.save`` output. Large deflated entries go through ISA-L's
-    deflate (the ``isal`` package, a dependency) instead of zlib's: on a
-    4096x4096 map's channels about 3.5x faster than zlib level 1 and a few
-    per cent smaller; the stream is plain deflate, which every zip reader
-    and ``numpy.load`` inflate. Without ``isal`` zlib level 1 writes them,
-    byte for byte ``writestr``'s.
+    time (no ``.npy`` copy of the array in memory); the bytes are those of
+    ``ZipFile.writestr`` on the whole ``numpy.save`` output (the tests
+    compare them). Only ``zipfile``'s public API sets the levels: the zip's
+    own method and level (deflate, :data:`LARGE_LEVEL`) apply to the large
+    deflated entries, opened by name; the others are opened as a
+    ``ZipInfo`` of their method (stored, or deflate at zlib's default
+    level, 6).
     """
-    with zipfile.ZipFile(fh, "w", allowZip64=True) as zf:
+    with zipfile.ZipFile(fh, "w", zipfile.ZIP_DEFLATED, allowZip64=True, compresslevel=LARGE_LEVEL) as zf:
         for name, a in arrays.items():
             a = np.ascontiguousarray(a)
             if a.dtype.hasobject:
@@ -139,14 +120,13 @@ def write_npz(fh, arrays: dict) -> None:
             method, level = entry_compression(data)
             head = io.BytesIO()
             np.lib.format.write_array_header_1_0(head, np.lib.format.header_data_from_array_1_0(a))
-            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
-            info.compress_type = method
-            info._compresslevel = level                        # what writestr sets
-            info.file_size = head.tell() + data.size          # as writestr sets it (zip64 decided from it)
-            with zf.open(info, "w") as dest:
-                if method == zipfile.ZIP_DEFLATED and level == LARGE_LEVEL \
-                        and getattr(dest, "_compressor", None) is not None:
-                    dest._compressor = _large_deflater()       # before any byte: the entry's only deflater
+            if method == zipfile.ZIP_DEFLATED and level == LARGE_LEVEL:
+                entry = f"{name}.npy"                   # the zip's method and level; time 1980-01-01
+            else:                                       # stored, or deflate at zlib's default level (6)
+                entry = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+                entry.compress_type = method
+            # zip64 records where writestr would put them (decided from the size before any byte)
+            with zf.open(entry, "w", force_zip64=(head.tell() + data.size) * 1.05 > _ZIP64_LIMIT) as dest:
                 dest.write(head.getbuffer())
                 for i in range(0, data.size, _CHUNK):
                     dest.write(data[i:i + _CHUNK])
