@@ -62,7 +62,7 @@ import numpy as np
 
 from shapedisplay.errors import FileFormatError, InputError, require, unknown_key
 from shapedisplay.author.heightfield import HeightField, check_grid_size
-from shapedisplay.author.meshfiles import MAX_COORDINATE, check_mesh_file
+from shapedisplay.author.meshfiles import MAX_COORDINATE, MAX_PLY_STRIPS, check_mesh_file, ply_elements
 
 #: File suffixes read through trimesh.
 MESH_SUFFIXES = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf")
@@ -112,6 +112,8 @@ def load_mesh(path) -> tuple[np.ndarray, np.ndarray, dict]:
             f"mesh '{path}': unsupported suffix '{suffix}'; readable: {', '.join(MESH_SUFFIXES)}"
         )
     check_mesh_file(path, suffix)
+    if suffix == ".ply" and "tristrips" in ply_elements(path):
+        return _load_ply_strips(path)
     trimesh = require("trimesh", "mesh", "Loading meshes")
     try:
         with warnings.catch_warnings():
@@ -126,8 +128,6 @@ def load_mesh(path) -> tuple[np.ndarray, np.ndarray, dict]:
     for g in geoms:
         f = getattr(g, "faces", None)
         v = getattr(g, "vertices", None)
-        if (f is None or len(f) == 0) and v is not None:
-            f = _ply_strips(g)                     # PLY triangle strips (trimesh reads them as points)
         if f is None or v is None or len(f) == 0:
             kind = type(g).__name__
             name = {"PointCloud": "point clouds", "Path3D": "lines/curves", "Path2D": "2-D paths"}.get(kind, kind)
@@ -149,25 +149,86 @@ def load_mesh(path) -> tuple[np.ndarray, np.ndarray, dict]:
     return np.concatenate(verts), np.concatenate(faces), {"meshes": count, "format": suffix[1:], "notes": notes}
 
 
-def _ply_strips(g):
-    """Triangles of a PLY ``tristrips`` element (-1 restarts a strip; alternate triangles flip winding)."""
-    raw = (getattr(g, "metadata", None) or {}).get("_ply_raw", {})
-    strips = raw.get("tristrips", {}).get("data", {}).get("vertex_indices") if isinstance(raw, dict) else None
-    if strips is None:
-        return None
-    tris = []
-    for strip in (strips if getattr(strips, "dtype", None) == object or np.ndim(strips) == 2 else [strips]):
-        run: list = []
-        for i in np.asarray(strip, dtype=np.int64).ravel():
-            if i < 0:
-                run = []
-                continue
-            run.append(int(i))
-            if len(run) >= 3:
-                a, b, c = run[-3:]
-                tris.append((a, b, c) if len(run) % 2 == 1 else (b, a, c))
-    tris = [t for t in tris if len(set(t)) == 3]         # strips repeat vertices to turn corners
-    return np.asarray(tris, dtype=np.int64).reshape(-1, 3) if tris else None
+def _load_ply_strips(path: Path) -> tuple[np.ndarray, np.ndarray, dict]:
+    """A PLY file whose faces are triangle strips (``element tristrips``), read with plyfile.
+
+    plyfile reads every layout the format allows (ASCII or binary, one strip
+    with -1 restarts or one record per strip, strips of different lengths),
+    which trimesh's reader does not; anything else in the file (faces,
+    colours) is read too or named in the notes.
+    """
+    plyfile = require("plyfile", "mesh", "Reading PLY triangle strips")
+    try:
+        ply = plyfile.PlyData.read(str(path))
+    except Exception as exc:  # plyfile raises PlyParseError, ValueError, ... for corrupt files
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise FileFormatError(f"mesh '{path}': cannot read PLY file ({msg})") from None
+    names = [e.name for e in ply.elements]
+    if "vertex" not in names:
+        raise FileFormatError(f"mesh '{path}': PLY element 'tristrips' without an element 'vertex'")
+    vert = ply["vertex"].data
+    if vert.dtype.names is None or not all(k in vert.dtype.names for k in "xyz"):
+        raise FileFormatError(f"mesh '{path}': PLY element 'vertex' has no x, y, z properties "
+                              f"(has {', '.join(vert.dtype.names or ())})")
+    v = np.column_stack([np.asarray(vert[k], dtype=np.float64) for k in "xyz"])
+    faces = [strip_triangles(_element_lists(ply["tristrips"].data, path, "tristrips"), len(v), path)]
+    if "face" in names:
+        for poly in _element_lists(ply["face"].data, path, "face"):
+            if len(poly) >= 3:           # a fan, as trimesh splits polygons
+                faces.append(np.column_stack([np.full(len(poly) - 2, poly[0]), poly[1:-1], poly[2:]]))
+    f = np.concatenate(faces).astype(np.int64).reshape(-1, 3)
+    if f.size and (f.min() < 0 or f.max() >= len(v)):
+        raise FileFormatError(f"mesh '{path}': PLY face index {int(f.max() if f.max() >= len(v) else f.min())} "
+                              f"outside the {len(v)} vertices")
+    if len(f) == 0:
+        raise FileFormatError(f"mesh '{path}': no triangles found (empty mesh or unreadable content)")
+    notes = ["vertex colours of 1 mesh ignored"] if any(k in vert.dtype.names for k in ("red", "r", "diffuse_red")) \
+        else []
+    return v, f, {"meshes": 1, "format": "ply", "notes": notes}
+
+
+def _element_lists(data, path: Path, element: str) -> list:
+    """The index lists of a PLY element (its one list property), as int64 arrays."""
+    names = data.dtype.names or ()
+    key = "vertex_indices" if "vertex_indices" in names else ("vertex_index" if "vertex_index" in names else None)
+    if key is None or len(data) > MAX_PLY_STRIPS:
+        why = (f"{len(data)} records exceed the limit of {MAX_PLY_STRIPS} (shapedisplay.author.meshfiles."
+               f"MAX_PLY_STRIPS)") if key else f"no list property vertex_indices (has {', '.join(names)})"
+        raise FileFormatError(f"mesh '{path}': PLY element '{element}': {why}")
+    try:
+        return [np.asarray(r, dtype=np.int64).ravel() for r in data[key]]
+    except (TypeError, ValueError, OverflowError):
+        raise FileFormatError(f"mesh '{path}': PLY element '{element}': property {key} is not a list of "
+                              f"vertex indices") from None
+
+
+def strip_triangles(strips, n_vertices: int, path="strips") -> np.ndarray:
+    """Triangles of triangle strips: each strip's index list, -1 restarting a strip.
+
+    Triangle ``i`` of a run is ``(r[i], r[i+1], r[i+2])`` for even ``i`` and
+    ``(r[i+1], r[i], r[i+2])`` for odd ``i`` (alternate triangles flip
+    winding so that all face the same way); triangles that repeat a vertex
+    (strips repeat vertices to turn corners) are dropped.
+    """
+    out = [np.empty((0, 3), np.int64)]
+    for s in strips:
+        s = np.asarray(s, dtype=np.int64).ravel()
+        if s.size < 3:
+            continue
+        if s.min() < -1 or s.max() >= n_vertices:
+            bad = int(s.min() if s.min() < -1 else s.max())
+            raise FileFormatError(f"mesh '{path}': PLY element 'tristrips': vertex index {bad} outside "
+                                  f"0..{n_vertices - 1} (-1 restarts a strip)")
+        idx = np.arange(s.size)
+        start = np.maximum.accumulate(np.where(s < 0, idx + 1, 0))   # first index of each run
+        pos = idx - start                                           # position within the run
+        a, b, c, p = s[:-2], s[1:-1], s[2:], pos[2:]
+        ok = (a >= 0) & (b >= 0) & (c >= 0) & (p >= 2)
+        odd = (p - 2) % 2 == 1
+        tri = np.column_stack([np.where(odd, b, a), np.where(odd, a, b), c])[ok]
+        keep = (tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 0] != tri[:, 2])
+        out.append(tri[keep])
+    return np.concatenate(out)
 
 
 _VISUALS = ("textures", "vertex colours", "face colours")
@@ -182,10 +243,6 @@ def _visual_notes(g) -> list:
         has_image = any(getattr(mat, k, None) is not None for k in ("image", "baseColorTexture"))
         return ["textures"] if has_image else []
     defined = getattr(vis, "defined", None)
-    if defined is None:   # a point cloud's colours (PLY strips): look at the raw vertex properties
-        raw = (getattr(g, "metadata", None) or {}).get("_ply_raw", {})
-        props = raw.get("vertex", {}).get("properties", {}) if isinstance(raw, dict) else {}
-        defined = any(k in props for k in ("red", "r", "diffuse_red"))
     if kind == "vertex" and defined:
         return ["vertex colours"]
     if kind == "face" and defined:

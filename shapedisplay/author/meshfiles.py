@@ -26,6 +26,9 @@ MAX_COORDINATE = 1e60
 #: triangles: each slice of a fan spans the polygon, and rasterising them costs the polygon's
 #: area per vertex (80,000 vertices: 47.5 s).
 MAX_FACE_VERTICES = 4096
+#: Most records of a PLY triangle-strip element (a scanner writes one strip, or one per row of the scan):
+#: each record is read on its own, so the count bounds the reading time.
+MAX_PLY_STRIPS = 1_000_000
 
 
 
@@ -133,6 +136,30 @@ def _check_binary_ply_faces(path: Path, data, header_end: int, elements: list, o
         return
 
 
+def _ply_header(data) -> tuple[str, list, int] | None:
+    """A PLY header's format, its elements ``(name, count, properties)`` and where the data starts (or None)."""
+    end = data.find(b"end_header", 0, 1 << 16)
+    if end < 0:
+        return None
+    header = bytes(data[:end]).decode("ascii", "replace").split("\n")
+    fmt = next((ln.split()[1] for ln in header if ln.startswith("format ") and len(ln.split()) > 1), "")
+    elements: list = []
+    for ln in header:
+        t = ln.split()
+        if len(t) >= 3 and t[0] == "element" and t[2].isdigit():
+            elements.append((t[1], int(t[2]), []))
+        elif len(t) >= 3 and t[0] == "property" and elements:
+            elements[-1][2].append(("list", t[2], t[3]) if t[1] == "list" and len(t) >= 5 else ("scalar", t[1]))
+    return fmt, elements, data.find(b"\n", end) + 1
+
+
+def ply_elements(path: Path) -> dict:
+    """Element name -> count of a PLY file's header (empty when there is no header to read)."""
+    with open(path, "rb") as fh:
+        head = _ply_header(fh.read(1 << 16))
+    return {} if head is None else {name: count for name, count, _ in head[1]}
+
+
 def _check_faces(path: Path) -> None:
     """Refuse a polygon of more than :data:`MAX_FACE_VERTICES` vertices (OBJ, OFF, PLY) before trimesh reads it.
 
@@ -149,21 +176,12 @@ def _check_faces(path: Path) -> None:
             return _check_text_faces(path, data, rb"f[ \t]", 1)
         if suffix == ".off":
             return _check_text_faces(path, data, b"", 0)
-        end = data.find(b"end_header", 0, 1 << 16)
-        if end < 0:
+        head = _ply_header(data)
+        if head is None:
             return                        # not a PLY header trimesh can read either: its error names it
-        header = bytes(data[:end]).decode("ascii", "replace").split("\n")
-        header_end = data.find(b"\n", end) + 1
-        fmt = next((ln.split()[1] for ln in header if ln.startswith("format ") and len(ln.split()) > 1), "")
+        fmt, elements, header_end = head
         if fmt == "ascii":
             return _check_text_faces(path, data, b"", 0)
-        elements: list = []
-        for ln in header:
-            t = ln.split()
-            if len(t) >= 3 and t[0] == "element" and t[2].isdigit():
-                elements.append((t[1], int(t[2]), []))
-            elif len(t) >= 3 and t[0] == "property" and elements:
-                elements[-1][2].append(("list", t[2], t[3]) if t[1] == "list" and len(t) >= 5 else ("scalar", t[1]))
         if fmt in ("binary_little_endian", "binary_big_endian") and header_end > 0:
             _check_binary_ply_faces(path, data, header_end, elements, "<" if fmt.endswith("little_endian") else ">")
 
