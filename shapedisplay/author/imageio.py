@@ -25,12 +25,20 @@ shape (rows, cols) or (cols,) are read with numpy.
   picture is expanded through its palette first.
 * **Alpha** (grey+alpha, RGBA, palette transparency) becomes a mask: samples
   with alpha 0 are outside the shape. ``channel="a"`` uses alpha as heights
-  instead (no mask).
-* **Normal maps**: a colour picture whose pixels decode as unit vectors
-  ``n = 2 c / full_scale - 1`` pointing out of the surface (``nz > 0``, the
-  blue-violet look of a tangent-space normal map) is recognised;
+  instead (no mask). A picture whose visible pixels all have one colour
+  (within 1 % of full scale) while alpha varies -- the usual icon export,
+  black or white on a transparent background -- has its shape only in
+  alpha: with no channel named, alpha is read as heights (opaque = high),
+  and the notes say so.
+* **Normal maps**: a colour picture whose pixels decode as vectors
+  ``n = 2 c / full_scale - 1`` pointing out of the surface (blue dominant,
+  clustered around (128, 128, 255), near unit length: the blue-violet look
+  of a tangent-space normal map, also after JPEG compression or hand
+  painting, see :func:`normal_map_verdict`) is recognised;
   ``channel="normal"`` returns its slopes for integration, any other reading
   of such a picture is refused with that advice unless a channel is named.
+  A picture that only may be one (a steep or painted map, a blue sky) is
+  read as luminance with a :class:`PictureWarning` naming both channels.
 
 Limits
 ------
@@ -268,11 +276,19 @@ def _channel(im, path: Path, channel: str | None, depth: int, notes: list) -> Pi
         desc = f"grey {depth}-bit" + (" + alpha (mask)" if has_alpha else "")
     else:
         rgb = arr[..., :3]
-        if channel is None and looks_like_normal_map(rgb, full):
+        verdict = normal_map_verdict(rgb, full) if channel is None else (None, {})
+        if verdict[0] == "normal":
             raise InputError(
-                f"{where}: looks like a tangent-space normal map (pixels are unit vectors pointing out of the "
+                f"{where}: looks like a tangent-space normal map (pixels are vectors pointing out of the "
                 f"surface); pass `--channel normal` to integrate it into heights (Frankot-Chellappa), or name "
                 f"another channel (luminance, r, g, b) to use its values as heights")
+        if verdict[0] == "maybe":
+            st = verdict[1]
+            warnings.warn(f"{where}: may be a tangent-space normal map ({st['facing'] * 100:.0f} % of the pixels "
+                          f"blue dominant, median vector length {st['median_length']:.2f}); read as luminance "
+                          f"heights: pass `--channel normal` to integrate it as a normal map, or `--channel "
+                          f"luminance` to keep this reading without the warning", PictureWarning, stacklevel=3)
+            notes.append("may be a normal map: read as luminance (pass a channel to decide)")
         if channel in ("r", "g", "b"):
             values = np.ascontiguousarray(rgb[..., "rgb".index(channel)])
             desc = f"{mode} {depth}-bit, channel {channel}"
@@ -282,10 +298,24 @@ def _channel(im, path: Path, channel: str | None, depth: int, notes: list) -> Pi
             desc = f"{mode} {depth}-bit, luminance (ITU-R BT.709)"
         if has_alpha:
             desc += " + alpha (mask)"
+    if channel is None and has_alpha and _shape_in_alpha(values, arr[..., -1], full):
+        notes.append("uniform colour: the shape is in the alpha channel, read as heights (opaque = high)")
+        return Picture(np.ascontiguousarray(arr[..., -1]), full, None, None,
+                       f"{mode} {depth}-bit, alpha (uniform colour)", notes)
     mask = _mask(arr, has_alpha)
     if mask is not None:
         notes.append(f"alpha used as mask: {int((~mask).sum())} transparent pixels are outside the shape")
     return Picture(values, full, mask, None, desc, notes)
+
+
+def _shape_in_alpha(values: np.ndarray, alpha: np.ndarray, full: float) -> bool:
+    """True for an icon exported as one colour on a transparent background: the colour of every visible
+    pixel is the same (within 1 % of full scale) while alpha varies, so the shape is only in alpha."""
+    seen = alpha > 0
+    if not seen.any() or seen.all() and alpha.min() == alpha.max():
+        return False
+    v = values[seen]
+    return float(v.max()) - float(v.min()) <= 0.01 * full and int(alpha.max()) - int(alpha.min()) > 0.1 * full
 
 
 def _mask(arr: np.ndarray, has_alpha: bool):
@@ -299,19 +329,58 @@ def _normal_vectors(rgb: np.ndarray, full: float) -> np.ndarray:
     return rgb.astype(np.float64) * (2.0 / full) - 1.0
 
 
-def looks_like_normal_map(rgb: np.ndarray, full: float) -> bool:
-    """True if most pixels decode as unit normals facing out of the surface.
+def normal_map_stats(rgb: np.ndarray, full: float) -> dict:
+    """The statistics that tell a tangent-space normal map from a picture of heights.
 
-    Rule: with ``n = 2 c / full_scale - 1``, at least 95 % of the pixels have
-    ``| |n| - 1 | < 0.1`` and ``nz > 0``, and the mean ``nz`` exceeds 0.5 (a
-    flat area encodes as (128, 128, 255)). Photographs and screenshots fail
-    the unit-length test almost everywhere.
+    With ``n = 2 c / full_scale - 1`` over a sample of at most ~64k pixels:
+    ``unit`` the fraction of exactly unit vectors (``| |n| - 1 | < 0.1``,
+    ``nz > 0``: what a map written straight from computed normals holds);
+    ``near_unit`` the fraction with ``0.5 < |n| < 1.25`` (real maps: JPEG,
+    resampling and hand painting leave their vectors short, median |n| about
+    0.8, 5-95 % 0.6-1.07); ``facing`` the fraction that is blue dominant and
+    faces out of the surface (``nz > 0.3`` and, after normalisation, ``nz``
+    larger than ``|nx|`` and ``|ny|``: slopes under 45 degrees); ``outward``
+    the fraction with ``nz > 0.1`` (steeper slopes too); ``tilt`` the
+    larger of the medians of the normalised ``|nx|``, ``|ny|`` components (the
+    colour cluster sits at (128, 128, 255) for a map of a surface that is
+    mostly flat); ``mean_nz`` and ``median_length``.
     """
     step = max(1, int(np.sqrt(rgb.shape[0] * rgb.shape[1] / 65536)))   # a sample of at most ~64k pixels
-    n = _normal_vectors(rgb[::step, ::step], full)
+    n = _normal_vectors(rgb[::step, ::step], full).reshape(-1, 3)
     length = np.sqrt((n * n).sum(axis=-1))
-    unit = (np.abs(length - 1.0) < 0.1) & (n[..., 2] > 0)
-    return bool(unit.mean() >= 0.95 and n[..., 2].mean() > 0.5)
+    u = n / np.maximum(length, 1e-9)[:, None]
+    facing = (n[:, 2] > 0.3) & (u[:, 2] > np.maximum(np.abs(u[:, 0]), np.abs(u[:, 1])))
+    return {"unit": float(((np.abs(length - 1.0) < 0.1) & (n[:, 2] > 0)).mean()),
+            "near_unit": float(((length > 0.5) & (length < 1.25)).mean()),
+            "facing": float(facing.mean()), "outward": float((n[:, 2] > 0.1).mean()),
+            "tilt": float(max(abs(np.median(u[:, 0])), abs(np.median(u[:, 1])))),
+            "mean_nz": float(n[:, 2].mean()), "median_length": float(np.median(length))}
+
+
+def normal_map_verdict(rgb: np.ndarray, full: float) -> tuple[str | None, dict]:
+    """``("normal", stats)``, ``("maybe", stats)`` or ``(None, stats)`` for a colour picture.
+
+    "normal": at least 95 % exactly unit vectors with mean ``nz`` above 0.5
+    (a map written from computed normals), or at least 90 % near unit, 90 %
+    facing and a tilt under 0.35 (a real map: compressed, resampled or
+    painted). "maybe": at least 60 % near unit and either 60 % facing or
+    90 % outward with mean ``nz`` above 0.4 (a map with steep or painted
+    areas, or a blue picture such as a sky). Photographs,
+    screenshots and grey pictures fail the facing test: grey is never blue
+    dominant. See :func:`normal_map_stats`.
+    """
+    st = normal_map_stats(rgb, full)
+    if st["unit"] >= 0.95 and st["mean_nz"] > 0.5 or \
+            st["near_unit"] >= 0.9 and st["facing"] >= 0.9 and st["tilt"] < 0.35:
+        return "normal", st
+    if st["near_unit"] >= 0.6 and (st["facing"] >= 0.6 or st["outward"] >= 0.9 and st["mean_nz"] > 0.4):
+        return "maybe", st
+    return None, st
+
+
+def looks_like_normal_map(rgb: np.ndarray, full: float) -> bool:
+    """True if the picture is a tangent-space normal map (:func:`normal_map_verdict` says "normal")."""
+    return normal_map_verdict(rgb, full)[0] == "normal"
 
 
 def _normal_slopes(rgb: np.ndarray, full: float, where: str, strict: bool):
@@ -449,4 +518,5 @@ def read_npy(path: str | os.PathLike) -> np.ndarray:
 
 
 __all__ = ["PICTURE_SUFFIXES", "CHANNELS", "BT709", "Picture", "PictureWarning", "picture_info", "read_picture",
+           "normal_map_stats", "normal_map_verdict",
            "looks_like_normal_map", "frankot_chellappa", "encode_png", "write_png", "png_text", "read_npy"]
