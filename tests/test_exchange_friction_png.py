@@ -75,3 +75,51 @@ def test_constant_mu_table_gives_a_flat_image_with_its_value(tmp_path):
     t, _ = corner_table(with_scale=False)
     v = quantity_map(t, "mu")
     assert np.all(v == load_device(None).friction.mu_s)
+
+
+# ------------------------------------------------------------------ the default quantity carries the shape
+PHONE = __import__("pathlib").Path(__file__).resolve().parent.parent / "assets" / "scenes" / "phone.toml"
+
+
+@pytest.fixture(scope="module")
+def phone(tmp_path_factory):
+    out = tmp_path_factory.mktemp("phone") / "phone.npz"
+    assert main(["compile", str(PHONE), "-o", str(out), "-q"]) == 0
+    return out
+
+
+def test_phone_bitmap_shows_its_buttons_with_no_option(phone, tmp_path, capsys):
+    out = tmp_path / "phone.png"
+    assert main(["export", str(phone), "--format", "friction-png", "-o", str(out)]) == 0
+    assert "warning" not in capsys.readouterr().err
+    grey = np.array(Image.open(out))
+    info = json.loads((tmp_path / "phone.png.json").read_text())
+    assert info["quantity"] == "breakaway_force" and info["quantity_rule"].startswith("mu is uniform")
+    levels = np.unique(grey)
+    assert len(levels) > 3 and grey.min() == 0 and grey.max() == 65535
+    # the grey levels are mu_s N: the buttons stand out where N does
+    t = FrictionTable.load(phone)
+    v, _ = read_friction_png(out)
+    from shapedisplay.exchange.export import device_of
+    mu_s = device_of(t.meta).friction.mu_s
+    assert np.max(np.abs(v - mu_s * np.maximum(t.dense("normal_force"), 0))) <= info["max_error"] * (1 + 1e-9)
+
+
+def test_flat_bitmap_is_written_with_a_warning_naming_what_shows(phone, tmp_path, capsys):
+    out = tmp_path / "mu.png"
+    assert main(["export", str(phone), "--format", "friction-png", "-o", str(out), "--quantity", "mu"]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("shapedisplay export: warning: friction bitmap of mu is flat")
+    assert "normal_force or breakaway_force shows the table's shape (--quantity)" in err[0]
+    assert len(np.unique(np.array(Image.open(out)))) == 1
+
+
+def test_auto_picks_mu_where_mu_varies(tmp_path):
+    from shapedisplay.exchange.friction_png import bitmap_choices, choose_quantity
+    t, bump = corner_table()
+    assert choose_quantity(t)[0] == "mu"
+    _, info = read_friction_png(export_friction_png(t, tmp_path / "f.png"))
+    assert info["quantity"] == "mu" and info["quantity_rule"] == "mu varies over the table"
+    plain, _ = corner_table(with_scale=False)
+    assert bitmap_choices(plain) == {"auto": "breakaway_force", "flat": ["mu"],
+                                     "rule": "mu is uniform: the shape is in N, shown as the friction level mu_s N"}

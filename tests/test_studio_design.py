@@ -419,6 +419,11 @@ def test_exports_take_their_options_and_say_which_table_they_hold(fresh):
     page = fresh
     page.locator("#exports").locator("xpath=..").locator("summary").click()        # open the Export panel
     sel = page.locator('#exports select[name="friction-png-quantity"]')
+    # the default shows the phone's shape (mu is uniform: the friction level mu_s N), and says so
+    assert sel.input_value() == "auto"
+    assert page.text_content("#bitmap-note").startswith("friction-png auto: breakaway_force (mu is uniform")
+    sel.select_option("mu")
+    assert "mu is uniform on this table: the image is flat" in page.text_content("#bitmap-note")
     sel.select_option("normal_force")
     href = page.get_attribute('#exports a[data-format="friction-png"]', "href")
     assert "quantity=normal_force" in href and "bits=16" in href

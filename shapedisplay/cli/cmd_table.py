@@ -18,7 +18,8 @@ def register(sub) -> None:
     p.add_argument("--format", required=True, help="json | c | bin | friction-png | glb")
     p.add_argument("-o", "--output", required=True, help="file to write")
     p.add_argument("--name", help="C symbol prefix (default: output file stem)")
-    p.add_argument("--quantity", help="friction-png: mu | normal_force | breakaway_force (default mu)")
+    p.add_argument("--quantity", help="friction-png: auto | mu | normal_force | breakaway_force (default auto: mu "
+                                      "where it varies, else breakaway_force, the shape of N)")
     p.add_argument("--bits", type=int, help="friction-png: 8 or 16 bits per pixel (default 16)")
     p.set_defaults(func=run_export)
 
@@ -99,8 +100,10 @@ def run_export(args) -> int:
 
     if args.format not in FORMATS:
         raise unknown_key("export format", args.format, FORMATS)
+    from shapedisplay.cli.cmd_compile import warnings_as_lines
     table = FrictionTable.load(args.table)
-    out = export_table(table, args.output, args.format, args.name, quantity=args.quantity, bits=args.bits)
+    with warnings_as_lines("export"):
+        out = export_table(table, args.output, args.format, args.name, quantity=args.quantity, bits=args.bits)
     print(f"wrote {out} ({args.format})")
     return 0
 

@@ -8,7 +8,13 @@ scale back to SI:
 
 ``value = offset + scale * grey``  (``scale = (max - min) / (2^bits - 1)``)
 
-Quantities (:data:`QUANTITIES`):
+Quantities (:data:`QUANTITIES`), chosen with ``quantity``; by default
+(``"auto"``) the one that carries the table's shape: ``mu`` where the
+friction coefficient varies over the canvas, else ``breakaway_force`` (a
+height-mapped table keeps mu uniform and puts its shape in N; mu_s N is the
+friction level a friction screen renders, and it has N's shape). A bitmap
+that would come out flat (one grey level) is written with a
+:class:`FlatBitmapWarning` naming the quantities that would show something.
 
 * ``mu`` — the static friction coefficient each sample gives, as the
   renderer derives it with the cursor at rest (the device's ``mu_s``, times
@@ -27,6 +33,7 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +43,28 @@ from shapedisplay.errors import InputError, unknown_key
 from shapedisplay.author.heightfield import grid_from_picture, picture_from_grid
 
 QUANTITIES = {"mu": "1", "normal_force": "N", "breakaway_force": "N"}
+#: The default quantity: the one that carries the table's shape (:func:`choose_quantity`).
+AUTO = "auto"
 BITS = (8, 16)
+#: Relative spread below which a quantity counts as uniform (float round-off of a constant).
+UNIFORM_RTOL = 1e-9
+
+
+class FlatBitmapWarning(UserWarning):
+    """A friction bitmap is one grey level: the quantity asked for does not vary over the table."""
+
+
+def _spread(v: np.ndarray) -> float:
+    lo, hi = float(v.min()), float(v.max())
+    return 0.0 if hi - lo <= UNIFORM_RTOL * max(abs(lo), abs(hi)) else hi - lo
+
+
+def choose_quantity(table) -> tuple[str, str]:
+    """The quantity that carries the table's shape, and why: ``mu`` where it varies, else
+    ``breakaway_force`` (mu_s N, N's shape)."""
+    if _spread(quantity_map(table, "mu")) > 0:
+        return "mu", "mu varies over the table"
+    return "breakaway_force", "mu is uniform: the shape is in N, shown as the friction level mu_s N"
 
 
 def _device(table):
@@ -68,8 +96,14 @@ def quantity_map(table, quantity: str = "mu") -> np.ndarray:
     return mu1
 
 
-def friction_image(table, quantity: str = "mu", bits: int = 16) -> tuple[np.ndarray, dict]:
-    """Grey image (top view) and its scale.
+def bitmap_choices(table) -> dict:
+    """What the default picks for ``table`` and which quantities would give a flat bitmap (the studio's note)."""
+    quantity, rule = choose_quantity(table)
+    return {"auto": quantity, "rule": rule, "flat": [q for q in QUANTITIES if _spread(quantity_map(table, q)) == 0]}
+
+
+def friction_image(table, quantity: str = AUTO, bits: int = 16) -> tuple[np.ndarray, dict]:
+    """Grey image (top view) and its scale; ``quantity`` "auto" picks it (:func:`choose_quantity`).
 
     Returns
     -------
@@ -80,8 +114,20 @@ def friction_image(table, quantity: str = "mu", bits: int = 16) -> tuple[np.ndar
     """
     if bits not in BITS:
         raise InputError(f"`bits` must be 8 or 16 (got {bits!r})")
+    quantity = AUTO if quantity is None else quantity
+    if quantity != AUTO and quantity not in QUANTITIES:
+        raise unknown_key("friction bitmap quantity", quantity, (AUTO, *QUANTITIES))
+    rule = "given"
+    if quantity == AUTO:
+        quantity, rule = choose_quantity(table)
     v = quantity_map(table, quantity)
     lo, hi = float(v.min()), float(v.max())
+    if _spread(v) == 0:
+        hi = lo
+        shown = [q for q in QUANTITIES if q != quantity and _spread(quantity_map(table, q)) > 0]
+        warnings.warn(f"friction bitmap of {quantity} is flat ({lo:.6g} {QUANTITIES[quantity]} everywhere)"
+                      + (f"; {' or '.join(shown)} shows the table's shape (--quantity)" if shown
+                         else ": the table is uniform"), FlatBitmapWarning, stacklevel=2)
     top = (1 << bits) - 1
     scale = (hi - lo) / top if hi > lo else 0.0
     grey = np.zeros(v.shape) if scale == 0 else np.rint((v - lo) / scale)
@@ -98,7 +144,8 @@ def friction_image(table, quantity: str = "mu", bits: int = 16) -> tuple[np.ndar
     if toggles:
         lost.append("toggle states other than the current one: " + ", ".join(sorted(toggles)))
     info = {
-        "format": "shapedisplay-friction-bitmap", "quantity": quantity, "unit": QUANTITIES[quantity],
+        "format": "shapedisplay-friction-bitmap", "quantity": quantity, "quantity_rule": rule,
+        "unit": QUANTITIES[quantity],
         "bits": bits, "scale": scale, "offset": lo, "min": lo, "max": hi, "max_error": scale / 2,
         "rule": "value = offset + scale * grey",
         "pixel_m": [g.dx, g.dy], "origin_m": [g.x0, g.y0], "size_px": [g.cols, g.rows],
@@ -108,7 +155,7 @@ def friction_image(table, quantity: str = "mu", bits: int = 16) -> tuple[np.ndar
     return grey, info
 
 
-def export_friction_png(table, path: str | os.PathLike, quantity: str = "mu", bits: int = 16) -> Path:
+def export_friction_png(table, path: str | os.PathLike, quantity: str = AUTO, bits: int = 16) -> Path:
     """Write the friction bitmap to ``path`` and its scale to ``path`` + ``.json``, both atomically."""
     from PIL import Image
     grey, info = friction_image(table, quantity, bits)

@@ -136,8 +136,10 @@ class Studio:
             self.pinned = {"table": cur.table, "layout": dict(lay, which="A"), "image": image,
                            "label": "as opened", "generation": cur.generation, "checksum": cur.checksum}
         first = "normal_force" if "normal_force" in cur.table.channels else cur.table.channels[0]
+        from shapedisplay.exchange.friction_png import bitmap_choices
         self.prepared = {"generation": cur.generation, "layout": lay, "image": image, "table": cur.table,
                          "ranges": {c: channel_range(cur.table, c) for c in cur.table.channels},
+                         "friction_png": bitmap_choices(cur.table) if "normal_force" in cur.table.channels else None,
                          "maps": {} if edited else {first: colour_map_png(cur.table, first)}}
         return True
 
@@ -174,6 +176,7 @@ class Studio:
             lay = prep["layout"]
             d["ranges"] = prep["ranges"]
             d["export_options"] = {f: {k: list(v) for k, v in o.items()} for f, o in export_options_.items()}
+            d["friction_png"] = prep["friction_png"]      # what "auto" picks, which quantities are flat
             d["runtime"] = {"tick_rate": lay["tick_rate"], "audio_rate": lay["audio_rate"], "model": self.model,
                             "models": list(lay["models"]), "cursor_gain": lay["cursor_gain"]}
         d["last_change"] = self.last_change

@@ -17,7 +17,7 @@ def formats() -> list[str]:
 
 
 #: Options the page offers per format (the names of ``shapedisplay export``'s).
-OPTIONS = {"friction-png": {"quantity": ("mu", "normal_force", "breakaway_force"), "bits": ("16", "8")}}
+OPTIONS = {"friction-png": {"quantity": ("auto", "mu", "normal_force", "breakaway_force"), "bits": ("16", "8")}}
 
 
 def export_bytes(table, fmt: str, out_dir: Path, stem: str, options: dict | None = None) -> tuple[str, bytes]:

@@ -271,6 +271,18 @@ function showMap(st) {
 function exportNote(err) {
   $("export-note").textContent = studio.tableGeneration === null ? "" : `exports table ${studio.tableGeneration}` +
     (err ? " — the last good one: the scene has an error, see above" : "");
+  bitmapNote();
+}
+
+// The friction bitmap's quantity: what "auto" picks for this table, and a word when the choice gives a flat image.
+function bitmapNote() {
+  const note = $("bitmap-note"), sel = document.querySelector('#exports select[name="friction-png-quantity"]');
+  const fp = studio.state && studio.state.friction_png;
+  if (!note || !sel || !fp) return;
+  const q = sel.value === "auto" ? fp.auto : sel.value;
+  note.textContent = (sel.value === "auto" ? `friction-png auto: ${fp.auto} (${fp.rule})` : `friction-png: ${q}`) +
+    (fp.flat.includes(q) ? ` — ${q} is uniform on this table: the image is flat` : "");
+  note.classList.toggle("warn", fp.flat.includes(q));
 }
 
 function showError(err) {
@@ -705,7 +717,8 @@ function init() {
         sels.push(sel);
         ex.appendChild(sel);
       }
-      const link = () => { a.href = withToken(`/api/export/${f}?` + sels.map((s) => `${s.dataset.option}=${s.value}`).join("&")); };
+      const link = () => { a.href = withToken(`/api/export/${f}?` + sels.map((s) => `${s.dataset.option}=${s.value}`).join("&"));
+                           bitmapNote(); };
       for (const s of sels) s.addEventListener("change", link);
       link();
     }
