@@ -732,14 +732,8 @@ def format_report(report: dict) -> str:
     lines.append("left out:")
     for name, why in report["left_out"].items():
         lines.append(f"  {name:<16} {why}")
-    w = report["walls"]
-    if w["count"]:
-        lines.append(f"walls: {w['count']} samples ({w['fraction'] * 100:.3g} %) in {w['regions']} region(s) steeper "
-                     f"than {w['max_slope']}, steepest {w['steepest']:.3g}; {w['limited']}")
-        for b in w["boxes_mm"][:5]:
-            lines.append(f"  x {b[0]:.4g}..{b[1]:.4g} mm, y {b[2]:.4g}..{b[3]:.4g} mm")
-    else:
-        lines.append(f"walls: none (steepest slope {w['steepest']:.3g})")
+    from shapedisplay.author.gradients import wall_lines
+    lines += wall_lines(report["walls"])
     for name, c in report["clamped"].items():
         n_cl = c["below"] + c["above"]
         if n_cl:

@@ -252,6 +252,27 @@ class WallReport:
                 "limited": self.limited}
 
 
+def wall_lines(walls: dict, boxes: int = 5) -> list[str]:
+    """The wall report's text (compile, inspect and the 3D preview say the same): count, share of the
+    canvas, regions, and each of the ``boxes`` largest regions' box in mm with the widgets it touches."""
+    if not walls.get("count"):
+        steepest = walls.get("steepest")
+        return ["walls: none" + (f" (steepest slope {steepest:.3g})" if isinstance(steepest, (int, float)) else "")]
+    lines = [f"walls: {walls['count']} samples ({walls['fraction'] * 100:.3g} % of the canvas) in "
+             f"{walls['regions']} region(s) steeper than {walls['max_slope']}, steepest {walls['steepest']:.3g}; "
+             f"{walls['limited']}"]
+    named = walls.get("region_widgets") or []
+    shown = walls.get("boxes_mm") or []
+    for i, b in enumerate(shown[:boxes]):
+        ids = named[i] if i < len(named) else None
+        where = (f": widget{'s' if len(ids) > 1 else ''} {', '.join(ids)}" if ids else
+                 (": between widgets" if ids is not None else ""))
+        lines.append(f"  x {b[0]:.4g}..{b[1]:.4g} mm, y {b[2]:.4g}..{b[3]:.4g} mm{where}")
+    if walls["regions"] > min(len(shown), boxes):
+        lines.append(f"  ... and {walls['regions'] - min(len(shown), boxes)} smaller region(s)")
+    return lines
+
+
 def _check_max_slope(max_slope) -> float:
     v = float(max_slope)
     if math.isnan(v) or v <= 0:

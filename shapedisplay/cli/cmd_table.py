@@ -70,8 +70,8 @@ def format_summary(s: dict) -> str:
             lines.append(f"  {name:<16} {why}")
     walls = meta.get("report", {}).get("walls")
     if isinstance(walls, dict) and walls.get("count"):
-        lines.append(f"walls: {walls['count']} samples in {walls.get('regions', '?')} region(s); "
-                     f"{walls.get('limited', '')}")
+        from shapedisplay.author.gradients import wall_lines
+        lines += wall_lines(walls)
     saved = s["dense_bytes"] - s["stored_bytes"]
     lines.append(f"patches {s['patches']}, blocks {s['blocks']}; stored {s['stored_bytes']} bytes, "
                  f"dense {s['dense_bytes']} bytes, saved {saved} bytes "

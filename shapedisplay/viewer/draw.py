@@ -347,8 +347,11 @@ def render(model: PreviewModel, channel: str = "height", trace: Trace | None = N
                          f"{model.relief.shape[0]}-sample grid; read-out uses all")
         if model.stored is not None:
             lines.append("grey: " + (model.ground or "flat ground, stored as one value"))
-        if preview.wall_actor is not None:
-            lines.append(f"red: walls, slope >= {WALL_SLOPE:g} (45 deg), {100 * float(walls.mean()):.0f} % of samples")
+        if model.walls is not None and model.walls["count"]:     # the compile report's count, as inspect says
+            from shapedisplay.author.gradients import wall_lines
+            lines += ["red: " + ln.strip() for ln in wall_lines(model.walls, boxes=3)]
+        elif preview.wall_actor is not None:
+            lines.append(f"red: walls, slope >= {WALL_SLOPE:g} (45 deg), {100 * float(walls.mean()):.3g} % of the canvas")
         if trace is not None:
             lines.append(f"stroke: {trace.t.size} ticks, {trace.event_time.size} bursts (spike height ~ amplitude)")
         preview.info = "\n".join(lines)

@@ -152,6 +152,9 @@ class PreviewModel:
     ground : str
         What the unstored flat ground plays, e.g. "flat ground, stored as one
         value: N = 1 N" (empty when everything is stored).
+    walls : dict or None
+        The compile report's walls (``meta["report"]["walls"]``): the preview
+        states its count, as compile and inspect do.
     """
 
     x: np.ndarray
@@ -168,6 +171,7 @@ class PreviewModel:
     title: str = ""
     notes: list = field(default_factory=list)
     ground: str = ""
+    walls: dict | None = None
 
     @property
     def channels(self) -> list[str]:
@@ -350,6 +354,9 @@ def model_from_table(table, title: str | None = None, widgets: list | None = Non
                         checksum=table.checksum, strip=strip, ground=ground,
                         title=title if title is not None else (default_title or "friction table"), notes=notes)
     model.widgets = _strip_widgets(_clean_widgets(widgets), model)
+    report = table.meta.get("report") if isinstance(table.meta, dict) else None
+    walls = report.get("walls") if isinstance(report, dict) else None
+    model.walls = walls if isinstance(walls, dict) and isinstance(walls.get("count"), int) else None
     return model
 
 

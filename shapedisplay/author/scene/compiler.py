@@ -512,7 +512,25 @@ def _group_channels(scene, rect, reach, states, device, mapping, options, kept, 
         else:
             raise InputError(f"scene '{scene.path}': channel '{name}' was not produced by the force mapping")
     wall_count = int(walls.mask[sl].sum()) if walls.count else 0
-    return out, wall_count, float(walls.steepest)
+    regions = _wall_regions(scene, walls.mask[sl], rect) if wall_count else (0, [])
+    return out, (wall_count, *regions), float(walls.steepest)
+
+
+def _wall_regions(scene, mask: np.ndarray, rect) -> tuple[int, list]:
+    """The number of wall regions of one block and the largest ones: samples, box in mm (sample centres)
+    and the widgets whose box the region touches, largest region first."""
+    from shapedisplay.author.gradients import WallReport, wall_regions
+    s = scene.canvas.spacing
+    n_regions, _, spans = wall_regions(mask, WallReport.MAX_BOXES)
+    out = []
+    for r0, r1, c0, c1 in spans:
+        box = [(rect[1] + c0) * s, (rect[1] + c1) * s, (rect[0] + r0) * s, (rect[0] + r1) * s]
+        n = int(mask[r0:r1 + 1, c0:c1 + 1].sum())           # the region's samples (boxes of one block rarely hold two)
+        ids = [w.id for w in scene.widgets
+               if w.bbox[0] - s <= box[1] and box[0] <= w.bbox[2] + s and w.bbox[1] - s <= box[3]
+               and box[2] <= w.bbox[3] + s]
+        out.append({"box_mm": [round(v * 1e3, 6) for v in box], "samples": n, "widgets": ids})
+    return n_regions, out
 
 
 def _background(scene, device, mapping, kept) -> dict:
@@ -619,7 +637,7 @@ def compile_scene(path, device=None, options=None, confine: bool = False):
     lims = height_limits(scene)
 
     # -- every block (and every toggle state), as float channels
-    blocks, walls_total, steepest, wall_blocks, clamped = [], 0, 0.0, 0, {}
+    blocks, walls_total, steepest, n_wall_regions, wall_regions_, clamped = [], 0, 0.0, 0, [], {}
     for g in grps:
         toggle = next((scene.widgets[i] for i in g["members"] if WIDGET_TYPES[scene.widgets[i].type].states), None)
         variants = {}
@@ -629,15 +647,18 @@ def compile_scene(path, device=None, options=None, confine: bool = False):
                                                        options, kept, lims,
                                                        clamped if st == toggle.params["state"] else None)
                 if st == toggle.params["state"]:
-                    walls_total += wc
+                    walls_total += wc[0]
+                    n_wall_regions += wc[1]
+                    wall_regions_ += wc[2]
                 steepest = max(steepest, sp)
             main = variants[toggle.params["state"]]
         else:
             main, wc, sp = _group_channels(scene, g["rect"], reach, None, dev, mapping, options, kept, lims,
                                            clamped)
-            walls_total += wc
+            walls_total += wc[0]
+            n_wall_regions += wc[1]
+            wall_regions_ += wc[2]
             steepest = max(steepest, sp)
-        wall_blocks += bool(wc)
         blocks.append({"group": g, "main": main, "toggle": toggle, "variants": variants})
 
     # -- moving parts (docs/reactive.md): each compiled alone, stored as a patch the engine adds where it moved
@@ -727,6 +748,8 @@ def compile_scene(path, device=None, options=None, confine: bool = False):
             })
     widgets_rep.sort(key=lambda d: d["index"])
     stored_samples = sum(s[0] * s[1] for s in table.patch_shapes)
+    from shapedisplay.author.gradients import WallReport
+    wall_regions_ = sorted(wall_regions_, key=lambda r: -r["samples"])[:WallReport.MAX_BOXES]
     covered = sum((b[0] * 0) + table.patch_shapes[b[2]][0] * table.patch_shapes[b[2]][1] for b in table.blocks)
     total = canvas.rows * canvas.cols
     left = dict(left_out)
@@ -747,9 +770,11 @@ def compile_scene(path, device=None, options=None, confine: bool = False):
         "kept": kept,
         "left_out": left,
         "quantization": qinfo,
-        "walls": {"count": walls_total, "fraction": walls_total / max(stored_samples, 1),
+        "walls": {"count": walls_total, "fraction": walls_total / max(total, 1),
                   "max_slope": None if math.isinf(options.max_slope) else options.max_slope,
-                  "steepest": steepest, "regions": wall_blocks, "boxes_mm": [],
+                  "steepest": steepest, "regions": n_wall_regions,
+                  "boxes_mm": [r["box_mm"] for r in wall_regions_],
+                  "region_widgets": [r["widgets"] for r in wall_regions_],
                   "limited": (f"slope magnitude clipped to {options.max_slope:g}, direction kept"
                               if walls_total and options.limit_walls else
                               ("no walls" if not walls_total else "not limited (limit_walls=False)"))},
