@@ -18,6 +18,26 @@ PHONE = ROOT / "assets" / "scenes" / "phone.toml"
 READY_TIMEOUT = 120.0
 
 
+def require_chromium():
+    """``(sync_playwright, chromium path)`` for a browser test module; the module is skipped without them
+    (Debian's ``chromium`` and the playwright package), and fails on CI, which must have them."""
+    import shutil
+
+    import pytest
+    pytest.importorskip("starlette")
+    chromium = shutil.which("chromium") or "/usr/bin/chromium"
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:                                       # pragma: no cover
+        sync_playwright = None
+    if sync_playwright is None or not Path(chromium).is_file():
+        if os.environ.get("CI"):
+            pytest.fail("CI needs chromium (scripts/install-system-deps.sh --with-studio) and playwright (pip)",
+                        pytrace=False)
+        pytest.skip("needs Debian's chromium and the playwright package", allow_module_level=True)
+    return sync_playwright, chromium
+
+
 class StudioProcess:
     """``shapedisplay studio SOURCE --no-browser --port 0`` in a child process."""
 

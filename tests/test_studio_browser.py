@@ -9,7 +9,6 @@ bad scene shows its error at its line; requests without the token are refused.
 """
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import subprocess
@@ -19,17 +18,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-pytest.importorskip("starlette")
-CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
-try:
-    from playwright.sync_api import sync_playwright
-except ImportError:                                       # pragma: no cover
-    sync_playwright = None
-if sync_playwright is None or not Path(CHROMIUM).is_file():
-    if os.environ.get("CI"):
-        pytest.fail("CI needs chromium (scripts/install-system-deps.sh --with-studio) and playwright (pip)",
-                    pytrace=False)
-    pytest.skip("needs Debian's chromium and the playwright package", allow_module_level=True)
+from studio_helpers import require_chromium
+
+sync_playwright, CHROMIUM = require_chromium()
 
 from shapedisplay.table.widgets import widget_map  # noqa: E402
 from shapedisplay.render import Renderer  # noqa: E402

@@ -18,18 +18,10 @@ from pathlib import Path
 
 import pytest
 
-pytest.importorskip("starlette")
+from studio_helpers import require_chromium
+
 pytest.importorskip("tomlkit")
-CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
-try:
-    from playwright.sync_api import sync_playwright
-except ImportError:                                       # pragma: no cover
-    sync_playwright = None
-if sync_playwright is None or not Path(CHROMIUM).is_file():
-    if os.environ.get("CI"):
-        pytest.fail("CI needs chromium (scripts/install-system-deps.sh --with-studio) and playwright (pip)",
-                    pytrace=False)
-    pytest.skip("needs Debian's chromium and the playwright package", allow_module_level=True)
+sync_playwright, CHROMIUM = require_chromium()
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -3,23 +3,13 @@ flips it (the page shows the new state, the worklet's event list has `toggle`), 
 thumb moves it (docs/reactive.md). The press is Space held while the pointer is down."""
 from __future__ import annotations
 
-import os
 import shutil
-from pathlib import Path
 
 import pytest
 
-pytest.importorskip("starlette")
-CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
-try:
-    from playwright.sync_api import sync_playwright
-except ImportError:                                       # pragma: no cover
-    sync_playwright = None
-if sync_playwright is None or not Path(CHROMIUM).is_file():
-    if os.environ.get("CI"):
-        pytest.fail("CI needs chromium (scripts/install-system-deps.sh --with-studio) and playwright (pip)",
-                    pytrace=False)
-    pytest.skip("needs Debian's chromium and the playwright package", allow_module_level=True)
+from studio_helpers import require_chromium
+
+sync_playwright, CHROMIUM = require_chromium()
 
 from studio_helpers import ROOT, StudioProcess  # noqa: E402
 
