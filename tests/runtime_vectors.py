@@ -53,14 +53,18 @@ def parse_events(raw: bytes, n: int):
     return (np.frombuffer(raw, "<f8", ne, pos + 8), np.frombuffer(raw, "<f8", ne, pos + 8 + 8 * ne))
 
 
-def py_render_events(r, x, y):
+def py_render_events(r, x, y, press=None):
     """The package renderer's outputs and audio (as test_c_runtime.py_render) with every event's time and
-    amplitude, read from the event ring after each tick."""
+    amplitude, read from the event ring after each tick; with ``press`` (N per tick) also the reaction
+    events of each tick, as a list."""
     from shapedisplay.render.layouts import OUTPUTS as _O
     r.reset()
-    outs, audio, et, ea = [], [], [], []
-    for xi, yi in zip(x, y):
-        r.step(float(xi), float(yi))
+    outs, audio, et, ea, rev = [], [], [], [], []
+    for i, (xi, yi) in enumerate(zip(x, y)):
+        if press is None:
+            r.step(float(xi), float(yi))
+        else:
+            r.step(float(xi), float(yi), float(press[i]))
         o = r.last.copy()
         outs.append(o)
         audio.append(r.audio_block[:int(o["audio_samples"])].copy())
@@ -69,8 +73,11 @@ def py_render_events(r, x, y):
             t, a = r.recent_events()
             et.append(t[-k:])
             ea.append(a[-k:])
+        if press is not None:
+            rev += list(r.reactions())
     cat = (lambda v: np.concatenate(v) if v else np.zeros(0))
-    return np.array(outs, dtype=_O), np.concatenate(audio), cat(et), cat(ea)
+    res = (np.array(outs, dtype=_O), np.concatenate(audio), cat(et), cat(ea))
+    return res if press is None else res + (rev,)
 
 
 def case_setup(dtype, kind, policy, tick, audio, model, seconds=0.25):
@@ -430,28 +437,13 @@ def parse_reactions(raw: bytes, n: int) -> np.ndarray:
 def py_render_reactions(r, x, y, press):
     """The package renderer tick by tick with the press: outputs, audio, event times and amplitudes, and the
     reaction events (REACT_EVENT records, ticks from 0)."""
-    from shapedisplay.render.layouts import OUTPUTS as _O, REACT_EVENT
-    r.reset()
-    outs, audio, et, ea, rev = [], [], [], [], []
-    for xi, yi, pi in zip(x, y, press):
-        r.step(float(xi), float(yi), float(pi))
-        o = r.last.copy()
-        outs.append(o)
-        audio.append(r.audio_block[:int(o["audio_samples"])].copy())
-        k = int(o["events"])
-        if k:
-            t, a = r.recent_events()
-            et.append(t[-k:])
-            ea.append(a[-k:])
-        for e in r.reactions():
-            rev.append(e)
-    cat = (lambda v: np.concatenate(v) if v else np.zeros(0))
-    from shapedisplay.render.layouts import EVENT_KINDS
+    from shapedisplay.render.layouts import EVENT_KINDS, REACT_EVENT
+    outs, audio, et, ea, rev = py_render_events(r, x, y, press)
     ids = r._widget_ids
     recs = np.zeros(len(rev), REACT_EVENT)
     for i, e in enumerate(rev):
         recs[i] = (EVENT_KINDS.index(e.kind) + 1, ids.index(e.widget), int(round(e.t * r.tick_rate)), e.value)
-    return np.array(outs, dtype=_O), np.concatenate(audio), cat(et), cat(ea), recs
+    return outs, audio, et, ea, recs
 
 
 def assert_same_reactions(got, want, value_tol=0.0):
