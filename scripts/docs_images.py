@@ -111,42 +111,32 @@ def burst_spectrum(out: Path, work: Path) -> None:
                    check=True, stdout=subprocess.DEVNULL, cwd=work)
 
 
-def studio_phone(out: Path, work: Path) -> None:
-    """The studio page on the phone scene (a screenshot from the headless-browser test)."""
+def _browser_shot(out: Path, work: Path, test: str, select: str, name: str) -> None:
+    """Copy to ``out`` the screenshot ``name`` that the headless-browser test ``test -k select`` takes."""
     if shutil.which("chromium") is None and shutil.which("chromium-browser") is None:
         raise Skipped("no chromium here")
     try:
         import playwright  # noqa: F401
     except ImportError:
         raise Skipped("playwright is not installed (pip install 'shapedisplay[studio,test]')") from None
-    shots = work / "shots"
+    shots = work / f"shots-{select}"
     shots.mkdir()
     env = dict(os.environ, SHAPEDISPLAY_SCREENSHOT_DIR=str(shots))
     subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-x",
-                    str(ROOT / "tests" / "test_studio_browser.py"), "-k", "scripted_stroke"],
-                   check=True, env=env, cwd=ROOT, stdout=subprocess.DEVNULL)
-    if not (shots / "studio-phone.png").exists():
+                    str(ROOT / "tests" / test), "-k", select], check=True, env=env, cwd=ROOT, stdout=subprocess.DEVNULL)
+    if not (shots / name).exists():
         raise Skipped("the browser test was skipped here")
-    shutil.copyfile(shots / "studio-phone.png", out)
+    shutil.copyfile(shots / name, out)
+
+
+def studio_phone(out: Path, work: Path) -> None:
+    """The studio page on the phone scene (a screenshot from the headless-browser test)."""
+    _browser_shot(out, work, "test_studio_browser.py", "scripted_stroke", "studio-phone.png")
 
 
 def studio_design(out: Path, work: Path) -> None:
     """The studio as a design tool: a widget selected with its handles, the inspector, rulers, A/B lines."""
-    if shutil.which("chromium") is None and shutil.which("chromium-browser") is None:
-        raise Skipped("no chromium here")
-    try:
-        import playwright  # noqa: F401
-    except ImportError:
-        raise Skipped("playwright is not installed (pip install 'shapedisplay[studio,test]')") from None
-    shots = work / "shots-design"
-    shots.mkdir()
-    env = dict(os.environ, SHAPEDISPLAY_SCREENSHOT_DIR=str(shots))
-    subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-x",
-                    str(ROOT / "tests" / "test_studio_design.py"), "-k", "ab_switch"],
-                   check=True, env=env, cwd=ROOT, stdout=subprocess.DEVNULL)
-    if not (shots / "studio-design.png").exists():
-        raise Skipped("the browser test was skipped here")
-    shutil.copyfile(shots / "studio-design.png", out)
+    _browser_shot(out, work, "test_studio_design.py", "ab_switch", "studio-design.png")
 
 
 def _cli(*argv: str) -> None:
