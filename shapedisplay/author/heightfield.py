@@ -101,6 +101,34 @@ def height_scale(unit: str, m_per_unit: float, offset_m: float, rule: str, what:
             "what": what}
 
 
+def fit_range(values: np.ndarray, height_range, what: str, mask=None) -> tuple[np.ndarray, float, float, str]:
+    """Fit the range of ``values`` onto ``height_range`` (lo, hi) metres, linearly.
+
+    ``mask`` (bool, same shape): only the samples inside it set the range.
+    Returns ``(heights, m_per_unit, offset_m, rule)``; constant data all go
+    to ``lo``. The caller's array is not changed.
+    """
+    lo, hi = height_range
+    vmin, vmax = finite_range(values if mask is None else values[mask], what)
+    span = vmax - vmin
+    a = (hi - lo) / span if span > 0 else 0.0
+    out = np.array(values, dtype=np.float64)
+    out -= vmin
+    out *= a
+    out += lo
+    rule = (f"data range {vmin:.6g}..{vmax:.6g} fitted onto {lo * 1e3:.6g}..{hi * 1e3:.6g} mm" if span > 0
+            else f"constant data {vmin:.6g} placed at {lo * 1e3:.6g} mm")
+    return out, a, lo - a * vmin, rule
+
+
+def finite_range(values: np.ndarray, what: str) -> tuple[float, float]:
+    """``(min, max)`` of ``values``; float data with a NaN or inf is refused, naming ``what``."""
+    if values.dtype.kind == "f" and not np.all(np.isfinite(values)):
+        raise InputError(f"{what}: values must be finite ({int(np.count_nonzero(~np.isfinite(values)))} "
+                         f"NaN/inf samples)")
+    return float(values.min()), float(values.max())
+
+
 @dataclass(frozen=True, eq=False)
 class HeightField:
     """Heights on a regular grid.

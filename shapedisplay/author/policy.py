@@ -180,11 +180,12 @@ def compile_file(source, device=None, *, flags: dict | None = None, confine: boo
         return compile_scene(source, device=dev, options=compile_options, confine=confine)
 
     from shapedisplay.author.glb import has_haptic_textures, refuse_geometry_options
-    from shapedisplay.author.sources import check_applicable, fits_force_range_by_default, load_source, source_options
+    from shapedisplay.author.sources import (HEIGHT_MAP_KINDS, check_applicable, fits_force_range_by_default,
+                                             load_source, source_options)
 
     path = Path(os.fspath(source))
     kind = check_applicable(path, given_mapping, {k: flag(k) for k in MAPPING_OPTIONS},
-                            kinds={o: ("image", "mesh") for o in MAPPING_OPTIONS})
+                            kinds={o: HEIGHT_MAP_KINDS for o in MAPPING_OPTIONS})
     if kind != "table" and has_haptic_textures(path):
         from shapedisplay.author.glb import compile_haptic_glb
         refuse_geometry_options(path, {k: flag(k) for k in SOURCE_OPTIONS},

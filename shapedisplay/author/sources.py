@@ -31,13 +31,17 @@ import numpy as np
 
 from shapedisplay.errors import FileFormatError, InputError, unknown_key
 from shapedisplay.author.heightfield import HeightField, check_grid_size, check_spacing, height_range as _height_range, height_scale
+from shapedisplay.author.heightfield import finite_range as _minmax_finite, fit_range
 from shapedisplay.author.imageio import PICTURE_SUFFIXES   # numpy only; Pillow is imported when a picture is read
+from shapedisplay.author.instruments import SCAN_SUFFIXES, load_scan
 from shapedisplay.author.shapes import PRIMITIVE_EDGES, rounded_rect_distance
 from shapedisplay.units import parse_quantity
 
 #: Suffixes load_source understands, by kind.
 IMAGE_SUFFIXES = PICTURE_SUFFIXES + (".npy",)
 MESH_SUFFIXES = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf")
+#: Kinds of file source that load into a height field (:func:`load_source`); instrument files are "scan".
+HEIGHT_MAP_KINDS = ("image", "scan", "mesh")
 EDGE_PROFILES = tuple(PRIMITIVE_EDGES)          # "ramp", "cosine", "step" (author/shapes.py)
 LINE_PROFILES = ("cosine", "tent", "box")
 
@@ -437,33 +441,6 @@ def _z_unit(z_units) -> tuple[str, float]:
     return name, Z_UNITS[name]
 
 
-def fit_range(values: np.ndarray, height_range, what: str, mask=None) -> tuple[np.ndarray, float, float, str]:
-    """Fit the range of ``values`` onto ``height_range`` (lo, hi) metres, linearly.
-
-    ``mask`` (bool, same shape): only the samples inside it set the range.
-    Returns ``(heights, m_per_unit, offset_m, rule)``; constant data all go
-    to ``lo``. The caller's array is not changed.
-    """
-    lo, hi = height_range
-    vmin, vmax = _minmax_finite(values if mask is None else values[mask], what)
-    span = vmax - vmin
-    a = (hi - lo) / span if span > 0 else 0.0
-    out = np.array(values, dtype=np.float64)
-    out -= vmin
-    out *= a
-    out += lo
-    rule = (f"data range {vmin:.6g}..{vmax:.6g} fitted onto {lo * 1e3:.6g}..{hi * 1e3:.6g} mm" if span > 0
-            else f"constant data {vmin:.6g} placed at {lo * 1e3:.6g} mm")
-    return out, a, lo - a * vmin, rule
-
-
-def _minmax_finite(values: np.ndarray, what: str) -> tuple[float, float]:
-    if values.dtype.kind == "f" and not np.all(np.isfinite(values)):
-        raise InputError(f"{what}: values must be finite ({int(np.count_nonzero(~np.isfinite(values)))} "
-                         f"NaN/inf samples)")
-    return float(values.min()), float(values.max())
-
-
 def load_image(path, size, height_range, *, resolution=None, channel=None, z_units=None,
                flags: dict | None = None) -> HeightField:
     """Height field from a picture (PNG, JPEG, TIFF, ...) or a ``.npy`` array.
@@ -614,18 +591,20 @@ def resolution_option(text, name: str = "resolution") -> float:
 #: Command-line source options (library names) -> the kinds of file source each applies to.
 #: One table for every command that loads a source (compile, preview, heightmap).
 OPTION_KINDS = {
-    "size": ("image", "mesh"), "height": ("image", "mesh"), "resolution": ("image", "mesh"),
-    "channel": ("image",), "z_units": ("image",),
+    "size": HEIGHT_MAP_KINDS, "height": HEIGHT_MAP_KINDS, "resolution": HEIGHT_MAP_KINDS,
+    "channel": ("image", "scan"), "z_units": ("image", "scan"),
     "up": ("mesh",), "units": ("mesh",), "samples": ("mesh",), "grid": ("mesh",), "supersample": ("mesh",),
     "supersample_mode": ("mesh",), "background": ("mesh",), "margin": ("mesh",),
 }
-_KIND_WORDS = {("image",): "image sources", ("mesh",): "meshes", ("image", "mesh"): "images and meshes"}
-_WHAT = {"image": "an image", "mesh": "a mesh", "scene": "a scene: it sets its own geometry and mapping",
+_KIND_WORDS = {("image",): "image sources", ("mesh",): "meshes", ("image", "mesh"): "images and meshes",
+               ("image", "scan"): "image sources", HEIGHT_MAP_KINDS: "images and meshes"}
+_WHAT = {"image": "an image", "scan": "an instrument scan", "mesh": "a mesh",
+         "scene": "a scene: it sets its own geometry and mapping",
          "svg": "an SVG mockup: it sets its own geometry and mapping", "table": "a compiled table"}
 
 
 def source_kind(path) -> str:
-    """What a file is, by its suffix: "table" (.npz), "scene" (.toml), "svg", "image" or "mesh".
+    """What a file is, by its suffix: "table" (.npz), "scene" (.toml), "svg", "image", "scan" or "mesh".
 
     Any other suffix is an error listing the ones known.
     """
@@ -639,9 +618,12 @@ def source_kind(path) -> str:
         return "svg"
     if suffix in IMAGE_SUFFIXES:
         return "image"
+    if suffix in SCAN_SUFFIXES:
+        return "scan"
     if suffix in MESH_SUFFIXES:
         return "mesh"
-    err = unknown_key("source type", suffix or "(no suffix)", IMAGE_SUFFIXES + MESH_SUFFIXES + (".toml", ".svg"))
+    err = unknown_key("source type", suffix or "(no suffix)",
+                      IMAGE_SUFFIXES + SCAN_SUFFIXES + MESH_SUFFIXES + (".toml", ".svg"))
     raise InputError(f"source '{path}': {err}")
 
 
@@ -712,7 +694,7 @@ def source_options(path, *, flags: dict | None = None, **given) -> dict:
         return flags.get(name, name)
 
     kind = check_applicable(path, given, flags)
-    if kind not in ("image", "mesh"):
+    if kind not in HEIGHT_MAP_KINDS:
         return {}
     given = {k: v for k, v in given.items() if v is not None}
     opts: dict = {}
@@ -770,7 +752,10 @@ def load_source(path, *, flags: dict | None = None, **opts) -> HeightField:
     """Load any file source as a height field, dispatching on its suffix.
 
     Pictures and ``.npy`` -> :func:`load_image` (options ``size``,
-    ``height_range``, ``resolution``, ``channel``, ``z_units``);
+    ``height_range``, ``resolution``, ``channel``, ``z_units``); instrument
+    files (``.txt`` text exports, ``.gsf``) ->
+    :func:`shapedisplay.author.instruments.load_scan` (the same options;
+    the file states its size and z unit);
     ``.stl``/``.obj``/``.ply``/``.off``/``.glb``/``.gltf`` ->
     :func:`shapedisplay.author.mesh.mesh_to_heightfield` (options ``resolution``,
     ``grid``, ``up``, ``units``, ``size``, ``height_range``, ``background``,
@@ -792,12 +777,13 @@ def load_source(path, *, flags: dict | None = None, **opts) -> HeightField:
             raise FileFormatError(f"mesh '{path}': no such file")
         from shapedisplay.author.mesh import mesh_to_heightfield
         return mesh_to_heightfield(path, **opts)
-    if suffix in IMAGE_SUFFIXES:
+    if suffix in IMAGE_SUFFIXES or suffix in SCAN_SUFFIXES:
         valid = ("size", "height_range", "resolution", "channel", "z_units")
         for k in opts:
             if k not in valid:
                 raise unknown_key("image option", k, valid)
-        return load_image(path, opts.get("size"), opts.get("height_range"), resolution=opts.get("resolution"),
-                          channel=opts.get("channel"), z_units=opts.get("z_units"), flags=flags)
-    err = unknown_key("source type", suffix or "(no suffix)", IMAGE_SUFFIXES + MESH_SUFFIXES)
+        load = load_scan if suffix in SCAN_SUFFIXES else load_image
+        return load(path, opts.get("size"), opts.get("height_range"), resolution=opts.get("resolution"),
+                    channel=opts.get("channel"), z_units=opts.get("z_units"), flags=flags)
+    err = unknown_key("source type", suffix or "(no suffix)", IMAGE_SUFFIXES + SCAN_SUFFIXES + MESH_SUFFIXES)
     raise InputError(f"source '{path}': {err}")
