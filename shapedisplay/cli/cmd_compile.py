@@ -8,15 +8,16 @@ def register(sub) -> None:
     p = sub.add_parser(
         "compile",
         help="compile a height map, mesh or scene into a friction-envelope table",
-        description="Compile SOURCE (picture .png/.jpg/.tif/..., .npy array, .stl/.obj/.ply/.off/.glb/.gltf mesh, "
-                    ".toml scene or .svg mockup) into a table. Quantities take units: '60x4mm', '0:2mm', '0.5N', "
-                    "'2N/mm'. A picture is the top view: x to the right, y up.",
+        description="Compile SOURCE (picture .png/.jpg/.tif/..., .npy array, AFM/SPM scan .txt/.gsf, "
+                    ".stl/.obj/.ply/.off/.glb/.gltf mesh, .toml scene or .svg mockup) into a table. Quantities "
+                    "take units: '60x4mm', '0:2mm', '0.5N', '2N/mm'. A picture is the top view: x to the right, y up.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="example:\n  shapedisplay compile map.png -o t.npz --size 60x4mm --height 0:2mm "
                "--mapping height --n-base 0.5N --n-gain 2N/mm",
     )
-    p.add_argument("source", nargs="+", help="picture or .npy height map, mesh, scene (.toml) or SVG mockup (.svg); "
-                                             "several sources compile into the folder given with -o")
+    p.add_argument("source", nargs="+", help="picture or .npy height map, instrument scan (.txt/.gsf), mesh, scene "
+                                             "(.toml) or SVG mockup (.svg); several sources compile into the folder "
+                                             "given with -o")
     p.add_argument("-o", "--output", required=True, help="table file to write (.npz), or a folder (DIR/) for "
                                                          "several sources: DIR/<stem>.npz each")
     p.add_argument("--device", help="device profile: TOML file or bundled name (default: built-in Konyo pad)")
@@ -52,14 +53,15 @@ def add_source_arguments(p) -> None:
     """The options of picture and mesh sources, the same on compile, preview and heightmap."""
     g = p.add_argument_group("picture and mesh sources")
     g.add_argument("--size",
-                   help="pictures: physical width x height, e.g. 60x4mm; meshes: WxH stretches the footprint, "
-                        "one length (e.g. 60mm) scales the whole model")
+                   help="pictures: physical width x height, e.g. 60x4mm (instrument scans state theirs); meshes: "
+                        "WxH stretches the footprint, one length (e.g. 60mm) scales the whole model")
     g.add_argument("--height", help="LO:HI, e.g. 0:2mm: integer pictures map gray 0 and full scale onto it; float "
                                     "data and meshes have their range fitted onto it")
     g.add_argument("--resolution", help="sample spacing, e.g. 0.1mm (pictures: instead of the size; meshes: grid step)")
     g.add_argument("--channel", help="colour pictures: luminance (ITU-R BT.709, default), r, g, b, a, or normal "
                                      "(integrate a tangent-space normal map)")
-    g.add_argument("--z-units", help="unit of float data (.npy, float TIFF): m (default), mm, um, nm")
+    g.add_argument("--z-units", help="unit of float data (.npy, float TIFF): m (default), mm, um, nm; "
+                                     "instrument scans (.txt/.gsf) state theirs")
     g.add_argument("--up", help="mesh axis that points up: x, y, z, -x, -y, -z or a vector dx,dy,dz (default z)")
     g.add_argument("--units", help="length unit of the mesh coordinates: mm (default), cm, m, in")
 
