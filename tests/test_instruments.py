@@ -253,8 +253,12 @@ def test_what_the_file_does_not_state_the_options_give(tmp_path):
     assert load_scan(bare, resolution="0.1mm", height_range="0:1mm").size_m == pytest.approx((12.8e-3, 9.6e-3))
     p = tmp_path / "nosize.gsf"
     p.write_bytes(gsf_bytes(z.astype(np.float32), [("ZUnits", "m")]))      # XReal defaults to 1: not a size
-    with pytest.raises(InputError, match="does not state its physical size"):
+    with pytest.raises(InputError, match=r"does not state its physical size \(no XReal and YReal lines\)"):
         load_scan(p)
+    p.write_bytes(gsf_bytes(z.astype(np.float32), [("XReal", "1e-5"), ("YReal", "7.5e-6"), ("ZUnits", "m")]))
+    with pytest.raises(InputError, match=r"does not state its physical size \(no XYUnits line\)"):
+        load_scan(p)
+    assert load_scan(p, size="10x7.5um").size_m == pytest.approx((W, H))
 
 
 def test_source_kind_options_and_suggestions():

@@ -122,7 +122,8 @@ class Scan:
     size_m : (width, height) metres, or None
         Physical size of the whole scan, None when the file does not state it.
     size_text : str
-        How the file states its size, for messages ("Real Width 10.00 µm x Real Height 7.5 µm").
+        How the file states its size, for messages ("Real Width 10.00 µm x Real Height 7.5 µm"), or
+        why it states none ("no XYUnits line"; "" for a text export without size lines).
     z_unit : str or None
         Unit of ``values`` (a key of :data:`LENGTH_UNITS`), None when the file states none.
     z_text : str
@@ -406,7 +407,7 @@ def read_text_export(path) -> Scan:
     header = _Header(where)
     line_no, table = 0, None
     with path.open("rb") as f:
-        while table is None:
+        while True:
             raw = f.readline(MAX_LINE_BYTES + 1)
             if not raw:
                 raise FileFormatError(f"{where}: no grid of numbers after the header ({line_no} lines)")
@@ -602,14 +603,14 @@ def read_gsf(path) -> Scan:
         r, c = (int(i) for i in np.argwhere(bad)[0])
         raise FileFormatError(f"{where}: row {r + 1} (from the top), column {c + 1} holds {values[r, c]}; heights "
                               f"must be finite ({int(bad.sum())} NaN/inf values)")
-    notes, size, size_text = [], None, ""
+    notes, size = [], None
     unit = fields.get("XYUnits")
     if "XReal" in fields and "YReal" in fields and unit is not None:
         u = _unit_or_refuse(unit, f"{where}: 'XYUnits = {unit}'", si=True)
         w, h = (_gsf_length(fields, k, u, where) for k in ("XReal", "YReal"))
         size, size_text = (w, h), f"XReal {fields['XReal']} {unit} x YReal {fields['YReal']} {unit}"
-    elif "XReal" in fields or "YReal" in fields:
-        notes.append("XReal/YReal without XYUnits (or only one of them): the size is not stated")
+    else:                                        # the format's default XReal of 1 is not a size
+        size_text = "no XYUnits line" if "XReal" in fields and "YReal" in fields else "no XReal and YReal lines"
     z_unit = z_text = None
     if "ZUnits" in fields:
         z_text = f"ZUnits {fields['ZUnits']}"
@@ -736,26 +737,24 @@ def load_scan(path, size=None, height_range=None, *, resolution=None, channel=No
                          f"(got {_len_text(w, h)} and {_len_text(r)})")
     scan = read_scan(path)
     rows, cols = scan.values.shape
-    stated = f"'{path}' ({scan.size_text})"
-    if size is not None:
-        if scan.size_m is not None and not all(math.isclose(a, b, rel_tol=1e-6) for a, b in zip((w, h), scan.size_m)):
-            raise InputError(f"`{flag('size', 'size')}` {_len_text(w, h)} contradicts {stated}")
+    if scan.size_m is not None:                 # the file's size; an option may only repeat it
+        fw, fh = scan.size_m
+        if size is not None and not (math.isclose(w, fw, rel_tol=1e-6) and math.isclose(h, fh, rel_tol=1e-6)):
+            raise InputError(f"`{flag('size', 'size')}` {_len_text(w, h)} contradicts '{path}' ({scan.size_text})")
+        if resolution is not None and not (math.isclose(r, fw / cols, rel_tol=1e-6)
+                                           and math.isclose(r, fh / rows, rel_tol=1e-6)):
+            px = _len_text(fw / cols) if math.isclose(fw / cols, fh / rows, rel_tol=1e-6) else \
+                _len_text(fw / cols, fh / rows)
+            raise InputError(f"`{flag('resolution', 'resolution')}` {_len_text(r)} contradicts '{path}' "
+                             f"({scan.size_text}: {px} a pixel over {cols} x {rows} pixels)")
+        w, h = fw, fh
     elif resolution is not None:
-        if scan.size_m is not None:
-            dx, dy = scan.size_m[0] / cols, scan.size_m[1] / rows
-            if not (math.isclose(r, dx, rel_tol=1e-6) and math.isclose(r, dy, rel_tol=1e-6)):
-                px = _len_text(dx) if math.isclose(dx, dy, rel_tol=1e-6) else _len_text(dx, dy)
-                raise InputError(f"`{flag('resolution', 'resolution')}` {_len_text(r)} contradicts {stated[:-1]}: "
-                                 f"{px} a pixel over {cols} x {rows} pixels)")
         w, h = cols * r, rows * r
-    elif scan.size_m is not None:
-        w, h = scan.size_m
-    else:
-        raise InputError(f"{where} does not state its physical size (no Real Width / Scan Size / XReal line); give "
+    elif size is None:
+        raise InputError(f"{where} does not state its physical size "
+                         f"({scan.size_text or 'no Real Width / Scan Size / XReal line'}); give "
                          f"`{flag('size', 'size')}` (width x height, e.g. 10x10um) or "
                          f"`{flag('resolution', 'resolution')}`")
-    if scan.size_m is not None and (size is not None or resolution is not None):
-        w, h = scan.size_m
     dx, dy = w / cols, h / rows
     unit = scan.z_unit
     if z_units is not None:
@@ -794,7 +793,12 @@ def load_scan(path, size=None, height_range=None, *, resolution=None, channel=No
 
 def _length_m(value, name: str) -> float:
     from shapedisplay.units import parse_quantity
-    v = parse_quantity(value, "m", name) if isinstance(value, str) else float(value)
+    if isinstance(value, str):
+        return check_spacing(parse_quantity(value, "m", name), name)
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"`{name}` must be a length in metres or a string with its unit (got {value!r})") from None
     return check_spacing(v, name)
 
 
