@@ -52,7 +52,8 @@ def load(path, **options):
 
     ``.npz`` -> a :class:`~shapedisplay.render.playable.Table`; a scene
     (``.toml``, ``.svg``) -> a validated :class:`~shapedisplay.author.scene.Scene`;
-    a picture, ``.npy`` or mesh -> a :class:`~shapedisplay.author.heightfield.HeightField`,
+    a picture, ``.npy``, instrument scan (``.txt``, ``.gsf``) or mesh -> a
+    :class:`~shapedisplay.author.heightfield.HeightField`,
     with the source options of ``shapedisplay compile`` by name
     (``size="60x4mm"``, ``height="0:2mm"``, ``resolution``, ``channel``,
     ``z_units``, ``up``, ``units``).
