@@ -8,6 +8,7 @@ and row 0 at the top (the largest y).
 """
 import json
 import os
+import re
 import tracemalloc
 
 import numpy as np
@@ -146,22 +147,14 @@ def test_gsf_read_byte_exact_with_every_padding(tmp_path, title):
     assert (f"Title {title!r}" in hf.source) == bool(title)
 
 
-def _write(data: bytes, name="p.gsf"):
-    import tempfile
-    d = tempfile.mkdtemp()
-    p = os.path.join(d, name)
-    with open(p, "wb") as f:
-        f.write(data)
-    return p
-
-
-def test_gsf_paddings_cover_one_to_four_bytes():
-    z = np.zeros((2, 3), np.float32)
+def test_gsf_paddings_cover_one_to_four_bytes(tmp_path):
+    z = np.arange(6, dtype=np.float32).reshape(2, 3)
     pads = set()
     for t in ("a", "ab", "abc", "abcd"):
         data = gsf_bytes(z, [("Title", t)])
         pads.add(len(data) - 4 * z.size - data.index(b"\0"))
-        assert np.array_equal(read_gsf(_write(data)).values, z)
+        (tmp_path / f"{t}.gsf").write_bytes(data)
+        assert np.array_equal(read_gsf(tmp_path / f"{t}.gsf").values, z)
     assert pads == {1, 2, 3, 4}
 
 
@@ -352,9 +345,7 @@ def test_broken_and_hostile_files_are_one_line_exit_2(tmp_path, capsys, case):
     finally:
         tracemalloc.stop()
     assert code == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
-    assert f"scan '{src}'" in err
-    import re
-    assert re.search(needle, err), err
+    assert f"scan '{src}'" in err and re.search(needle, err), err
     assert not (tmp_path / "t.npz").exists()
     assert peak < 64 * 2 ** 20 + 4 * os.path.getsize(src), f"{peak / 2**20:.1f} MiB"   # nothing the size of the lie
 
