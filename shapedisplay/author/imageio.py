@@ -11,7 +11,9 @@ What is read
 Every format Pillow reads: PNG (1/2/4/8/16-bit grey, grey+alpha, RGB, RGBA,
 palette with or without transparency, interlaced or not), JPEG, TIFF
 (8/16-bit, 32-bit integer, 32-bit float), BMP, GIF, WebP. ``.npy`` arrays of
-shape (rows, cols) or (cols,) are read with numpy.
+shape (rows, cols) or (cols,) are read with numpy. SVG pictures (icons) are
+drawn to 8-bit RGBA pixels first (:mod:`shapedisplay.author.vector`) and read
+as that PNG.
 
 * **Integer pictures** keep their codes: ``full_scale`` is 255 for 8-bit
   channels and 65535 for 16-bit ones (1/2/4-bit grey is widened to 8 bits by
@@ -69,8 +71,8 @@ from shapedisplay.atomic import atomic_path
 from shapedisplay.errors import FileFormatError, InputError, unknown_key
 from shapedisplay.author.heightfield import check_grid_size
 
-#: Suffixes read as pictures through Pillow.
-PICTURE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".gif", ".webp")
+#: Suffixes read as pictures through Pillow (.svg drawn first by resvg, see :mod:`shapedisplay.author.vector`).
+PICTURE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".gif", ".webp", ".svg")
 #: Channel choices; "normal" integrates a tangent-space normal map.
 CHANNELS = ("luminance", "r", "g", "b", "a", "normal")
 #: ITU-R BT.709 luma weights of R', G', B'.
@@ -117,12 +119,15 @@ class Picture:
 
 
 # ----------------------------------------------------------------- reading
-def _open(path: Path):
+def _open(path: Path, pixels=None):
     from PIL import Image
     if not path.exists():
         raise FileFormatError(f"image '{path}': no such file")
     if path.is_dir():
         raise FileFormatError(f"image '{path}': is a directory, not a file")
+    if path.suffix.lower() == ".svg":          # drawn to RGBA pixels first, then read as the PNG it gives
+        from shapedisplay.author.vector import rasterise_svg
+        return rasterise_svg(path, pixels=pixels)
     try:
         with warnings.catch_warnings():
             # Pillow warns above its quiet limit; the caller checks the size against ours next
@@ -169,7 +174,7 @@ def _bit_depth(im, path: Path) -> int:
     return 8
 
 
-def read_picture(path: str | os.PathLike, channel: str | None = None) -> Picture:
+def read_picture(path: str | os.PathLike, channel: str | None = None, *, pixels=None) -> Picture:
     """Read one channel of a picture (see the module docstring).
 
     Parameters
@@ -180,6 +185,9 @@ def read_picture(path: str | os.PathLike, channel: str | None = None) -> Picture
         Which channel of a colour picture; None = luminance, refusing a
         picture that looks like a normal map. Grey pictures take None,
         "luminance" (the grey value) or "a" (their alpha).
+    pixels : (cols, rows) or None
+        An SVG's least raster (:func:`shapedisplay.author.vector.rasterise_svg`);
+        pixel pictures keep their own pixels.
 
     Returns
     -------
@@ -197,7 +205,7 @@ def read_picture(path: str | os.PathLike, channel: str | None = None) -> Picture
     path = Path(path)
     if channel is not None and channel not in CHANNELS:
         raise unknown_key("image channel", channel, CHANNELS)
-    with _open(path) as im:
+    with _open(path, pixels) as im:
         cols, rows = im.size
         if cols == 0 or rows == 0:
             raise FileFormatError(f"image '{path}': empty image ({cols}x{rows} pixels)")

@@ -442,7 +442,7 @@ def _z_unit(z_units) -> tuple[str, float]:
 
 
 def load_image(path, size, height_range, *, resolution=None, channel=None, z_units=None,
-               flags: dict | None = None) -> HeightField:
+               flags: dict | None = None, pixels=None) -> HeightField:
     """Height field from a picture (PNG, JPEG, TIFF, ...) or a ``.npy`` array.
 
     Pictures and arrays are in picture order: row 0 is the top edge of the
@@ -455,20 +455,24 @@ def load_image(path, size, height_range, *, resolution=None, channel=None, z_uni
     size : (width, height) m or str "60x4mm"
         Physical size of the whole picture; ``dx = width / cols``,
         ``dy = height / rows``. Samples sit at pixel centres (module docs).
-        ``None`` only with ``resolution``.
+        ``None`` only with ``resolution``, or for an SVG that states its size.
     height_range : (low, high) m or str "0:2mm", or None
         Integer pictures and integer arrays (uint8/uint16): heights of gray 0
         and of full scale (255 or 65535), required. Float data (float TIFF,
         float ``.npy``, normal maps): the data's min..max is fitted onto
         this range; None keeps the data's own scale in ``z_units``.
     resolution : float (m) or str, optional
-        Pixel size (dx = dy) instead of ``size``.
+        Pixel size (dx = dy) instead of ``size``; for an SVG, also with
+        ``size``: the spacing it is drawn at (:mod:`shapedisplay.author.vector`).
     channel : {"luminance", "r", "g", "b", "a", "normal"}, optional
         Channel of a colour picture (:func:`shapedisplay.author.imageio.read_picture`).
     z_units : {"m", "mm", "um", "nm"}, optional
         Unit of float data (default metres). Refused for integer codes.
     flags : dict, optional
         How the caller spells an option in messages (``{"height": "--height"}``).
+    pixels : (cols, rows), optional
+        An SVG is drawn with at least this many pixels (the caller's grid);
+        pixel pictures keep their own.
 
     Returns
     -------
@@ -485,7 +489,11 @@ def load_image(path, size, height_range, *, resolution=None, channel=None, z_uni
     where = f"image '{path}'"
     notes, mask, slopes, desc = [], None, None, ""
     if suffix in PICTURE_SUFFIXES:
-        pic = read_picture(path, channel)
+        if suffix == ".svg":                   # its size (stated or given) and the raster it is drawn at
+            from shapedisplay.author.vector import raster_plan
+            size, pixels = raster_plan(path, size, resolution, pixels, flags)
+            resolution = None                  # drawn to fill `size`: the resolution chose the raster
+        pic = read_picture(path, channel, pixels=pixels)
         values, full, mask, slopes, desc, notes = (pic.values, pic.full_scale, pic.mask, pic.slopes,
                                                    pic.description, list(pic.notes))
     elif suffix == ".npy":
@@ -505,6 +513,8 @@ def load_image(path, size, height_range, *, resolution=None, channel=None, z_uni
             full = None
         desc = f"{values.dtype} array"
     else:
+        from shapedisplay.author.vector import refuse_vector_format
+        refuse_vector_format(path, where)
         raise unknown_key("image type", suffix or "(no suffix)", IMAGE_SUFFIXES)
     rows, cols = values.shape
     if rows * cols < 2:
@@ -614,14 +624,17 @@ def source_kind(path) -> str:
         return "table"
     if suffix == ".toml":
         return "scene"
-    if suffix == ".svg":
-        return "svg"
+    if suffix == ".svg":                       # a UI mock-up is a scene, any other SVG a picture
+        from shapedisplay.author.scene.svg import is_mockup
+        return "svg" if is_mockup(path) else "image"
     if suffix in IMAGE_SUFFIXES:
         return "image"
     if suffix in SCAN_SUFFIXES:
         return "scan"
     if suffix in MESH_SUFFIXES:
         return "mesh"
+    from shapedisplay.author.vector import refuse_vector_format
+    refuse_vector_format(path, f"source '{path}'")
     err = unknown_key("source type", suffix or "(no suffix)",
                       IMAGE_SUFFIXES + SCAN_SUFFIXES + MESH_SUFFIXES + (".toml", ".svg"))
     raise InputError(f"source '{path}': {err}")
@@ -732,7 +745,7 @@ def source_options(path, *, flags: dict | None = None, **given) -> dict:
         except (TypeError, ValueError):
             raise InputError(f"`{flag('supersample')}` must be a whole number (got {given['supersample']!r})") \
                 from None
-    if kind == "image" and "size" not in opts and "resolution" not in opts:
+    if kind == "image" and "size" not in opts and "resolution" not in opts and Path(path).suffix.lower() != ".svg":
         raise InputError(f"image '{path}' needs `{flag('size')}` (physical width x height, e.g. 60x4mm) "
                          f"or `{flag('resolution')}`")
     return opts
@@ -785,5 +798,7 @@ def load_source(path, *, flags: dict | None = None, **opts) -> HeightField:
         load = load_scan if suffix in SCAN_SUFFIXES else load_image
         return load(path, opts.get("size"), opts.get("height_range"), resolution=opts.get("resolution"),
                     channel=opts.get("channel"), z_units=opts.get("z_units"), flags=flags)
+    from shapedisplay.author.vector import refuse_vector_format
+    refuse_vector_format(path, f"source '{path}'")
     err = unknown_key("source type", suffix or "(no suffix)", IMAGE_SUFFIXES + SCAN_SUFFIXES + MESH_SUFFIXES)
     raise InputError(f"source '{path}': {err}")

@@ -17,6 +17,9 @@ from shapedisplay.units import parse_pair, parse_quantity
 
 #: How overlapping widgets combine: max (default), min, add, over (the later widget wins).
 OVERLAP_RULES = ("max", "min", "add", "over")
+#: Names of the widget types, the keys of :data:`~shapedisplay.author.scene.widgets.WIDGET_TYPES` (a test holds them
+#: equal): what an SVG's elements are checked against to tell a mock-up from an icon without loading the widgets.
+WIDGET_TYPE_NAMES = ("button", "dent", "well", "slider", "toggle", "ridge", "edge", "groove", "image", "mesh", "data")
 #: Largest length a scene may state, metres (positions, sizes, ramps, heights): 1 km. Checked
 #: as each value is read, so that snapping a box to the grid never meets an infinite sample index.
 MAX_LENGTH_M = 1000.0

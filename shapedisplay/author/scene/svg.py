@@ -48,6 +48,7 @@ import os
 import re
 from pathlib import Path
 
+from shapedisplay.author.scene.fields import WIDGET_TYPE_NAMES
 from shapedisplay.errors import FileFormatError, InputError, require
 
 #: Widget types that are a line between two points rather than a box.
@@ -117,6 +118,46 @@ def _widget_type(attrs: dict, types) -> str | None:
     return None
 
 
+#: Elements svgelements reads as shapes or groups: the ones that can name a widget.
+_WIDGET_TAGS = ("g", "svg", "path", "rect", "circle", "ellipse", "line", "polyline", "polygon")
+#: ``<svg data-*>`` keys only a mock-up carries (``data-name`` and ``data-description`` are common elsewhere).
+_MOCKUP_ROOT_KEYS = tuple(f"data-{k}" for k in _ROOT_KEYS if k not in ("name", "description"))
+
+
+def is_mockup(path) -> bool:
+    """True if the SVG at ``path`` is a UI mock-up (a scene), False if it is a picture (an icon).
+
+    A mock-up is marked up for shapedisplay: an element names a widget type
+    (``data-widget``, a class ``sd-TYPE`` or ``TYPE``, an id ``TYPE`` or
+    ``TYPE-...``; the rule :func:`svg_scene_data` makes widgets by), or the
+    ``<svg>`` element sets ``data-resolution`` or ``data-device``. Any other
+    SVG is a picture. One pass over the XML that stops at the first mark; a
+    file that is missing or unreadable counts as a mock-up (its loader says
+    why it cannot be read), one past :data:`MAX_SVG_ELEMENTS` elements without
+    a mark as a picture (whose reader refuses it).
+    """
+    from xml.etree.ElementTree import ParseError, iterparse
+    path = Path(os.fspath(path))
+    try:
+        fh = open(path, "rb")
+    except OSError:
+        return True
+    with fh:
+        try:
+            for n, (_, el) in enumerate(iterparse(fh, events=("start",))):
+                if n == 0:
+                    if any(k in el.attrib for k in _MOCKUP_ROOT_KEYS):
+                        return True
+                elif el.tag.rsplit("}", 1)[-1] in _WIDGET_TAGS and _widget_type(el.attrib, WIDGET_TYPE_NAMES):
+                    return True
+                if n > MAX_SVG_ELEMENTS:
+                    return False
+                el.clear()
+        except ParseError as exc:
+            raise FileFormatError(f"SVG '{path}': cannot read the SVG ({exc})") from None
+    return False
+
+
 def svg_scene_data(path, notes: list | None = None, origins: dict | None = None) -> dict:
     """The scene data (as parsed TOML would hold it) of an SVG mockup; see the module docstring.
 
@@ -136,14 +177,12 @@ def svg_scene_data(path, notes: list | None = None, origins: dict | None = None)
         ``{"scene": ..., "canvas": ..., "device": ..., "mapping": ..., "widget": [...]}``
         with lengths as strings in mm.
     """
-    from shapedisplay.author.scene.widgets import WIDGET_TYPES
-
     se = require("svgelements", "svg", "Reading SVG mockups")
     path = Path(os.fspath(path))
     where = f"SVG mockup '{path}'"
     if not path.is_file():
         raise FileFormatError(f"{where}: no such file")
-    _check_structure(path, where)
+    check_structure(path, where)
     try:
         svg = se.SVG.parse(str(path), reify=True)
     except Exception as exc:  # svgelements raises ParseError, ValueError, ... for broken files
@@ -185,7 +224,7 @@ def svg_scene_data(path, notes: list | None = None, origins: dict | None = None)
         if not isinstance(el, (se.Shape, se.Group)):
             continue
         attrs = el.values.get("attributes", {})
-        wtype = _widget_type(attrs, WIDGET_TYPES)
+        wtype = _widget_type(attrs, WIDGET_TYPE_NAMES)
         if wtype is None:
             if isinstance(el, se.Shape):
                 skipped += 1
@@ -234,13 +273,20 @@ def svg_scene_data(path, notes: list | None = None, origins: dict | None = None)
         notes.append(f"{skipped} element(s) without a widget type left out (text, decoration)")
     if not widgets:
         raise InputError(f"{where}: no element names a widget type (data-widget=\"button\", class \"sd-button\" "
-                         f"or an id such as \"button-ok\"); types: {', '.join(sorted(WIDGET_TYPES))}")
+                         f"or an id such as \"button-ok\"); types: {', '.join(sorted(WIDGET_TYPE_NAMES))}")
     data["widget"] = widgets
     return data
 
 
-def _check_structure(path: Path, where: str) -> None:
+def check_structure(path, where: str, visit=None) -> int:
     """Refuse, in one pass of the XML before svgelements reads it, what would make it slow or deep.
+
+    ``path`` is the file, or a binary file object holding its bytes;
+    ``visit(element)``, if given, sees each element as it opens (its
+    attributes read, its children not yet). Returns the number of elements,
+    the copies ``<use>`` elements make included. The XML parser (expat)
+    refuses a document whose entities expand past its amplification limit
+    (a "billion laughs"), and defines no external entity.
 
     Nesting past MAX_SVG_DEPTH (svgelements walks groups recursively), more
     than MAX_SVG_ELEMENTS elements, or a ``path``, ``polyline`` or
@@ -255,7 +301,7 @@ def _check_structure(path: Path, where: str) -> None:
     frames = [[0, []]]                       # per open element: [elements in its subtree, <use> targets inside]
     subtree: dict = {}                       # id -> (elements, <use> targets) of that element's subtree
     try:
-        for event, el in iterparse(str(path), events=("start", "end")):
+        for event, el in iterparse(path if hasattr(path, "read") else str(path), events=("start", "end")):
             if event == "end":
                 depth -= 1
                 count, uses = frames.pop()
@@ -288,6 +334,8 @@ def _check_structure(path: Path, where: str) -> None:
                     raise FileFormatError(f"{where}: <{tag}> {name} has {n} segments, more than the limit of "
                                           f"{MAX_PATH_SEGMENTS} (svg.MAX_PATH_SEGMENTS, docs/limits.md); simplify "
                                           f"the path, or raise shapedisplay.author.scene.svg.MAX_PATH_SEGMENTS")
+            if visit is not None:
+                visit(el)
     except ParseError as exc:
         raise FileFormatError(f"{where}: cannot read the SVG ({exc})") from None
     total = elements + _copies(frames[0][1], subtree, where)
@@ -295,6 +343,7 @@ def _check_structure(path: Path, where: str) -> None:
         raise FileFormatError(f"{where}: {total} elements with the copies its <use> elements make, more than the "
                               f"limit of {MAX_SVG_ELEMENTS} (svg.MAX_SVG_ELEMENTS, docs/limits.md); use fewer copies, "
                               f"or raise shapedisplay.author.scene.svg.MAX_SVG_ELEMENTS")
+    return total
 
 
 def _copies(targets: list, subtree: dict, where: str) -> int:

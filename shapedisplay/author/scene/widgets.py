@@ -586,7 +586,7 @@ def _file(raw, key, w: PlaceCtx, what: str) -> Path:
 
 
 class Image(WidgetType):
-    """A height map (any picture, or .npy) stretched over the widget box, seen from above.
+    """A height map (any picture, an SVG icon, or .npy) stretched over the widget box, seen from above.
 
     ``channel`` picks the channel of a colour picture (luminance, r, g, b, a,
     or normal to integrate a normal map; see :mod:`shapedisplay.author.imageio`).
@@ -622,7 +622,8 @@ class Image(WidgetType):
             if "channel" in raw:
                 from shapedisplay.author.imageio import CHANNELS
                 channel = choice(raw["channel"], CHANNELS, w.fp + "channel", w.ctx, w.where)
-            hf = load_image(path, (W, H if H > 0 else W), (lo, hi), channel=channel)
+            box, s = (W, H if H > 0 else W), w.canvas.spacing       # an SVG is drawn with a pixel a canvas sample
+            hf = load_image(path, box, (lo, hi), channel=channel, pixels=tuple(int(round(v / s)) + 1 for v in box))
         except SceneError:
             raise
         except Exception as exc:  # ShapeDisplayError subclasses from the loader
