@@ -81,9 +81,10 @@ from shapedisplay.errors import FileFormatError, InputError, require
 MAX_SVG_BYTES = 16 * 2 ** 20
 #: Raster pixels along the longer side when neither a grid nor a resolution is known.
 DEFAULT_RASTER_SIDE = 512
-#: Most elements (``<use>`` copies included) times raster pixels drawn: resvg's time grows with both (a shape
-#: covering the picture costs 5-150 ns a pixel, translucent ones the most). 8192 elements at 512 x 512 pixels.
-MAX_RASTER_WORK = 2 ** 31
+#: Most elements (``<use>`` copies included) times raster pixels drawn: 4096 elements at 512 x 512 pixels. resvg's
+#: time grows with both, and it cannot be interrupted: a shape covering the raster costs about 1 ns a pixel opaque,
+#: 40-90 ns translucent (docs/limits.md has the time at the limit).
+MAX_RASTER_WORK = 2 ** 30
 #: Vector formats shapedisplay does not read, by suffix: what they are, for the export advice.
 VECTOR_FORMATS = {".pdf": "PDF", ".eps": "EPS", ".epsf": "EPS", ".ps": "PostScript", ".ai": "Adobe Illustrator",
                   ".emf": "EMF", ".wmf": "WMF", ".cdr": "CorelDRAW", ".dxf": "DXF", ".svgz": "gzip-compressed SVG"}
@@ -109,7 +110,8 @@ class _Scan:
     root: dict          # attributes of the <svg> element
     elements: int       # elements, <use> copies included
     texts: int          # <text> elements (not drawn)
-    filtered: int       # elements a filter applies to (not applied)
+    filters: int        # <filter> elements (not applied)
+    filtered: int       # elements with a filter attribute or style (not applied)
 
 
 # ----------------------------------------------------------------- formats not read
@@ -133,23 +135,24 @@ def refuse_vector_format(path, where: str) -> None:
 
 # ----------------------------------------------------------------- reading the XML
 def _read(path: Path, where: str) -> bytes:
+    """The file's bytes, refused past MAX_SVG_BYTES (by its size first, and by what is read)."""
+    if path.is_dir():
+        raise FileFormatError(f"{where}: is a directory, not a file")
     try:
         size = path.stat().st_size
+        data = b""
+        if size <= MAX_SVG_BYTES:
+            with open(path, "rb") as fh:
+                data = fh.read(MAX_SVG_BYTES + 1)
     except FileNotFoundError:
         raise FileFormatError(f"{where}: no such file") from None
     except OSError as exc:
         raise FileFormatError(f"{where}: unreadable ({exc.strerror or exc})") from None
-    if path.is_dir():
-        raise FileFormatError(f"{where}: is a directory, not a file")
-    if size > MAX_SVG_BYTES:
-        raise FileFormatError(f"{where}: {size / 2 ** 20:.1f} MiB, more than the limit of {MAX_SVG_BYTES / 2 ** 20:g} "
-                              f"MiB for an SVG picture (vector.MAX_SVG_BYTES, docs/limits.md); simplify it, or "
-                              f"raise shapedisplay.author.vector.MAX_SVG_BYTES")
-    try:
-        with open(path, "rb") as fh:
-            return fh.read(MAX_SVG_BYTES + 1)[:MAX_SVG_BYTES]
-    except OSError as exc:
-        raise FileFormatError(f"{where}: unreadable ({exc.strerror or exc})") from None
+    if size > MAX_SVG_BYTES or len(data) > MAX_SVG_BYTES:
+        raise FileFormatError(f"{where}: {max(size, len(data)) / 2 ** 20:.1f} MiB, more than the limit of "
+                              f"{MAX_SVG_BYTES / 2 ** 20:g} MiB for an SVG picture (vector.MAX_SVG_BYTES, "
+                              f"docs/limits.md); simplify it, or raise shapedisplay.author.vector.MAX_SVG_BYTES")
+    return data
 
 
 def _root(data: bytes, where: str) -> dict:
@@ -169,7 +172,7 @@ def _scan(data: bytes, where: str) -> _Scan:
     """One pass over the XML: the structure limits, then what a picture may not hold (module docstring)."""
     from shapedisplay.author.scene.svg import check_structure
 
-    found = {"n": 0, "texts": 0, "filtered": 0, "root": None}
+    found = {"n": 0, "texts": 0, "filters": 0, "filtered": 0, "root": None}
 
     def visit(el) -> None:
         found["n"] += 1
@@ -185,8 +188,8 @@ def _scan(data: bytes, where: str) -> _Scan:
         for key, value in el.attrib.items():
             if key.rsplit("}", 1)[-1] == "href":
                 _check_reference(value, name, where)
-        if tag == "text":
-            found["texts"] += 1
+        if tag in ("text", "filter"):
+            found[tag + "s"] += 1
         style = el.get("style", "")
         if el.get("filter", "none").strip() != "none" or re.search(r"(^|;)\s*filter\s*:\s*(?!none)", style):
             found["filtered"] += 1
@@ -194,7 +197,7 @@ def _scan(data: bytes, where: str) -> _Scan:
     elements = check_structure(io.BytesIO(data), where, visit)
     if found["root"] is None:
         raise FileFormatError(f"{where}: not an SVG (no element)")
-    return _Scan(found["root"], elements, found["texts"], found["filtered"])
+    return _Scan(found["root"], elements, found["texts"], found["filters"], found["filtered"])
 
 
 def _check_reference(value: str, name: str, where: str) -> None:
@@ -231,8 +234,10 @@ def _check_data_picture(ref: str, name: str, where: str) -> None:
                               f"inline its elements)")
     from PIL import Image
     try:
-        with Image.open(io.BytesIO(raw), formats=(fmt,)) as im:
-            cols, rows = im.size
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)     # the grid limits are checked next
+            with Image.open(io.BytesIO(raw), formats=(fmt,)) as im:
+                cols, rows = im.size
     except Image.DecompressionBombError as exc:
         raise InputError(f"{what}: refused before decoding: {exc}") from None
     except Exception as exc:  # UnidentifiedImageError, SyntaxError, OSError: a broken header
@@ -353,8 +358,9 @@ def _check_raster(cols: int, rows: int, elements: int, where: str) -> None:
     work = elements * cols * rows
     if work > MAX_RASTER_WORK:
         raise InputError(f"{where}: drawing {elements} elements at {cols} x {rows} pixels is {work:.3g} "
-                         f"element-pixels, more than the limit of {MAX_RASTER_WORK:.3g} (vector.MAX_RASTER_WORK, docs/limits.md); "
-                         f"{fix}, simplify the SVG, or raise shapedisplay.author.vector.MAX_RASTER_WORK")
+                         f"element-pixels, more than the limit of {MAX_RASTER_WORK:.3g} (vector.MAX_RASTER_WORK, "
+                         f"docs/limits.md); {fix}, simplify the SVG, or raise "
+                         f"shapedisplay.author.vector.MAX_RASTER_WORK")
 
 
 # ----------------------------------------------------------------- drawing
@@ -403,12 +409,15 @@ def rasterise_svg(path, *, pixels=None):
     if scan.texts:
         warnings.warn(f"{where}: {scan.texts} <text> element(s) not drawn (no fonts are loaded, so that every machine "
                       f"draws the same); convert the text to paths", VectorWarning, stacklevel=2)
-    if scan.filtered:
-        warnings.warn(f"{where}: the filters of {scan.filtered} element(s) not applied (blur, shadows: an icon is "
-                      f"felt by its fills and strokes)", VectorWarning, stacklevel=2)
+    if scan.filters or scan.filtered:
+        warnings.warn(f"{where}: filters not applied ({scan.filters} <filter> element(s), {scan.filtered} element(s) "
+                      f"with a filter): blur and shadows are not felt; an icon is its fills and strokes",
+                      VectorWarning, stacklevel=2)
     from PIL import Image
-    im = Image.open(io.BytesIO(png))
-    im.load()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", Image.DecompressionBombWarning)       # its size was checked above
+        im = Image.open(io.BytesIO(png))
+        im.load()
     return im if im.mode == "RGBA" else im.convert("RGBA")
 
 

@@ -8,16 +8,16 @@ def register(sub) -> None:
     p = sub.add_parser(
         "compile",
         help="compile a height map, mesh or scene into a friction-envelope table",
-        description="Compile SOURCE (picture .png/.jpg/.tif/..., .npy array, AFM/SPM scan .txt/.gsf, "
+        description="Compile SOURCE (picture .png/.jpg/.tif/.svg/..., .npy array, AFM/SPM scan .txt/.gsf, "
                     ".stl/.obj/.ply/.off/.glb/.gltf mesh, .toml scene or .svg mockup) into a table. Quantities "
                     "take units: '60x4mm', '0:2mm', '0.5N', '2N/mm'. A picture is the top view: x to the right, y up.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="example:\n  shapedisplay compile map.png -o t.npz --size 60x4mm --height 0:2mm "
                "--mapping height --n-base 0.5N --n-gain 2N/mm",
     )
-    p.add_argument("source", nargs="+", help="picture or .npy height map, instrument scan (.txt/.gsf), mesh, scene "
-                                             "(.toml) or SVG mockup (.svg); several sources compile into the folder "
-                                             "given with -o")
+    p.add_argument("source", nargs="+", help="picture (an SVG icon too) or .npy height map, instrument scan "
+                                             "(.txt/.gsf), mesh, scene (.toml) or SVG mockup (.svg); several sources "
+                                             "compile into the folder given with -o")
     p.add_argument("-o", "--output", required=True, help="table file to write (.npz), or a folder (DIR/) for "
                                                          "several sources: DIR/<stem>.npz each")
     p.add_argument("--device", help="device profile: TOML file or bundled name (default: built-in Konyo pad)")

@@ -9,7 +9,7 @@ def register(sub) -> None:
                     "a top view of the table, the compile report, a scene editor and live stick-slip feel "
                     "(the C runtime as WebAssembly in the browser's audio thread). Saving the scene recompiles "
                     "and swaps the table without a reload. Prints the URL (with its access token).")
-    p.add_argument("source", help="scene (.toml or .svg mockup), image (.png/.npy), mesh or table (.npz)")
+    p.add_argument("source", help="scene (.toml or .svg mockup), image (.png/.svg icon/.npy), mesh or table (.npz)")
     p.add_argument("--device", help="device profile: bundled name or TOML under the source's folder")
     p.add_argument("--port", type=int, default=None,
                    help="TCP port (default 8765, or the next free one up to 8784 when it is taken; 0 = any free port)")
