@@ -102,6 +102,12 @@ def test_black_on_transparent_icon_reads_its_alpha_as_heights(tmp_path):
     assert h[0] == 0 and h[-1] == 1000 and len(h) > 3                 # antialiased rim: heights between
 
 
+def test_coloured_icon_gives_its_shape_through_the_alpha_channel(tmp_path):
+    p = _icon(tmp_path, '<circle cx="12" cy="12" r="8" fill="#1976d2"/>')
+    frac, _ = _raised(load_image(p, "20x20mm", "0:1mm", channel="a"))
+    assert abs(frac - math.pi * 8 ** 2 / 24 ** 2) < 2 * math.pi * (8 / 24 * 512) / 512 ** 2
+
+
 def test_raw_raster_is_rgba_with_the_shape_in_alpha(tmp_path):
     im = vector.rasterise_svg(_icon(tmp_path, '<circle cx="12" cy="12" r="8"/>'), pixels=(64, 64))
     a = np.asarray(im)
