@@ -104,8 +104,11 @@ def test_black_on_transparent_icon_reads_its_alpha_as_heights(tmp_path):
 
 def test_coloured_icon_gives_its_shape_through_the_alpha_channel(tmp_path):
     p = _icon(tmp_path, '<circle cx="12" cy="12" r="8" fill="#1976d2"/>')
-    frac, _ = _raised(load_image(p, "20x20mm", "0:1mm", channel="a"))
-    assert abs(frac - math.pi * 8 ** 2 / 24 ** 2) < 2 * math.pi * (8 / 24 * 512) / 512 ** 2
+    for channel in (None, "a"):                        # one colour, any colour: alpha is read by default
+        hf = load_image(p, "20x20mm", "0:1mm", channel=channel)
+        frac, _ = _raised(hf)
+        assert abs(frac - math.pi * 8 ** 2 / 24 ** 2) < 2 * math.pi * (8 / 24 * 512) / 512 ** 2
+    assert any("alpha channel" in n for n in load_image(p, "20x20mm", "0:1mm").meta["notes"])
 
 
 def test_raw_raster_is_rgba_with_the_shape_in_alpha(tmp_path):

@@ -317,10 +317,11 @@ def _channel(im, path: Path, channel: str | None, depth: int, notes: list) -> Pi
 
 
 def _shape_in_alpha(values: np.ndarray, alpha: np.ndarray, full: float) -> bool:
-    """True for an icon exported as one colour on a transparent background: the colour of every visible
-    pixel is the same (within 1 % of full scale) while alpha varies, so the shape is only in alpha."""
-    seen = alpha > 0
-    if not seen.any() or seen.all() and alpha.min() == alpha.max():
+    """True for an icon exported as one colour on a transparent background: the colour of every pixel at
+    least a quarter opaque is the same (within 1 % of full scale) while alpha varies, so the shape is only
+    in alpha. (Nearly transparent edge pixels are left out: renderers store their colour only roughly.)"""
+    seen = alpha >= 0.25 * full
+    if not seen.any() or alpha.min() == alpha.max():
         return False
     v = values[seen]
     return float(v.max()) - float(v.min()) <= 0.01 * full and int(alpha.max()) - int(alpha.min()) > 0.1 * full
@@ -344,7 +345,7 @@ def normal_map_stats(rgb: np.ndarray, full: float) -> dict:
     ``unit`` the fraction of exactly unit vectors (``| |n| - 1 | < 0.1``,
     ``nz > 0``: what a map written straight from computed normals holds);
     ``near_unit`` the fraction with ``0.5 < |n| < 1.25`` (real maps: JPEG,
-    resampling and hand painting leave their vectors short, median |n| about
+    resampling and hand painting leave their vectors short, median length about
     0.8, 5-95 % 0.6-1.07); ``facing`` the fraction that is blue dominant and
     faces out of the surface (``nz > 0.3`` and, after normalisation, ``nz``
     larger than ``|nx|`` and ``|ny|``: slopes under 45 degrees); ``outward``
