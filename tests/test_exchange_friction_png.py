@@ -109,7 +109,8 @@ def test_flat_bitmap_is_written_with_a_warning_naming_what_shows(phone, tmp_path
     out = tmp_path / "mu.png"
     assert main(["export", str(phone), "--format", "friction-png", "-o", str(out), "--quantity", "mu"]) == 0
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("shapedisplay export: warning: friction bitmap of mu is flat")
+    assert len(err) == 1
+    assert err[0].startswith("shapedisplay export: warning: friction bitmap of mu is flat (0.5 everywhere)")
     assert "normal_force or breakaway_force shows the table's shape (--quantity)" in err[0]
     assert len(np.unique(np.array(Image.open(out)))) == 1
 

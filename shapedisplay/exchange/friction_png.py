@@ -125,7 +125,8 @@ def friction_image(table, quantity: str = AUTO, bits: int = 16) -> tuple[np.ndar
     if _spread(v) == 0:
         hi = lo
         shown = [q for q in QUANTITIES if q != quantity and _spread(quantity_map(table, q)) > 0]
-        warnings.warn(f"friction bitmap of {quantity} is flat ({lo:.6g} {QUANTITIES[quantity]} everywhere)"
+        unit = "" if QUANTITIES[quantity] == "1" else " " + QUANTITIES[quantity]
+        warnings.warn(f"friction bitmap of {quantity} is flat ({lo:.6g}{unit} everywhere)"
                       + (f"; {' or '.join(shown)} shows the table's shape (--quantity)" if shown
                          else ": the table is uniform"), FlatBitmapWarning, stacklevel=2)
     top = (1 << bits) - 1
