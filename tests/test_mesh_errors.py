@@ -90,8 +90,23 @@ def test_corrupt_files(tmp_path, name, data):
 def test_file_without_triangles(tmp_path):
     p = tmp_path / "points.obj"
     p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\n")
-    with pytest.raises(FileFormatError, match="points.obj': no triangles found"):
+    with pytest.raises(FileFormatError, match=r"points.obj': a point cloud \(3 points, no faces\); .*mesh the points"):
         mesh.mesh_to_heightfield(p)
+
+
+def test_textured_ply_whose_texture_is_missing_compiles_without_a_traceback(tmp_path, capsys):
+    """A scanner's PLY names its texture in a comment; the file is not there: the mesh compiles, the notes
+    say textures are ignored, and trimesh's logged traceback never reaches the terminal."""
+    p = tmp_path / "scan.ply"
+    p.write_text("ply\nformat ascii 1.0\ncomment TextureFile missing_texture.png\nelement vertex 4\n"
+                 "property float x\nproperty float y\nproperty float z\nelement face 2\n"
+                 "property list uchar int vertex_indices\nproperty list uchar float texcoord\nend_header\n"
+                 "0 0 0\n10 0 1\n10 10 2\n0 10 1\n3 0 1 2 6 0 0 1 0 1 1\n3 0 2 3 6 0 0 1 1 0 1\n")
+    from shapedisplay.cli.main import main
+    assert main(["compile", str(p), "-o", str(tmp_path / "t.npz")]) == 0
+    out, err = capsys.readouterr()
+    assert "Traceback" not in err and "Traceback" not in out
+    assert "unable to load" not in err
 
 
 def test_missing_trimesh_names_the_extra(box_stl, monkeypatch):

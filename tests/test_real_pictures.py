@@ -125,6 +125,17 @@ def test_steep_jpeg_map_warns_with_both_channels(tmp_path):
         sources.load_image(path, "25.6x19.2mm", "0:1mm", channel="luminance")    # the user decided: no warning
 
 
+def test_map_stored_in_another_range_warns(tmp_path):
+    """A map darkened to two thirds (three.js's water normals: mean colour (85, 85, 167)) is no longer made
+    of outward unit vectors, but every pixel is blue: a warning, not a silent luminance relief."""
+    rgb = np.round(_baked(_relief()) * (2 / 3)).astype(np.uint8)
+    verdict, st = normal_map_verdict(rgb, 255.0)
+    assert verdict == "maybe" and st["facing"] < 0.6 and st["blue"] > 0.9, st
+    Image.fromarray(rgb).save(tmp_path / "water.png")
+    with pytest.warns(PictureWarning, match="may be a tangent-space normal map"):
+        sources.load_image(tmp_path / "water.png", "20x20mm", "0:1mm")
+
+
 def _not_maps():
     rng = np.random.default_rng(3)
     h = _relief()

@@ -292,8 +292,8 @@ def _channel(im, path: Path, channel: str | None, depth: int, notes: list) -> Pi
                 f"another channel (luminance, r, g, b) to use its values as heights")
         if verdict[0] == "maybe":
             st = verdict[1]
-            warnings.warn(f"{where}: may be a tangent-space normal map ({st['facing'] * 100:.0f} % of the pixels "
-                          f"blue dominant, median vector length {st['median_length']:.2f}); read as luminance "
+            warnings.warn(f"{where}: may be a tangent-space normal map ({max(st['facing'], st['blue']) * 100:.0f} % "
+                          f"of the pixels blue dominant, median vector length {st['median_length']:.2f}); read as luminance "
                           f"heights: pass `--channel normal` to integrate it as a normal map, or `--channel "
                           f"luminance` to keep this reading without the warning", PictureWarning, stacklevel=3)
             notes.append("may be a normal map: read as luminance (pass a channel to decide)")
@@ -349,7 +349,11 @@ def normal_map_stats(rgb: np.ndarray, full: float) -> dict:
     0.8, 5-95 % 0.6-1.07); ``facing`` the fraction that is blue dominant and
     faces out of the surface (``nz > 0.3`` and, after normalisation, ``nz``
     larger than ``|nx|`` and ``|ny|``: slopes under 45 degrees); ``outward``
-    the fraction with ``nz > 0.1`` (steeper slopes too); ``tilt`` the
+    the fraction with ``nz > 0.1`` (steeper slopes too); ``blue`` the
+    fraction whose stored blue exceeds red and green by a tenth of full
+    scale (the look of any normal map, also one stored darkened or in
+    another range, such as three.js's water normals at mean (85, 85, 167));
+    ``tilt`` the
     larger of the medians of the normalised ``|nx|``, ``|ny|`` components (the
     colour cluster sits at (128, 128, 255) for a map of a surface that is
     mostly flat); ``mean_nz`` and ``median_length``.
@@ -359,7 +363,9 @@ def normal_map_stats(rgb: np.ndarray, full: float) -> dict:
     length = np.sqrt((n * n).sum(axis=-1))
     u = n / np.maximum(length, 1e-9)[:, None]
     facing = (n[:, 2] > 0.3) & (u[:, 2] > np.maximum(np.abs(u[:, 0]), np.abs(u[:, 1])))
-    return {"unit": float(((np.abs(length - 1.0) < 0.1) & (n[:, 2] > 0)).mean()),
+    c = rgb[::step, ::step].reshape(-1, 3).astype(np.float64)
+    blue = c[:, 2] - np.maximum(c[:, 0], c[:, 1]) >= 0.1 * full
+    return {"blue": float(blue.mean()),"unit": float(((np.abs(length - 1.0) < 0.1) & (n[:, 2] > 0)).mean()),
             "near_unit": float(((length > 0.5) & (length < 1.25)).mean()),
             "facing": float(facing.mean()), "outward": float((n[:, 2] > 0.1).mean()),
             "tilt": float(max(abs(np.median(u[:, 0])), abs(np.median(u[:, 1])))),
@@ -374,7 +380,8 @@ def normal_map_verdict(rgb: np.ndarray, full: float) -> tuple[str | None, dict]:
     facing and a tilt under 0.35 (a real map: compressed, resampled or
     painted). "maybe": at least 60 % near unit and either 60 % facing or
     90 % outward with mean ``nz`` above 0.4 (a map with steep or painted
-    areas, or a blue picture such as a sky). Photographs,
+    areas), or 90 % blue (a map stored in another range, or a blue picture
+    such as a sky). Photographs,
     screenshots and grey pictures fail the facing test: grey is never blue
     dominant. See :func:`normal_map_stats`.
     """
@@ -382,7 +389,8 @@ def normal_map_verdict(rgb: np.ndarray, full: float) -> tuple[str | None, dict]:
     if st["unit"] >= 0.95 and st["mean_nz"] > 0.5 or \
             st["near_unit"] >= 0.9 and st["facing"] >= 0.9 and st["tilt"] < 0.35:
         return "normal", st
-    if st["near_unit"] >= 0.6 and (st["facing"] >= 0.6 or st["outward"] >= 0.9 and st["mean_nz"] > 0.4):
+    if st["near_unit"] >= 0.6 and (st["facing"] >= 0.6 or st["outward"] >= 0.9 and st["mean_nz"] > 0.4) or \
+            st["blue"] >= 0.9:
         return "maybe", st
     return None, st
 

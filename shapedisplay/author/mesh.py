@@ -52,6 +52,7 @@ Conventions
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 import struct
@@ -115,7 +116,10 @@ def load_mesh(path) -> tuple[np.ndarray, np.ndarray, dict]:
     if suffix == ".ply" and "tristrips" in ply_elements(path):
         return _load_ply_strips(path)
     trimesh = require("trimesh", "mesh", "Loading meshes")
+    log = logging.getLogger("trimesh")       # it logs a traceback for a texture file it cannot find:
+    level = log.level                        # textures are not read here (the notes say they are ignored)
     try:
+        log.setLevel(logging.CRITICAL)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             scene = trimesh.load(str(path), file_type=suffix[1:], process=False, force="scene")
@@ -123,6 +127,8 @@ def load_mesh(path) -> tuple[np.ndarray, np.ndarray, dict]:
     except Exception as exc:  # trimesh raises many kinds for corrupt files
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise FileFormatError(f"mesh '{path}': cannot read {suffix[1:].upper()} file ({msg})") from None
+    finally:
+        log.setLevel(level)
     verts, faces, offset, count = [], [], 0, 0
     ignored: dict = {}
     for g in geoms:
@@ -143,6 +149,10 @@ def load_mesh(path) -> tuple[np.ndarray, np.ndarray, dict]:
         offset += len(v)
         count += 1
     if not faces:
+        points = sum(len(getattr(g, "vertices", ())) for g in geoms if type(g).__name__ == "PointCloud")
+        if points:
+            raise FileFormatError(f"mesh '{path}': a point cloud ({points} points, no faces); shapedisplay needs a "
+                                  f"surface: mesh the points first (e.g. Poisson reconstruction in a mesh editor)")
         raise FileFormatError(f"mesh '{path}': no triangles found (empty mesh or unreadable content)")
     notes = [f"{what} of {n} mesh{'es' if n > 1 else ''} ignored" if what in _VISUALS else f"{n} {what} ignored"
              for what, n in ignored.items()]
