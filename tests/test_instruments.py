@@ -331,7 +331,18 @@ HOSTILE = {
                         "unit 'V' is not a length"),
     "length without unit": (lambda p: _txt(p, GOOD_HEADER.replace("4 um", "4") + GRID),
                             "'Real Width 4' has no unit and the header has no XY Unit line"),
+    "xyz point list": (lambda p: _txt(p, "".join(f"{x} {y} {x * y % 3}\n" for x in range(4) for y in range(5))),
+                       r"20 lines of 3 numbers .*a list of points \(x y z a line\), not a grid"),
+    "x z profile": (lambda p: _txt(p, "".join(f"{0.7 * i + 0.01 * (i % 3)} {np.sin(i)}\n" for i in range(40))),
+                    r"40 lines of 2 numbers .*\(x z a line\)"),
+    "sonar gsf": (lambda p: _bytes(p / "sonar.gsf", b"\x00\x00\x00\x0c\x00\x00\x00\x01GSF-v03.08\x00\x00" * 4),
+                  "a Generic Sensor Format \\(sonar bathymetry\\) file"),
 }
+
+
+def _bytes(path, data):
+    path.write_bytes(data)
+    return path
 
 
 @pytest.mark.parametrize("case", HOSTILE)

@@ -501,6 +501,10 @@ def _parse_grid(data: bytes, table, first: int, h: dict, where: str) -> np.ndarr
     rows, cols = values.shape
     if hr is not None and rows != hr:
         raise FileFormatError(f"{where}: the header says {hr} rows ({h['dims_text']}), the grid has {rows}")
+    if hc is None and cols in (2, 3) and rows >= 4 * cols and _point_list(values):
+        raise FileFormatError(f"{where}: {rows} lines of {cols} numbers with a steadily growing column: a list of "
+                              f"points ({'x y z' if cols == 3 else 'x z'} a line), not a grid of heights; export the "
+                              f"scan as a matrix (one row of the map a line)")
     if rows * cols < 2:
         raise FileFormatError(f"{where}: {cols} x {rows} values; a height map needs at least 2 samples")
     bad = ~np.isfinite(values)
@@ -510,6 +514,24 @@ def _parse_grid(data: bytes, table, first: int, h: dict, where: str) -> np.ndarr
         raise FileFormatError(f"{where}: grid row {r + 1}{line}, column {c + 1} holds {values[r, c]}; heights must be "
                               f"finite ({int(bad.sum())} NaN/inf values)")
     return values
+
+
+def _point_list(values: np.ndarray) -> bool:
+    """True when one of the first two columns is a coordinate: it never decreases (or never increases) and
+    steps through evenly spaced values (a raster's x or y, repeated along each line), which no column of
+    measured heights does; or, of two columns, the first strictly grows or falls (a profile's x)."""
+    if values.shape[1] == 2:
+        d = np.diff(values[:, 0])
+        if np.all(d > 0) or np.all(d < 0):
+            return True
+    for c in range(min(2, values.shape[1] - 1)):
+        col = values[:, c]
+        d = np.diff(col)
+        if np.ptp(col) > 0 and (np.all(d >= 0) or np.all(d <= 0)):
+            steps = np.diff(np.unique(col))
+            if steps.size and np.ptp(steps) <= 1e-3 * np.abs(steps).max():
+                return True
+    return False
 
 
 def _data_rows(text: bytes):
@@ -568,8 +590,12 @@ def read_gsf(path) -> Scan:
     with path.open("rb") as f:
         magic = f.read(len(GSF_MAGIC))
         if magic != GSF_MAGIC:
-            raise FileFormatError(f"{where}: not a Gwyddion Simple Field file (its first line must be "
-                                  f"'Gwyddion Simple Field 1.0'; got {magic[:26]!r})")
+            sonar = b"GSF-v" in magic + f.read(64)      # the sonar Generic Sensor Format shares the suffix
+            raise FileFormatError(
+                f"{where}: a Generic Sensor Format (sonar bathymetry) file, not a Gwyddion Simple Field; "
+                f"shapedisplay reads the SPM format (first line 'Gwyddion Simple Field 1.0')" if sonar else
+                f"{where}: not a Gwyddion Simple Field file (its first line must be 'Gwyddion Simple Field 1.0'; "
+                f"got {magic[:26]!r})")
         block = f.read(MAX_GSF_HEADER_BYTES)
         end = block.find(b"\0")
         if end < 0:
