@@ -207,3 +207,13 @@ def test_uniform_alpha_or_varying_colour_keeps_the_mask_rule(tmp_path):
     Image.fromarray(arr).save(tmp_path / "c.png")
     hf = sources.load_image(tmp_path / "c.png", "20x20mm", "0:1mm")
     assert any("alpha used as mask" in n for n in hf.meta["notes"])
+
+
+def test_normal_map_beyond_the_integration_limit_is_refused_before_integrating(tmp_path, monkeypatch):
+    from shapedisplay.author import imageio
+    monkeypatch.setattr(imageio, "MAX_NORMAL_MAP_SAMPLES", 64 * 64)
+    Image.fromarray(_baked(_relief(rows=65, cols=64))).save(tmp_path / "n.png")
+    with pytest.raises(InputError, match=r"a normal map of 64 x 65 pixels; .*at most 4096 pixels.*resample the map"):
+        sources.load_image(tmp_path / "n.png", "20x20mm", None, channel="normal")
+    Image.fromarray(_baked(_relief(rows=64, cols=64))).save(tmp_path / "m.png")
+    assert sources.load_image(tmp_path / "m.png", "20x20mm", None, channel="normal").heights.shape == (64, 64)

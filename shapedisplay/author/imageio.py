@@ -78,6 +78,10 @@ CHANNELS = ("luminance", "r", "g", "b", "a", "normal")
 #: ITU-R BT.709 luma weights of R', G', B'.
 BT709 = (0.2126, 0.7152, 0.0722)
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+#: Largest normal map integrated (``channel="normal"``): the Frankot-Chellappa integration holds about
+#: :data:`FC_BYTES_PER_SAMPLE` bytes a pixel at its peak (a 4096 x 4096 map: about 2 GiB).
+MAX_NORMAL_MAP_SAMPLES = 4096 * 4096
+FC_BYTES_PER_SAMPLE = 128
 #: How a picture beyond the size limits gets within them (one sample per pixel: no option resamples it).
 PICTURE_FIX = "crop or resample the picture"
 
@@ -269,6 +273,11 @@ def _channel(im, path: Path, channel: str | None, depth: int, notes: list) -> Pi
     if channel == "normal":
         if not colour:
             raise FileFormatError(f"{where}: `channel` 'normal' needs an RGB normal map (got a {mode} picture)")
+        if arr.shape[0] * arr.shape[1] > MAX_NORMAL_MAP_SAMPLES:
+            raise InputError(f"{where}: a normal map of {arr.shape[1]} x {arr.shape[0]} pixels; integrating one takes "
+                             f"about {FC_BYTES_PER_SAMPLE} bytes a pixel, so at most {MAX_NORMAL_MAP_SAMPLES} pixels "
+                             f"(4096 x 4096) are integrated (shapedisplay.author.imageio.MAX_NORMAL_MAP_SAMPLES): "
+                             f"resample the map")
         slopes = _normal_slopes(arr[..., :3], full, where, strict=True)
         return Picture(np.zeros(arr.shape[:2]), full, _mask(arr, has_alpha), slopes,
                        f"{mode} {depth}-bit tangent-space normal map (+y green)", notes)
@@ -284,7 +293,9 @@ def _channel(im, path: Path, channel: str | None, depth: int, notes: list) -> Pi
         desc = f"grey {depth}-bit" + (" + alpha (mask)" if has_alpha else "")
     else:
         rgb = arr[..., :3]
-        verdict = normal_map_verdict(rgb, full) if channel is None else (None, {})
+        one_colour = channel is None and has_alpha and _shape_in_alpha(
+            rgb[..., 0] * BT709[0] + rgb[..., 1] * BT709[1] + rgb[..., 2] * BT709[2], arr[..., -1], full)
+        verdict = normal_map_verdict(rgb, full) if channel is None and not one_colour else (None, {})
         if verdict[0] == "normal":
             raise InputError(
                 f"{where}: looks like a tangent-space normal map (pixels are vectors pointing out of the "
@@ -292,11 +303,15 @@ def _channel(im, path: Path, channel: str | None, depth: int, notes: list) -> Pi
                 f"another channel (luminance, r, g, b) to use its values as heights")
         if verdict[0] == "maybe":
             st = verdict[1]
-            warnings.warn(f"{where}: may be a tangent-space normal map ({max(st['facing'], st['blue']) * 100:.0f} % "
-                          f"of the pixels blue dominant, median vector length {st['median_length']:.2f}); read as luminance "
-                          f"heights: pass `--channel normal` to integrate it as a normal map, or `--channel "
+            blue = max(st['facing'], st['blue']) * 100
+            warnings.warn(f"{where}: may be a tangent-space normal map ({blue:.0f} % of the pixels blue dominant, "
+                          f"median vector length {st['median_length']:.2f}); read as luminance heights: pass `--channel normal` to integrate it as a normal map, or `--channel "
                           f"luminance` to keep this reading without the warning", PictureWarning, stacklevel=3)
             notes.append("may be a normal map: read as luminance (pass a channel to decide)")
+        if one_colour:
+            notes.append("uniform colour: the shape is in the alpha channel, read as heights (opaque = high)")
+            return Picture(np.ascontiguousarray(arr[..., -1]), full, None, None,
+                           f"{mode} {depth}-bit, alpha (uniform colour)", notes)
         if channel in ("r", "g", "b"):
             values = np.ascontiguousarray(rgb[..., "rgb".index(channel)])
             desc = f"{mode} {depth}-bit, channel {channel}"
@@ -306,7 +321,7 @@ def _channel(im, path: Path, channel: str | None, depth: int, notes: list) -> Pi
             desc = f"{mode} {depth}-bit, luminance (ITU-R BT.709)"
         if has_alpha:
             desc += " + alpha (mask)"
-    if channel is None and has_alpha and _shape_in_alpha(values, arr[..., -1], full):
+    if grey and channel is None and has_alpha and _shape_in_alpha(values, arr[..., -1], full):
         notes.append("uniform colour: the shape is in the alpha channel, read as heights (opaque = high)")
         return Picture(np.ascontiguousarray(arr[..., -1]), full, None, None,
                        f"{mode} {depth}-bit, alpha (uniform colour)", notes)
@@ -435,16 +450,27 @@ def frankot_chellappa(p: np.ndarray, q: np.ndarray, dx: float = 1.0, dy: float =
     p = np.asarray(p, dtype=np.float64)
     q = np.asarray(q, dtype=np.float64)
     rows, cols = p.shape
-    # even extension: p is odd in x and even in y, q the other way round
+    # even extension: p is odd in x and even in y, q the other way round; real transforms (half the
+    # spectrum) and in-place products keep the peak near 100 bytes a pixel of the field
     P = np.block([[p, -p[:, ::-1]], [p[::-1, :], -p[::-1, ::-1]]])
-    Q = np.block([[q, q[:, ::-1]], [-q[::-1, :], -q[::-1, ::-1]]])
-    wx = 2 * np.pi * np.fft.fftfreq(2 * cols, d=dx)[None, :]
+    Z = np.fft.rfft2(P)
+    del P
+    wx = 2 * np.pi * np.fft.rfftfreq(2 * cols, d=dx)[None, :]
     wy = 2 * np.pi * np.fft.fftfreq(2 * rows, d=dy)[:, None]
-    denom = wx ** 2 + wy ** 2
-    denom[0, 0] = 1.0
-    Z = (-1j * wx * np.fft.fft2(P) - 1j * wy * np.fft.fft2(Q)) / denom
+    Z *= wx
+    Q = np.block([[q, q[:, ::-1]], [-q[::-1, :], -q[::-1, ::-1]]])
+    Qf = np.fft.rfft2(Q)
+    del Q
+    Qf *= wy
+    Z += Qf
+    del Qf
+    Z *= -1j
+    for r in range(0, Z.shape[0], 256):                   # / (wx^2 + wy^2), a band of rows at a time
+        Z[r:r + 256] /= np.maximum(wx ** 2 + wy[r:r + 256] ** 2, np.finfo(np.float64).tiny)
     Z[0, 0] = 0.0
-    z = np.real(np.fft.ifft2(Z))[:rows, :cols]
+    Z[:, -1] = 0.0                  # the Nyquist frequencies: a slope there has no sign to integrate
+    Z[rows] = 0.0
+    z = np.fft.irfft2(Z, s=(2 * rows, 2 * cols))[:rows, :cols]
     return z - z.mean()
 
 
