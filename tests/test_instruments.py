@@ -112,6 +112,10 @@ SPELLINGS = {
         "Pixels: 128 x 96\nX Range: 10\nY Range: 7.5\nLateral Units: um\nZ Unit: Å\n[Data]\n", 10.0, ";"),
     "Nanoscope-style ~m": (
         "XRes = 128\nYRes = 96\nXReal = 10 ~m\nYReal = 7.5 ~m\nZUnit = nm\n\n", 1.0, " "),
+    "Gwyddion export in German": (
+        "# Kanal: Topografie\n# Breite: 10.000 µm\n# Höhe: 7.500 µm\n# Value units: nm\n", 1.0, " "),
+    "Gwyddion export in French": (
+        "# Canal: Topographie\n# Largeur: 10.000 µm\n# Hauteur: 7500 nm\n# Value units: nm\n", 1.0, " "),
 }
 
 

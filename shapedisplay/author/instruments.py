@@ -97,13 +97,13 @@ _HEIGHT = {"real height", "yreal", "y real", "y length", "y range", "y scan size
            "physical height", "height real", "y extent"}
 _BOTH = {"scan size", "scan range", "real size"}
 #: Width/height keys that are pixel counts with a bare whole number and lengths with a unit.
-_EITHER_W = {"width", "x size", "image width"}
-_EITHER_H = {"height", "y size", "image height"}
+_EITHER_W = {"width", "x size", "image width", "breite", "largeur"}     # Gwyddion's export, in its languages
+_EITHER_H = {"height", "y size", "image height", "höhe", "hohe", "hoehe", "hauteur"}
 _XY_UNIT = {"xy unit", "xy units", "xyunit", "xyunits", "lateral unit", "lateral units", "x unit", "x units",
             "length unit", "length units", "distance unit", "distance units"}
 _Z_UNIT = {"z unit", "z units", "zunit", "zunits", "value unit", "value units", "height unit", "height units",
            "data unit", "data units"}
-_TITLE = {"channel", "title", "channel name", "data channel"}
+_TITLE = {"channel", "title", "channel name", "data channel", "kanal", "canal"}
 _MARKERS = {"start of data", "data", "begin data", "data start", "begin of data", "data begin", "data section"}
 
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
@@ -196,7 +196,7 @@ def _norm_key(key: str) -> tuple[str, str]:
     if m:
         hint = m.group(1).strip()
         key = key[:m.start()] + " " + key[m.end():]
-    return " ".join(re.sub(r"[^0-9a-z]+", " ", key.lower()).split()), hint
+    return " ".join(re.sub(r"[\W_]+", " ", key.lower()).split()), hint
 
 
 def _cells_table(line: str):
