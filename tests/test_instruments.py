@@ -381,3 +381,16 @@ def test_library_errors_are_shape_display_errors(tmp_path):
     with pytest.raises(InputError, match="exceeds the limit of"):
         instruments.read_text_export(_txt(tmp_path, GOOD_HEADER.replace("Height: 3", "Height: 99999")
                                           .replace("Width: 4", "Width: 99999") + GRID))
+
+
+def test_a_relief_no_finger_feels_is_said_with_the_option_that_fits_it(tmp_path, capsys):
+    """A 10 um scan of 20 nm relief keeps its units (1 N/mm: 20 uN of relief) and says so, naming --height."""
+    src = tmp_path / "scan.txt"
+    z = surface_nm() * (20.0 / np.ptp(surface_nm()))
+    src.write_text("Image Width: 128\nImage Height: 96\nReal Width: 10 um\nReal Height: 7.5 um\nZ Unit: nm\n\n"
+                   + "\n".join(" ".join(f"{v:.6g}" for v in row) for row in z) + "\n")
+    code, out, err = run(["compile", src, "-o", tmp_path / "t.npz"], capsys)
+    assert code == 0
+    assert "warning: the relief is 2e-05 N of normal force" in err and "`--height` LO:HI" in err
+    code, out, err = run(["compile", src, "-o", tmp_path / "t.npz", "--height", "0:1mm"], capsys)
+    assert code == 0 and "warning" not in err

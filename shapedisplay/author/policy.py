@@ -207,7 +207,26 @@ def compile_file(source, device=None, *, flags: dict | None = None, confine: boo
     if fits_force_range_by_default(hf, n_gain_given="n_gain" in options, height_given="height" in options):
         from shapedisplay.author.forces import fit_to_force_range
         hf = fit_to_force_range(hf, profile, mapping)
+    elif "n_gain" not in options and "height" not in options:
+        _warn_unfelt_relief(hf, mapping, flag)
     return compile_heightfield(hf, profile, mapping, compile_options)
+
+
+def _warn_unfelt_relief(hf, mapping, flag) -> None:
+    """A warning when data in its own units (a scan, float heights) give a force relief under one force JND:
+    the table would be flat to the finger, and the option that fits it is named."""
+    if not mapping.height or mapping.n_gain <= 0:
+        return
+    import warnings
+
+    from shapedisplay.author.perception import FORCE_WEBER, figure
+    relief = mapping.n_gain * float(hf.heights.max() - hf.heights.min())
+    ref = max(mapping.n_base, figure("force_weber_min_force"))
+    if 0 < relief < FORCE_WEBER * ref:
+        warnings.warn(f"the relief is {relief:.3g} N of normal force ({mapping.n_gain * 1e-3:g} N/mm over "
+                      f"{(hf.heights.max() - hf.heights.min()) * 1e6:.4g} um), under one force step a finger tells "
+                      f"apart ({FORCE_WEBER * ref:.3g} N: {FORCE_WEBER * 100:g} % of {ref:g} N): fit it onto a felt "
+                      f"range with `{flag('height')}` LO:HI (e.g. 0:1mm) or set `{flag('n_gain')}`")
 
 
 def _refuse(options: dict, names, what: str, flag) -> None:
