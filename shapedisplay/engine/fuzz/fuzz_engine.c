@@ -10,8 +10,9 @@
  *   [1]     pad model (SD_MODEL_*, modulo SD_NMODEL). The models whose work per tick is bounded by
  *           step caps rather than by the tick (tanh: SD_MAX_EVENTS_PER_TICK substeps of a stiff
  *           regularised slope, about 15 ms a tick under the sanitizers; Stribeck: up to 10^5 stick
- *           steps and 2 x 10^4 slip steps) get at most SLOW_TICKS ticks, so that a run of them stays
- *           far below the timeout and the fuzzer's time goes to many inputs, not a few long ones
+ *           steps and 2 x 10^4 slip steps, up to 250 ms a tick) get at most SLOW_TICKS and
+ *           STRIBECK_TICKS ticks, so that a run of them stays far below the timeout and the fuzzer's
+ *           time goes to many inputs, not a few long ones
  *   [2]     burst policy (modulo 3)
  *   [3]     cursor mode (modulo 3): 0 int16 pairs across the table and a margin around it,
  *           1 int16 pairs over +-1 km (jumps inside the position limit), 2 raw sd_real pairs
@@ -36,7 +37,8 @@
 #include "../sd_math.h"
 
 #define MAX_TICKS 256
-#define SLOW_TICKS 8      /* ticks of a tanh or Stribeck run */
+#define SLOW_TICKS 8      /* ticks of a tanh run */
+#define STRIBECK_TICKS 2  /* ticks of a Stribeck run: one tick of it can take 250 ms under the sanitizers */
 #define MAX_IMAGE (1u << 20)
 
 static uint64_t image_buf[MAX_IMAGE / 8];     /* 8-byte aligned, as the loader needs */
@@ -144,7 +146,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 
     sd_image_config(&img, &cfg);
     cfg.model = data[1] % SD_NMODEL;
-    if ((cfg.model == SD_MODEL_STRIBECK || cfg.model == SD_MODEL_TANH) && n_ticks > SLOW_TICKS) n_ticks = SLOW_TICKS;
+    if (cfg.model == SD_MODEL_TANH && n_ticks > SLOW_TICKS) n_ticks = SLOW_TICKS;
+    if (cfg.model == SD_MODEL_STRIBECK && n_ticks > STRIBECK_TICKS) n_ticks = STRIBECK_TICKS;
     cfg.policy = data[2] % 3;
     if (flags & 2) cfg.audio_rate = SD_R(0.0);
     /* A pad the tick cannot resolve (h omega_n > SD_H_OMEGA_MAX: the exact model would search thousands of
