@@ -150,8 +150,11 @@ def test_icon_with_a_size_in_mm_needs_no_size_and_resolution_sets_its_raster(tmp
     assert fine.heights.shape == (100, 200) and fine.dx == pytest.approx(1e-4) and fine.dy == pytest.approx(1e-4)
     stretched = load_image(p, "40x10mm", "0:1mm", resolution="0.5mm")   # a given size wins; the drawing is stretched
     assert stretched.heights.shape == (40, 80) and stretched.dx * 80 == pytest.approx(0.04)
-    with pytest.raises(InputError, match=r"states no physical size .*give `size`"):
-        load_image(_icon(tmp_path, '<circle cx="12" cy="12" r="8"/>', name="px.svg"), None, "0:1mm")
+    px = load_image(_icon(tmp_path, '<circle cx="12" cy="12" r="8"/>', name="px.svg"), None, None)
+    assert px.dx * px.heights.shape[1] == pytest.approx(24 * 0.0254 / 96)       # 24 CSS px: 6.35 mm
+    assert np.ptp(px.heights) == pytest.approx(2e-3)                            # the icon default, 0:2 mm
+    assert any("at CSS 96 px/in" in n for n in px.meta["notes"])
+    assert any("default of an SVG icon" in n for n in px.meta["notes"])
 
 
 def test_raster_keeps_the_proportions_and_covers_the_grid():
@@ -220,9 +223,12 @@ def test_cli_compiles_an_icon_and_still_compiles_a_mockup(tmp_path, capsys):
     t = FrictionTable.load(out)
     n = t.sample("normal_force", np.array([0.010, 0.001]), np.array([0.010, 0.001]))
     assert n[0] > n[1]                                                # the disc is felt
-    assert main(["compile", str(p), "--height", "0:1mm", "-o", str(tmp_path / "U.npz")]) == 2
-    err = capsys.readouterr().err
-    assert "states no physical size" in err and "`--size`" in err and err.count("\n") == 1
+    capsys.readouterr()
+    assert main(["compile", str(p), "-o", str(tmp_path / "U.npz")]) == 0       # no option: 24 px, 0:2 mm
+    out = capsys.readouterr().out
+    assert "the SVG's 24 x 24 px at CSS 96 px/in (give `--size`" in out and "give `--height` to choose" in out
+    u = FrictionTable.load(tmp_path / "U.npz")
+    assert u.grid.dx * u.grid.cols == pytest.approx(6.35e-3)
     mock = Path(__file__).resolve().parent.parent / "assets" / "scenes" / "settings-mockup.svg"
     assert source_kind(mock) == "svg"
     assert main(["compile", str(mock), "-o", str(tmp_path / "M.npz"), "-q"]) == 0

@@ -39,6 +39,9 @@ from shapedisplay.units import parse_quantity
 
 #: Suffixes load_source understands, by kind.
 IMAGE_SUFFIXES = PICTURE_SUFFIXES + (".npy",)
+#: Relief of an SVG icon compiled without a height range, m: a drawing states none (a scene's image
+#: widget has the same default).
+ICON_HEIGHT = (0.0, 2e-3)
 MESH_SUFFIXES = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf")
 #: Kinds of file source that load into a height field (:func:`load_source`); instrument files are "scan".
 HEIGHT_MAP_KINDS = ("image", "scan", "mesh")
@@ -491,11 +494,18 @@ def load_image(path, size, height_range, *, resolution=None, channel=None, z_uni
     if suffix in PICTURE_SUFFIXES:
         if suffix == ".svg":                   # its size (stated or given) and the raster it is drawn at
             from shapedisplay.author.vector import raster_plan
-            size, pixels = raster_plan(path, size, resolution, pixels, flags)
+            size, pixels, size_note = raster_plan(path, size, resolution, pixels, flags)
             resolution = None                  # drawn to fill `size`: the resolution chose the raster
         pic = read_picture(path, channel, pixels=pixels)
         values, full, mask, slopes, desc, notes = (pic.values, pic.full_scale, pic.mask, pic.slopes,
                                                    pic.description, list(pic.notes))
+        if suffix == ".svg":
+            notes += [size_note] if size_note else []
+            if height_range is None and z_units is None and slopes is None:     # a drawing states no relief
+                height_range = ICON_HEIGHT
+                notes.append(f"height {ICON_HEIGHT[0] * 1e3:g}:{ICON_HEIGHT[1] * 1e3:g} mm, the default of an "
+                             f"SVG icon (an image widget's too; give `{(flags or {}).get('height', 'height_range')}` "
+                             f"to choose)")
     elif suffix == ".npy":
         where = f"array '{path}'"
         if channel is not None:

@@ -430,7 +430,8 @@ def raster_plan(path, size, resolution, pixels, flags: dict | None = None):
         The ``.svg`` file.
     size : (width, height) m, str "20x20mm", or None
         The picture's physical size; None: the size the SVG states
-        (:func:`svg_size`), which it must then state.
+        (:func:`svg_size`), or else its size in CSS pixels (1/96 in each,
+        the length a browser shows at 100 %; a 24 px icon is 6.35 mm).
     resolution : float (m), str, or None
         Sample spacing wanted: the raster has at least ``size / resolution``
         samples.
@@ -441,22 +442,23 @@ def raster_plan(path, size, resolution, pixels, flags: dict | None = None):
 
     Returns
     -------
-    ((width, height), (cols, rows) or None)
-        Metres; the least raster for :func:`rasterise_svg` (None: the default).
+    ((width, height), (cols, rows) or None, note or None)
+        Metres; the least raster for :func:`rasterise_svg` (None: the default);
+        a note when the size came from CSS pixels.
     """
     from shapedisplay.units import parse_pair, parse_quantity
 
     path = Path(os.fspath(path))
     where = f"SVG '{path}'"
     flag = (lambda name: (flags or {}).get(name, name))
+    note = None
     if size is None:
         root = _root(_read(path, where), where)
-        size = _intrinsic(root, where)[1]
-        if size is None:
-            stated = ", ".join(f"{k} {root[k]!r}" for k in ("width", "height") if k in root)
-            stated = f"its <svg> {stated}: pixels, not lengths" if stated else "no width or height on its <svg>"
-            raise InputError(f"{where} states no physical size ({stated}); give `{flag('size')}` (width x height, "
-                             f"e.g. 20x20mm), or a width and height in mm on its <svg> element")
+        aspect, size = _intrinsic(root, where)
+        if size is None:                       # CSS pixels: 1 px = 1/96 in, the length a browser draws at 100 %
+            size = (aspect[0] * _M_PER_PX, aspect[1] * _M_PER_PX)
+            note = (f"size {size[0] * 1e3:.4g} x {size[1] * 1e3:.4g} mm: the SVG's {aspect[0]:g} x {aspect[1]:g} px "
+                    f"at CSS 96 px/in (give `{flag('size')}` to choose another)")
     elif isinstance(size, str):
         size = parse_pair(size, "x", "m", flag("size"))
     try:
@@ -471,7 +473,7 @@ def raster_plan(path, size, resolution, pixels, flags: dict | None = None):
         if not (math.isfinite(s) and s > 0):
             raise InputError(f"`{flag('resolution')}` must be a finite length > 0 (got {resolution!r})")
         least = tuple(max(1, int(round(v / s))) if v / s < 2 ** 62 else 2 ** 62 for v in (w, h))
-    return (w, h), least
+    return (w, h), least, note
 
 
 __all__ = ["DEFAULT_RASTER_SIDE", "MAX_RASTER_WORK", "MAX_SVG_BYTES", "VECTOR_FORMATS", "VectorWarning",
