@@ -45,7 +45,7 @@ def test_metres_float64_and_nanometres_float32_give_the_same_table(tmp_path, cap
     text = _compile([tmp_path / "scan_nm.npy", "-o", tmp_path / "t.npz", "--size", "64x48mm", "--height", "0:2mm",
                      "--z-units", "nm"], capsys)
     assert "scale: 1 nm of data -> " in text and "of normal force (n_gain 1 N/mm)" in text
-    assert f"data range {float(nm.min()):.6g}..{float(nm.max()):.6g} fitted onto 0..2 mm" in text
+    assert f"data range {float(nm.min()):.6g}..{float(nm.max()):.6g} nm fitted onto 0..2 mm" in text
 
 
 def test_float_data_without_height_keep_their_unit(tmp_path, capsys):

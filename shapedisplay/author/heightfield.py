@@ -101,10 +101,12 @@ def height_scale(unit: str, m_per_unit: float, offset_m: float, rule: str, what:
             "what": what}
 
 
-def fit_range(values: np.ndarray, height_range, what: str, mask=None) -> tuple[np.ndarray, float, float, str]:
+def fit_range(values: np.ndarray, height_range, what: str, mask=None,
+              unit: str = "") -> tuple[np.ndarray, float, float, str]:
     """Fit the range of ``values`` onto ``height_range`` (lo, hi) metres, linearly.
 
-    ``mask`` (bool, same shape): only the samples inside it set the range.
+    ``mask`` (bool, same shape): only the samples inside it set the range;
+    ``unit``: the values' unit, named in the rule.
     Returns ``(heights, m_per_unit, offset_m, rule)``; constant data all go
     to ``lo``. The caller's array is not changed.
     """
@@ -116,8 +118,9 @@ def fit_range(values: np.ndarray, height_range, what: str, mask=None) -> tuple[n
     out -= vmin
     out *= a
     out += lo
-    rule = (f"data range {vmin:.6g}..{vmax:.6g} fitted onto {lo * 1e3:.6g}..{hi * 1e3:.6g} mm" if span > 0
-            else f"constant data {vmin:.6g} placed at {lo * 1e3:.6g} mm")
+    u = f" {unit}" if unit else ""
+    rule = (f"data range {vmin:.6g}..{vmax:.6g}{u} fitted onto {lo * 1e3:.6g}..{hi * 1e3:.6g} mm" if span > 0
+            else f"constant data {vmin:.6g}{u} placed at {lo * 1e3:.6g} mm")
     return out, a, lo - a * vmin, rule
 
 

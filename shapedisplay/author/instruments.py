@@ -794,7 +794,7 @@ def load_scan(path, size=None, height_range=None, *, resolution=None, channel=No
     hr = None if height_range is None else _height_range(height_range)
     values = grid_from_picture(scan.values)
     if hr is not None:
-        heights, a, b, rule = fit_range(values, hr, where)
+        heights, a, b, rule = fit_range(values, hr, where, unit=unit or "")
         scale = height_scale(unit or "file unit", a, b, rule)
     elif unit is None:
         raise InputError(f"{where} does not state the unit of its heights (no Z Unit / ZUnits line); give "

@@ -572,7 +572,7 @@ def load_image(path, size, height_range, *, resolution=None, channel=None, z_uni
         scale = height_scale(unit, a, hr[0], f"gray 0..{full:g} onto {hr[0] * 1e3:.6g}..{hr[1] * 1e3:.6g} mm",
                              "gray level")
     elif hr is not None:
-        heights, a, b, rule = fit_range(values, hr, where, mask)
+        heights, a, b, rule = fit_range(values, hr, where, mask, unit)
         scale = height_scale(unit, a, b, rule)
     else:
         _minmax_finite(values, where)
