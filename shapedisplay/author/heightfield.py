@@ -65,6 +65,30 @@ def check_spacing(value: float, name: str) -> float:
     return v
 
 
+def parse_size(size, name: str = "size") -> tuple[float, float]:
+    """A physical ``(width, height)`` in metres from "60x4mm" or a pair of lengths (metres or strings with
+    units); both finite and > 0, errors naming ``name``."""
+    from shapedisplay.units import parse_pair, parse_quantity
+    if isinstance(size, str):
+        w, h = parse_pair(size, "x", "m", name)
+    else:
+        try:
+            w, h = size
+        except (TypeError, ValueError):
+            raise InputError(f"`{name}` must be (width, height) in metres (got {size!r})") from None
+        pair = []
+        for v, part in ((w, f"{name}[0] (width)"), (h, f"{name}[1] (height)")):
+            try:
+                pair.append(parse_quantity(v, "m", part) if isinstance(v, str) else float(v))
+            except (TypeError, ValueError):
+                raise InputError(f"`{part}` must be a length in metres or a string with its unit "
+                                 f"(got {v!r})") from None
+        w, h = pair
+    if not (w > 0 and h > 0 and np.isfinite(w) and np.isfinite(h)):
+        raise InputError(f"`{name}` must be positive (got width={w} m, height={h} m)")
+    return float(w), float(h)
+
+
 def grid_from_picture(values: np.ndarray) -> np.ndarray:
     """Picture order (row 0 = top edge) -> height-field order (row 0 = smallest y). A view, no copy."""
     return np.asarray(values)[::-1]

@@ -61,7 +61,7 @@ from pathlib import Path
 import numpy as np
 
 from shapedisplay.errors import FileFormatError, InputError
-from shapedisplay.author.heightfield import (HeightField, check_grid_size, check_spacing, fit_range,
+from shapedisplay.author.heightfield import (HeightField, check_grid_size, check_spacing, fit_range, parse_size,
                                              grid_from_picture, height_range as _height_range, height_scale)
 
 #: Suffixes of instrument files (:func:`load_scan`).
@@ -755,7 +755,7 @@ def load_scan(path, size=None, height_range=None, *, resolution=None, channel=No
         raise InputError(f"`{flag('channel', 'channel')}` applies to colour pictures, not to {where} "
                          f"(an instrument file holds one height channel)")
     if size is not None:
-        w, h = _size_m(size, flag("size", "size"))
+        w, h = parse_size(size, flag("size", "size"))
     if resolution is not None:
         r = _length_m(resolution, flag("resolution", "resolution"))
     if size is not None and resolution is not None:
@@ -826,18 +826,3 @@ def _length_m(value, name: str) -> float:
     except (TypeError, ValueError):
         raise InputError(f"`{name}` must be a length in metres or a string with its unit (got {value!r})") from None
     return check_spacing(v, name)
-
-
-def _size_m(size, name: str) -> tuple[float, float]:
-    if isinstance(size, str):
-        from shapedisplay.units import parse_pair
-        w, h = parse_pair(size, "x", "m", name)
-    else:
-        try:
-            w, h = size
-        except (TypeError, ValueError):
-            raise InputError(f"`{name}` must be (width, height) in metres (got {size!r})") from None
-        w, h = _length_m(w, f"{name}[0] (width)"), _length_m(h, f"{name}[1] (height)")
-    if not (w > 0 and h > 0 and math.isfinite(w) and math.isfinite(h)):
-        raise InputError(f"`{name}` must be positive (got width={w} m, height={h} m)")
-    return w, h

@@ -30,8 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from shapedisplay.errors import FileFormatError, InputError, unknown_key
-from shapedisplay.author.heightfield import HeightField, check_grid_size, check_spacing, height_range as _height_range, height_scale
-from shapedisplay.author.heightfield import finite_range as _minmax_finite, fit_range
+from shapedisplay.author.heightfield import (HeightField, check_grid_size, check_spacing, finite_range as _minmax_finite,
+                                             fit_range, height_range as _height_range, height_scale, parse_size)
 from shapedisplay.author.imageio import PICTURE_SUFFIXES   # numpy only; Pillow is imported when a picture is read
 from shapedisplay.author.instruments import SCAN_SUFFIXES, load_scan
 from shapedisplay.author.shapes import PRIMITIVE_EDGES, rounded_rect_distance
@@ -78,18 +78,7 @@ def _finite(value, name: str) -> float:
 
 
 def _size(size, name: str = "size") -> tuple[float, float]:
-    if isinstance(size, str):
-        from shapedisplay.units import parse_pair
-        w, h = parse_pair(size, "x", "m", name)
-    else:
-        try:
-            w, h = size
-        except (TypeError, ValueError):
-            raise InputError(f"`{name}` must be (width, height) in metres (got {size!r})") from None
-        w, h = _length(w, f"{name}[0] (width)"), _length(h, f"{name}[1] (height)")
-    if not (w > 0 and h > 0):
-        raise InputError(f"`{name}` must be positive (got width={w} m, height={h} m)")
-    return w, h
+    return parse_size(size, name)
 
 
 def _cells(extent: float, spacing: float, name: str) -> int:
