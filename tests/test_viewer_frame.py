@@ -69,7 +69,7 @@ def test_wall_overlay_exists_exactly_where_walls_do():
     assert p.wall_actor is not None and p.wall_cells == expected
     assert p.wall_actor.GetMapper().GetInput().GetNumberOfCells() == expected
     assert any(label.startswith("wall") for label, _ in p.legend)
-    assert "red: walls" in p.info and f"{100 * walls.mean():.0f} % of samples" in p.info
+    assert "red: walls" in p.info and f"{100 * walls.mean():.3g} % of the canvas" in p.info
     p.close()
     smooth = viewer.render(viewer.model_from_heightfield(_smooth_field()), "height", size=(W, H))
     assert smooth.wall_actor is None and smooth.wall_cells == 0
