@@ -47,8 +47,9 @@ Size and resolution
 :func:`svg_size` is the physical size the ``<svg>`` element states: its
 ``width`` and ``height`` in an absolute unit (``mm``, ``cm``, ``in``,
 ``pt``, ``pc``, ``Q``), or one of them with the other following the
-``viewBox``. ``px`` and plain numbers are screen pixels, not lengths: such
-an SVG needs a size from the caller.
+``viewBox``. ``px`` and plain numbers are CSS pixels: without a size from
+the caller, :func:`raster_plan` takes them at 96 an inch (the length a
+browser shows at 100 %; a 24 px icon is 6.35 mm) and says so.
 
 The raster (:func:`raster_size`) keeps the SVG's proportions (its
 ``width``/``height``, else its ``viewBox``) and is, in order of preference:
