@@ -180,3 +180,26 @@ def test_canvas_origin_top_left_reads_y_down_and_the_studio_writes_it_so(tmp_pat
     assert diff_lines(text, out) == ['-from = "4,8 mm"', '-to = "76,8 mm"', '+from = "4,7 mm"', '+to = "76,7 mm"']
     with pytest.raises(InputError, match="canvas.origin"):
         apply_ops(text.replace('"top-left"', '"top-right"'), [{"op": "delete", "widget": "home"}], scene)
+
+
+def test_the_inspector_offers_the_reaction_keys_and_they_write_as_the_loader_reads_them(scene):
+    """press, click, movable and motion (docs/reactive.md) are in the inspector of every type that takes them
+    (a toggle or slider never moves), and a set writes them as values the scene loader accepts."""
+    from shapedisplay.author.scene import load_scene
+    from shapedisplay.studio.inspector import schema
+    s = schema()
+    keys = {t: {k["key"]: k for k in s[t]["keys"]} for t in s}
+    for t in ("button", "dent", "image"):
+        assert {"press", "click", "movable", "motion"} <= set(keys[t]), t
+    for t in ("toggle", "slider"):
+        assert {"press", "click"} <= set(keys[t]) and not {"movable", "motion"} & set(keys[t]), t
+    assert keys["button"]["press"]["unit"] == "N" and keys["button"]["movable"]["choices"] == ("true", "false")
+    text = scene.read_text()
+    new, _ = apply_ops(text, [{"op": "set", "widget": "call", "key": "press", "value": "3 N release 1.5 N"},
+                              {"op": "set", "widget": "call", "key": "movable", "value": True},
+                              {"op": "set", "widget": "call", "key": "click", "value": "burst 0.4 8ms"}], scene)
+    added = [ln for ln in diff_lines(text, new) if ln.startswith("+")]
+    assert sorted(added) == ['+click = "burst 0.4 8ms"', '+movable = true', '+press = "3 N release 1.5 N"']
+    scene.write_text(new)
+    r = load_scene(scene).reactions["call"]
+    assert (r["press_n"], r["release_n"]) == (3.0, 1.5) and r["kind"] == "object", r

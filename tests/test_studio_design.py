@@ -221,6 +221,28 @@ def test_inspector_writes_one_key_validates_live_and_the_new_table_plays(fresh):
     undo_to(page, before)
 
 
+def test_inspector_writes_the_reaction_keys(fresh):
+    """press (a bare number gets N), movable (a true/false choice written as a TOML boolean)."""
+    page = fresh
+    before = page.studio.scene.read_bytes()
+    page.locator('[data-widget="call"]').click()
+    field = page.locator("#inspector input[name=press]")
+    field.fill("3")
+    field.press("Enter")
+    wait_version_change(page, version_of(before))
+    mid = page.studio.scene.read_bytes()
+    assert widget(tomllib.loads(mid.decode()), "call")["press"] == "3 N"
+    page.locator("#inspector select[name=movable]").select_option("true")
+    wait_version_change(page, version_of(mid))
+    assert widget(tomllib.loads(page.studio.scene.read_text()), "call")["movable"] is True
+    assert page.locator("#inspector select[name=movable]").count() == 1
+    page.locator('[data-widget="wifi"]').click()                     # a toggle flips: it has no movable
+    assert page.locator("#inspector select[name=movable]").count() == 0
+    assert page.locator("#inspector input[name=press]").count() == 1
+    undo_to(page, mid)
+    undo_to(page, before)
+
+
 def test_palette_adds_duplicates_and_deletes_and_undo_restores_each(fresh):
     page = fresh
     original = page.studio.scene.read_bytes()

@@ -211,9 +211,10 @@ def set_key(text: str, wid: str, key, value) -> str:
 
 def _set_at(text: str, data: dict, i: int, wid: str, key, value) -> str:
     """:func:`set_key` on the ``i``-th [[widget]] entry (``wid`` names it in messages)."""
+    from shapedisplay.author.scene.reactions import REACTION_KEYS
     from shapedisplay.author.scene.spec import PERCEPTION_KEYS
     wt = _type_of(data, i)
-    valid = (list(wt.keys) if wt else []) + list(PERCEPTION_KEYS)
+    valid = (list(wt.keys) if wt else []) + list(PERCEPTION_KEYS) + list(REACTION_KEYS)
     if not isinstance(key, str) or key not in valid:
         from shapedisplay.errors import did_you_mean
         raise InputError(f"widget '{wid}': unknown key {key!r}{did_you_mean(str(key), valid)}; "

@@ -1,7 +1,8 @@
 """What the studio's inspector shows: every key of each widget type, its unit and choices, and the values.
 
 :func:`schema` lists per widget type the keys the scene loader accepts
-(``WidgetType.keys`` and the legibility keys), each with the unit the page
+(``WidgetType.keys``, the legibility keys and the reaction keys of
+docs/reactive.md), each with the unit the page
 writes after a bare number, the choices of a choice key and whether it is one
 of the type's strength keys (height / force / force_step / level; depth for
 sunk types: writing one removes the others). :func:`widget_values` gives each
@@ -23,7 +24,12 @@ HINTS = {
     "position": "x,y of the lower-left corner", "center": "x,y", "size": "width x height",
     "from": "x,y", "to": "x,y", "contrast": "e.g. 3 jnd", "distinct_from": "widget ids",
     "overlap": "max | min | add | over",
+    "press": "e.g. 2 N release 1.2 N, or off", "click": "e.g. burst 0.5 10ms, drop 50% 20ms, or off",
+    "movable": "dragged by a pressed finger", "motion": "e.g. 20 mm/s +x, or keyframes",
 }
+#: Kind, unit and choices of the reaction keys (author/scene/reactions.py): a bare number of `press` is newtons.
+REACTION_KINDS = {"press": ("force", "N", None), "click": ("str", "", None), "movable": ("bool", "", ("true", "false")),
+                  "motion": ("str", "", None)}
 
 
 def _choices(wtype: str, key: str):
@@ -45,6 +51,7 @@ def _choices(wtype: str, key: str):
 
 def schema() -> dict:
     """``{type: {"keys": [{key, kind, unit, choices, strength, hint}], "strength": [...], "boxed": bool}}``."""
+    from shapedisplay.author.scene.reactions import FIXED_TYPES, REACTION_KEYS
     from shapedisplay.author.scene.spec import PERCEPTION_KEYS
     from shapedisplay.author.scene.widgets import WIDGET_TYPES
     out = {}
@@ -57,6 +64,12 @@ def schema() -> dict:
                          "strength": key in wt.strength_keys, "hint": HINTS.get(key, "")})
         for key in PERCEPTION_KEYS:
             keys.append({"key": key, "kind": "str", "unit": "", "choices": None, "strength": False,
+                         "hint": HINTS.get(key, "")})
+        for key in REACTION_KEYS:                       # docs/reactive.md: how the widget reacts
+            if key in ("movable", "motion") and name in FIXED_TYPES:
+                continue
+            kind, unit, choices = REACTION_KINDS[key]
+            keys.append({"key": key, "kind": kind, "unit": unit, "choices": choices, "strength": False,
                          "hint": HINTS.get(key, "")})
         out[name] = {"keys": keys, "strength": list(wt.strength_keys), "boxed": wt.boxed}
     return out

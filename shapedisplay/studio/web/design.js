@@ -283,6 +283,7 @@ function parseField(spec, text) {
   const t = text.trim();
   if (t === "") return null;
   if (spec.kind === "num") return /^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$/.test(t) ? Number(t) : t;
+  if (spec.kind === "bool") return t === "true" ? true : t === "false" ? false : t;
   if (spec.kind === "detents") return /^\d+$/.test(t) ? Number(t) : t;
   if (spec.kind === "array" || spec.key === "distinct_from" || t.startsWith("[")) {
     try { return JSON.parse(t); } catch (err) { return t; }
