@@ -142,17 +142,21 @@ class WasmRunner:
         return outs, audio, tuple(int(self.call("sd_wasm_counter", i)) for i in range(4))
 
 
-def wasm_play_events(runner, image: bytes, r, x, y):
+def wasm_play_events(runner, image: bytes, r, x, y, press=None):
     """Tick by tick through the exports as sd_wasm.js steps it: outputs, audio, counters and every
-    event (absolute time, amplitude) as the host tool logs them."""
+    event (absolute time, amplitude) as the host tool logs them; with ``press`` (N per tick) the ticks are
+    sd_wasm_step_press and the reaction events popped after each tick follow, as (kind, widget, tick, value)."""
     assert runner.load(image) == 0
     assert runner.call("sd_wasm_configure", int(r.config["model"]), int(r.config["policy"]), r.tick_rate,
                        r.audio_rate) == 0
     nout = runner.call("sd_wasm_n_outputs")
     assert nout == len(OUTPUTS.names)
-    outs, audio, et, ea = [], [], [], []
-    for xi, yi in zip(x, y):
-        runner.call("sd_wasm_step", float(xi), float(yi))
+    outs, audio, et, ea, rev = [], [], [], [], []
+    for i, (xi, yi) in enumerate(zip(x, y)):
+        if press is None:
+            runner.call("sd_wasm_step", float(xi), float(yi))
+        else:
+            runner.call("sd_wasm_step_press", float(xi), float(yi), float(press[i]))
         outs.append(runner.read(runner.call("sd_wasm_outputs"), 8 * nout))
         na = runner.call("sd_wasm_audio_count")
         audio.append(np.frombuffer(runner.read(runner.call("sd_wasm_audio"), 8 * na), "<f8"))
@@ -160,9 +164,16 @@ def wasm_play_events(runner, image: bytes, r, x, y):
         if ne:
             et.append(np.frombuffer(runner.read(runner.call("sd_wasm_event_times"), 8 * ne), "<f8"))
             ea.append(np.frombuffer(runner.read(runner.call("sd_wasm_event_amplitudes"), 8 * ne), "<f8"))
+        while press is not None:
+            p = runner.call("sd_wasm_react_pop")
+            if not p:
+                break
+            k, w, t, v = np.frombuffer(runner.read(p, 32), "<f8")
+            rev.append((int(k), int(w), int(round(t * r.tick_rate)), v))
     cat = (lambda v: np.concatenate(v) if v else np.zeros(0))
     counters = tuple(int(runner.call("sd_wasm_counter", i)) for i in range(4))
-    return np.frombuffer(b"".join(outs), OUTPUTS), cat(audio), counters, cat(et), cat(ea)
+    res = (np.frombuffer(b"".join(outs), OUTPUTS), cat(audio), counters, cat(et), cat(ea))
+    return res if press is None else res + (rev,)
 
 
 def derived_bounds(r, outs, unit_roundoff: float, libm_ulps: float = 1.0):
@@ -458,27 +469,5 @@ def wasm_play_reactions(runner, image: bytes, r, x, y, press):
     """Tick by tick through the exports with the press (sd_wasm_step_press), popping the reaction events after
     every tick: outputs, audio, counters, stick-slip events and reaction events as REACT_EVENT records."""
     from shapedisplay.render.layouts import REACT_EVENT
-    assert runner.load(image) == 0
-    assert runner.call("sd_wasm_configure", int(r.config["model"]), int(r.config["policy"]), r.tick_rate,
-                       r.audio_rate) == 0
-    nout = runner.call("sd_wasm_n_outputs")
-    outs, audio, et, ea, rev = [], [], [], [], []
-    for xi, yi, pi in zip(x, y, press):
-        runner.call("sd_wasm_step_press", float(xi), float(yi), float(pi))
-        outs.append(runner.read(runner.call("sd_wasm_outputs"), 8 * nout))
-        na = runner.call("sd_wasm_audio_count")
-        audio.append(np.frombuffer(runner.read(runner.call("sd_wasm_audio"), 8 * na), "<f8"))
-        ne = runner.call("sd_wasm_tick_events")
-        if ne:
-            et.append(np.frombuffer(runner.read(runner.call("sd_wasm_event_times"), 8 * ne), "<f8"))
-            ea.append(np.frombuffer(runner.read(runner.call("sd_wasm_event_amplitudes"), 8 * ne), "<f8"))
-        while True:
-            p = runner.call("sd_wasm_react_pop")
-            if not p:
-                break
-            k, w, t, v = np.frombuffer(runner.read(p, 32), "<f8")
-            rev.append((int(k), int(w), int(round(t * r.tick_rate)), v))
-    cat = (lambda v: np.concatenate(v) if v else np.zeros(0))
-    counters = tuple(int(runner.call("sd_wasm_counter", i)) for i in range(4))
-    return (np.frombuffer(b"".join(outs), OUTPUTS), cat(audio), counters, cat(et), cat(ea),
-            np.array(rev, REACT_EVENT) if rev else np.zeros(0, REACT_EVENT))
+    *res, rev = wasm_play_events(runner, image, r, x, y, press)
+    return (*res, np.array(rev, REACT_EVENT) if rev else np.zeros(0, REACT_EVENT))
