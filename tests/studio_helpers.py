@@ -1,6 +1,7 @@
 """Running a studio in a child process for the tests (the real CLI, a real socket)."""
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import signal
@@ -16,6 +17,33 @@ ROOT = Path(__file__).resolve().parent.parent
 PHONE = ROOT / "assets" / "scenes" / "phone.toml"
 #: Longest wait for a studio's first compile (s): generous for a busy machine.
 READY_TIMEOUT = 120.0
+
+
+@contextlib.contextmanager
+def studio_page(source, ready: str, height: int = 980):
+    """A studio on ``source`` and a headless Chromium page on it, once ``ready`` (a JS condition) holds.
+
+    The page carries ``studio`` (the :class:`StudioProcess`), ``js_errors`` (the page's uncaught errors)
+    and ``browser``; both are closed on exit.
+    """
+    sync_playwright, chromium = require_chromium()
+    studio = StudioProcess(source)
+    try:
+        with sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=chromium, args=["--autoplay-policy=no-user-gesture-required"])
+            try:
+                # the page's Content-Security-Policy forbids eval; Playwright's waiting helpers need it
+                pg = browser.new_page(viewport={"width": 1500, "height": height}, bypass_csp=True)
+                errors: list = []
+                pg.on("pageerror", lambda e: errors.append(str(e)))
+                pg.goto(studio.url)
+                pg.wait_for_function(ready, timeout=60000)
+                pg.studio, pg.js_errors, pg.browser = studio, errors, browser
+                yield pg
+            finally:
+                browser.close()
+    finally:
+        studio.stop()
 
 
 def require_chromium():

@@ -20,7 +20,7 @@ import pytest
 
 from studio_helpers import require_chromium
 
-sync_playwright, CHROMIUM = require_chromium()
+require_chromium()                                        # skips the module without them
 
 from shapedisplay.table.widgets import widget_map  # noqa: E402
 from shapedisplay.render import Renderer  # noqa: E402
@@ -28,7 +28,7 @@ from shapedisplay.render.cursor import CursorPath, load_trace_csv  # noqa: E402
 from shapedisplay.render.native import C_MODELS  # noqa: E402
 from shapedisplay.table.model import FrictionTable  # noqa: E402
 
-from studio_helpers import PHONE, StudioProcess  # noqa: E402
+from studio_helpers import PHONE, studio_page  # noqa: E402
 
 #: Screenshot of the page for the README (copied there when this variable names a folder).
 SCREENSHOT_DIR = os.environ.get("SHAPEDISPLAY_SCREENSHOT_DIR")
@@ -38,22 +38,9 @@ SCREENSHOT_DIR = os.environ.get("SHAPEDISPLAY_SCREENSHOT_DIR")
 def page(tmp_path_factory):
     folder = tmp_path_factory.mktemp("studio")
     shutil.copy(PHONE, folder / "phone.toml")
-    studio = StudioProcess(folder / "phone.toml")
-    studio.folder = folder
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM,
-                                    args=["--autoplay-policy=no-user-gesture-required"])
-        # the page's Content-Security-Policy forbids eval; Playwright's waiting helpers need it
-        pg = browser.new_page(viewport={"width": 1500, "height": 980}, bypass_csp=True)
-        errors = []
-        pg.on("pageerror", lambda e: errors.append(str(e)))
-        pg.goto(studio.url)
-        pg.wait_for_function("window.studio && studio.shownGeneration !== null",
-                             timeout=30000)
-        pg.studio, pg.js_errors = studio, errors
+    with studio_page(folder / "phone.toml", "window.studio && studio.shownGeneration !== null") as pg:
+        pg.studio.folder = folder
         yield pg
-        browser.close()
-    studio.stop()
 
 
 def table_of(page) -> FrictionTable:

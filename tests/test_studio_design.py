@@ -21,7 +21,7 @@ import pytest
 from studio_helpers import require_chromium
 
 pytest.importorskip("tomlkit")
-sync_playwright, CHROMIUM = require_chromium()
+require_chromium()                                        # skips the module without them
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -30,7 +30,7 @@ else:                                                     # pragma: no cover
 
 from shapedisplay.studio.edits import version_of  # noqa: E402
 
-from studio_helpers import PHONE, StudioProcess  # noqa: E402
+from studio_helpers import PHONE, studio_page  # noqa: E402
 
 ORIGINAL = PHONE.read_bytes()
 #: Where the docs' screenshot goes when this variable names a folder (scripts/docs_images.py).
@@ -41,21 +41,10 @@ SCREENSHOT_DIR = os.environ.get("SHAPEDISPLAY_SCREENSHOT_DIR")
 def page(tmp_path_factory):
     folder = tmp_path_factory.mktemp("design")
     shutil.copy(PHONE, folder / "phone.toml")
-    studio = StudioProcess(folder / "phone.toml")
-    studio.folder = folder
-    studio.scene = folder / "phone.toml"
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=["--autoplay-policy=no-user-gesture-required"])
-        pg = browser.new_page(viewport={"width": 1500, "height": 1000}, bypass_csp=True)
-        errors = []
-        pg.on("pageerror", lambda e: errors.append(str(e)))
-        pg.goto(studio.url)
-        pg.wait_for_function("window.studio && studio.shownGeneration !== null && studio.design && "
-                             "studio.design.schema", timeout=30000)
-        pg.studio, pg.js_errors, pg.browser = studio, errors, browser
+    with studio_page(folder / "phone.toml", "window.studio && studio.shownGeneration !== null && studio.design "
+                     "&& studio.design.schema", height=1000) as pg:
+        pg.studio.folder, pg.studio.scene = folder, folder / "phone.toml"
         yield pg
-        browser.close()
-    studio.stop()
 
 
 @pytest.fixture

@@ -9,33 +9,23 @@ import pytest
 
 from studio_helpers import require_chromium
 
-sync_playwright, CHROMIUM = require_chromium()
+require_chromium()                                        # skips the module without them
 
-from studio_helpers import ROOT, StudioProcess  # noqa: E402
+from studio_helpers import ROOT, studio_page  # noqa: E402
 
 
 @pytest.fixture(scope="module")
 def page(tmp_path_factory):
     folder = tmp_path_factory.mktemp("studio-reactive")
     shutil.copy(ROOT / "assets" / "scenes" / "reactive.toml", folder / "reactive.toml")
-    studio = StudioProcess(folder / "reactive.toml")
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=["--autoplay-policy=no-user-gesture-required"])
-        pg = browser.new_page(viewport={"width": 1500, "height": 980}, bypass_csp=True)
-        errors = []
-        pg.on("pageerror", lambda e: errors.append(str(e)))
-        pg.goto(studio.url)
-        pg.wait_for_function("window.studio && studio.shownGeneration !== null && studio.layout !== null",
-                             timeout=60000)
+    with studio_page(folder / "reactive.toml",
+                     "window.studio && studio.shownGeneration !== null && studio.layout !== null") as pg:
         pg.select_option("#tool", "feel")
         pg.click("#feel")
         pg.wait_for_function("studio.node !== null && studio.ctx.state === 'running'", timeout=20000)
         pg.evaluate("document.activeElement && document.activeElement.blur()")
-        try:
-            yield pg
-        finally:
-            browser.close()
-            studio.stop()
+        yield pg
+        errors = pg.js_errors
     assert not errors, errors
 
 
